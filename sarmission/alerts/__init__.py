@@ -1,0 +1,1 @@
+"""Durable alert store, operator feed server and Cursor-on-Target export."""

@@ -1,0 +1,1 @@
+"""Evaluation: NWD matching, SAR metrics (SSR / FAR / search time), box metrics by size band."""

@@ -1,0 +1,1 @@
+"""Camera model, pose interpolation, ray-ground geolocation and WGS84 helpers."""

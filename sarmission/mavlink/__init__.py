@@ -1,0 +1,1 @@
+"""MAVLink connection, telemetry buffer, commands and mission upload."""

@@ -1,0 +1,1 @@
+"""Mission controller, mission configuration and action policy."""

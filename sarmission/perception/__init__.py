@@ -1,0 +1,1 @@
+"""MITE-Net perception: vSTMD motion front-end, TTM-RPN proposals, motion-enhanced crops, head."""

@@ -1,0 +1,66 @@
+"""Plain data objects passed between the perception stages and out of MITE-Net."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class MotionMaps:
+    """vSTMD state read out for one frame, all at 1/ds resolution (float32, shape ``[h, w]``).
+
+    ``temporal_change`` is the signed lamina output L (after pooling by ds), ``v_on`` / ``v_off`` the
+    medulla membrane potentials, ``correlation`` their product C, ``response`` the lobula output R
+    (after the size-selective DoG inhibition and rectification).
+    """
+
+    ds: int
+    temporal_change: np.ndarray
+    v_on: np.ndarray
+    v_off: np.ndarray
+    correlation: np.ndarray
+    response: np.ndarray
+
+
+@dataclass
+class Proposals:
+    """TTM-RPN proposals in full-resolution pixels (``N`` rows; ``N`` may be 0).
+
+    ``points`` are the response maxima (x, y) in full-resolution pixels before the forward shift,
+    ``boxes`` the shifted square boxes ``[x1, y1, x2, y2]`` of side S, ``theta`` the motion
+    direction in radians (0 = +x, counter-clockwise with y pointing up), ``polarity`` 1 for ON
+    (L > 0 at the point) and 0 for OFF.
+    """
+
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.float32))
+    boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    scores: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
+    theta: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
+    polarity: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
+
+    def __len__(self) -> int:
+        return int(self.boxes.shape[0])
+
+
+@dataclass
+class Detections:
+    """Head output for one frame: boxes ``[x1, y1, x2, y2]`` in full-resolution pixels."""
+
+    boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.float32))
+    scores: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
+    class_ids: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.int64))
+
+    def __len__(self) -> int:
+        return int(self.boxes.shape[0])
+
+
+@dataclass
+class FrameResult:
+    """Everything MITE-Net produced for one frame."""
+
+    timestamp: float
+    detections: Detections
+    proposals: Proposals
+    motion: MotionMaps

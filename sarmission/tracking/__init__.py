@@ -1,0 +1,1 @@
+"""Multi-target tracking in image space and m-of-k lock confirmation."""

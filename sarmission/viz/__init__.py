@@ -1,0 +1,1 @@
+"""rerun logging of frames, proposals, detections, tracks and targets."""

@@ -1,0 +1,1 @@
+"""Replay simulator: synthetic 4K SAR scenes with ground truth, flight telemetry, MAVLink vehicle."""
