@@ -1,0 +1,8 @@
+"""Sub-commands of the ``sarmission`` CLI; each module has ``add_parser`` and a ``run`` function.
+
+Heavy imports (torch, OpenCV, pymavlink) happen inside ``run`` so ``sarmission --help`` is fast.
+"""
+
+from sarmission.commands import bench, detect, export, info
+
+COMMANDS = (info, detect, bench, export)

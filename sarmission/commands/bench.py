@@ -1,0 +1,68 @@
+"""``sarmission bench``: the scalability table (ds × N) on 3840x2160 frames in memory."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        return [int(v) for v in text.split(",") if v]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
+    if width < 32 or height < 32:
+        raise argparse.ArgumentTypeError(f"frame size {text} is too small")
+    return width, height
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the ``bench`` sub-command."""
+    parser = sub.add_parser(
+        "bench",
+        help="time MITE-Net per stage over ds and N",
+        description="Time MITE-Net on synthetic frames already in memory: ms per stage, FPS, "
+        "FLOPs and peak memory for each (ds, N), beside a plain memory pass (BGR copy + "
+        "grayscale) over the same frames. Each configuration runs in its own process.",
+    )
+    parser.add_argument("--ds", type=_int_list, default=[1, 2, 4, 8],
+                        help="down-sampling factors (default: 1,2,4,8)")
+    parser.add_argument("--topn", type=_int_list, default=[10, 25, 50, 100],
+                        help="proposal counts (default: 10,25,50,100)")
+    parser.add_argument("--size", type=_size, default=(3840, 2160),
+                        help="frame size WIDTHxHEIGHT (default: 3840x2160)")
+    parser.add_argument("--frames", type=int, default=20,
+                        help="timed frames per configuration, after 3 warm-up frames "
+                        "(default: %(default)s)")
+    parser.add_argument("--quick", action="store_true",
+                        help="only ds 2 and 4 at N=25 with 10 frames")
+    parser.add_argument("--model", default=None,
+                        help="head weights; default: the shipped model, else an untrained head "
+                        "(weights do not change the timing)")
+    parser.add_argument("--runtime", choices=("torch", "onnx"), default="torch")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep and print the table (or JSON)."""
+    from sarmission.benchmark import format_table, rows_to_json, run_sweep
+
+    ds_values, topn_values, frames = args.ds, args.topn, args.frames
+    if args.quick:
+        ds_values, topn_values, frames = [2, 4], [25], 10
+    bad = [d for d in ds_values if d not in (1, 2, 4, 8)]
+    if bad:
+        raise ValueError(f"--ds accepts 1, 2, 4 and 8, got {bad}")
+    if frames < 1 or min(topn_values) < 1:
+        raise ValueError("--frames and --topn must be positive")
+    width, height = args.size
+    rows = run_sweep(ds_values, topn_values, width, height, frames, args.model, args.runtime)
+    print(rows_to_json(rows) if args.json else format_table(rows))
+    return 0

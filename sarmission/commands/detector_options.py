@@ -1,0 +1,41 @@
+"""Detector options shared by every command that runs MITE-Net, and the factory that uses them."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sarmission.perception.mitenet import MiteNet
+
+DEFAULT_DS = 2
+DEFAULT_TOPN = 25
+DEFAULT_SCORE_THRESHOLD = 0.3
+
+
+def add_detector_options(parser: argparse.ArgumentParser) -> None:
+    """Add ``--model --runtime --ds --topn --conf`` to ``parser``."""
+    group = parser.add_argument_group("detector")
+    group.add_argument("--model", default=None,
+                       help="head weights (.pt or .onnx); default: the model shipped with sarmission")
+    group.add_argument("--runtime", choices=("torch", "onnx"), default="torch",
+                       help="head runtime (default: %(default)s)")
+    group.add_argument("--ds", type=int, choices=(1, 2, 4, 8), default=DEFAULT_DS,
+                       help="vSTMD down-sampling factor (default: %(default)s)")
+    group.add_argument("--topn", type=int, default=DEFAULT_TOPN,
+                       help="proposals per frame (default: %(default)s)")
+    group.add_argument("--conf", type=float, default=DEFAULT_SCORE_THRESHOLD,
+                       help="minimum detection score kept (default: %(default)s)")
+
+
+def build_mitenet(args: argparse.Namespace) -> MiteNet:
+    """Create the MITE-Net cascade from parsed detector options (loads the head weights)."""
+    from sarmission.models import default_model_path
+    from sarmission.perception.mitenet import MiteNet
+    from sarmission.perception.runtime import load_head_runtime
+
+    if args.topn < 1:
+        raise ValueError(f"--topn must be at least 1, got {args.topn}")
+    model_path = args.model or default_model_path(args.runtime)
+    head = load_head_runtime(model_path, runtime=args.runtime)
+    return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf)
