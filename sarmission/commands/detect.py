@@ -39,14 +39,14 @@ def run(args: argparse.Namespace) -> int:
     net = build_mitenet(args)
     image_ids = _image_ids_by_frame(args.annotations) if args.annotations else None
     results: list[dict] = []
-    total = len(source) if len(source) else None
+    total = source.length
     if args.max_frames is not None:
         total = min(total or args.max_frames, args.max_frames)
     with tqdm(total=total, unit="frame", desc="detect", file=sys.stderr) as bar:
         for frame in source:
             if args.max_frames is not None and bar.n >= args.max_frames:
                 break
-            result = net.process(frame.image, frame.timestamp)
+            result = net.process(frame.image_bgr, frame.timestamp_s)
             image_id = image_ids.get(frame.index, frame.index) if image_ids else frame.index
             results.extend(detections_to_coco(result.detections, image_id, frame.index))
             bar.update(1)

@@ -88,7 +88,7 @@ class Video:
 
 @dataclass
 class ImageRecord:
-    """One frame: its file, size, place in a video, raw ``meta`` and the telemetry parsed from it."""
+    """One frame: file, size, place in its video, raw ``meta`` and the telemetry parsed from it."""
 
     id: int
     file_name: str
@@ -332,6 +332,7 @@ class _Reader:
             raise self.fail(f"{where} is missing required key(s) {', '.join(map(repr, missing))}")
 
     def integer(self, item: dict[str, Any], key: str, where: str) -> Any:
+        """The integer at ``key`` (integral floats accepted), ``None`` when absent or null."""
         value = item.get(key)
         if value is None:
             return None
@@ -387,7 +388,8 @@ def read_coco_video(path: str | Path) -> VideoDataset:
     videos = [_read_video(reader, i, v) for i, v in enumerate(reader.records(doc, "videos", False))]
     categories = [_read_category(reader, i, c)
                   for i, c in enumerate(reader.records(doc, "categories", True))]
-    images = [_read_image(reader, i, im) for i, im in enumerate(reader.records(doc, "images", True))]
+    images = [_read_image(reader, i, im)
+              for i, im in enumerate(reader.records(doc, "images", True))]
     annotations = [_read_annotation(reader, i, a)
                    for i, a in enumerate(reader.records(doc, "annotations", True))]
 

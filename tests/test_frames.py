@@ -1,0 +1,96 @@
+"""Frame sources on real files written by OpenCV: video, image folder, corrupt frames, errors."""
+
+import logging
+
+import cv2
+import numpy as np
+import pytest
+
+from sarmission.data import Frame, FrameSourceError, open_frame_source
+
+W, H = 64, 48
+
+
+def image(i):
+    return np.full((H, W, 3), (10 * i, 255 - 10 * i, 100), np.uint8)
+
+
+def noise(i):
+    return np.random.default_rng(i).integers(0, 256, (H, W, 3), dtype=np.uint8)
+
+
+def write_video(path, fourcc, n, fps=10.0, make=image):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), fps, (W, H))
+    assert writer.isOpened()
+    for i in range(n):
+        writer.write(make(i))
+    writer.release()
+
+
+def test_mp4_video(tmp_path):
+    path = tmp_path / "clip.mp4"
+    write_video(path, "mp4v", 7, fps=10.0)
+    source = open_frame_source(path)
+    assert len(source) == 7 and source.fps == pytest.approx(10.0)
+    frames = list(source)
+    assert [f.index for f in frames] == list(range(7))
+    assert frames[3].timestamp_s == pytest.approx(0.3)
+    assert all(isinstance(f, Frame) and f.image_bgr.dtype == np.uint8
+               and f.image_bgr.shape == (H, W, 3) for f in frames)
+    assert np.abs(frames[5].image_bgr.astype(int) - image(5)).mean() < 8  # lossy codec
+    assert source.skipped == 0
+    assert len(list(source)) == 7  # iterable again
+
+
+def test_video_with_corrupt_frame_is_skipped(tmp_path, caplog):
+    path = tmp_path / "clip.avi"
+    write_video(path, "MJPG", 6, make=noise)  # noise: each JPEG is a few kB
+    data = bytearray(path.read_bytes())
+    starts = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
+    assert len(starts) == 6 and starts[3] - starts[2] > 1000  # one JPEG per frame
+    data[starts[2]:starts[2] + 400] = bytes(400)  # destroy the header of frame 2
+    path.write_bytes(bytes(data))
+    source = open_frame_source(path)
+    with caplog.at_level(logging.WARNING):
+        indices = [f.index for f in source]
+    assert indices == [0, 1, 3, 4, 5]
+    assert source.skipped == 1 and "frame 2 skipped" in caplog.text
+
+
+def test_png_folder_natural_order_and_corrupt_file(tmp_path, caplog):
+    for i in (1, 2, 10):
+        cv2.imwrite(str(tmp_path / f"frame{i}.png"), image(i))
+    cv2.imwrite(str(tmp_path / "frame3.jpg"), image(3))
+    (tmp_path / "frame5.png").write_bytes(b"\x89PNG\r\n\x1a\n garbage")  # corrupt
+    (tmp_path / "notes.txt").write_text("not an image")
+    source = open_frame_source(tmp_path, fps=5.0)
+    assert len(source) == 5 and source.fps == 5.0
+    with caplog.at_level(logging.WARNING):
+        frames = list(source)
+    assert [f.index for f in frames] == [0, 1, 2, 4]  # frame1, frame2, frame3, (5 bad), frame10
+    assert [f.timestamp_s for f in frames] == [0.0, 0.2, 0.4, 0.8]
+    np.testing.assert_array_equal(frames[3].image_bgr, image(10))  # PNG is lossless
+    assert source.skipped == 1 and "frame5.png" in caplog.text
+
+
+def test_errors(tmp_path):
+    with pytest.raises(FrameSourceError, match="no such file"):
+        open_frame_source(tmp_path / "missing.mp4")
+    text = tmp_path / "notes.txt"
+    text.write_text("hello")
+    with pytest.raises(FrameSourceError, match="cannot open|unreadable"):
+        open_frame_source(text)
+    fake = tmp_path / "fake.mp4"
+    fake.write_bytes(b"\x00" * 1000)
+    with pytest.raises(FrameSourceError):
+        open_frame_source(fake)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(FrameSourceError, match="no images"):
+        open_frame_source(empty)
+    cv2.imwrite(str(tmp_path / "one.png"), image(0))
+    with pytest.raises(FrameSourceError, match="single image"):
+        open_frame_source(tmp_path / "one.png")
+    with pytest.raises(FrameSourceError, match="fps"):
+        open_frame_source(tmp_path, fps=0)
+    assert issubclass(FrameSourceError, ValueError)
