@@ -1,0 +1,65 @@
+"""Synthetic motion scenes for the vSTMD / TTM-RPN tests: a smooth textured background with a
+small square or disc target moving over it. Deterministic from a seed; images are float32 in
+[0, 1] (``to_bgr`` turns them into uint8 BGR frames).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def textured_background(height: int, width: int, seed: int = 0, mean: float = 0.4,
+                        amplitude: float = 0.15, grain: float = 6.0) -> np.ndarray:
+    """Smooth random texture: uniform noise blurred with sigma ``grain`` px, rescaled to
+    ``mean +- amplitude``.
+    """
+    rng = np.random.default_rng(seed)
+    noise = rng.random((height, width)).astype(np.float32)
+    tex = cv2.GaussianBlur(noise, (0, 0), grain)
+    tex = (tex - tex.mean()) / max(float(tex.std()), 1e-6)
+    return np.clip(mean + amplitude * tex / 2.0, 0.0, 1.0).astype(np.float32)
+
+
+def target_mask(height: int, width: int, cx: float, cy: float, size: float,
+                shape: str = "square") -> np.ndarray:
+    """Anti-aliased coverage in [0, 1] of a ``size``-px square (side) or disc (diameter) centred
+    at ``(cx, cy)`` in pixel coordinates (pixel ``(i, j)`` has its centre at ``x = j, y = i``).
+    """
+    yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
+    if shape == "disc":
+        dist = np.hypot(xx - cx, yy - cy)
+        return np.clip(size / 2.0 + 0.5 - dist, 0.0, 1.0)
+    if shape != "square":
+        raise ValueError(f"shape must be 'square' or 'disc', got {shape!r}")
+    half = size / 2.0
+    mx = np.clip(np.minimum(xx + 0.5, cx + half) - np.maximum(xx - 0.5, cx - half), 0.0, 1.0)
+    my = np.clip(np.minimum(yy + 0.5, cy + half) - np.maximum(yy - 0.5, cy - half), 0.0, 1.0)
+    return mx * my
+
+
+def render(background: np.ndarray, cx: float, cy: float, size: float, value: float = 0.95,
+           shape: str = "square") -> np.ndarray:
+    """Background with a target of intensity ``value`` pasted at ``(cx, cy)``."""
+    m = target_mask(*background.shape, cx, cy, size, shape)
+    return (background * (1.0 - m) + value * m).astype(np.float32)
+
+
+def moving_target(height: int, width: int, n_frames: int, start: tuple[float, float],
+                  velocity: tuple[float, float], size: float, value: float = 0.95,
+                  shape: str = "square", seed: int = 0,
+                  background: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+    """Frames of a target moving at constant ``velocity`` (px/frame, y down) from ``start``.
+
+    Returns the frames and the ``[n_frames, 2]`` true centres ``(x, y)``.
+    """
+    bg = textured_background(height, width, seed) if background is None else background
+    centres = np.asarray(start, np.float64) + np.arange(n_frames)[:, None] * np.asarray(velocity)
+    frames = [render(bg, float(x), float(y), size, value, shape) for x, y in centres]
+    return frames, centres
+
+
+def to_bgr(image: np.ndarray) -> np.ndarray:
+    """Float gray image in [0, 1] → uint8 BGR frame."""
+    gray = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
+    return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)

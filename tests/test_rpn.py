@@ -1,0 +1,138 @@
+"""TTM-RPN: local maxima, top-N, forward shift, polarity, full-resolution geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from motion_scenes import moving_target, textured_background, to_bgr
+
+from sarmission.perception.rpn import TTMRPN
+from sarmission.perception.types import MotionMaps
+from sarmission.perception.vstmd import VSTMD
+
+
+def final_maps(frames: list[np.ndarray], ds: int, target_size: float) -> MotionMaps:
+    model = VSTMD(ds=ds, target_size=target_size)
+    maps = None
+    for f in frames:
+        maps = model.step(f)
+    return maps
+
+
+def maps_from_response(response: np.ndarray, ds: int = 1) -> MotionMaps:
+    z = np.zeros_like(response)
+    return MotionMaps(ds, z, z, z, z, response)
+
+
+def test_peaks_are_local_maxima_ranked_and_capped() -> None:
+    rng = np.random.default_rng(0)
+    r = (rng.random((60, 80)) ** 4).astype(np.float32)
+    rpn = TTMRPN(topn=7, nms_size=3, min_score=0.0)
+    rows, cols, scores = rpn.peaks(r)
+    assert rows.size == 7
+    assert np.all(np.diff(scores) <= 0)
+    for i, j, s in zip(rows, cols, scores, strict=True):
+        window = r[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+        assert s == window.max()
+    # No other local maximum beats the last kept one.
+    padded = np.pad(r, 1)
+    neigh = np.max([padded[1 + dy:61 + dy, 1 + dx:81 + dx]
+                    for dy in (-1, 0, 1) for dx in (-1, 0, 1)], axis=0)
+    all_max = np.sort(r[r == neigh])[::-1]
+    np.testing.assert_array_equal(scores, all_max[:7])
+
+
+def test_plateaus_zeros_and_threshold() -> None:
+    r = np.zeros((20, 20), np.float32)
+    r[5, 5:7] = 1.0  # two-pixel plateau: one proposal
+    r[12, 12] = 0.5
+    r[15, 3] = 1e-9  # below min_score
+    rows, cols, _ = TTMRPN(topn=10, min_score=1e-7).peaks(r)
+    assert sorted(zip(rows.tolist(), cols.tolist(), strict=True)) == [(5, 5), (12, 12)]
+    assert TTMRPN().peaks(np.zeros((8, 8), np.float32))[0].size == 0
+    assert len(TTMRPN().propose(maps_from_response(np.zeros((8, 8), np.float32)))) == 0
+
+
+def test_count_and_box_size() -> None:
+    bg = textured_background(240, 320, seed=11)
+    frames = []
+    for t in range(12):
+        img = bg.copy()
+        for k, (x0, y0) in enumerate([(60, 60), (200, 80), (120, 180)]):
+            f, _ = moving_target(240, 320, 1, (x0 + 2.0 * t, y0 + 0.5 * k * t), (0, 0), 8,
+                                 background=img)
+            img = f[0]
+        frames.append(img)
+    maps = final_maps(frames, 2, 8)
+    for topn in (1, 2, 25):
+        props = TTMRPN(topn=topn, box_size=16.0).propose(maps)
+        assert 1 <= len(props) <= topn
+        w = props.boxes[:, 2] - props.boxes[:, 0]
+        h = props.boxes[:, 3] - props.boxes[:, 1]
+        np.testing.assert_allclose(w, 16.0, atol=1e-4)
+        np.testing.assert_allclose(h, 16.0, atol=1e-4)
+        assert props.points.shape == (len(props), 2)
+        assert props.scores.shape == props.theta.shape == props.polarity.shape == (len(props),)
+    assert len(TTMRPN(topn=25).propose(maps)) >= 3
+
+
+def test_forward_shift_moves_box_towards_target() -> None:
+    raw, shifted = [], []
+    for k in range(8):
+        theta = k * np.pi / 4
+        v = (2.0 * np.cos(theta), -2.0 * np.sin(theta))
+        frames, centres = moving_target(200, 200, 12, (100 - 11 * v[0], 100 - 11 * v[1]), v, 8,
+                                        seed=k)
+        props = TTMRPN(topn=1, box_size=16.0).propose(final_maps(frames, 1, 8))
+        assert len(props) == 1
+        box_centre = props.boxes[0].reshape(2, 2).mean(axis=0)
+        raw.append(np.linalg.norm(props.points[0] - centres[-1]))
+        shifted.append(np.linalg.norm(box_centre - centres[-1]))
+        # The shift is exactly 0.3 * S along theta (y up).
+        d = box_centre - props.points[0]
+        np.testing.assert_allclose(d, [4.8 * np.cos(props.theta[0]),
+                                       -4.8 * np.sin(props.theta[0])], atol=1e-3)
+    assert np.mean(shifted) < np.mean(raw)
+
+
+def test_polarity_follows_contrast() -> None:
+    bg = np.full((160, 200), 0.5, np.float32)
+    got = {}
+    for name, value in (("bright", 0.95), ("dark", 0.05)):
+        frames, _ = moving_target(160, 200, 12, (70.0, 80.0), (2.0, 0.0), 8, value=value,
+                                  background=bg)
+        maps = final_maps(frames, 1, 8)
+        props = TTMRPN(topn=1).propose(maps)
+        x, y = props.points[0].astype(int)
+        assert props.polarity[0] == float(maps.temporal_change[y, x] > 0)
+        got[name] = props.polarity[0]
+    assert got["bright"] != got["dark"]
+
+
+@pytest.mark.parametrize("ds", [2, 4])
+@pytest.mark.parametrize("shape", [(240, 320), (241, 317)])
+def test_points_land_on_target_at_full_resolution(ds: int, shape: tuple[int, int]) -> None:
+    size = 12
+    frames, centres = moving_target(*shape, 14, (130.0, 121.0), (size / 4, 1.0), size, seed=6)
+    maps = final_maps([to_bgr(f) for f in frames], ds, size)
+    assert maps.response.shape == (shape[0] // ds, shape[1] // ds)
+    props = TTMRPN(topn=3, box_size=16.0).propose(maps)
+    assert len(props) >= 1
+    assert np.linalg.norm(props.points[0] - centres[-1]) <= size + 4
+    box_centre = props.boxes[0].reshape(2, 2).mean(axis=0)
+    assert np.linalg.norm(box_centre - centres[-1]) <= size + 4
+
+
+def test_invalid_arguments() -> None:
+    with pytest.raises(ValueError):
+        TTMRPN(topn=0)
+    with pytest.raises(ValueError):
+        TTMRPN(nms_size=4)
+    with pytest.raises(ValueError):
+        TTMRPN(box_size=0)
+
+
+def test_flops() -> None:
+    rpn = TTMRPN(topn=25)
+    assert rpn.flops(1080, 1920) > 5 * 1080 * 1920
+    assert rpn.flops(540, 960) < rpn.flops(1080, 1920)

@@ -1,0 +1,188 @@
+"""vSTMD front-end: motion response, static suppression, size selectivity, direction, streaming."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from motion_scenes import moving_target, render, textured_background, to_bgr
+
+from sarmission.perception.types import MotionMaps
+from sarmission.perception.vstmd import VSTMD, direction_at, map_to_full
+
+
+def run(model: VSTMD, frames: list[np.ndarray]) -> MotionMaps:
+    maps = None
+    for f in frames:
+        maps = model.step(f)
+    return maps
+
+
+def peak_full_res(maps: MotionMaps) -> np.ndarray:
+    i, j = np.unravel_index(int(np.argmax(maps.response)), maps.response.shape)
+    return np.array([map_to_full(j, maps.ds), map_to_full(i, maps.ds)])
+
+
+@pytest.mark.parametrize("ds", [1, 2, 4])
+@pytest.mark.parametrize("size", [4, 8, 16])
+def test_peak_response_on_small_moving_target(ds: int, size: int) -> None:
+    frames, centres = moving_target(240, 320, 14, (100.0, 110.0), (size / 4, 0.3 * size / 4), size,
+                                    seed=3)
+    maps = run(VSTMD(ds=ds, target_size=size), [to_bgr(f) for f in frames])
+    assert maps.response.max() > 0
+    # The response sits on the target or its trailing edge (the RPN shifts the box forward).
+    assert np.linalg.norm(peak_full_res(maps) - centres[-1]) <= size + 4
+
+
+def test_static_scene_gives_no_response() -> None:
+    bg = textured_background(200, 240, seed=1)
+    frame = to_bgr(render(bg, 120.0, 100.0, 8))
+    maps = run(VSTMD(ds=2, target_size=8), [frame] * 8)
+    assert float(maps.response.max()) == 0.0
+    assert float(np.abs(maps.temporal_change).max()) == 0.0
+
+
+def test_large_moving_object_is_suppressed() -> None:
+    def peak(size: float) -> float:
+        frames, _ = moving_target(240, 320, 14, (110.0, 120.0), (2.0, 0.0), size, seed=2)
+        maps = run(VSTMD(ds=2, target_size=8), frames)
+        return float(maps.response.max())
+
+    small, large = peak(8), peak(60)
+    assert small > 0
+    assert large < 0.2 * small
+
+
+def size_curve(target_size: float, ds: int, sizes: list[float]) -> np.ndarray:
+    """Mean peak response over the last frames for squares of each size moving T/4 px/frame."""
+    speed = target_size / 4.0
+    bg = np.full((128, 176), 0.3, np.float32)
+    out = []
+    for s in sizes:
+        model = VSTMD(ds=ds, target_size=target_size)
+        peaks = []
+        for t in range(16):
+            maps = model.step(render(bg, 50.0 + speed * t, 64.3, s))
+            if t >= 10:
+                peaks.append(float(maps.response.max()))
+        out.append(np.mean(peaks))
+    return np.asarray(out)
+
+
+@pytest.mark.parametrize("ds", [1, 2, 4])
+@pytest.mark.parametrize("target_size", [8.0, 16.0])
+def test_size_selectivity_peaks_near_configured_size(ds: int, target_size: float) -> None:
+    sizes = [3.0, 4.0, 6.0, 8.0, 11.0, 16.0, 22.0, 32.0]
+    curve = size_curve(target_size, ds, sizes)
+    best = sizes[int(np.argmax(curve))]
+    assert curve.max() > 0
+    # Tolerance: the preferred size is within a factor 1.5 of the configured size ...
+    assert target_size / 1.5 <= best <= target_size * 1.5
+    # ... and sizes 4x off either way answer at most half as strongly.
+    for s, r in zip(sizes, curve, strict=True):
+        if s >= 4 * target_size or s <= target_size / 4:
+            assert r <= 0.5 * curve.max()
+
+
+@pytest.mark.parametrize("ds", [1, 2])
+@pytest.mark.parametrize("k", range(8))
+def test_direction_of_motion(ds: int, k: int) -> None:
+    theta = k * np.pi / 4
+    velocity = (2.0 * np.cos(theta), -2.0 * np.sin(theta))
+    frames, _ = moving_target(200, 200, 12, (100.0 - 11 * velocity[0], 100.0 - 11 * velocity[1]),
+                              velocity, 6, seed=5)
+    maps = run(VSTMD(ds=ds, target_size=6), frames)
+    i, j = np.unravel_index(int(np.argmax(maps.response)), maps.response.shape)
+    got = float(direction_at(maps, np.array([j]), np.array([i]))[0])
+    err = abs((got - theta + np.pi) % (2 * np.pi) - np.pi)
+    assert err < np.radians(45)
+
+
+def test_direction_convention_on_hand_made_maps() -> None:
+    h = w = 5
+    lam = np.full((h, w), 0.1, np.float32)
+    v_on = np.ones((h, w), np.float32)
+    v_off = np.zeros((h, w), np.float32)
+    v_off[:, 3] = 0.5  # G = V_off / V_on is larger to the right of (2, 2)
+    maps = MotionMaps(1, lam, v_on, v_off, v_on * v_off, np.zeros((h, w), np.float32))
+    assert direction_at(maps, np.array([2]), np.array([2]))[0] == pytest.approx(0.0, abs=1e-6)
+    v_off[:] = 0.0
+    v_off[1, :] = 0.5  # larger above (row 1 is up from row 2)
+    assert direction_at(maps, np.array([2]), np.array([2]))[0] == pytest.approx(np.pi / 2)
+
+
+@pytest.mark.parametrize("ds", [1, 2, 4])
+def test_separable_lobula_equals_dense_kernel(ds: int) -> None:
+    frames, _ = moving_target(150, 170, 10, (60.0, 70.0), (2.5, 1.0), 8, seed=4)
+    model = VSTMD(ds=ds, target_size=8)
+    maps = run(model, frames)
+    dense = cv2.filter2D(maps.correlation.astype(np.float64), -1, model.dog_kernel(),
+                         borderType=cv2.BORDER_CONSTANT)
+    np.testing.assert_allclose(maps.response, np.maximum(dense, 0.0), rtol=0,
+                               atol=1e-3 * float(maps.response.max()))
+
+
+def test_stream_equals_replay_and_reset() -> None:
+    frames, _ = moving_target(120, 161, 9, (40.0, 50.0), (2.0, 1.0), 6, seed=7)
+    frames = [to_bgr(f) for f in frames]
+    a, b = VSTMD(ds=2, target_size=6), VSTMD(ds=2, target_size=6)
+    for f in frames:
+        ma, mb = a.step(f), b.step(f)
+        for name in ("temporal_change", "v_on", "v_off", "correlation", "response"):
+            np.testing.assert_array_equal(getattr(ma, name), getattr(mb, name))
+    last = mb.response.copy()
+    a.reset()
+    again = run(a, frames)
+    np.testing.assert_array_equal(again.response, last)
+
+
+def test_frame_types_and_odd_sizes() -> None:
+    bg = textured_background(203, 257, seed=8)
+    frames, _ = moving_target(203, 257, 6, (100.0, 90.0), (2.0, 0.0), 8, background=bg)
+    gray = [np.clip(np.rint(f * 255), 0, 255).astype(np.uint8) for f in frames]
+    for ds in (1, 2, 4, 8):
+        m_bgr = run(VSTMD(ds=ds), [cv2.cvtColor(g, cv2.COLOR_GRAY2BGR) for g in gray])
+        m_gray = run(VSTMD(ds=ds), gray)
+        assert m_bgr.response.shape == (203 // ds, 257 // ds)
+        assert m_bgr.ds == ds
+        np.testing.assert_array_equal(m_bgr.response, m_gray.response)
+        m_float = run(VSTMD(ds=ds), frames)
+        assert m_float.response.dtype == np.float32
+
+
+def test_map_coordinates() -> None:
+    assert map_to_full(0, 1) == 0.0
+    assert map_to_full(0, 2) == 0.5
+    assert map_to_full(3, 4) == 13.5
+
+
+@pytest.mark.parametrize("bad", [0, 3, 16, -2, 2.5])
+def test_invalid_ds(bad: float) -> None:
+    with pytest.raises(ValueError, match="ds must be one of"):
+        VSTMD(ds=bad)
+
+
+def test_bad_frames_are_refused() -> None:
+    model = VSTMD(ds=2)
+    with pytest.raises(ValueError):
+        model.step(np.zeros((10, 10, 4), np.uint8))
+    with pytest.raises(ValueError):
+        model.step(np.zeros((10, 10), np.float64))
+    model.step(np.zeros((10, 12), np.uint8))
+    with pytest.raises(ValueError, match="size changed"):
+        model.step(np.zeros((12, 10), np.uint8))
+
+
+def test_sigmas_follow_size_and_pooling() -> None:
+    s1, s2 = VSTMD.dog_sigmas(1, 6.25)
+    assert (s1, s2) == pytest.approx((5.0, 10.0))
+    assert VSTMD.dog_sigmas(2, 16.0)[0] == pytest.approx(VSTMD.dog_sigmas(1, 16.0)[0] / 2)
+    assert VSTMD.dog_sigmas(4, 16.0)[0] == pytest.approx(VSTMD.dog_sigmas(1, 8.0)[0] / 2)
+
+
+def test_flops_shrink_with_ds() -> None:
+    counts = [VSTMD(ds=ds, target_size=8).flops(2160, 3840) for ds in (1, 2, 4, 8)]
+    assert all(c > 0 for c in counts)
+    assert counts == sorted(counts, reverse=True)
+    # Full-resolution work (gray + retina) is a floor: 15 operations per pixel.
+    assert counts[-1] > 15 * 2160 * 3840
