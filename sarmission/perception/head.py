@@ -1,14 +1,15 @@
 """MITE-Net lightweight R-CNN-like head (paper section 3.2).
 
-Input: motion-enhanced crops ``[N, 4, S, S]`` (S = 16: RGB in [0, 1] and the enhanced response E, see
-:mod:`sarmission.perception.crops`). Layers::
+Input: motion-enhanced crops ``[N, 4, S, S]`` (S = 16: RGB in [0, 1] and the enhanced response E,
+see :mod:`sarmission.perception.crops`). Layers::
 
     CoordConv      append x, y in [-1, 1]                                   → 6 x S x S
     stem           conv3x3 6→w0, BN, ReLU                                   → w0 x S x S
     block d=2      conv3x3(d2) w0→w1, BN, ReLU, conv3x3(d2) w1→w1, BN, + 1x1 skip, ReLU
     block d=4      conv3x3(d4) w1→w1, BN, ReLU, conv3x3(d4) w1→w1, BN, + identity, ReLU
-    classification depthwise conv3x3, BN, ReLU; channel attention from global max- and average-pooled
-                   features through a shared MLP (sigmoid gate); [max, avg] pooled → MLP → C logits
+    classification depthwise conv3x3, BN, ReLU; channel attention from global max- and
+                   average-pooled features through a shared MLP (sigmoid gate);
+                   [max, avg] pooled → MLP → C logits
     regression     bottleneck conv1x1 w1→b, BN, ReLU; flatten (b x S x S) → linear → 4 x (R+1)
                    Distribution Focal Loss bins (R = reg_max = 16); the flattened map keeps where
                    in the crop each edge lies
@@ -62,7 +63,7 @@ class HeadConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> HeadConfig:
-        """Inverse of :meth:`to_dict`; unknown keys raise ``TypeError``, bad values ``ValueError``."""
+        """Inverse of :meth:`to_dict`; unknown keys raise ``TypeError``, bad ones ``ValueError``."""
         d = dict(d)
         if "classes" in d:
             d["classes"] = tuple(str(c) for c in d["classes"])
@@ -82,7 +83,8 @@ class HeadConfig:
             raise ValueError(f"HeadConfig.widths must be two positive ints, got {self.widths}")
 
 
-def _conv_bn(c_in: int, c_out: int, k: int = 3, dilation: int = 1, groups: int = 1) -> nn.Sequential:
+def _conv_bn(c_in: int, c_out: int, k: int = 3, dilation: int = 1,
+             groups: int = 1) -> nn.Sequential:
     pad = dilation * (k // 2)
     return nn.Sequential(
         nn.Conv2d(c_in, c_out, k, padding=pad, dilation=dilation, groups=groups, bias=False),
@@ -91,7 +93,7 @@ def _conv_bn(c_in: int, c_out: int, k: int = 3, dilation: int = 1, groups: int =
 
 
 class DilatedResBlock(nn.Module):
-    """Two dilated 3x3 conv-BN layers with a residual connection (1x1 projection when widths differ)."""
+    """Two dilated 3x3 conv-BN layers and a residual link (1x1 projection if widths differ)."""
 
     def __init__(self, c_in: int, c_out: int, dilation: int) -> None:
         super().__init__()
@@ -111,7 +113,8 @@ class ClassificationBranch(nn.Module):
 
     def __init__(self, channels: int, num_classes: int, reduction: int, hidden: int) -> None:
         super().__init__()
-        self.dw = nn.Sequential(_conv_bn(channels, channels, groups=channels), nn.ReLU(inplace=True))
+        self.dw = nn.Sequential(_conv_bn(channels, channels, groups=channels),
+                                nn.ReLU(inplace=True))
         mid = max(channels // reduction, 1)
         self.attn = nn.Sequential(nn.Linear(channels, mid), nn.ReLU(inplace=True),
                                   nn.Linear(mid, channels))

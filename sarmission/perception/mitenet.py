@@ -1,0 +1,199 @@
+"""MITE-Net cascade: vSTMD → TTM-RPN → motion-enhanced crops → head → detections (paper section 3).
+
+One :class:`MiteNet` per video stream; frames go in order through :meth:`MiteNet.process`, which
+keeps the vSTMD state between frames (:meth:`MiteNet.reset` starts a new stream).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from sarmission.perception.crops import CROP_SIZE, crop_flops, motion_enhanced_crops
+from sarmission.perception.head import (
+    HeadConfig,
+    MiteHead,
+    count_parameters,
+    head_flops_per_proposal,
+    ltrb_to_boxes,
+)
+from sarmission.perception.rpn import TTMRPN
+from sarmission.perception.runtime import (
+    HeadRuntime,
+    OnnxHeadRuntime,
+    RuntimeName,
+    TorchHeadRuntime,
+    load_head_runtime,
+)
+from sarmission.perception.types import Detections, FrameResult, Proposals
+from sarmission.perception.vstmd import VSTMD
+
+STAGES = ("vstmd", "rpn", "crops", "head")
+
+
+def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "torch",
+                       intra_op_threads: int = 2) -> HeadRuntime:
+    """Head runtime from a model file; with ``model=None`` the shipped default model, or, when the
+    package has none, an untrained head with fixed seed-0 weights (for timing and FLOP counts).
+    """
+    if model is not None:
+        return load_head_runtime(model, runtime, intra_op_threads)
+    from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
+
+    shipped = DEFAULT_ONNX_MODEL if runtime == "onnx" else DEFAULT_TORCH_MODEL
+    if shipped.is_file():
+        return load_head_runtime(shipped, runtime, intra_op_threads)
+    if DEFAULT_TORCH_MODEL.is_file():
+        return load_head_runtime(DEFAULT_TORCH_MODEL, runtime, intra_op_threads)
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(0)
+        head = MiteHead().eval()
+    if runtime == "onnx":
+        from sarmission.perception.export import head_onnx_bytes
+
+        return OnnxHeadRuntime(head_onnx_bytes(head), intra_op_threads, name="<untrained head>")
+    return TorchHeadRuntime(head)
+
+
+def nms_xyxy(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarray:
+    """Greedy IoU non-maximum suppression; indices of the kept boxes, best score first."""
+    order = np.argsort(-scores, kind="stable")
+    area = np.clip(boxes[:, 2] - boxes[:, 0], 0, None) * np.clip(boxes[:, 3] - boxes[:, 1], 0, None)
+    keep: list[int] = []
+    while order.size:
+        i = int(order[0])
+        keep.append(i)
+        rest = order[1:]
+        iw = np.clip(np.minimum(boxes[i, 2], boxes[rest, 2])
+                     - np.maximum(boxes[i, 0], boxes[rest, 0]), 0, None)
+        ih = np.clip(np.minimum(boxes[i, 3], boxes[rest, 3])
+                     - np.maximum(boxes[i, 1], boxes[rest, 1]), 0, None)
+        inter = iw * ih
+        iou = inter / np.maximum(area[i] + area[rest] - inter, 1e-9)
+        order = rest[iou <= iou_threshold]
+    return np.asarray(keep, dtype=np.int64)
+
+
+class MiteNet:
+    """The MITE-Net detector for one video stream.
+
+    Args:
+        head_runtime: a :class:`~sarmission.perception.runtime.HeadRuntime` (torch or onnx).
+        ds: vSTMD down-sampling factor (power-saving mode; 1 = full resolution).
+        topn: proposals per frame (N).
+        target_size: expected target size in full-resolution pixels (vSTMD size-selective
+            kernel); None keeps the vSTMD default.
+        box_size: proposal box side S in full-resolution pixels.
+        score_threshold: minimum class probability (sigmoid of the logit) of a kept detection.
+        classes: expected class names; must equal the head's when given.
+        nms_iou: IoU above which the lower-scored of two detections is dropped (None: no NMS).
+    """
+
+    def __init__(self, head_runtime: HeadRuntime, ds: int = 2, topn: int = 25,
+                 target_size: float | None = None, box_size: float = 16.0,
+                 score_threshold: float = 0.3, classes: tuple[str, ...] | None = None,
+                 nms_iou: float | None = 0.5) -> None:
+        if classes is not None and tuple(classes) != tuple(head_runtime.classes):
+            raise ValueError(f"classes {tuple(classes)} differ from the head's "
+                             f"{tuple(head_runtime.classes)}")
+        if not 0.0 <= score_threshold <= 1.0:
+            raise ValueError(f"score_threshold must be in [0, 1], got {score_threshold}")
+        self.head = head_runtime
+        self.ds = ds
+        self.topn = topn
+        self.box_size = box_size
+        self.score_threshold = score_threshold
+        self.nms_iou = nms_iou
+        self.vstmd = VSTMD(ds=ds) if target_size is None else VSTMD(ds=ds, target_size=target_size)
+        self.rpn = TTMRPN(topn=topn, box_size=box_size)
+        self.per_stage_ms: dict[str, float] = {}
+        self._frame_shape: tuple[int, int] | None = None
+
+    @property
+    def classes(self) -> tuple[str, ...]:
+        """Class names, index = class id."""
+        return self.head.classes
+
+    def reset(self) -> None:
+        """Forget the motion state and the frame size: the next frame starts a new stream."""
+        self.vstmd.reset()
+        self._frame_shape = None
+        self.per_stage_ms = {}
+
+    def _check_frame(self, frame: np.ndarray) -> None:
+        if not isinstance(frame, np.ndarray):
+            raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
+        if frame.dtype != np.uint8:
+            raise ValueError(f"frame must be uint8 BGR, got dtype {frame.dtype}")
+        if frame.ndim != 3 or frame.shape[2] != 3:
+            raise ValueError(f"frame must have shape [H, W, 3] (BGR), got {list(frame.shape)}")
+        shape = (int(frame.shape[0]), int(frame.shape[1]))
+        if min(shape) < self.ds or min(shape) < 2:
+            raise ValueError(f"frame {shape[1]}x{shape[0]} is too small for ds={self.ds}")
+        if self._frame_shape is not None and shape != self._frame_shape:
+            raise ValueError(f"frame size changed mid-stream from {self._frame_shape[1]}x"
+                             f"{self._frame_shape[0]} to {shape[1]}x{shape[0]}; call reset() "
+                             "before a new stream")
+        self._frame_shape = shape
+
+    def process(self, frame_bgr: np.ndarray, timestamp: float) -> FrameResult:
+        """Run the cascade on the next frame of the stream (BGR uint8 ``[H, W, 3]``).
+
+        Detections are full-resolution ``xyxy`` boxes with the best class's probability and id;
+        ``per_stage_ms`` holds this frame's wall time per stage (``vstmd``, ``rpn``, ``crops``,
+        ``head``; the head's includes decoding and NMS). The arrays of ``result.motion`` belong to
+        the vSTMD model and stay valid until the second next call (copy them to keep them).
+        """
+        self._check_frame(frame_bgr)
+        frame = np.ascontiguousarray(frame_bgr)
+        t0 = time.perf_counter()
+        motion = self.vstmd.step(frame)
+        t1 = time.perf_counter()
+        proposals = self.rpn.propose(motion)
+        t2 = time.perf_counter()
+        crops = motion_enhanced_crops(frame, motion, proposals.boxes, proposals.polarity)
+        t3 = time.perf_counter()
+        detections = self._detect(crops, proposals)
+        t4 = time.perf_counter()
+        self.per_stage_ms = {"vstmd": (t1 - t0) * 1e3, "rpn": (t2 - t1) * 1e3,
+                             "crops": (t3 - t2) * 1e3, "head": (t4 - t3) * 1e3}
+        return FrameResult(timestamp=float(timestamp), detections=detections,
+                           proposals=proposals, motion=motion)
+
+    def _detect(self, crops: torch.Tensor, proposals: Proposals) -> Detections:
+        if len(proposals) == 0:
+            return Detections()
+        logits, ltrb = self.head.predict(crops)
+        probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
+        class_ids = probs.argmax(axis=1)
+        scores = probs[np.arange(len(probs)), class_ids]
+        keep = np.flatnonzero(scores >= self.score_threshold)
+        boxes = ltrb_to_boxes(ltrb[keep], proposals.boxes[keep], self.head.config.crop_size)
+        scores, class_ids = scores[keep], class_ids[keep]
+        if self.nms_iou is not None and len(keep) > 1:
+            kept = nms_xyxy(boxes, scores, self.nms_iou)
+            boxes, scores, class_ids = boxes[kept], scores[kept], class_ids[kept]
+        return Detections(boxes=boxes.astype(np.float32), scores=scores.astype(np.float32),
+                          class_ids=class_ids.astype(np.int64))
+
+    def complexity(self, height: int, width: int) -> dict[str, dict[str, int]]:
+        """Parameters and FLOPs per frame of each stage for ``height x width`` frames (Table 4).
+
+        ``flops``: ``vstmd`` (``VSTMD.flops``), ``rpn_other`` (``TTMRPN.flops`` on the 1/ds maps
+        plus the N crops), ``head`` (2 x MACs of every conv/linear per proposal, times N),
+        ``total``. N is ``topn``, the most proposals a frame can have. ``parameters``: ``head``
+        (learned) and ``total`` (vSTMD and the RPN learn nothing).
+        """
+        head = MiteHead(HeadConfig.from_dict(self.head.config.to_dict()))
+        map_h, map_w = self.vstmd.map_shape(height, width)
+        flops = {
+            "vstmd": int(self.vstmd.flops(height, width)),
+            "rpn_other": int(self.rpn.flops(map_h, map_w)) + crop_flops(self.topn, CROP_SIZE),
+            "head": head_flops_per_proposal(head) * self.topn,
+        }
+        flops["total"] = sum(flops.values())
+        params = count_parameters(head)
+        return {"parameters": {"head": params, "total": params}, "flops": flops}

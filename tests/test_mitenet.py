@@ -1,0 +1,123 @@
+"""The MITE-Net cascade on a small synthetic clip."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from motion_scenes import moving_target, to_bgr
+
+from sarmission.perception.export import head_onnx_bytes
+from sarmission.perception.head import MiteHead, head_flops_per_proposal
+from sarmission.perception.mitenet import MiteNet, nms_xyxy
+from sarmission.perception.runtime import OnnxHeadRuntime, TorchHeadRuntime
+
+H, W = 120, 160
+
+
+def _clip(frames: int = 10) -> tuple[list[np.ndarray], np.ndarray]:
+    """Textured background and a 6 px bright disc moving at (2, 1) px/frame: BGR frames and the
+    target centres (full-resolution pixels)."""
+    images, centres = moving_target(H, W, frames, start=(40.0, 50.0), velocity=(2.0, 1.0),
+                                    size=6.0, shape="disc", seed=7)
+    return [to_bgr(im) for im in images], centres
+
+
+@pytest.fixture(scope="module")
+def head() -> MiteHead:
+    torch.manual_seed(0)
+    return MiteHead().eval()
+
+
+def _run(net: MiteNet, frames: list[np.ndarray]):
+    return [net.process(f, i / 30.0) for i, f in enumerate(frames)]
+
+
+def test_proposals_find_the_moving_target(head: MiteHead):
+    frames, centres = _clip()
+    net = MiteNet(TorchHeadRuntime(head), ds=2, topn=5)
+    results = _run(net, frames)
+    for result, (cx, cy) in zip(results[4:], centres[4:], strict=True):
+        boxes = result.proposals.boxes
+        inside = ((boxes[:, 0] <= cx) & (cx <= boxes[:, 2])
+                  & (boxes[:, 1] <= cy) & (cy <= boxes[:, 3]))
+        assert inside.any(), (result.timestamp, boxes, (cx, cy))
+    assert set(net.per_stage_ms) == {"vstmd", "rpn", "crops", "head"}
+    assert all(v >= 0 for v in net.per_stage_ms.values())
+    assert results[0].motion.response.shape == (H // 2, W // 2)
+
+
+def test_replay_after_reset_is_identical(head: MiteHead):
+    frames, _ = _clip()
+    net = MiteNet(TorchHeadRuntime(head), ds=2, topn=8, score_threshold=0.0)
+    first = [(r.proposals.boxes.copy(), r.detections) for r in _run(net, frames)]
+    net.reset()
+    second = [(r.proposals.boxes.copy(), r.detections) for r in _run(net, frames)]
+    assert sum(len(d) for _, d in first) > 0
+    for (pa, da), (pb, db) in zip(first, second, strict=True):
+        np.testing.assert_array_equal(pa, pb)
+        np.testing.assert_array_equal(da.boxes, db.boxes)
+        np.testing.assert_array_equal(da.scores, db.scores)
+        np.testing.assert_array_equal(da.class_ids, db.class_ids)
+
+
+def test_torch_and_onnx_give_the_same_detections(head: MiteHead):
+    frames, _ = _clip(8)
+    nets = [MiteNet(TorchHeadRuntime(head), topn=8, score_threshold=0.0),
+            MiteNet(OnnxHeadRuntime(head_onnx_bytes(head), intra_op_threads=1), topn=8,
+                    score_threshold=0.0)]
+    a, b = (_run(n, frames) for n in nets)
+    assert sum(len(r.detections) for r in a) > 0
+    for ra, rb in zip(a, b, strict=True):
+        assert len(ra.detections) == len(rb.detections)
+        np.testing.assert_allclose(ra.detections.boxes, rb.detections.boxes, atol=1e-3)
+        np.testing.assert_allclose(ra.detections.scores, rb.detections.scores, atol=1e-4)
+        np.testing.assert_array_equal(ra.detections.class_ids, rb.detections.class_ids)
+
+
+def test_score_threshold_and_detection_format(head: MiteHead):
+    frames, _ = _clip(6)
+    net = MiteNet(TorchHeadRuntime(head), topn=8, score_threshold=1.0)
+    assert all(len(r.detections) == 0 for r in _run(net, frames))
+    net = MiteNet(TorchHeadRuntime(head), topn=8, score_threshold=0.0, nms_iou=None)
+    last = _run(net, frames)[-1]
+    assert len(last.detections) == len(last.proposals)
+    d = last.detections
+    assert d.boxes.dtype == np.float32 and d.class_ids.dtype == np.int64
+    assert np.all(d.boxes[:, 2] > d.boxes[:, 0]) and np.all(d.boxes[:, 3] > d.boxes[:, 1])
+    assert np.all((d.scores >= 0) & (d.scores <= 1))
+
+
+def test_frame_validation(head: MiteHead):
+    net = MiteNet(TorchHeadRuntime(head))
+    good = np.zeros((32, 48, 3), np.uint8)
+    with pytest.raises(ValueError, match="uint8"):
+        net.process(good.astype(np.float32), 0.0)
+    with pytest.raises(ValueError, match=r"\[H, W, 3\]"):
+        net.process(np.zeros((32, 48), np.uint8), 0.0)
+    with pytest.raises(ValueError, match=r"\[H, W, 3\]"):
+        net.process(np.zeros((32, 48, 4), np.uint8), 0.0)
+    net.process(good, 0.0)
+    with pytest.raises(ValueError, match="changed mid-stream"):
+        net.process(np.zeros((40, 48, 3), np.uint8), 0.1)
+    net.reset()
+    net.process(np.zeros((40, 48, 3), np.uint8), 0.2)
+    with pytest.raises(ValueError, match="classes"):
+        MiteNet(TorchHeadRuntime(head), classes=("person",))
+
+
+def test_complexity(head: MiteHead):
+    net = MiteNet(TorchHeadRuntime(head), ds=2, topn=25)
+    report = net.complexity(2160, 3840)
+    flops = report["flops"]
+    assert flops["vstmd"] == net.vstmd.flops(2160, 3840)
+    assert flops["head"] == 25 * head_flops_per_proposal(head)
+    assert flops["rpn_other"] > net.rpn.flops(1080, 1920)
+    assert flops["total"] == flops["vstmd"] + flops["rpn_other"] + flops["head"]
+    assert report["parameters"]["head"] < 140_000
+
+
+def test_nms_drops_overlapping_lower_scores():
+    boxes = np.array([[0, 0, 10, 10], [1, 1, 11, 11], [20, 20, 30, 30]], np.float32)
+    keep = nms_xyxy(boxes, np.array([0.5, 0.9, 0.3]), 0.5)
+    np.testing.assert_array_equal(keep, [1, 2])
