@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 STAGES = ("vstmd", "rpn", "crops", "head")
+BLOBS = 120  # enough moving targets that every N up to 100 is filled
+WARMUP_FRAMES = 8  # JIT compilation, allocator, and the medulla building up its potentials
 
 
 @dataclass
@@ -41,26 +43,28 @@ class BenchRow:
 
 
 def synthetic_frames(width: int, height: int, count: int, seed: int = 0) -> list[np.ndarray]:
-    """Frames of a drifting textured sea with a dozen small moving blobs (BGR uint8).
+    """Frames of a textured sea with small moving blobs, seen from a hovering drone.
 
-    The texture drifts by a fraction of a pixel per frame so the motion front-end sees clutter
-    everywhere, as it would over real water; the blobs (4–12 px) move a few px per frame.
+    The sea texture shimmers (a fresh fine-grain noise field is blended in every frame) so the
+    motion front-end sees clutter everywhere, as over real water; the blobs (4–12 px) drift
+    1–3 px per frame, as swimmers do in the image of a slowly moving drone.
     """
     import cv2
 
     rng = np.random.default_rng(seed)
-    pad = 2 * count + 8
-    base = rng.normal(0.0, 1.0, (height // 8 + pad, width // 8 + pad)).astype(np.float32)
-    base = cv2.resize(base, None, fx=8, fy=8, interpolation=cv2.INTER_CUBIC)
-    fine = rng.normal(0.0, 1.0, base.shape).astype(np.float32)
-    texture = np.clip(90 + 18 * base + 6 * fine, 0, 255)
+    base = rng.normal(0.0, 1.0, (height // 8 + 1, width // 8 + 1)).astype(np.float32)
+    base = cv2.resize(base, (width, height), interpolation=cv2.INTER_CUBIC)
+    texture = np.clip(90 + 18 * base, 0, 255)
     sea = np.stack([texture * 1.15, texture * 0.95, texture * 0.55], axis=-1).astype(np.uint8)
-    blobs = rng.uniform([0, 0], [width, height], (12, 2))
-    velocity = rng.uniform(-3, 3, (12, 2))
-    sizes = rng.uniform(4, 12, 12)
+    shimmer = [rng.integers(-4, 5, (height, width, 1), dtype=np.int16) for _ in range(3)]
+    blobs = rng.uniform([0, 0], [width, height], (BLOBS, 2))
+    speed = rng.uniform(1.0, 3.0, BLOBS)
+    heading = rng.uniform(0, 2 * np.pi, BLOBS)
+    velocity = np.stack([speed * np.cos(heading), speed * np.sin(heading)], axis=1)
+    sizes = rng.uniform(4, 12, BLOBS)
     frames = []
     for t in range(count):
-        frame = np.ascontiguousarray(sea[2 * t:2 * t + height, t:t + width])
+        frame = np.clip(sea + shimmer[t % 3], 0, 255).astype(np.uint8)
         for (x, y), (vx, vy), size in zip(blobs, velocity, sizes, strict=True):
             centre = (int((x + vx * t) % width), int((y + vy * t) % height))
             cv2.circle(frame, centre, int(size / 2), (40, 60, 230), -1, cv2.LINE_AA)
@@ -79,7 +83,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
 
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
-    images = synthetic_frames(width, height, frames + 3)
+    images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
     memory_pass = []
     for image in images:
         start = time.perf_counter()
@@ -94,7 +98,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         start = time.perf_counter()
         result = net.process(image, i / 30.0)
         elapsed = (time.perf_counter() - start) * 1e3
-        if i < 3:  # warm-up: JIT compilation, allocator, first-frame state
+        if i < WARMUP_FRAMES:
             continue
         totals.append(elapsed)
         proposals.append(len(result.proposals))
@@ -115,7 +119,8 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
 
 
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
-              frames: int, model: str | None, runtime: str, progress: bool = True) -> list[BenchRow]:
+              frames: int, model: str | None, runtime: str,
+              progress: bool = True) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process and collect the rows."""
     from tqdm import tqdm
 

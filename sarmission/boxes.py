@@ -59,14 +59,15 @@ def box_area(boxes_xyxy: np.ndarray) -> np.ndarray:
 
 
 def size_band(area: float) -> str:
-    """Name of the size band (other than ``all``) an area in px^2 falls in; ``larger`` above 1024."""
+    """Size band (not ``all``) of an area in px^2; ``larger`` above 1024."""
     for name, (low, high) in SIZE_BANDS.items():
         if name != "all" and low < area <= high:
             return name
     return "larger"
 
 
-def nwd_matrix(a_xyxy: np.ndarray, b_xyxy: np.ndarray, constant: float = NWD_CONSTANT) -> np.ndarray:
+def nwd_matrix(a_xyxy: np.ndarray, b_xyxy: np.ndarray,
+               constant: float = NWD_CONSTANT) -> np.ndarray:
     """Pairwise NWD similarity in [0, 1] between ``M`` boxes and ``N`` boxes → ``[M, N]``."""
     a = xyxy_to_cxcywh(np.asarray(a_xyxy, dtype=np.float64).reshape(-1, 4))
     b = xyxy_to_cxcywh(np.asarray(b_xyxy, dtype=np.float64).reshape(-1, 4))
@@ -75,7 +76,8 @@ def nwd_matrix(a_xyxy: np.ndarray, b_xyxy: np.ndarray, constant: float = NWD_CON
     return np.exp(-np.sqrt(d2) / constant)
 
 
-def nwd_pairwise(a_xyxy: np.ndarray, b_xyxy: np.ndarray, constant: float = NWD_CONSTANT) -> np.ndarray:
+def nwd_pairwise(a_xyxy: np.ndarray, b_xyxy: np.ndarray,
+                 constant: float = NWD_CONSTANT) -> np.ndarray:
     """Element-wise NWD between two aligned ``[N, 4]`` box arrays → ``[N]``."""
     a = xyxy_to_cxcywh(np.asarray(a_xyxy, dtype=np.float64).reshape(-1, 4))
     b = xyxy_to_cxcywh(np.asarray(b_xyxy, dtype=np.float64).reshape(-1, 4))

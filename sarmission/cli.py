@@ -12,6 +12,7 @@ from sarmission import __version__
 from sarmission.commands import COMMANDS
 from sarmission.errors import SarmissionError
 
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the top-level parser with every sub-command registered."""
     parser = argparse.ArgumentParser(

@@ -9,7 +9,8 @@ def _int_list(text: str) -> list[int]:
     try:
         return [int(v) for v in text.split(",") if v]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+        message = f"expected comma-separated integers, got {text!r}"
+        raise argparse.ArgumentTypeError(message) from None
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -38,14 +39,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--size", type=_size, default=(3840, 2160),
                         help="frame size WIDTHxHEIGHT (default: 3840x2160)")
     parser.add_argument("--frames", type=int, default=20,
-                        help="timed frames per configuration, after 3 warm-up frames "
+                        help="timed frames per configuration, after 8 warm-up frames "
                         "(default: %(default)s)")
     parser.add_argument("--quick", action="store_true",
                         help="only ds 2 and 4 at N=25 with 10 frames")
     parser.add_argument("--model", default=None,
                         help="head weights; default: the shipped model, else an untrained head "
                         "(weights do not change the timing)")
-    parser.add_argument("--runtime", choices=("torch", "onnx"), default="torch")
+    parser.add_argument("--runtime", choices=("onnx", "torch"), default="onnx",
+                        help="head runtime (default: %(default)s)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 

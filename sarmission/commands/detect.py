@@ -32,8 +32,8 @@ def run(args: argparse.Namespace) -> int:
     """Detect over the input and write the results file."""
     from tqdm import tqdm
 
-    from sarmission.data.frames import open_frame_source
     from sarmission.data.coco_results import detections_to_coco
+    from sarmission.data.frames import open_frame_source
 
     source = open_frame_source(args.input)
     net = build_mitenet(args)

@@ -17,9 +17,9 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--model --runtime --ds --topn --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument("--model", default=None,
-                       help="head weights (.pt or .onnx); default: the model shipped with sarmission")
-    group.add_argument("--runtime", choices=("torch", "onnx"), default="torch",
-                       help="head runtime (default: %(default)s)")
+                       help="head weights (.pt or .onnx); default: the shipped model")
+    group.add_argument("--runtime", choices=("onnx", "torch"), default="onnx",
+                       help="head runtime; onnxruntime is ~3x faster on CPU (default: %(default)s)")
     group.add_argument("--ds", type=int, choices=(1, 2, 4, 8), default=DEFAULT_DS,
                        help="vSTMD down-sampling factor (default: %(default)s)")
     group.add_argument("--topn", type=int, default=DEFAULT_TOPN,

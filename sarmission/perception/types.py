@@ -11,8 +11,8 @@ import numpy as np
 class MotionMaps:
     """vSTMD state read out for one frame, all at 1/ds resolution (float32, shape ``[h, w]``).
 
-    ``temporal_change`` is the signed lamina output L (after pooling by ds), ``v_on`` / ``v_off`` the
-    medulla membrane potentials, ``correlation`` their product C, ``response`` the lobula output R
+    ``temporal_change`` is the signed lamina output L (after pooling by ds), ``v_on`` / ``v_off``
+    the medulla membrane potentials, ``correlation`` their product C, ``response`` the lobula output R
     (after the size-selective DoG inhibition and rectification).
     """
 

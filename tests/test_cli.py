@@ -1,0 +1,119 @@
+"""The ``sarmission`` command line end to end: real files through OpenCV, real ONNX files."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import onnx
+import pytest
+from motion_scenes import moving_target, to_bgr
+
+from sarmission.cli import main
+from sarmission.perception.head import MiteHead
+from sarmission.perception.runtime import save_head_checkpoint
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An untrained head checkpoint (the CLI's behaviour does not depend on the weights)."""
+    import torch
+
+    torch.manual_seed(0)
+    return save_head_checkpoint(MiteHead().eval(), tmp_path_factory.mktemp("model") / "head.pt")
+
+
+@pytest.fixture(scope="module")
+def clip(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short MP4 of a small target moving over a textured background."""
+    frames, _ = moving_target(240, 320, 12, start=(100.0, 120.0), velocity=(1.5, 0.5), size=8,
+                              seed=3)
+    path = tmp_path_factory.mktemp("video") / "clip.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30, (320, 240))
+    for frame in frames:
+        writer.write(to_bgr(frame))
+    writer.release()
+    return path
+
+
+def test_detect_writes_coco_results_for_every_frame(clip: Path, checkpoint: Path,
+                                                     tmp_path: Path) -> None:
+    out = tmp_path / "dets.json"
+    code = main(["detect", str(clip), "--model", str(checkpoint), "--runtime", "torch",
+                 "--ds", "2", "--topn", "10", "--conf", "0.0", "--out", str(out)])
+    assert code == 0
+    records = json.loads(out.read_text())
+    assert records, "a zero threshold keeps every proposal the head scores"
+    frames = {r["frame_index"] for r in records}
+    assert frames <= set(range(12))
+    for r in records:
+        assert set(r) == {"image_id", "frame_index", "bbox", "score", "category_id"}
+        x, y, w, h = r["bbox"]
+        assert w > 0 and h > 0 and 0 <= r["score"] <= 1 and r["category_id"] in (1, 2)
+    per_frame = np.bincount([r["frame_index"] for r in records])
+    assert per_frame.max() <= 10
+
+
+def test_detect_reports_a_wrong_model_file_in_one_line(clip: Path, tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    bogus = tmp_path / "model.pt"
+    bogus.write_bytes(b"not a checkpoint at all")
+    code = main(["detect", str(clip), "--model", str(bogus), "--out", str(tmp_path / "d.json")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "model.pt" in err and "Traceback" not in err
+    assert not (tmp_path / "d.json").exists()
+
+
+def test_detect_reports_a_missing_input(tmp_path: Path, checkpoint: Path,
+                                        capsys: pytest.CaptureFixture) -> None:
+    code = main(["detect", str(tmp_path / "nope.mp4"), "--model", str(checkpoint)])
+    assert code == 2
+    assert "nope.mp4" in capsys.readouterr().err
+
+
+def test_export_writes_onnx_that_loads_with_a_dynamic_proposal_axis(checkpoint: Path,
+                                                                    tmp_path: Path) -> None:
+    out = tmp_path / "head.onnx"
+    assert main(["export", "--model", str(checkpoint), "--out", str(out)]) == 0
+    model = onnx.load(str(out))
+    onnx.checker.check_model(model)
+    first_dim = model.graph.input[0].type.tensor_type.shape.dim[0]
+    assert first_dim.dim_param, "the proposal axis must be symbolic"
+    assert model.opset_import[0].version == 17
+
+
+def test_info_reports_head_parameters_and_stage_flops(capsys: pytest.CaptureFixture) -> None:
+    assert main(["info", "--size", "1920x1080", "--ds", "2", "--topn", "25", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert 0 < report["parameters"]["head"] < 140_000
+    flops = report["flops"]
+    assert flops["total"] == pytest.approx(flops["vstmd"] + flops["rpn_other"] + flops["head"])
+    assert main(["info", "--size", "1920x1080", "--ds", "4", "--json"]) == 0
+    coarser = json.loads(capsys.readouterr().out)["flops"]
+    assert coarser["vstmd"] < flops["vstmd"]
+
+
+def test_bench_prints_a_json_row_per_configuration() -> None:
+    done = subprocess.run(
+        [sys.executable, "-m", "sarmission.cli", "bench", "--size", "320x240", "--ds", "2,4",
+         "--topn", "10", "--frames", "2", "--json"],
+        capture_output=True, text=True, timeout=240,
+    )
+    assert done.returncode == 0, done.stderr
+    rows = json.loads(done.stdout)
+    assert [(r["ds"], r["topn"]) for r in rows] == [(2, 10), (4, 10)]
+    for row in rows:
+        assert row["total_ms"] > 0 and row["memory_pass_ms"] > 0 and row["peak_rss_mb"] > 0
+        assert set(row["ms"]) == {"vstmd", "rpn", "crops", "head"}
+
+
+def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(["bench", "--size", "big"])
+    assert stop.value.code == 2
+    assert "WIDTHxHEIGHT" in capsys.readouterr().err
