@@ -12,8 +12,8 @@ class MotionMaps:
     """vSTMD state read out for one frame, all at 1/ds resolution (float32, shape ``[h, w]``).
 
     ``temporal_change`` is the signed lamina output L (after pooling by ds), ``v_on`` / ``v_off``
-    the medulla membrane potentials, ``correlation`` their product C, ``response`` the lobula output R
-    (after the size-selective DoG inhibition and rectification).
+    the medulla membrane potentials, ``correlation`` their product C, ``response`` the lobula
+    output R (after the size-selective DoG inhibition and rectification).
     """
 
     ds: int
