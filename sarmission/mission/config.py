@@ -1,0 +1,443 @@
+"""Mission file (TOML) -> typed configuration, with precedence code defaults < file < overrides.
+
+A mission file has the sections ``[area]``, ``[flight]``, ``[camera]``, ``[detector]``, ``[lock]``,
+``[actions]``, ``[telemetry]`` and ``[sim]``; every key is optional and falls back to the default
+of the dataclass below. Unknown sections or keys, and values of the wrong type, raise
+:class:`MissionConfigError` naming the file, the key and what was expected.
+
+Overrides (from the command line) are dotted keys: ``{"flight.altitude_m": 80}`` or the strings
+``"flight.altitude_m=80"`` parsed by :func:`parse_override` (the value is TOML: ``80``,
+``"alert"``, ``["alert", "roi"]``, ``true``; a bare word is taken as a string).
+
+Example::
+
+    [area]
+    home_lat = 54.1700
+    home_lon = 7.8900
+    rectangle_m = [40.0, -120.0, 240.0, 120.0]   # north_min, east_min, north_max, east_max
+    leg_spacing_m = 60.0
+    heading_deg = 90.0                            # legs run east-west
+
+    [flight]
+    altitude_m = 70.0
+    speed_m_s = 10.0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sarmission.errors import SarmissionError
+from sarmission.geo.camera import CameraIntrinsics
+
+ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
+
+
+class MissionConfigError(SarmissionError):
+    """A mission file or override that cannot be used; the message names file, key and problem."""
+
+
+@dataclass
+class AreaConfig:
+    """Search area and lawnmower pattern.
+
+    Home is the NED origin (``home_alt_m`` AMSL metres). The area is one of ``rectangle_m``
+    (``[north_min, east_min, north_max, east_max]`` metres from home), ``polygon_m``
+    (``[[north, east], ...]`` metres) or ``polygon_latlon`` (``[[lat, lon], ...]`` degrees).
+    Legs run along ``heading_deg`` (clockwise from north) and are ``leg_spacing_m`` apart.
+    ``ground_alt_m`` (AMSL) is the ground plane for geolocation; unset means home altitude.
+    """
+
+    home_lat: float = 54.17
+    home_lon: float = 7.89
+    home_alt_m: float = 0.0
+    rectangle_m: tuple[float, ...] | None = None
+    polygon_m: list[list[float]] | None = None
+    polygon_latlon: list[list[float]] | None = None
+    leg_spacing_m: float = 60.0
+    heading_deg: float = 0.0
+    ground_alt_m: float | None = None
+
+    @property
+    def ground_down_m(self) -> float:
+        """Ground plane as NED down (metres below home; 0 when ``ground_alt_m`` is unset)."""
+        return 0.0 if self.ground_alt_m is None else self.home_alt_m - self.ground_alt_m
+
+    def polygon_ne(self) -> list[tuple[float, float]]:
+        """The area as (north, east) metres from home, whichever way the file gave it."""
+        if self.polygon_m is not None:
+            return [(float(p[0]), float(p[1])) for p in self.polygon_m]
+        if self.polygon_latlon is not None:
+            from sarmission.geo.wgs84 import geodetic_to_ned
+
+            lat = [p[0] for p in self.polygon_latlon]
+            lon = [p[1] for p in self.polygon_latlon]
+            n, e, _ = geodetic_to_ned(lat, lon, self.home_alt_m, *self.home)
+            return [(float(a), float(b)) for a, b in zip(n, e, strict=True)]
+        n0, e0, n1, e1 = self.rectangle_m or (40.0, -100.0, 200.0, 100.0)
+        return [(n0, e0), (n0, e1), (n1, e1), (n1, e0)]
+
+    @property
+    def home(self) -> tuple[float, float, float]:
+        """``(lat_deg, lon_deg, alt_m)`` of home, the NED origin."""
+        return self.home_lat, self.home_lon, self.home_alt_m
+
+
+@dataclass
+class FlightConfig:
+    """Survey flight: altitude above home, cruise speed, climb rate, turn acceleration.
+
+    ``takeoff = false`` starts the flight already at altitude at the first leg (short demos).
+    """
+
+    altitude_m: float = 70.0
+    speed_m_s: float = 10.0
+    climb_rate_m_s: float = 4.0
+    max_accel_m_s2: float = 2.5
+    max_lateral_accel_m_s2: float = 3.0
+    takeoff: bool = True
+
+
+@dataclass
+class CameraConfig:
+    """Camera sensor and mount. Calibration (fx, fy, cx, cy, distortion) overrides ``hfov_deg``.
+
+    ``mount_pitch_deg`` is the fixed (or default gimbal) pitch: -90 nadir, 0 horizon.
+    ``gimbal = true``: a stabilised gimbal reporting GIMBAL_DEVICE_ATTITUDE_STATUS; false: a hard
+    mount fixed to the body (no gimbal messages, the camera tilts with the vehicle).
+    """
+
+    width: int = 3840
+    height: int = 2160
+    hfov_deg: float = 70.0
+    mount_pitch_deg: float = -90.0
+    gimbal: bool = True
+    fx: float | None = None
+    fy: float | None = None
+    cx: float | None = None
+    cy: float | None = None
+    distortion: tuple[float, ...] = ()
+
+    def intrinsics(self) -> CameraIntrinsics:
+        """Calibrated intrinsics if fx is given, else the ideal pinhole from ``hfov_deg``."""
+        if self.fx is None:
+            base = CameraIntrinsics.from_hfov(self.width, self.height, self.hfov_deg)
+            return dataclasses.replace(base, distortion=tuple(self.distortion))
+        fy = self.fy if self.fy is not None else self.fx
+        cx = self.cx if self.cx is not None else (self.width - 1) / 2.0
+        cy = self.cy if self.cy is not None else (self.height - 1) / 2.0
+        return CameraIntrinsics(self.width, self.height, self.fx, fy, cx, cy, self.distortion)
+
+
+@dataclass
+class DetectorConfig:
+    """MITE-Net run-time settings: vSTMD down-sampling ``ds``, proposals ``topn``, threshold."""
+
+    ds: int = 2
+    topn: int = 25
+    score_threshold: float = 0.3
+
+
+@dataclass
+class LockConfig:
+    """m-of-k confirmation: a track locks when matched in ``m`` of the last ``k`` frames."""
+
+    m: int = 3
+    k: int = 5
+
+
+@dataclass
+class ActionsConfig:
+    """What to do with a confirmed target, in order: ``alert`` (STATUSTEXT), ``loiter``
+    (DO_REPOSITION to the target), ``roi`` (DO_SET_ROI_LOCATION), ``mission`` (upload a mission
+    item to the target). Every command waits ``ack_timeout_s`` for its ACK, ``retries`` times."""
+
+    policy: list[str] = field(default_factory=lambda: ["alert"])
+    retries: int = 3
+    ack_timeout_s: float = 1.5
+    loiter_altitude_m: float | None = None
+
+
+@dataclass
+class TelemetryConfig:
+    """Telemetry quality (simulated noise) and staleness limit for geolocation."""
+
+    gnss_noise_m: float = 0.8
+    gnss_noise_tau_s: float = 2.0
+    attitude_noise_deg: float = 0.3
+    latency_s: float = 0.05
+    stale_after_s: float = 1.0
+
+
+@dataclass
+class SimConfig:
+    """Simulator weather: mean wind (``wind_from_deg`` is where it blows from) and gusts."""
+
+    wind_speed_m_s: float = 3.0
+    wind_from_deg: float = 250.0
+    gust_m_s: float = 1.5
+    drag_per_s: float = 0.12
+
+
+@dataclass
+class MissionConfig:
+    """A whole mission; ``source`` is the file it was read from (None for pure defaults)."""
+
+    area: AreaConfig = field(default_factory=AreaConfig)
+    flight: FlightConfig = field(default_factory=FlightConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    detector: DetectorConfig = field(default_factory=DetectorConfig)
+    lock: LockConfig = field(default_factory=LockConfig)
+    actions: ActionsConfig = field(default_factory=ActionsConfig)
+    telemetry: TelemetryConfig = field(default_factory=TelemetryConfig)
+    sim: SimConfig = field(default_factory=SimConfig)
+    name: str = "mission"
+    source: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain nested dict of the effective values (for ``--help`` and logs)."""
+        return dataclasses.asdict(self)
+
+
+_SECTIONS: dict[str, type] = {
+    k: v for k, v in typing.get_type_hints(MissionConfig).items() if k not in ("name", "source")
+}
+
+
+def _type_name(tp: Any) -> str:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        return " or ".join(_type_name(a) for a in args)
+    if origin in (list, tuple):
+        inner = typing.get_args(tp)[0]
+        return f"array of {_type_name(inner)}"
+    return {float: "number", int: "integer", str: "string", bool: "boolean"}.get(tp, str(tp))
+
+
+def _describe(value: Any) -> str:
+    kind = {
+        bool: "boolean",
+        int: "integer",
+        float: "number",
+        str: "string",
+        list: "array",
+        dict: "table",
+    }.get(type(value), type(value).__name__)
+    text = repr(value)
+    return f"{kind} {text[:40] + '...' if len(text) > 43 else text}"
+
+
+def _coerce(value: Any, tp: Any, where: str) -> Any:
+    """Check ``value`` against annotation ``tp`` (int promotes to float); raise with ``where``."""
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        args = typing.get_args(tp)
+        if value is None and type(None) in args:
+            return None
+        for a in args:
+            if a is type(None):
+                continue
+            try:
+                return _coerce(value, a, where)
+            except MissionConfigError:
+                continue
+        raise MissionConfigError(f"{where}: expected {_type_name(tp)}, got {_describe(value)}")
+    if origin in (list, tuple):
+        if not isinstance(value, list | tuple):
+            raise MissionConfigError(f"{where}: expected {_type_name(tp)}, got {_describe(value)}")
+        inner = typing.get_args(tp)[0]
+        items = [_coerce(v, inner, f"{where}[{i}]") for i, v in enumerate(value)]
+        return tuple(items) if origin is tuple else items
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise MissionConfigError(f"{where}: expected number, got {_describe(value)}")
+        if not math.isfinite(float(value)):
+            raise MissionConfigError(f"{where}: expected a finite number, got {value!r}")
+        return float(value)
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise MissionConfigError(f"{where}: expected integer, got {_describe(value)}")
+        return value
+    if tp is bool or tp is str:
+        if not isinstance(value, tp):
+            raise MissionConfigError(f"{where}: expected {_type_name(tp)}, got {_describe(value)}")
+        return value
+    raise TypeError(f"unsupported annotation {tp!r}")
+
+
+def _apply_section(obj: Any, values: Mapping[str, Any], section: str, origin: str) -> None:
+    hints = typing.get_type_hints(type(obj))
+    names = [f.name for f in dataclasses.fields(obj)]
+    for key, value in values.items():
+        where = f"{origin}: [{section}] {key}"
+        if key not in names:
+            raise MissionConfigError(
+                f"{origin}: unknown key '{key}' in [{section}] (known: {', '.join(names)})"
+            )
+        setattr(obj, key, _coerce(value, hints[key], where))
+
+
+def _apply(cfg: MissionConfig, data: Mapping[str, Any], origin: str) -> None:
+    for section, values in data.items():
+        if section == "name":
+            cfg.name = _coerce(values, str, f"{origin}: name")
+            continue
+        if section not in _SECTIONS:
+            raise MissionConfigError(
+                f"{origin}: unknown section [{section}] (known: {', '.join(_SECTIONS)}, name)"
+            )
+        if not isinstance(values, Mapping):
+            raise MissionConfigError(
+                f"{origin}: [{section}] must be a table, got {_describe(values)}"
+            )
+        _apply_section(getattr(cfg, section), values, section, origin)
+
+
+def _validate(cfg: MissionConfig, origin: str) -> None:
+    def bad(key: str, msg: str) -> MissionConfigError:
+        return MissionConfigError(f"{origin}: {key}: {msg}")
+
+    a = cfg.area
+    if not -90.0 <= a.home_lat <= 90.0 or not -180.0 <= a.home_lon <= 180.0:
+        raise bad(
+            "[area] home_lat/home_lon",
+            "expected latitude in [-90, 90] and longitude in [-180, 180]",
+        )
+    shapes = [
+        s for s in ("rectangle_m", "polygon_m", "polygon_latlon") if getattr(a, s) is not None
+    ]
+    if len(shapes) > 1:
+        raise bad(
+            "[area]",
+            f"give only one of rectangle_m, polygon_m, polygon_latlon (got {', '.join(shapes)})",
+        )
+    if a.rectangle_m is not None:
+        r = a.rectangle_m
+        if len(r) != 4 or r[0] >= r[2] or r[1] >= r[3]:
+            raise bad(
+                "[area] rectangle_m",
+                "expected [north_min, east_min, north_max, east_max] with min < max",
+            )
+    for s in ("polygon_m", "polygon_latlon"):
+        poly = getattr(a, s)
+        if poly is not None and (len(poly) < 3 or any(len(p) != 2 for p in poly)):
+            raise bad(f"[area] {s}", "expected at least 3 points of 2 numbers each")
+    if a.leg_spacing_m <= 0:
+        raise bad("[area] leg_spacing_m", "expected a positive number")
+    f = cfg.flight
+    for key in (
+        "altitude_m",
+        "speed_m_s",
+        "climb_rate_m_s",
+        "max_accel_m_s2",
+        "max_lateral_accel_m_s2",
+    ):
+        if getattr(f, key) <= 0:
+            raise bad(f"[flight] {key}", "expected a positive number")
+    c = cfg.camera
+    if c.width <= 0 or c.height <= 0:
+        raise bad("[camera] width/height", "expected positive integers")
+    if not 0.0 < c.hfov_deg < 180.0:
+        raise bad("[camera] hfov_deg", "expected a number in (0, 180)")
+    if not -90.0 <= c.mount_pitch_deg <= 0.0:
+        raise bad("[camera] mount_pitch_deg", "expected -90 (nadir) .. 0 (horizon)")
+    if len(c.distortion) not in (0, 4, 5):
+        raise bad("[camera] distortion", "expected 0, 4 or 5 numbers (k1, k2, p1, p2[, k3])")
+    if c.fx is not None and c.fx <= 0 or c.fy is not None and c.fy <= 0:
+        raise bad("[camera] fx/fy", "expected positive focal lengths in pixels")
+    d = cfg.detector
+    if d.ds < 1:
+        raise bad("[detector] ds", "expected an integer >= 1")
+    if d.topn < 1:
+        raise bad("[detector] topn", "expected an integer >= 1")
+    if not 0.0 <= d.score_threshold <= 1.0:
+        raise bad("[detector] score_threshold", "expected a number in [0, 1]")
+    if not 1 <= cfg.lock.m <= cfg.lock.k:
+        raise bad("[lock] m/k", f"expected 1 <= m <= k, got m={cfg.lock.m}, k={cfg.lock.k}")
+    for p in cfg.actions.policy:
+        if p not in ACTION_POLICIES:
+            raise bad(
+                "[actions] policy",
+                f"unknown action '{p}' (expected any of {', '.join(ACTION_POLICIES)})",
+            )
+    if cfg.actions.retries < 0 or cfg.actions.ack_timeout_s <= 0:
+        raise bad("[actions] retries/ack_timeout_s", "expected retries >= 0 and a positive timeout")
+    t = cfg.telemetry
+    for key in ("gnss_noise_m", "attitude_noise_deg", "latency_s"):
+        if getattr(t, key) < 0:
+            raise bad(f"[telemetry] {key}", "expected a number >= 0")
+    if t.stale_after_s <= 0 or t.gnss_noise_tau_s <= 0:
+        raise bad("[telemetry] stale_after_s/gnss_noise_tau_s", "expected positive numbers")
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """``"section.key=value"`` -> ``("section.key", value)`` with the value read as TOML."""
+    if "=" not in text:
+        raise MissionConfigError(f"override '{text}': expected section.key=value")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
+
+
+def _nest(overrides: Mapping[str, Any] | list[str]) -> dict[str, Any]:
+    items = (
+        [parse_override(o) for o in overrides]
+        if isinstance(overrides, list)
+        else list(overrides.items())
+    )
+    nested: dict[str, Any] = {}
+    for key, value in items:
+        if key == "name":
+            nested["name"] = value
+            continue
+        if key.count(".") != 1:
+            raise MissionConfigError(
+                f"override '{key}': expected section.key (e.g. flight.altitude_m)"
+            )
+        section, name = key.split(".")
+        nested.setdefault(section, {})[name] = value
+    return nested
+
+
+def load_mission(
+    path: str | Path | None = None,
+    overrides: Mapping[str, Any] | list[str] | None = None,
+) -> MissionConfig:
+    """Defaults, then the TOML file at ``path`` (if any), then ``overrides``; validated.
+
+    ``overrides`` is a mapping of dotted keys to values or a list of ``"section.key=value"``.
+    Raises :class:`MissionConfigError` on unreadable/invalid TOML, unknown keys, wrong types or
+    out-of-range values.
+    """
+    cfg = MissionConfig()
+    origin = "defaults"
+    if path is not None:
+        p = Path(path)
+        origin = str(p)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise MissionConfigError(f"{p}: cannot read mission file ({exc.strerror})") from exc
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise MissionConfigError(f"{p}: invalid TOML: {exc}") from exc
+        cfg.name = p.stem
+        cfg.source = str(p)
+        _apply(cfg, data, origin)
+    if overrides:
+        _apply(cfg, _nest(overrides), f"{origin} (override)")
+    _validate(cfg, origin)
+    return cfg

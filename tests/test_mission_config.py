@@ -1,0 +1,97 @@
+"""Mission configuration: defaults, file and override precedence, clear errors."""
+
+from pathlib import Path
+
+import pytest
+
+from sarmission.errors import SarmissionError
+from sarmission.mission.config import MissionConfigError, load_mission, parse_override
+
+MISSIONS = Path(__file__).resolve().parents[1] / "missions"
+
+
+def write(tmp_path, text: str) -> Path:
+    p = tmp_path / "m.toml"
+    p.write_text(text)
+    return p
+
+
+def test_defaults():
+    cfg = load_mission()
+    assert cfg.lock.m == 3 and cfg.lock.k == 5
+    assert cfg.detector.topn == 25
+    assert cfg.actions.policy == ["alert"]
+    assert cfg.camera.intrinsics().width == 3840
+    assert len(cfg.area.polygon_ne()) == 4
+
+
+@pytest.mark.parametrize("name", ["maritime_demo", "urban_demo"])
+def test_example_missions_load(name):
+    cfg = load_mission(MISSIONS / f"{name}.toml")
+    assert cfg.name == name
+    assert 60.0 <= cfg.flight.altitude_m <= 80.0
+    assert (cfg.camera.width, cfg.camera.height) == (3840, 2160)
+
+
+def test_file_overrides_defaults_and_cli_overrides_file(tmp_path):
+    p = write(tmp_path, "[flight]\naltitude_m = 55\n[lock]\nm = 2\nk = 4\n")
+    cfg = load_mission(p)
+    assert cfg.flight.altitude_m == 55.0 and isinstance(cfg.flight.altitude_m, float)
+    assert cfg.flight.speed_m_s == 10.0  # default kept
+    assert (cfg.lock.m, cfg.lock.k) == (2, 4)
+    cfg = load_mission(p, ["flight.altitude_m=90", 'actions.policy=["alert", "roi"]'])
+    assert cfg.flight.altitude_m == 90.0
+    assert cfg.actions.policy == ["alert", "roi"]
+    cfg = load_mission(p, {"lock.m": 4})
+    assert cfg.lock.m == 4
+
+
+def test_calibrated_camera_and_polygon_latlon(tmp_path):
+    p = write(
+        tmp_path,
+        "[area]\nhome_lat = 54.0\nhome_lon = 8.0\n"
+        "polygon_latlon = [[54.001, 8.0], [54.001, 8.002], [54.002, 8.002]]\n"
+        "[camera]\nfx = 3000.0\ndistortion = [-0.1, 0.01, 0.0, 0.0]\n",
+    )
+    cfg = load_mission(p)
+    intr = cfg.camera.intrinsics()
+    assert intr.fx == 3000.0 and intr.fy == 3000.0 and intr.cx == 1919.5
+    assert intr.distortion == (-0.1, 0.01, 0.0, 0.0)
+    ne = cfg.area.polygon_ne()
+    assert ne[0][0] == pytest.approx(111.4, abs=0.5) and abs(ne[0][1]) < 0.01
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("[flight\naltitude_m = 1", "invalid TOML"),
+        ("[flight]\naltitude = 70", "unknown key 'altitude' in [flight]"),
+        ("[flihgt]\naltitude_m = 70", "unknown section [flihgt]"),
+        ('[flight]\naltitude_m = "high"', "[flight] altitude_m: expected number, got string"),
+        ("[lock]\nm = 2.5", "[lock] m: expected integer, got number"),
+        ("[lock]\nm = true", "[lock] m: expected integer, got boolean"),
+        ("[lock]\nm = 6\nk = 5", "expected 1 <= m <= k"),
+        ('[actions]\npolicy = ["alert", "dance"]', "unknown action 'dance'"),
+        ("[camera]\nmount_pitch_deg = 30", "mount_pitch_deg"),
+        ("[area]\nrectangle_m = [10, 0, 0, 10]", "rectangle_m"),
+        ("[area]\nrectangle_m = [0, 0, 10, 10]\npolygon_m = [[0,0],[1,0],[1,1]]", "only one"),
+        ("flight = 3", "[flight] must be a table"),
+    ],
+)
+def test_bad_files_give_clear_errors(tmp_path, text, expected):
+    p = write(tmp_path, text)
+    with pytest.raises(MissionConfigError) as exc:
+        load_mission(p)
+    assert expected in str(exc.value)
+    assert str(p) in str(exc.value)
+    assert isinstance(exc.value, SarmissionError)
+
+
+def test_missing_file_and_bad_override(tmp_path):
+    with pytest.raises(MissionConfigError, match="cannot read"):
+        load_mission(tmp_path / "nope.toml")
+    with pytest.raises(MissionConfigError, match="expected section.key=value"):
+        load_mission(None, ["altitude"])
+    with pytest.raises(MissionConfigError, match=r"\[flight\] speed_m_s: expected number"):
+        load_mission(None, ["flight.speed_m_s=fast"])
+    assert parse_override("detector.ds = 4") == ("detector.ds", 4)

@@ -1,0 +1,329 @@
+"""The MAVLink vehicle over real UDP on 127.0.0.1, driven by a pymavlink client."""
+
+import collections
+import math
+import socket
+import time
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+from sarmission.mission.config import load_mission
+from sim.vehicle import SimVehicle, mavlink2_connection
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def mission():
+    return load_mission(overrides={"flight.takeoff": False})
+
+
+class Link:
+    """A vehicle plus a connected pymavlink client (system 255, component 190)."""
+
+    def __init__(self, mission, **kwargs):
+        self.port = free_udp_port()
+        self.vehicle = SimVehicle(f"udpin:127.0.0.1:{self.port}", mission, **kwargs).start()
+        self.conn = mavlink2_connection(f"udpout:127.0.0.1:{self.port}", 255, 190)
+        self.conn.mav.heartbeat_send(
+            M.MAV_TYPE_ONBOARD_CONTROLLER, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE
+        )
+
+    def recv(self, mtype, timeout=3.0, cond=None):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            msg = self.conn.recv_match(type=mtype, blocking=True, timeout=0.05)
+            if msg is not None and (cond is None or cond(msg)):
+                return msg
+        raise AssertionError(f"no {mtype} within {timeout} s")
+
+    def command_long(self, command, *params):
+        p = list(params) + [0.0] * (7 - len(params))
+        self.conn.mav.command_long_send(1, 1, command, 0, *p)
+        return self.recv("COMMAND_ACK", cond=lambda m: m.command == command).result
+
+    def close(self):
+        self.conn.close()
+        self.vehicle.stop()
+
+
+@pytest.fixture
+def link(mission):
+    lk = Link(mission)
+    yield lk
+    lk.close()
+
+
+def count_messages(conn, seconds):
+    counts = collections.Counter()
+    stamps = collections.defaultdict(list)
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        msg = conn.recv_match(blocking=True, timeout=0.05)
+        if msg is None:
+            continue
+        counts[msg.get_type()] += 1
+        if hasattr(msg, "time_boot_ms"):
+            stamps[msg.get_type()].append(msg.time_boot_ms)
+    return counts, stamps
+
+
+def test_telemetry_rates(link):
+    link.recv("HEARTBEAT")
+    counts, stamps = count_messages(link.conn, 3.0)
+    for mtype, rate in [
+        ("GLOBAL_POSITION_INT", 10),
+        ("ATTITUDE", 20),
+        ("GIMBAL_DEVICE_ATTITUDE_STATUS", 5),
+        ("SYSTEM_TIME", 1),
+    ]:
+        assert counts[mtype] == pytest.approx(3.0 * rate, rel=0.3), (mtype, counts)
+        dt = (stamps[mtype][-1] - stamps[mtype][0]) / 1000 / (len(stamps[mtype]) - 1)
+        assert 1 / dt == pytest.approx(rate, rel=0.05)
+    assert 2 <= counts["HEARTBEAT"] <= 4
+    assert counts["HOME_POSITION"] >= 1
+    hb = link.recv("HEARTBEAT")
+    assert (hb.type, hb.autopilot) == (M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA)
+    g = link.recv("GIMBAL_DEVICE_ATTITUDE_STATUS")
+    assert g.flags & M.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME
+    w, x, y, z = g.q
+    pitch = math.degrees(math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))))
+    assert pitch == pytest.approx(-90.0, abs=3.0)
+    pos = link.recv("GLOBAL_POSITION_INT")
+    assert pos.relative_alt == pytest.approx(70_000, abs=5_000)
+    assert pos.lat != 0 and pos.lon != 0
+
+
+def test_commands_are_acknowledged(link):
+    assert link.command_long(31999) == M.MAV_RESULT_UNSUPPORTED
+    assert (
+        link.command_long(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 100_000)
+        == M.MAV_RESULT_ACCEPTED
+    )
+    assert link.command_long(M.MAV_CMD_SET_MESSAGE_INTERVAL, 31, 100_000) == M.MAV_RESULT_DENIED
+    link.conn.mav.command_long_send(
+        1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION, 0, 0, 0, 0, 0, 0
+    )
+    seen = {}
+    deadline = time.monotonic() + 3.0
+    while len(seen) < 2 and time.monotonic() < deadline:
+        m = link.conn.recv_match(
+            type=["AUTOPILOT_VERSION", "COMMAND_ACK"], blocking=True, timeout=0.05
+        )
+        if m is not None:
+            seen[m.get_type()] = m
+    assert seen["COMMAND_ACK"].result == M.MAV_RESULT_ACCEPTED
+    assert seen["AUTOPILOT_VERSION"].capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    link.conn.mav.command_int_send(
+        1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 31998, 0, 0, 0, 0, 0, 0, 0, 0, 0.0
+    )
+    assert link.recv("COMMAND_ACK", cond=lambda m: m.command == 31998).result == (
+        M.MAV_RESULT_UNSUPPORTED
+    )
+
+
+def upload(link, items, request_type):
+    link.conn.mav.mission_count_send(1, 1, len(items), 0)
+    for _ in items:
+        req = link.recv(request_type)
+        it = items[req.seq]
+        link.conn.mav.mission_item_int_send(1, 1, req.seq, *it, 0)
+    return link.recv("MISSION_ACK")
+
+
+def download(link):
+    link.conn.mav.mission_request_list_send(1, 1, 0)
+    count = link.recv("MISSION_COUNT").count
+    got = []
+    for seq in range(count):
+        link.conn.mav.mission_request_int_send(1, 1, seq, 0)
+        got.append(link.recv("MISSION_ITEM_INT", cond=lambda m, s=seq: m.seq == s))
+    link.conn.mav.mission_ack_send(1, 1, M.MAV_MISSION_ACCEPTED, 0)
+    return got
+
+
+def three_items(mission):
+    home = mission.area.home
+    items = []
+    for i in range(3):
+        lat, lon, _ = ned_to_geodetic(50.0 * i, 20.0, 0.0, *home)
+        items.append(
+            (
+                M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                M.MAV_CMD_NAV_WAYPOINT,
+                0,
+                1,
+                0.0,
+                2.0,
+                0.0,
+                float("nan"),
+                int(round(float(lat) * 1e7)),
+                int(round(float(lon) * 1e7)),
+                40.0 + i,
+            )
+        )
+    return items
+
+
+@pytest.mark.parametrize("legacy", [False, True])
+def test_mission_upload_and_read_back(mission, legacy):
+    link = Link(mission, legacy_mission_request=legacy)
+    try:
+        items = three_items(mission)
+        ack = upload(link, items, "MISSION_REQUEST" if legacy else "MISSION_REQUEST_INT")
+        assert ack.type == M.MAV_MISSION_ACCEPTED
+        got = download(link)
+        assert [(m.seq, m.command, m.x, m.y, m.z) for m in got] == [
+            (i, it[1], it[8], it[9], it[10]) for i, it in enumerate(items)
+        ]
+        assert len(link.vehicle.missions[0]) == 3
+    finally:
+        link.close()
+
+
+def test_mission_upload_rerequests_lost_items(link, mission):
+    items = three_items(mission)
+    link.conn.mav.mission_count_send(1, 1, 3, 0)
+    first = link.recv("MISSION_REQUEST_INT")
+    assert first.seq == 0
+    again = link.recv("MISSION_REQUEST_INT", timeout=2.0)  # we stayed silent: asked again
+    assert again.seq == 0
+    for seq in range(3):
+        link.conn.mav.mission_item_int_send(1, 1, seq, *items[seq], 0)
+        if seq < 2:
+            link.recv("MISSION_REQUEST_INT", cond=lambda m, s=seq: m.seq == s + 1)
+    assert link.recv("MISSION_ACK").type == M.MAV_MISSION_ACCEPTED
+
+
+def test_reposition_flies_to_target_and_roi_points_gimbal(mission):
+    link = Link(mission, speedup=10.0)
+    try:
+        v = link.vehicle
+        home = mission.area.home
+        target_ne = (0.0, 0.0)
+        lat, lon, _ = ned_to_geodetic(*target_ne, 0.0, *home)
+
+        def dist():
+            now_ms = (v.sim_time() - 0.3) * 1000  # skip messages queued earlier
+            p = link.recv("GLOBAL_POSITION_INT", cond=lambda m: m.time_boot_ms >= now_ms)
+            n, e, _ = geodetic_to_ned(p.lat / 1e7, p.lon / 1e7, p.alt / 1000, *home)
+            return math.hypot(float(n) - target_ne[0], float(e) - target_ne[1])
+
+        d0 = dist()
+        link.conn.mav.command_int_send(
+            1,
+            1,
+            M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            M.MAV_CMD_DO_REPOSITION,
+            0,
+            0,
+            -1.0,
+            1.0,
+            0.0,
+            float("nan"),
+            int(round(float(lat) * 1e7)),
+            int(round(float(lon) * 1e7)),
+            50.0,
+        )
+        ack = link.recv("COMMAND_ACK", cond=lambda m: m.command == M.MAV_CMD_DO_REPOSITION)
+        assert ack.result == M.MAV_RESULT_ACCEPTED
+        time.sleep(1.5)  # 15 s of flight at 10 m/s
+        d1 = dist()
+        assert d1 < d0 - 50.0
+        hb = link.recv("HEARTBEAT")
+        assert hb.custom_mode == 4  # GUIDED
+        # ROI at a point on the ground: the gimbal pitch moves off nadir.
+        rlat, rlon, _ = ned_to_geodetic(60.0, 0.0, 0.0, *home)
+        link.conn.mav.command_int_send(
+            1,
+            1,
+            M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+            M.MAV_CMD_DO_SET_ROI_LOCATION,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            int(round(float(rlat) * 1e7)),
+            int(round(float(rlon) * 1e7)),
+            0.0,
+        )
+        assert link.recv("COMMAND_ACK", cond=lambda m: m.command == 195).result == 0
+        time.sleep(0.5)
+        s = v.truth_state()
+        assert -80.0 < math.degrees(s.gimbal_pitch) < -20.0
+        assert [c.command for c in v.commands][-2:] == [192, 195]
+    finally:
+        link.close()
+
+
+def test_malformed_bytes_do_not_stop_the_vehicle(link):
+    link.recv("HEARTBEAT")
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as raw:
+        raw.sendto(
+            b"\xfd\xff\x00\x00\x00\x01\x01\x4c\x00\x00" + b"\x00" * 20, ("127.0.0.1", link.port)
+        )
+        raw.sendto(bytes(range(256)) * 4, ("127.0.0.1", link.port))
+        raw.sendto(b"\xfe\x05garbage", ("127.0.0.1", link.port))
+        raw.sendto(b"", ("127.0.0.1", link.port))
+    # A valid packet with a corrupted CRC.
+    good = link.conn.mav.command_long_encode(1, 1, 31999, 0, 0, 0, 0, 0, 0, 0, 0).pack(
+        link.conn.mav
+    )
+    link.conn.write(good[:-2] + b"\x00\x00")
+    time.sleep(0.3)
+    assert link.vehicle.is_alive
+    assert link.command_long(31997) == M.MAV_RESULT_UNSUPPORTED
+    assert link.vehicle.bad_packets > 0
+
+
+def test_statustext_is_logged_and_kept(link, caplog):
+    caplog.set_level("WARNING", logger="sim.vehicle")
+    link.conn.mav.statustext_send(M.MAV_SEVERITY_ALERT, b"SAR: person at 54.17,7.89")
+    long_text = "SAR target 1 confirmed at lat 54.1712345 lon 7.8912345, score 0.93, track 17"
+    link.conn.mav.statustext_send(M.MAV_SEVERITY_CRITICAL, long_text[:50].encode(), 7, 0)
+    link.conn.mav.statustext_send(M.MAV_SEVERITY_CRITICAL, long_text[50:].encode(), 7, 1)
+    deadline = time.monotonic() + 2.0
+    while len(link.vehicle.statustexts) < 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    texts = [(s.severity, s.text) for s in link.vehicle.statustexts]
+    assert texts == [
+        (M.MAV_SEVERITY_ALERT, "SAR: person at 54.17,7.89"),
+        (M.MAV_SEVERITY_CRITICAL, long_text),
+    ]
+    assert link.vehicle.statustexts[0].src_system == 255
+    assert "SAR: person" in caplog.text
+
+
+def test_stream_on_request_sends_only_heartbeat_until_asked(mission):
+    link = Link(mission, stream_on_request=True)
+    try:
+        counts, _ = count_messages(link.conn, 1.5)
+        assert set(counts) == {"HEARTBEAT"}
+        assert (
+            link.command_long(
+                M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 250_000
+            )
+            == 0
+        )
+        counts, _ = count_messages(link.conn, 2.0)
+        assert counts["GLOBAL_POSITION_INT"] == pytest.approx(8, abs=2)
+        assert counts["ATTITUDE"] == 0 and counts["GIMBAL_DEVICE_ATTITUDE_STATUS"] == 0
+        assert (
+            link.command_long(
+                M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1
+            )
+            == 0
+        )
+        time.sleep(0.3)
+        counts, _ = count_messages(link.conn, 0.5)
+        assert counts["GLOBAL_POSITION_INT"] == 0
+    finally:
+        link.close()
