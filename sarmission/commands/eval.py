@@ -1,0 +1,185 @@
+"""``sarmission eval``: SAR metrics, box metrics and module recall on an annotated dataset.
+
+Three modes:
+
+- ``--detections dets.json``: evaluate a results file (as written by ``sarmission detect
+  --annotations``); its image ids must exist in the annotations.
+- otherwise MITE-Net runs over every video here (``--model``, else the shipped model, else an
+  untrained head with a warning) and the report adds the RPN's recall and the timing;
+- ``--sweep``: MITE-Net runs once per (ds, N) of the grid, one row each: SSR, FAR, median ms
+  per frame and FPS measured in that run, GFLOPs per stage (the paper's Table 4).
+
+JSON output (``--json``) of an evaluation has the keys of
+:func:`sarmission.evaluation.report.evaluate_detections` (``dataset``, ``classes``,
+``categories``, ``settings``, ``sar``, ``boxes``, ``module_recall``, ``definitions``) plus
+``detector`` (``None`` for a results file; else ``model``, ``runtime``, ``ds``, ``topn``,
+``conf``, ``frames``, ``skipped_frames``, ``median_ms``, ``fps``); of a sweep, a list of the
+rows of :func:`sarmission.evaluation.run_model.run_sweep`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from typing import Any
+
+from sarmission.commands.detector_options import add_detector_options
+
+log = logging.getLogger(__name__)
+
+DS_CHOICES = (1, 2, 4, 8)
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated integers, got {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one integer")
+    return values
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register the ``eval`` sub-command."""
+    parser = sub.add_parser(
+        "eval",
+        help="evaluate detections or MITE-Net on an annotated dataset",
+        description="Search success rate, false alarm rate and search time (m-of-k lock on "
+        "NWD matching), AP/AR/F2 per size band, and the recall of the RPN proposals and of "
+        "the head. Evaluates a results file (--detections) or runs MITE-Net itself.",
+    )
+    parser.add_argument("--annotations", required=True,
+                        help="COCO video annotation file (SeaDronesSee style)")
+    parser.add_argument("--detections", default=None,
+                        help="COCO results file to evaluate instead of running the detector")
+    parser.add_argument("--m", type=int, default=3,
+                        help="hits needed inside the window to lock a target (default: 3)")
+    parser.add_argument("--k", type=int, default=5, help="lock window in frames (default: 5)")
+    parser.add_argument("--score-thr", type=float, default=0.5,
+                        help="a detection counts when its score is above this (default: 0.5)")
+    parser.add_argument("--nwd-thr", type=float, default=0.5,
+                        help="a match needs NWD above this (default: 0.5)")
+    parser.add_argument("--max-frames", type=int, default=None,
+                        help="evaluate only the first frames of each video")
+    parser.add_argument("--sweep", action="store_true",
+                        help="run MITE-Net for every ds x N of the grid (scalability table)")
+    parser.add_argument("--sweep-ds", type=_int_list, default=[1, 2, 4, 8],
+                        help="sweep down-sampling factors (default: 1,2,4,8)")
+    parser.add_argument("--sweep-topn", type=_int_list, default=[10, 25, 50, 100],
+                        help="sweep proposal counts (default: 10,25,50,100)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_detector_options(parser)
+    parser.set_defaults(func=run)
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    if not 1 <= args.m <= args.k:
+        raise ValueError(f"need 1 <= --m <= --k, got --m {args.m} --k {args.k}")
+    for name in ("score_thr", "nwd_thr", "conf"):
+        value = getattr(args, name)
+        if not 0.0 <= value <= 1.0:
+            raise ValueError(f"--{name.replace('_', '-')} must be in [0, 1], got {value}")
+    if args.max_frames is not None and args.max_frames < 1:
+        raise ValueError(f"--max-frames must be at least 1, got {args.max_frames}")
+    if args.detections is not None and (args.model is not None or args.sweep):
+        raise ValueError("--detections evaluates a results file; it cannot be combined with "
+                         "--model or --sweep, which run the detector")
+    topn = args.sweep_topn if args.sweep else [args.topn]
+    if min(topn) < 1:
+        raise ValueError(f"proposal counts must be at least 1, got {topn}")
+    bad = [d for d in args.sweep_ds if d not in DS_CHOICES]
+    if args.sweep and bad:
+        raise ValueError(f"--sweep-ds accepts {', '.join(map(str, DS_CHOICES))}, got {bad}")
+
+
+def _model_label(args: argparse.Namespace) -> str:
+    """The head that :func:`build_head_runtime` loads for these options, in words."""
+    from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
+
+    if args.model is not None:
+        return str(args.model)
+    for path in ((DEFAULT_ONNX_MODEL,) if args.runtime == "onnx" else ()) + (DEFAULT_TORCH_MODEL,):
+        if path.is_file():
+            return str(path)
+    log.warning("no shipped model and no --model: evaluating an untrained head")
+    return "untrained head (no shipped model)"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate (or sweep) and print the tables, or JSON with ``--json``."""
+    from sarmission.data.coco_video import read_coco_video
+    from sarmission.evaluation.report import format_report, format_sweep, report_to_json
+
+    _check_args(args)
+    dataset = read_coco_video(args.annotations)
+    metric_options = {"m": args.m, "k": args.k, "score_thr": args.score_thr,
+                      "nwd_thr": args.nwd_thr}
+    if args.detections is not None:
+        report = _evaluate_file(args, dataset, metric_options)
+        print(report_to_json(report) if args.json else format_report(report))
+        return 0
+
+    from sarmission.evaluation.run_model import run_sweep
+    from sarmission.perception.mitenet import build_head_runtime
+
+    label = _model_label(args)
+    head = build_head_runtime(args.model, args.runtime)
+    if args.sweep:
+        rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
+                         max_frames=args.max_frames, progress=not args.no_progress,
+                         **metric_options)
+        print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
+        return 0
+    report = _evaluate_model(args, dataset, head, label, metric_options)
+    print(report_to_json(report) if args.json else _format_detector(report["detector"])
+          + "\n" + format_report(report))
+    return 0
+
+
+def _evaluate_file(args: argparse.Namespace, dataset: Any,
+                   metric_options: dict[str, Any]) -> dict[str, Any]:
+    from sarmission.data.coco_results import read_coco_results
+    from sarmission.data.sequence import sequence_ids, sequence_images
+    from sarmission.evaluation.report import detections_from_results, evaluate_detections
+    from sarmission.perception.head import DEFAULT_CLASSES
+
+    detections = detections_from_results(read_coco_results(args.detections), dataset,
+                                         DEFAULT_CLASSES)
+    image_ids = None
+    if args.max_frames is not None:
+        image_ids = [im.id for vid in sequence_ids(dataset)
+                     for im in sequence_images(dataset, vid)[:args.max_frames]]
+    report = evaluate_detections(dataset, detections, DEFAULT_CLASSES, image_ids=image_ids,
+                                 **metric_options)
+    return {**report, "detector": None}
+
+
+def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: str,
+                    metric_options: dict[str, Any]) -> dict[str, Any]:
+    from sarmission.evaluation.report import evaluate_detections, target_category_map
+    from sarmission.evaluation.run_model import run_mitenet
+    from sarmission.perception.mitenet import MiteNet
+
+    net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf)
+    target_category_map(dataset.categories, net.classes)  # fail before running, not after
+    run = run_mitenet(net, dataset, args.max_frames, progress=not args.no_progress)
+    if not run.frame_ms:
+        raise ValueError(f"{args.annotations}: none of the {run.skipped} frames could be read")
+    report = evaluate_detections(dataset, run.detections, net.classes, run.proposals,
+                                 image_ids=run.image_ids, **metric_options)
+    median = run.median_ms
+    return {**report, "detector": {
+        "model": label, "runtime": args.runtime, "ds": args.ds, "topn": args.topn,
+        "conf": args.conf, "frames": len(run.frame_ms), "skipped_frames": run.skipped,
+        "median_ms": median, "fps": 1e3 / median if median else None}}
+
+
+def _format_detector(detector: dict[str, Any]) -> str:
+    skipped = detector["skipped_frames"]
+    return (f"detector: {detector['model']} ({detector['runtime']}), ds={detector['ds']}, "
+            f"N={detector['topn']}, conf={detector['conf']:g}; {detector['frames']} frames"
+            + (f" ({skipped} unreadable, skipped)" if skipped else "")
+            + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)")
