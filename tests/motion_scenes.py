@@ -63,3 +63,32 @@ def to_bgr(image: np.ndarray) -> np.ndarray:
     """Float gray image in [0, 1] → uint8 BGR frame."""
     gray = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
     return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
+
+
+def drifting_scene(height: int, width: int, n_frames: int, camera_velocity: tuple[float, float],
+                   start: tuple[float, float], relative_velocity: tuple[float, float],
+                   size: float, value: float = 0.95, seed: int = 0, grain: float = 2.0,
+                   amplitude: float = 0.3) -> tuple[list[np.ndarray], np.ndarray]:
+    """Frames seen from a translating camera: a periodic band-limited texture (Gaussian-filtered
+    noise, sigma ``grain`` px) moves by ``camera_velocity`` px/frame, translated exactly by a
+    Fourier phase ramp, and a target drifts over it at ``camera_velocity + relative_velocity``.
+
+    Returns the frames (float32 in [0, 1]) and the ``[n_frames, 2]`` true target centres.
+    """
+    rng = np.random.default_rng(seed)
+    spectrum = np.fft.fft2(rng.random((height, width)))
+    fy = np.fft.fftfreq(height)[:, None]
+    fx = np.fft.fftfreq(width)[None, :]
+    spectrum *= np.exp(-2.0 * (np.pi * grain) ** 2 * (fx * fx + fy * fy))
+    spectrum[0, 0] = 0.0
+    scale = amplitude / (2.0 * np.sqrt(np.mean(np.abs(spectrum) ** 2)) / np.sqrt(spectrum.size))
+    cam = np.asarray(camera_velocity, np.float64)
+    centres = (np.asarray(start, np.float64)
+               + np.arange(n_frames)[:, None] * (cam + np.asarray(relative_velocity)))
+    frames = []
+    for t, (cx, cy) in enumerate(centres):
+        dx, dy = cam * t
+        tex = np.real(np.fft.ifft2(spectrum * np.exp(-2j * np.pi * (fx * dx + fy * dy))))
+        bg = np.clip(0.4 + scale * tex, 0.0, 1.0).astype(np.float32)
+        frames.append(render(bg, float(cx), float(cy), size, value))
+    return frames, centres

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from motion_scenes import moving_target, render, textured_background, to_bgr
+from motion_scenes import drifting_scene, moving_target, render, textured_background, to_bgr
 
 from sarmission.perception.types import MotionMaps
 from sarmission.perception.vstmd import VSTMD, direction_at, map_to_full
@@ -186,3 +186,80 @@ def test_flops_shrink_with_ds() -> None:
     assert counts == sorted(counts, reverse=True)
     # Full-resolution work (gray + retina) is a floor: 15 operations per pixel.
     assert counts[-1] > 15 * 2160 * 3840
+
+
+def drifting(ds_frames: int = 14, camera: tuple[float, float] = (6.0, 1.5),
+             seed: int = 3) -> tuple[list[np.ndarray], np.ndarray]:
+    """Textured background translating ``camera`` px/frame, 8-px target drifting (1.5, 0.5)
+    px/frame relative to it."""
+    frames, centres = drifting_scene(240, 320, ds_frames, camera, (100.0, 110.0), (1.5, 0.5), 8,
+                                     seed=seed, grain=4.0, amplitude=0.15)
+    return [to_bgr(f) for f in frames], centres
+
+
+@pytest.mark.parametrize("ds", [1, 2])
+@pytest.mark.parametrize("camera", [(6.0, 1.5), (7.0, 3.0), (-5.3, 2.6)])
+def test_ego_motion_keeps_target_on_moving_camera(ds: int, camera: tuple[float, float]) -> None:
+    frames, centres = drifting(camera=camera)
+    comp = run(VSTMD(ds=ds, target_size=8, ego_motion="estimate"), frames)
+    assert comp.response.max() > 0
+    assert np.linalg.norm(peak_full_res(comp) - centres[-1]) <= 8 + 4
+    # Without compensation the target streaks and the moving texture swamps it.
+    plain = run(VSTMD(ds=ds, target_size=8, ego_motion="none"), frames)
+    near = np.linalg.norm(peak_full_res(plain) - centres[-1]) <= 8 + 4
+    assert not (near and plain.response.max() > 0.2 * comp.response.max())
+
+
+@pytest.mark.parametrize("ds", [1, 2, 4])
+def test_estimated_shift_matches_camera(ds: int) -> None:
+    camera = (-7.0 + 1.3 * ds, 5.25)
+    frames, _ = drifting(8, camera, seed=11)
+    model = VSTMD(ds=ds, target_size=8)
+    shifts = []
+    for f in frames:
+        model.step(f)
+        shifts.append(model.last_shift)
+    assert shifts[0] == (0.0, 0.0)
+    np.testing.assert_allclose(np.array(shifts[1:]), np.tile(camera, (len(frames) - 1, 1)),
+                               atol=0.5)
+
+
+def test_static_camera_matches_no_compensation() -> None:
+    frames, _ = moving_target(160, 200, 10, (60.0, 70.0), (2.0, 1.0), 8, seed=6)
+    frames = [to_bgr(f) for f in frames]
+    a, b = VSTMD(ds=2, target_size=8), VSTMD(ds=2, target_size=8, ego_motion="none")
+    for f in frames:
+        ma, mb = a.step(f), b.step(f)
+        assert a.last_shift == (0.0, 0.0)
+        for name in ("temporal_change", "v_on", "v_off", "correlation", "response"):
+            np.testing.assert_array_equal(getattr(ma, name), getattr(mb, name))
+
+
+def test_textureless_background_is_not_compensated_onto_target() -> None:
+    bg = np.full((128, 176), 0.3, np.float32)
+    model = VSTMD(ds=2, target_size=32)
+    for t in range(6):
+        model.step(render(bg, 50.0 + 8.0 * t, 64.0, 32))
+        assert model.last_shift == (0.0, 0.0)
+
+
+def test_supplied_shift_overrides_and_reset_clears() -> None:
+    frames, centres = drifting(camera=(6.0, 1.5))
+    told = VSTMD(ds=2, target_size=8, ego_motion="none")
+    for t, f in enumerate(frames):
+        maps = told.step(f, shift_px=(6.0, 1.5))
+        assert told.last_shift == ((0.0, 0.0) if t == 0 else (6.0, 1.5))
+    assert np.linalg.norm(peak_full_res(maps) - centres[-1]) <= 8 + 4
+    model = VSTMD(ds=2, target_size=8)
+    run(model, frames[:3])
+    assert model.last_shift != (0.0, 0.0)
+    model.step(frames[3], shift_px=(1.0, -2.0))
+    assert model.last_shift == (1.0, -2.0)
+    model.reset()
+    assert model.last_shift == (0.0, 0.0)
+    model.step(frames[5])
+    assert model.last_shift == (0.0, 0.0)  # first frame of the new stream: no previous image
+    with pytest.raises(ValueError, match="finite"):
+        model.step(frames[6], shift_px=(float("nan"), 0.0))
+    with pytest.raises(ValueError, match="ego_motion"):
+        VSTMD(ego_motion="telemetry")

@@ -54,6 +54,37 @@ the dense 2-D kernel (:meth:`VSTMD.dog_kernel`) and is several times faster than
 ``filter2D`` (which switches to a DFT) at these sizes. Each Gaussian is truncated at
 ``truncate`` sigmas and normalised to unit sum; pixels outside the map count as zero.
 
+**Ego-motion compensation.** On a moving camera the whole scene translates by ``s_t``
+(content at ``x`` in frame t-1 is at ``x + s_t`` in frame t). The correlation only answers to
+motion below about a third of the target size per frame, so the state is first carried into the
+current frame's coordinates and the model sees only motion relative to the background::
+
+    P~_{t-1}(x) = P'_{t-1}(x - s)                      (Catmull-Rom cubic, sub-pixel)
+    L~_{t-1}(x), V~_on(x), V~_off(x) at x - s          (bilinear)
+    L_t = a0 * (P'_t - P~_{t-1}) + decay * L~_{t-1},   cIDP on V~_on, V~_off
+
+with ``s = s_full / ds`` in map pixels. Where ``x - s`` falls outside the map (the strip of new
+content at the leading border) ``P~ = P'_t`` (no temporal change), ``L~ = V~ = 0``. The shift is
+fused into the lamina/medulla loop as index offsets, so it costs no copies. ``P~`` needs the
+sharper cubic: bilinear resampling low-passes ``P'_{t-1}`` but not ``P'_t``, and on fine texture
+the mismatch is a dense temporal change whose correlation the lobula surround turns against the
+target. ``L`` and ``V`` must be resampled too (rounding them to whole map pixels misplaces the
+ON/OFF trail by up to half a pixel each frame and cuts the target's correlation several-fold);
+bilinear suffices there because they decay within a few frames.
+
+The shift is either supplied (telemetry) or estimated from ``P'`` (:class:`ShiftEstimator`):
+area-downsample ``P'`` to at most ``480 x 270`` (image ``E``), take the dominant translation by
+phase correlation one octave coarser, refine it to sub-pixel accuracy by robust (Huber-weighted)
+Gauss-Newton on ``E`` and accept it only if it explains most of the frame-to-frame change::
+
+    e(s) = mean_x |E_t(x) - E_{t-1}(x - s)|
+    accept  iff  e(0) - e(s) > min_gain,  e(s) < max_ratio * e(0)
+                 and  share_x(|E_t - E_{t-1}| > change_level) >= min_changed,   else s = 0
+
+A static camera with moving targets thus gets exactly ``s = 0`` (and the same maps as without
+compensation); a textureless background, whose only change is a small target, is not
+"compensated" onto the target.
+
 **Buffers.** The arrays of a returned :class:`MotionMaps` belong to the model and alternate between
 two sets: they stay valid through the next :meth:`VSTMD.step` and are overwritten by the one after.
 Copy them to keep them longer.
@@ -71,6 +102,7 @@ from numba import njit
 from sarmission.perception.types import MotionMaps
 
 VALID_DS = (1, 2, 4, 8)
+EGO_MOTION_MODES = ("estimate", "none")
 
 
 @dataclass(frozen=True)
@@ -96,6 +128,20 @@ class VSTMDParams:
     min_sigma: float = 0.5
     #: Gaussian kernels are cut at this many sigmas.
     truncate: float = 3.0
+    #: Ego-motion estimation: largest image (width, height) the shift is estimated on.
+    ego_max_size: tuple[int, int] = (480, 270)
+    #: Smallest drop of the mean absolute frame difference (intensity in [0, 1]) a shift must
+    #: explain to be accepted (about half a grey level).
+    ego_min_gain: float = 0.002
+    #: Largest remaining share of the frame difference after the shift for it to be accepted.
+    ego_max_ratio: float = 0.8
+    #: Smallest share of the image whose frame difference exceeds ``ego_change_level`` for a
+    #: shift to be accepted: the camera moves everything, a target only a small part.
+    ego_min_changed: float = 0.2
+    ego_change_level: float = 0.01
+    #: Gauss-Newton refinement: most iterations and the step (estimation pixels) that stops it.
+    ego_iterations: int = 5
+    ego_tolerance: float = 0.005
 
     def lamina_coefficients(self) -> tuple[float, float]:
         """``(a0, decay)`` of the lamina recursion ``L_t = a0 * D_t + decay * L_{t-1}``."""
@@ -137,6 +183,20 @@ def _exp_small(x):
     return p * p
 
 
+@njit(cache=True, fastmath=True, inline="always")
+def _cell(p, q, l_prev, a, b, a0, decay, g_leak, v_rest, v_exc):
+    """One map pixel: lamina ``L = a0 (p - q) + decay L_prev``, ON/OFF split and the cIDP update
+    of ``(a, b) = (V_on, V_off)``. Returns ``(L, V_on, V_off)``.
+    """
+    zero = np.float32(0.0)
+    lt = a0 * (p - q) + decay * l_prev
+    on = max(lt, zero)
+    off = max(-lt, zero)
+    a = a + _exp_small(off) * g_leak * (v_rest - a) + on * (v_exc - a)
+    b = b + _exp_small(on) * g_leak * (v_rest - b) + off * (v_exc - b)
+    return lt, a, b
+
+
 @njit(cache=True, fastmath=True)
 def _lamina_medulla(pooled, scale, p_prev, l_in, von_in, voff_in, l_out, von_out, voff_out,
                     corr, a0, decay, g_leak, v_rest, v_exc):  # pragma: no cover - numba
@@ -145,7 +205,6 @@ def _lamina_medulla(pooled, scale, p_prev, l_in, von_in, voff_in, l_out, von_out
     ``p_prev`` is updated in place; ``*_in`` are last frame's state, ``*_out`` this frame's.
     """
     h, w = pooled.shape
-    zero = np.float32(0.0)
     for i in range(h):
         src = pooled[i]
         pp = p_prev[i]
@@ -158,18 +217,159 @@ def _lamina_medulla(pooled, scale, p_prev, l_in, von_in, voff_in, l_out, von_out
         co = corr[i]
         for j in range(w):
             p = np.float32(src[j]) * scale
-            lt = a0 * (p - pp[j]) + decay * li[j]
+            lt, a, b = _cell(p, pp[j], li[j], ai[j], bi[j], a0, decay, g_leak, v_rest, v_exc)
             pp[j] = p
             lo[j] = lt
-            on = max(lt, zero)
-            off = max(-lt, zero)
-            a = ai[j]
-            b = bi[j]
-            a = a + _exp_small(off) * g_leak * (v_rest - a) + on * (v_exc - a)
-            b = b + _exp_small(on) * g_leak * (v_rest - b) + off * (v_exc - b)
             ao[j] = a
             bo[j] = b
             co[j] = a * b
+
+
+def cubic_weights(frac: float) -> np.ndarray:
+    """Catmull-Rom (Keys, a = -0.5) weights of the taps ``k + 1, k, k - 1, k - 2`` for the
+    sample at ``k - frac`` (``frac`` in [0, 1)). With ``t = 1 - frac``::
+
+        w = [t^3 - t^2,  -3t^3 + 4t^2 + t,  3t^3 - 5t^2 + 2,  -t^3 + 2t^2 - t] / 2
+    """
+    t = 1.0 - frac
+    t2, t3 = t * t, t * t * t
+    return np.array([t3 - t2, -3.0 * t3 + 4.0 * t2 + t, 3.0 * t3 - 5.0 * t2 + 2.0,
+                     -t3 + 2.0 * t2 - t], np.float32) / np.float32(2.0)
+
+
+@njit(cache=True, fastmath=True)
+def _lamina_medulla_shifted(pooled, scale, p_in, l_in, von_in, voff_in, p_out, l_out, von_out,
+                            voff_out, corr, column, kx, ky, fx, fy, cx, cy, a0, decay, g_leak,
+                            v_rest, v_exc):  # pragma: no cover - numba
+    """:func:`_lamina_medulla` with last frame's state carried by the shift ``s = k + f``
+    (integer ``k``, fraction ``f`` in [0, 1)) into this frame's coordinates.
+
+    The source of map pixel ``(i, j)`` is ``(i - s_y, j - s_x)``, between columns
+    ``c = j - kx`` and ``c - 1``. ``P~`` is a Catmull-Rom cubic over columns ``c + 1 .. c - 2``
+    (weights ``cx``, rows likewise with ``cy``); ``L``, ``V_on``, ``V_off`` are bilinear
+    (weights ``1 - fx`` on ``c``, ``fx`` on ``c - 1``). Where a tap falls outside the map
+    ``P~ = P'_t`` and ``L~ = V~ = 0``. Writes ``P'_t`` to ``p_out``; ``column`` is scratch of
+    at least ``w + 3`` values.
+    """
+    h, w = pooled.shape
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    jlo = min(max(0, kx + 2), w)
+    jhi = max(min(w, w + kx - 1), jlo)
+    wx0, wx1 = one - fx, fx
+    wy0, wy1 = one - fy, fy
+    x0, x1, x2, x3 = cx[0], cx[1], cx[2], cx[3]
+    y0, y1, y2, y3 = cy[0], cy[1], cy[2], cy[3]
+    for i in range(h):
+        src = pooled[i]
+        po = p_out[i]
+        lo = l_out[i]
+        ao = von_out[i]
+        bo = voff_out[i]
+        co = corr[i]
+        r0 = i - ky
+        inside = r0 - 2 >= 0 and r0 + 1 <= h - 1
+        start = jlo if inside else w
+        stop = jhi if inside else w
+        for j in range(start):
+            p = np.float32(src[j]) * scale
+            lt, a, b = _cell(p, p, zero, zero, zero, a0, decay, g_leak, v_rest, v_exc)
+            po[j] = p
+            lo[j] = lt
+            ao[j] = a
+            bo[j] = b
+            co[j] = a * b
+        for j in range(stop, w):
+            p = np.float32(src[j]) * scale
+            lt, a, b = _cell(p, p, zero, zero, zero, a0, decay, g_leak, v_rest, v_exc)
+            po[j] = p
+            lo[j] = lt
+            ao[j] = a
+            bo[j] = b
+            co[j] = a * b
+        if stop <= start:
+            continue
+        # Row views aligned so that every index is the loop counter plus a constant >= 0 (lets
+        # LLVM drop numba's negative-index wraparound checks and vectorise).
+        base = start - kx - 2
+        qa = p_in[r0 + 1, base:]
+        qb = p_in[r0, base:]
+        qc = p_in[r0 - 1, base:]
+        qd = p_in[r0 - 2, base:]
+        l0 = l_in[r0, base + 1:]
+        l1 = l_in[r0 - 1, base + 1:]
+        a0r = von_in[r0, base + 1:]
+        a1r = von_in[r0 - 1, base + 1:]
+        b0r = voff_in[r0, base + 1:]
+        b1r = voff_in[r0 - 1, base + 1:]
+        src = src[start:]
+        po = po[start:]
+        lo = lo[start:]
+        ao = ao[start:]
+        bo = bo[start:]
+        co = co[start:]
+        count = stop - start
+        for n in range(count + 3):  # vertical cubic pass, then the horizontal one below
+            column[n] = y0 * qa[n] + y1 * qb[n] + y2 * qc[n] + y3 * qd[n]
+        for n in range(count):
+            q = x0 * column[n + 3] + x1 * column[n + 2] + x2 * column[n + 1] + x3 * column[n]
+            lp = wy0 * (wx0 * l0[n + 1] + wx1 * l0[n]) + wy1 * (wx0 * l1[n + 1] + wx1 * l1[n])
+            ap = wy0 * (wx0 * a0r[n + 1] + wx1 * a0r[n]) + wy1 * (wx0 * a1r[n + 1] + wx1 * a1r[n])
+            bp = wy0 * (wx0 * b0r[n + 1] + wx1 * b0r[n]) + wy1 * (wx0 * b1r[n + 1] + wx1 * b1r[n])
+            p = np.float32(src[n]) * scale
+            lt, a, b = _cell(p, q, lp, ap, bp, a0, decay, g_leak, v_rest, v_exc)
+            po[n] = p
+            lo[n] = lt
+            ao[n] = a
+            bo[n] = b
+            co[n] = a * b
+
+
+@njit(cache=True, fastmath=True)
+def _translation_system(cur, prev, sx, sy, huber, level):  # pragma: no cover - numba
+    """Gauss-Newton normal equations of ``min_s sum_x rho(cur(x) - prev(x - s))`` at ``s``.
+
+    With ``r = cur(x) - prev(x - s)`` (bilinear) and ``g = grad cur(x)`` (central differences),
+    ``cur(x) = prev(x - s - d)`` linearises to ``r = -g . d``, so ``d = -A^{-1} b`` with
+    ``A = sum w g g^T``, ``b = sum w g r`` and Huber weights ``w = min(1, huber / |r|)``.
+    Returns ``(A11, A12, A22, b1, b2, mean |r|, share of |r| > level, count)`` over the pixels
+    whose samples are inside.
+    """
+    h, w = cur.shape
+    kx = int(math.floor(sx))
+    ky = int(math.floor(sy))
+    fx = sx - kx
+    fy = sy - ky
+    a11 = a12 = a22 = b1 = b2 = err = changed = 0.0
+    n = 0
+    jlo = max(1, kx + 1)
+    jhi = min(w - 1, w + kx)
+    for i in range(max(1, ky + 1), min(h - 1, h + ky)):
+        if jhi <= jlo:
+            break
+        # Views aligned to the loop counter m (column jlo + m), as in the lamina kernel.
+        q0 = prev[i - ky, jlo - kx - 1:]
+        q1 = prev[i - ky - 1, jlo - kx - 1:]
+        up = cur[i - 1, jlo:]
+        row = cur[i, jlo - 1:]
+        down = cur[i + 1, jlo:]
+        for m in range(jhi - jlo):
+            q = ((1.0 - fy) * ((1.0 - fx) * q0[m + 1] + fx * q0[m])
+                 + fy * ((1.0 - fx) * q1[m + 1] + fx * q1[m]))
+            r = row[m + 1] - q
+            gx = 0.5 * (row[m + 2] - row[m])
+            gy = 0.5 * (down[m] - up[m])
+            ar = abs(r)
+            wt = 1.0 if ar <= huber else huber / ar
+            a11 += wt * gx * gx
+            a12 += wt * gx * gy
+            a22 += wt * gy * gy
+            b1 += wt * gx * r
+            b2 += wt * gy * r
+            err += ar
+            changed += 1.0 if ar > level else 0.0
+        n += jhi - jlo
+    return a11, a12, a22, b1, b2, err / max(n, 1), changed / max(n, 1), n
 
 
 @njit(cache=True, fastmath=True)
@@ -186,6 +386,122 @@ def _combine_rectify(centre, surround, bump, out):  # pragma: no cover - numba
             o[j] = max(c[j] - s[j] + b[j], zero)
 
 
+def _halve_to(img: np.ndarray, levels: int) -> np.ndarray:
+    """Area-average ``img`` by ``2**levels`` (exact 2x ``INTER_AREA`` halvings; the image must be
+    cropped to a multiple of ``2**levels``).
+    """
+    for _ in range(levels):
+        img = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2),
+                         interpolation=cv2.INTER_AREA)
+    return img
+
+
+class ShiftEstimator:
+    """Dominant global translation between consecutive pooled retina images ``P'``.
+
+    Every :meth:`update` area-pools ``P'`` by ``f = 2**k`` (the smallest ``k`` that fits the
+    image in ``max_size``) into ``E_t`` and estimates the shift ``s`` with
+    ``E_t(x) = E_{t-1}(x - s)``:
+
+    1. coarse: ``cv2.phaseCorrelate`` of Hanning-windowed ``E`` pooled once more by 2; the
+       whitened cross-power spectrum peaks at the translation of most of the image, whatever
+       moves on top of it;
+    2. fine: up to ``iterations`` robust Gauss-Newton steps on ``E`` (:func:`_translation_system`,
+       Huber threshold ``1.345 * 1.253 * mean|r|``, i.e. 1.345 sigma for Gaussian residuals);
+    3. gate: accept ``s`` only if ``e(0) - e(s) > min_gain``, ``e(s) < max_ratio * e(0)``
+       (``e`` the mean absolute residual) and at least ``min_changed`` of the pixels differ by
+       more than ``change_level`` at ``s = 0``; else report ``(0, 0)``.
+
+    The result is in 1/ds map pixels (``f * s``).
+    """
+
+    def __init__(self, params: VSTMDParams | None = None) -> None:
+        self.params = params or VSTMDParams()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous image: the next :meth:`update` returns ``(0, 0)``."""
+        self._levels = 0
+        self._prev: np.ndarray | None = None
+        self._prev_coarse: np.ndarray | None = None
+        self._window: np.ndarray | None = None
+
+    def _images(self, pooled: np.ndarray, scale: np.float32) -> tuple[np.ndarray, np.ndarray]:
+        """``(E, coarse E)`` as float32 in [0, 1]."""
+        if self._window is None:
+            max_w, max_h = self.params.ego_max_size
+            h, w = pooled.shape
+            levels = 0
+            while (w >> levels) > max_w or (h >> levels) > max_h:
+                levels += 1
+            self._levels = levels
+            ch, cw = (h >> levels) // 2, (w >> levels) // 2
+            self._window = cv2.createHanningWindow((cw, ch), cv2.CV_32F)
+        f = 1 << self._levels
+        ch, cw = self._window.shape
+        eh, ew = ch * 2, cw * 2
+        est = _halve_to(pooled[:eh * f, :ew * f], self._levels).astype(np.float32) * scale
+        coarse = cv2.resize(est, (cw, ch), interpolation=cv2.INTER_AREA)
+        return est, coarse
+
+    def observe(self, pooled: np.ndarray, scale: np.float32) -> None:
+        """Keep ``P'_t`` as the reference of the next estimate without estimating (used when the
+        shift comes from elsewhere).
+        """
+        self._prev, self._prev_coarse = self._images(pooled, scale)
+
+    def update(self, pooled: np.ndarray, scale: np.float32) -> tuple[float, float]:
+        """Shift ``(dx, dy)`` in map pixels from the last image to ``P'_t`` (``(0, 0)`` on the
+        first image and whenever the estimate is refused).
+        """
+        est, coarse = self._images(pooled, scale)
+        prev, prev_coarse = self._prev, self._prev_coarse
+        self._prev, self._prev_coarse = est, coarse
+        if prev is None or prev_coarse is None or min(coarse.shape) < 4:
+            return 0.0, 0.0
+        (cx, cy), _ = cv2.phaseCorrelate(prev_coarse, coarse, self._window)
+        p = self.params
+        s = np.array([2.0 * cx, 2.0 * cy])
+        level = p.ego_change_level
+        *_, err0, changed, _ = _translation_system(est, prev, 0.0, 0.0, np.inf, level)
+        if changed < p.ego_min_changed:
+            return 0.0, 0.0
+        huber = np.inf
+        err, count = err0, 0
+        for _ in range(p.ego_iterations):
+            a11, a12, a22, b1, b2, err, _, count = _translation_system(est, prev, s[0], s[1],
+                                                                       huber, level)
+            det = a11 * a22 - a12 * a12
+            if count == 0 or not det > 1e-12 * max(a11 * a22, 1e-30):
+                return 0.0, 0.0
+            step = -np.array([a22 * b1 - a12 * b2, a11 * b2 - a12 * b1]) / det
+            s += step
+            huber = max(1.345 * 1.253 * err, 1e-6)
+            if float(np.hypot(*step)) < p.ego_tolerance:
+                break
+        *_, err, _, count = _translation_system(est, prev, s[0], s[1], np.inf, level)
+        if count < 0.25 * est.size or not (err0 - err > p.ego_min_gain
+                                          and err < p.ego_max_ratio * err0):
+            return 0.0, 0.0
+        f = float(1 << self._levels)
+        return float(s[0]) * f, float(s[1]) * f
+
+    def flops(self, height: int, width: int) -> int:
+        """Upper estimate of the operations per update for a ``height x width`` map: pooling
+        1/map px; per estimation px 3 x 20 (residual and gradient, twice for the gate) plus
+        ``iterations`` x 25 (Gauss-Newton); per coarse px the phase correlation, 3 DFTs of
+        ``5 n log2 n`` plus 10 (window, spectrum normalisation, peak).
+        """
+        levels = 0
+        max_w, max_h = self.params.ego_max_size
+        while (width >> levels) > max_w or (height >> levels) > max_h:
+            levels += 1
+        n_est = (height >> levels) * (width >> levels)
+        n_coarse = max(n_est // 4, 1)
+        return int(height * width + n_est * (60 + 25 * self.params.ego_iterations)
+                   + n_coarse * (15 * math.log2(max(n_coarse, 2)) + 10))
+
+
 class VSTMD:
     """Streaming vSTMD for one video (see the module docstring for the maths and geometry).
 
@@ -193,6 +509,12 @@ class VSTMD:
         ds: average-pooling factor of the motion maps, one of 1, 2, 4, 8.
         target_size: expected target size in full-resolution pixels; sets the DoG sigmas.
         params: model constants (defaults: the vSTMD reference values).
+        ego_motion: ``"estimate"`` compensates the camera's global translation estimated from
+            the frames (:class:`ShiftEstimator`); ``"none"`` leaves the state where it is (a
+            static camera). A shift given to :meth:`step` overrides either.
+
+    After each :meth:`step`, ``last_shift`` is the shift ``(dx, dy)`` that was compensated, in
+    full-resolution pixels (content moved from ``x`` to ``x + shift``); ``(0.0, 0.0)`` when none.
 
     Frames are BGR uint8 ``[H, W, 3]``, grayscale uint8 ``[H, W]`` (both scaled by 1/255) or
     grayscale float32 ``[H, W]`` in [0, 1]. All frames of a stream must have the same size;
@@ -200,8 +522,11 @@ class VSTMD:
     """
 
     def __init__(self, ds: int = 2, target_size: float = 6.25,
-                 params: VSTMDParams | None = None) -> None:
+                 params: VSTMDParams | None = None, ego_motion: str = "estimate") -> None:
         self.ds = _check_ds(ds)
+        if ego_motion not in EGO_MOTION_MODES:
+            raise ValueError(f"ego_motion must be one of {EGO_MOTION_MODES}, got {ego_motion!r}")
+        self.ego_motion = ego_motion
         if not target_size > 0:
             raise ValueError(f"target_size must be positive (full-resolution pixels), got "
                              f"{target_size}")
@@ -212,12 +537,8 @@ class VSTMD:
         self._a0, self._decay = np.float32(a0), np.float32(decay)
         self.sigma1, self.sigma2 = self.dog_sigmas(self.ds, self.target_size, p)
         self._build_lobula_kernels()
-        self._shape: tuple[int, int] | None = None
-        self._sets: list[dict[str, np.ndarray]] = []
-        self._p_prev = np.zeros((0, 0), np.float32)
-        self._scratch: dict[str, np.ndarray] = {}
-        self._parity = 0
-        self._first = True
+        self._estimator = ShiftEstimator(p) if ego_motion == "estimate" else None
+        self.reset()
 
     # ------------------------------------------------------------------ kernels
     @staticmethod
@@ -271,12 +592,16 @@ class VSTMD:
     # ------------------------------------------------------------------ stream
     def reset(self) -> None:
         """Forget all state: the next frame is the first of a new stream (any size)."""
-        self._shape = None
-        self._sets = []
-        self._scratch = {}
+        self._shape: tuple[int, int] | None = None
+        self._sets: list[dict[str, np.ndarray]] = []
+        self._scratch: dict[str, np.ndarray] = {}
         self._p_prev = np.zeros((0, 0), np.float32)
+        self._p_spare = np.zeros((0, 0), np.float32)
         self._parity = 0
         self._first = True
+        self.last_shift: tuple[float, float] = (0.0, 0.0)
+        if self._estimator is not None:
+            self._estimator.reset()
 
     def map_shape(self, height: int, width: int) -> tuple[int, int]:
         """``(h, w)`` of the 1/ds maps for ``height x width`` frames."""
@@ -286,7 +611,9 @@ class VSTMD:
         names = ("temporal_change", "v_on", "v_off", "correlation", "response")
         self._sets = [{n: np.zeros((h, w), np.float32) for n in names} for _ in range(2)]
         self._scratch = {n: np.empty((h, w), np.float32) for n in ("centre", "surround", "bump")}
+        self._scratch["column"] = np.empty(w + 3, np.float32)
         self._p_prev = np.zeros((h, w), np.float32)
+        self._p_spare = np.zeros((h, w), np.float32)
 
     def _pooled(self, frame: np.ndarray, h: int, w: int) -> tuple[np.ndarray, np.float32]:
         """``P' = pool_ds(blur(gray(frame)))`` at 1/ds and the scale to [0, 1]."""
@@ -320,14 +647,22 @@ class VSTMD:
                              f"{width}x{height}; call reset() to start a new stream")
         return height, width
 
-    def step(self, frame: np.ndarray) -> MotionMaps:
-        """Advance the model by one frame and return this frame's 1/ds maps."""
+    def step(self, frame: np.ndarray,
+             shift_px: tuple[float, float] | None = None) -> MotionMaps:
+        """Advance the model by one frame and return this frame's 1/ds maps.
+
+        ``shift_px = (dx, dy)``, if given, is the camera-induced translation of the scene since
+        the previous frame in full-resolution pixels (e.g. from telemetry); it replaces the
+        estimate (and applies with ``ego_motion="none"`` too). Ignored on a stream's first frame.
+        """
         height, width = self._check_frame(frame)
         h, w = self.map_shape(height, width)
         if self._shape is None:
             self._shape = (height, width)
             self._allocate(h, w)
         pooled, scale = self._pooled(frame, h, w)
+        sx, sy = self._shift(pooled, scale, shift_px)
+        self.last_shift = (sx * self.ds, sy * self.ds)
         if self._first:
             self._p_prev[...] = pooled * scale  # D = 0 on the first frame
             self._first = False
@@ -335,14 +670,40 @@ class VSTMD:
         self._parity = 1 - self._parity
         p = self.params
         f32 = np.float32
-        _lamina_medulla(pooled, scale, self._p_prev, old["temporal_change"], old["v_on"],
-                        old["v_off"], new["temporal_change"], new["v_on"], new["v_off"],
-                        new["correlation"], self._a0, self._decay, f32(p.g_leak), f32(p.v_rest),
-                        f32(p.v_exc))
+        constants = (self._a0, self._decay, f32(p.g_leak), f32(p.v_rest), f32(p.v_exc))
+        if sx == 0.0 and sy == 0.0:
+            _lamina_medulla(pooled, scale, self._p_prev, old["temporal_change"], old["v_on"],
+                            old["v_off"], new["temporal_change"], new["v_on"], new["v_off"],
+                            new["correlation"], *constants)
+        else:
+            kx, ky = math.floor(sx), math.floor(sy)
+            _lamina_medulla_shifted(pooled, scale, self._p_prev, old["temporal_change"],
+                                    old["v_on"], old["v_off"], self._p_spare,
+                                    new["temporal_change"], new["v_on"], new["v_off"],
+                                    new["correlation"], self._scratch["column"], kx, ky,
+                                    f32(sx - kx), f32(sy - ky), cubic_weights(sx - kx),
+                                    cubic_weights(sy - ky), *constants)
+            self._p_prev, self._p_spare = self._p_spare, self._p_prev
         self._lobula(new["correlation"], new["response"])
         return MotionMaps(ds=self.ds, temporal_change=new["temporal_change"], v_on=new["v_on"],
                           v_off=new["v_off"], correlation=new["correlation"],
                           response=new["response"])
+
+    def _shift(self, pooled: np.ndarray, scale: np.float32,
+               shift_px: tuple[float, float] | None) -> tuple[float, float]:
+        """This frame's shift in map pixels: supplied, estimated or zero (first frame)."""
+        moved = (0.0, 0.0)
+        if shift_px is not None:
+            dx, dy = (float(v) for v in shift_px)
+            if not (math.isfinite(dx) and math.isfinite(dy)):
+                raise ValueError(f"shift_px must be two finite numbers, got {shift_px!r}")
+            moved = (dx / self.ds, dy / self.ds)
+        if self._estimator is not None:
+            if shift_px is None:
+                moved = self._estimator.update(pooled, scale)
+            else:
+                self._estimator.observe(pooled, scale)
+        return (0.0, 0.0) if self._first else moved
 
     def _lobula(self, corr: np.ndarray, out: np.ndarray) -> None:
         """``out = max(W * corr, 0)`` via the separable decomposition of ``W``."""
@@ -365,7 +726,9 @@ class VSTMD:
 
             gray 5/px and retina 3x3 separable 10/px at full resolution (cropped to ds multiples);
             per map px: pooling ds^2 (ds > 1), scale 1, lamina 4, ON/OFF 2, cIDP 2 x (7 + 14),
-            C 1, lobula 2(2K1-1) + 2(2K2-1) + (2Kb^2 - 1) (+ 4 for rho != 0), combine 3.
+            C 1, lobula 2(2K1-1) + 2(2K2-1) + (2Kb^2 - 1) (+ 4 for rho != 0), combine 3;
+            with ego_motion="estimate" also the shift resampling, 34 per map px, and
+            :meth:`ShiftEstimator.flops`.
         """
         h, w = self.map_shape(height, width)
         full = h * self.ds * w * self.ds
@@ -375,7 +738,11 @@ class VSTMD:
         per_map += 2 * (2 * k1 - 1) + 2 * (2 * k2 - 1) + (2 * kb * kb - 1) + 3
         if self._rho_scaled:
             per_map += 4
-        return int(full * (5 + 10) + maps * per_map)
+        total = full * (5 + 10) + maps * per_map
+        if self._estimator is not None:
+            # cubic P~ (4 + 4 taps, 2 ops each) and bilinear L~, V~ (3 x 6) when the camera moves
+            total += maps * 34 + self._estimator.flops(h, w)
+        return int(total)
 
 
 def direction_at(motion: MotionMaps, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
