@@ -29,6 +29,7 @@ class BenchRow:
 
     ds: int
     topn: int
+    ego_motion: str
     width: int
     height: int
     frames: int
@@ -77,7 +78,7 @@ def _median(values: list[float]) -> float:
 
 
 def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
-                   model: str | None, runtime: str) -> BenchRow:
+                   model: str | None, runtime: str, ego_motion: str = "estimate") -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures)."""
     import cv2
 
@@ -91,7 +92,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         cv2.cvtColor(copy, cv2.COLOR_BGR2GRAY)
         memory_pass.append((time.perf_counter() - start) * 1e3)
 
-    net = MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn)
+    net = MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion)
     stage_ms: dict[str, list[float]] = {stage: [] for stage in STAGES}
     totals, proposals = [], []
     for i, image in enumerate(images):
@@ -108,7 +109,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
     total = _median(totals)
     reference = _median(memory_pass)
     return BenchRow(
-        ds=ds, topn=topn, width=width, height=height, frames=len(totals),
+        ds=ds, topn=topn, ego_motion=ego_motion, width=width, height=height, frames=len(totals),
         ms={stage: round(_median(v), 3) for stage, v in stage_ms.items()},
         total_ms=round(total, 3), fps=round(1e3 / total, 2),
         memory_pass_ms=round(reference, 3), ratio_to_memory_pass=round(total / reference, 2),
@@ -119,7 +120,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
 
 
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
-              frames: int, model: str | None, runtime: str,
+              frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
               progress: bool = True) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process and collect the rows."""
     from tqdm import tqdm
@@ -129,7 +130,7 @@ def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: 
     for ds, topn in tqdm(configs, desc="bench", unit="config", disable=not progress,
                          file=sys.stderr):
         cmd = [sys.executable, "-m", "sarmission.benchmark", str(ds), str(topn), str(width),
-               str(height), str(frames), model or "", runtime]
+               str(height), str(frames), model or "", runtime, ego_motion]
         done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
         if done.returncode != 0:
             raise RuntimeError(f"benchmark of ds={ds} N={topn} failed:\n{done.stderr[-2000:]}")
@@ -152,6 +153,7 @@ def format_table(rows: list[BenchRow]) -> str:
             f"{r.proposals_per_frame:>6.1f}")
     lines.append("times in ms (medians per frame); mem = plain memory pass (BGR copy + grayscale) "
                  "on the same frames; ratio = total / mem")
+    lines.append(f"ego-motion compensation: {rows[0].ego_motion if rows else '-'}")
     return "\n".join(lines)
 
 
@@ -162,8 +164,8 @@ def rows_to_json(rows: list[BenchRow]) -> str:
 
 def _worker(argv: list[str]) -> None:
     ds, topn, width, height, frames = (int(v) for v in argv[:5])
-    model, runtime = argv[5] or None, argv[6]
-    row = measure_config(ds, topn, width, height, frames, model, runtime)
+    model, runtime, ego_motion = argv[5] or None, argv[6], argv[7]
+    row = measure_config(ds, topn, width, height, frames, model, runtime, ego_motion)
     print(json.dumps(asdict(row)))
 
 

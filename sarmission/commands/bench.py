@@ -48,6 +48,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(weights do not change the timing)")
     parser.add_argument("--runtime", choices=("onnx", "torch"), default="onnx",
                         help="head runtime (default: %(default)s)")
+    parser.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
+                        help="vSTMD ego-motion compensation (default: %(default)s)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 
@@ -65,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     if frames < 1 or min(topn_values) < 1:
         raise ValueError("--frames and --topn must be positive")
     width, height = args.size
-    rows = run_sweep(ds_values, topn_values, width, height, frames, args.model, args.runtime)
+    rows = run_sweep(ds_values, topn_values, width, height, frames, args.model, args.runtime,
+                     args.ego_motion)
     print(rows_to_json(rows) if args.json else format_table(rows))
     return 0

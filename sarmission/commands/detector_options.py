@@ -24,6 +24,9 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
                        help="vSTMD down-sampling factor (default: %(default)s)")
     group.add_argument("--topn", type=int, default=DEFAULT_TOPN,
                        help="proposals per frame (default: %(default)s)")
+    group.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
+                       help="compensate the camera's own motion (moving drone) or assume a still "
+                       "camera (default: %(default)s)")
     group.add_argument("--conf", type=float, default=DEFAULT_SCORE_THRESHOLD,
                        help="minimum detection score kept (default: %(default)s)")
 
@@ -38,4 +41,5 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
         raise ValueError(f"--topn must be at least 1, got {args.topn}")
     model_path = args.model or default_model_path(args.runtime)
     head = load_head_runtime(model_path, runtime=args.runtime)
-    return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf)
+    return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
+                   ego_motion=args.ego_motion)

@@ -130,6 +130,7 @@ def run(args: argparse.Namespace) -> int:
     if args.sweep:
         rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
                          max_frames=args.max_frames, progress=not args.no_progress,
+                         ego_motion=args.ego_motion,
                          **metric_options)
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
         return 0
@@ -163,7 +164,8 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet
 
-    net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf)
+    net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
+                  ego_motion=args.ego_motion)
     target_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=not args.no_progress)
     if not run.frame_ms:

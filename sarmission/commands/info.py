@@ -21,6 +21,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--topn", type=int, default=25)
     parser.add_argument("--model", default=None,
                         help="head weights (default: the shipped model, else an untrained head)")
+    parser.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
+                        help="count vSTMD's ego-motion compensation (default: %(default)s)")
     parser.add_argument("--json", action="store_true", help="print JSON")
     parser.set_defaults(func=run)
 
@@ -31,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
 
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
-    net = MiteNet(build_head_runtime(args.model, "torch"), ds=args.ds, topn=args.topn)
+    net = MiteNet(build_head_runtime(args.model, "torch"), ds=args.ds, topn=args.topn,
+                  ego_motion=args.ego_motion)
     width, height = args.size
     report = net.complexity(height, width)
     if args.json:

@@ -1,4 +1,4 @@
-"""``sarmission sim ...``: the replay simulator (MAVLink vehicle, scene generation, dataset replay)."""
+"""``sarmission sim ...``: the simulator (MAVLink vehicle, scene generation, dataset replay)."""
 
 from __future__ import annotations
 

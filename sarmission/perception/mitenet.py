@@ -90,12 +90,14 @@ class MiteNet:
         score_threshold: minimum class probability (sigmoid of the logit) of a kept detection.
         classes: expected class names; must equal the head's when given.
         nms_iou: IoU above which the lower-scored of two detections is dropped (None: no NMS).
+        ego_motion: "estimate" compensates the camera's own motion in vSTMD (moving drone);
+            "none" assumes a still camera and saves the estimate's cost.
     """
 
     def __init__(self, head_runtime: HeadRuntime, ds: int = 2, topn: int = 25,
                  target_size: float | None = None, box_size: float = 16.0,
                  score_threshold: float = 0.3, classes: tuple[str, ...] | None = None,
-                 nms_iou: float | None = 0.5) -> None:
+                 nms_iou: float | None = 0.5, ego_motion: str = "estimate") -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
             raise ValueError(f"classes {tuple(classes)} differ from the head's "
                              f"{tuple(head_runtime.classes)}")
@@ -107,7 +109,8 @@ class MiteNet:
         self.box_size = box_size
         self.score_threshold = score_threshold
         self.nms_iou = nms_iou
-        self.vstmd = VSTMD(ds=ds) if target_size is None else VSTMD(ds=ds, target_size=target_size)
+        size = {} if target_size is None else {"target_size": target_size}
+        self.vstmd = VSTMD(ds=ds, ego_motion=ego_motion, **size)
         self.rpn = TTMRPN(topn=topn, box_size=box_size)
         self.per_stage_ms: dict[str, float] = {}
         self._frame_shape: tuple[int, int] | None = None
@@ -139,8 +142,12 @@ class MiteNet:
                              "before a new stream")
         self._frame_shape = shape
 
-    def process(self, frame_bgr: np.ndarray, timestamp: float) -> FrameResult:
+    def process(self, frame_bgr: np.ndarray, timestamp: float,
+                shift_px: tuple[float, float] | None = None) -> FrameResult:
         """Run the cascade on the next frame of the stream (BGR uint8 ``[H, W, 3]``).
+
+        ``shift_px`` is the image motion since the previous frame in full-resolution pixels, when
+        it is known (e.g. from telemetry); it overrides vSTMD's own ego-motion estimate.
 
         Detections are full-resolution ``xyxy`` boxes with the best class's probability and id;
         ``per_stage_ms`` holds this frame's wall time per stage (``vstmd``, ``rpn``, ``crops``,
@@ -150,7 +157,7 @@ class MiteNet:
         self._check_frame(frame_bgr)
         frame = np.ascontiguousarray(frame_bgr)
         t0 = time.perf_counter()
-        motion = self.vstmd.step(frame)
+        motion = self.vstmd.step(frame, shift_px=shift_px)
         t1 = time.perf_counter()
         proposals = self.rpn.propose(motion)
         t2 = time.perf_counter()
