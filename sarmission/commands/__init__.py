@@ -3,6 +3,6 @@
 Heavy imports (torch, OpenCV, pymavlink) happen inside ``run`` so ``sarmission --help`` is fast.
 """
 
-from sarmission.commands import bench, detect, eval, export, info, sim
+from sarmission.commands import bench, detect, eval, export, info, sim, train
 
-COMMANDS = (info, detect, eval, bench, export, sim)
+COMMANDS = (info, detect, train, eval, bench, export, sim)

@@ -1,0 +1,343 @@
+"""Cached crop dataset for the MITE-Net head: every crop is cut once, the way inference cuts it.
+
+For each annotated video, frames go in order through vSTMD (``ds = 1`` by default, as the paper
+trains) and TTM-RPN; at every ``frame_stride``-th frame after ``warmup_frames`` (vSTMD needs a few
+frames before it responds) the frame yields:
+
+* **RPN samples**: every proposal, labelled by NWD assignment to the frame's target GT
+  (:func:`~.sampling.assign_by_nwd`): positive (class of its best GT) when ``NWD >= pos_nwd``,
+  otherwise negative. Crops come from
+  :func:`~sarmission.perception.crops.motion_enhanced_crops` with the proposal boxes and
+  polarities exactly as :class:`~sarmission.perception.mitenet.MiteNet` makes them.
+* **Jittered GT samples** (training only, ``jitters_per_gt > 0``): squares of side
+  ``box_size * (1 ± jitter_scale)`` around GT centres shifted by up to ``jitter_shift`` of the side
+  (:func:`~.sampling.jitter_boxes`), labelled with the GT's class and cut with sampling ratio 1
+  (a 16-px proposal's ratio at inference). Their polarity is the one the RPN would give: the sign
+  of ``L`` at the strongest response ``R`` within a ``box_size`` square around the GT centre (the
+  RPN's peak sits on the trailing edge, where a bright target leaves ``L < 0``), or at the GT centre
+  when ``R`` is zero there.
+
+Targets: annotations of the categories that map to a head class
+(:func:`sarmission.evaluation.report.target_category_map`: normalised name equal to a class or an
+alias such as ``floater``), crowd annotations excepted. Every other category (boats, buoys,
+``ignored`` regions) is background: proposals on them are ordinary negatives, matching the
+evaluation, where detections on them are false alarms.
+
+Box targets are ``l, t, r, b``: distances from the crop centre to the GT edges in crop pixels
+(one crop pixel = box side / crop size full-resolution pixels), the inverse of
+:func:`~sarmission.perception.head.ltrb_to_boxes`.
+
+The cache file is ``<cache_dir>/crops-<key>.pt`` with ``key`` a hash of the annotation file's
+resolved path, size and modification time, :data:`CACHE_VERSION` and the settings; a second run
+with the same inputs loads it instead of decoding the video again. Image files are not hashed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from sarmission.boxes import xywh_to_xyxy
+from sarmission.data.coco_video import VideoDataset, read_coco_video
+from sarmission.data.sequence import iter_sequence, sequence_ids, sequence_images
+from sarmission.evaluation.report import target_category_map
+from sarmission.perception.crops import CROP_SIZE, motion_enhanced_crops
+from sarmission.perception.head import DEFAULT_CLASSES
+from sarmission.perception.rpn import TTMRPN
+from sarmission.perception.types import MotionMaps
+from sarmission.perception.vstmd import VSTMD
+from sarmission.training.sampling import assign_by_nwd, jitter_boxes
+
+log = logging.getLogger(__name__)
+
+CACHE_VERSION = 1
+CACHE_FORMAT = "sarmission.crop_cache"
+
+
+@dataclass(frozen=True)
+class CropSettings:
+    """How crops are cut (part of the cache key).
+
+    ``target_size`` ``None`` keeps the vSTMD default; ``topn`` and ``box_size`` are the RPN's
+    N and S; ``jitters_per_gt`` 0 disables GT jittering (validation); ``crop_dtype`` is
+    ``"float16"`` or ``"float32"``.
+    """
+
+    classes: tuple[str, ...] = DEFAULT_CLASSES
+    ds: int = 1
+    target_size: float | None = None
+    topn: int = 25
+    box_size: float = 16.0
+    frame_stride: int = 5
+    warmup_frames: int = 3
+    pos_nwd: float = 0.4
+    jitters_per_gt: int = 4
+    jitter_scale: float = 0.2
+    jitter_shift: float = 0.25
+    seed: int = 0
+    crop_dtype: str = "float16"
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` for settings that cannot build a dataset."""
+        if not self.classes:
+            raise ValueError("at least one class is needed")
+        if self.frame_stride < 1 or self.warmup_frames < 0 or self.jitters_per_gt < 0:
+            raise ValueError("frame_stride must be >= 1, warmup_frames and jitters_per_gt >= 0")
+        if not 0.0 < self.pos_nwd <= 1.0:
+            raise ValueError(f"pos_nwd must be in (0, 1], got {self.pos_nwd}")
+        if self.crop_dtype not in ("float16", "float32"):
+            raise ValueError(f"crop_dtype must be float16 or float32, got {self.crop_dtype!r}")
+
+    def to_dict(self) -> dict:
+        """JSON-friendly dict."""
+        d = asdict(self)
+        d["classes"] = list(self.classes)
+        return d
+
+
+@dataclass
+class CropSet:
+    """Crops of one annotation file and the GT of the frames they came from.
+
+    Per crop (``N``): ``crops [N, 4, S, S]``, ``labels [N]`` (class index, -1 negative),
+    ``target_ltrb [N, 4]`` (crop pixels; zeros for negatives), ``boxes [N, 4]`` (the cropped box,
+    full-resolution xyxy), ``image_ids [N]``, ``jittered [N]`` (True for jittered GT samples).
+    Per sampled frame: ``frame_ids [F]``; per target GT box of those frames (``M``):
+    ``gt_boxes [M, 4]`` xyxy, ``gt_classes [M]``, ``gt_image_ids [M]``.
+    """
+
+    crops: Tensor
+    labels: Tensor
+    target_ltrb: Tensor
+    boxes: Tensor
+    image_ids: Tensor
+    jittered: Tensor
+    frame_ids: Tensor
+    gt_boxes: Tensor
+    gt_classes: Tensor
+    gt_image_ids: Tensor
+    settings: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.labels.shape[0])
+
+    @property
+    def scale(self) -> Tensor:
+        """``[N, 2]`` full-resolution pixels per crop pixel (box width, height / crop size)."""
+        side = self.crops.shape[-1]
+        return torch.stack([self.boxes[:, 2] - self.boxes[:, 0],
+                            self.boxes[:, 3] - self.boxes[:, 1]], dim=1) / side
+
+    def summary(self) -> str:
+        """One line: crops, positives (RPN / jittered), negatives, frames, GT boxes."""
+        pos = self.labels >= 0
+        return (f"{len(self)} crops: {int((pos & ~self.jittered).sum())} RPN positives, "
+                f"{int((pos & self.jittered).sum())} jittered GT, {int((~pos).sum())} negatives "
+                f"from {len(self.frame_ids)} frames with {len(self.gt_boxes)} GT boxes")
+
+    def to_state(self) -> dict:
+        """Plain dict for ``torch.save`` (loadable with ``weights_only=True``)."""
+        state = {k: getattr(self, k) for k in _TENSOR_FIELDS}
+        state.update(format=CACHE_FORMAT, version=CACHE_VERSION, settings=self.settings)
+        return state
+
+    @classmethod
+    def from_state(cls, state: dict) -> CropSet:
+        """Inverse of :meth:`to_state`; ``ValueError`` for another format or version."""
+        if state.get("format") != CACHE_FORMAT or state.get("version") != CACHE_VERSION:
+            raise ValueError("not a crop cache of this version")
+        return cls(**{k: state[k] for k in _TENSOR_FIELDS}, settings=dict(state["settings"]))
+
+
+_TENSOR_FIELDS = ("crops", "labels", "target_ltrb", "boxes", "image_ids", "jittered",
+                  "frame_ids", "gt_boxes", "gt_classes", "gt_image_ids")
+
+
+def ltrb_targets(crop_boxes: np.ndarray, gt_boxes: np.ndarray,
+                 crop_size: int = CROP_SIZE) -> np.ndarray:
+    """GT edges as ``l, t, r, b`` distances from each crop box's centre, in crop pixels ``[N, 4]``.
+
+    ``l = (cx - gx1) / sx``, ``t = (cy - gy1) / sy``, ``r = (gx2 - cx) / sx``,
+    ``b = (gy2 - cy) / sy`` with ``sx, sy`` = crop box width, height / ``crop_size``.
+    """
+    c = np.asarray(crop_boxes, dtype=np.float64).reshape(-1, 4)
+    g = np.asarray(gt_boxes, dtype=np.float64).reshape(-1, 4)
+    sx = (c[:, 2] - c[:, 0]) / crop_size
+    sy = (c[:, 3] - c[:, 1]) / crop_size
+    cx = (c[:, 0] + c[:, 2]) / 2
+    cy = (c[:, 1] + c[:, 3]) / 2
+    return np.stack([(cx - g[:, 0]) / sx, (cy - g[:, 1]) / sy,
+                     (g[:, 2] - cx) / sx, (g[:, 3] - cy) / sy], axis=1)
+
+
+def polarity_near(motion: MotionMaps, centres: np.ndarray, box_size: float) -> np.ndarray:
+    """RPN-like polarity ``[K]`` (1 = ON) for full-resolution points ``[K, 2]`` (x, y).
+
+    ``L > 0`` at the largest ``R`` within the ``box_size`` square around each point, or at the
+    point itself when ``R`` is zero there.
+    """
+    h, w = motion.response.shape
+    ds = motion.ds
+    out = np.zeros(len(centres), np.float32)
+    for k, (x, y) in enumerate(np.asarray(centres, dtype=np.float64).reshape(-1, 2)):
+        col = int(np.clip(np.rint((x + 0.5) / ds - 0.5), 0, w - 1))
+        row = int(np.clip(np.rint((y + 0.5) / ds - 0.5), 0, h - 1))
+        half = max(int(np.ceil(box_size / (2 * ds))), 0)
+        r0, c0 = max(row - half, 0), max(col - half, 0)
+        window = motion.response[r0:row + half + 1, c0:col + half + 1]
+        if window.size and window.max() > 0:
+            i, j = np.unravel_index(int(np.argmax(window)), window.shape)
+            row, col = r0 + int(i), c0 + int(j)
+        out[k] = float(motion.temporal_change[row, col] > 0)
+    return out
+
+
+def _target_gt(dataset: VideoDataset, mapping: dict[int, int]) -> dict[int, tuple]:
+    """Image id -> (xyxy ``[M, 4]``, class ``[M]``) of its target, non-crowd annotations."""
+    result = {}
+    for image_id, anns in dataset.annotations_by_image().items():
+        chosen = [a for a in anns if not a.iscrowd and a.category_id in mapping]
+        boxes = xywh_to_xyxy(np.array([a.bbox for a in chosen], np.float64).reshape(-1, 4))
+        result[image_id] = (boxes, np.array([mapping[a.category_id] for a in chosen], np.int64))
+    return result
+
+
+def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple,
+                   settings: CropSettings, rng: np.random.Generator) -> dict[str, Tensor]:
+    """Crops, labels, targets and boxes of one sampled frame (RPN samples, then jittered GT)."""
+    gt_boxes, gt_classes = gt
+    proposals = rpn.propose(motion)
+    assignment = assign_by_nwd(proposals.boxes, gt_boxes, settings.pos_nwd)
+    pos = assignment.positive
+    labels = np.full(len(proposals), -1, np.int64)
+    labels[pos] = gt_classes[assignment.gt_index[pos]]
+    rpn_targets = np.zeros((len(proposals), 4))
+    rpn_targets[pos] = ltrb_targets(proposals.boxes[pos], gt_boxes[assignment.gt_index[pos]])
+    boxes = [proposals.boxes.astype(np.float64)]
+    targets = [rpn_targets]
+    crops = [motion_enhanced_crops(frame, motion, proposals.boxes, proposals.polarity)]
+    all_labels = [labels]
+    jittered = [np.zeros(len(proposals), bool)]
+    if settings.jitters_per_gt and len(gt_classes):
+        jboxes, src = jitter_boxes(gt_boxes, rng, settings.jitters_per_gt, settings.jitter_scale,
+                                   settings.jitter_shift, side=settings.box_size)
+        centres = (gt_boxes[:, :2] + gt_boxes[:, 2:]) / 2
+        polarity = polarity_near(motion, centres, settings.box_size)[src]
+        boxes.append(jboxes)
+        targets.append(ltrb_targets(jboxes, gt_boxes[src]))
+        crops.append(motion_enhanced_crops(frame, motion, jboxes, polarity, sampling_ratio=1))
+        all_labels.append(gt_classes[src])
+        jittered.append(np.ones(len(src), bool))
+    dtype = getattr(torch, settings.crop_dtype)
+    return {
+        "crops": torch.cat(crops).to(dtype),
+        "labels": torch.from_numpy(np.concatenate(all_labels).astype(np.int64)),
+        "target_ltrb": torch.from_numpy(np.concatenate(targets).astype(np.float32)),
+        "boxes": torch.from_numpy(np.concatenate(boxes).astype(np.float32)),
+        "jittered": torch.from_numpy(np.concatenate(jittered)),
+    }
+
+
+def build_crop_set(dataset: VideoDataset, settings: CropSettings,
+                   progress: bool = True, desc: str = "crops") -> CropSet:
+    """Run vSTMD + TTM-RPN over every video of ``dataset`` and cut the crops (module docstring).
+
+    Raises ``ValueError`` when no category is a head class or no crop could be cut.
+    """
+    from tqdm import tqdm
+
+    settings.validate()
+    mapping = target_category_map(dataset.categories, settings.classes)
+    gt_by_image = _target_gt(dataset, mapping)
+    rng = np.random.default_rng(settings.seed)
+    parts: list[dict[str, Tensor]] = []
+    frame_ids: list[int] = []
+    counters: dict[str, int] = {}
+    total = sum(len(sequence_images(dataset, v)) for v in sequence_ids(dataset))
+    vstmd_kwargs = {} if settings.target_size is None else {"target_size": settings.target_size}
+    n_crops = 0
+    with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, disable=not progress) as bar:
+        for video_id in sequence_ids(dataset):
+            vstmd = VSTMD(ds=settings.ds, **vstmd_kwargs)
+            rpn = TTMRPN(topn=settings.topn, box_size=settings.box_size)
+            for position, item in enumerate(iter_sequence(dataset, video_id, counters)):
+                bar.update(1)
+                motion = vstmd.step(item.frame_bgr)
+                offset = position - settings.warmup_frames
+                if offset < 0 or offset % settings.frame_stride:
+                    continue
+                gt = gt_by_image.get(item.image.id, (np.zeros((0, 4)), np.zeros(0, np.int64)))
+                part = _frame_samples(item.frame_bgr, motion, rpn, gt, settings, rng)
+                part["image_ids"] = torch.full((len(part["labels"]),), item.image.id,
+                                               dtype=torch.int64)
+                parts.append(part)
+                frame_ids.append(item.image.id)
+                n_crops += len(part["labels"])
+                bar.set_postfix(crops=n_crops)
+    if counters.get("skipped"):
+        log.warning("%d frames could not be read and were skipped", counters["skipped"])
+    if not n_crops:
+        raise ValueError(f"no crops could be cut from {dataset.source_path} (no readable frames "
+                         f"past the {settings.warmup_frames} warm-up frames, no proposals and no "
+                         "target GT)")
+    gt_boxes, gt_classes, gt_images = [], [], []
+    for image_id in frame_ids:
+        boxes, classes = gt_by_image.get(image_id, (np.zeros((0, 4)), np.zeros(0, np.int64)))
+        gt_boxes.append(boxes)
+        gt_classes.append(classes)
+        gt_images.append(np.full(len(classes), image_id, np.int64))
+
+    def cat(key: str) -> Tensor:
+        return torch.cat([p[key] for p in parts])
+
+    return CropSet(
+        crops=cat("crops"), labels=cat("labels"), target_ltrb=cat("target_ltrb"),
+        boxes=cat("boxes"), image_ids=cat("image_ids"), jittered=cat("jittered"),
+        frame_ids=torch.tensor(frame_ids, dtype=torch.int64),
+        gt_boxes=torch.from_numpy(np.concatenate(gt_boxes).astype(np.float32)),
+        gt_classes=torch.from_numpy(np.concatenate(gt_classes)),
+        gt_image_ids=torch.from_numpy(np.concatenate(gt_images)),
+        settings=settings.to_dict(),
+    )
+
+
+def cache_key(annotations: Path, settings: CropSettings) -> str:
+    """Hex key of (resolved annotation path, its size and mtime, cache version, settings)."""
+    stat = annotations.stat()
+    doc = {"path": str(annotations.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns,
+           "version": CACHE_VERSION, "settings": settings.to_dict()}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
+
+
+def load_crop_set(annotations: str | Path, settings: CropSettings, cache_dir: str | Path,
+                  progress: bool = True, desc: str = "crops") -> tuple[CropSet, bool]:
+    """The crop set of an annotation file, from the cache when present, else built and cached.
+
+    Returns ``(crop_set, from_cache)``. Raises ``OSError`` for a missing annotation file and
+    ``ValueError`` for malformed annotations (:func:`read_coco_video`) or unusable data.
+    """
+    annotations = Path(annotations)
+    if not annotations.is_file():
+        raise FileNotFoundError(f"annotation file not found: {annotations}")
+    cache = Path(cache_dir) / f"crops-{cache_key(annotations, settings)}.pt"
+    if cache.is_file():
+        try:
+            return CropSet.from_state(torch.load(cache, map_location="cpu",
+                                                 weights_only=True)), True
+        except Exception as exc:  # a damaged cache is rebuilt, not fatal
+            log.warning("ignoring unreadable crop cache %s (%s)", cache, exc)
+    crop_set = build_crop_set(read_coco_video(annotations), settings, progress, desc)
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    tmp = cache.with_name(cache.name + f".{os.getpid()}.tmp")
+    torch.save(crop_set.to_state(), tmp)
+    os.replace(tmp, cache)
+    return crop_set, False

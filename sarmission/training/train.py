@@ -1,0 +1,307 @@
+"""Training loop of the MITE-Net head on cached crops, with validation F2 and exact resume.
+
+Per epoch the training crops are visited in a permutation drawn from
+``numpy.random.default_rng([seed, epoch])`` (so a resumed run sees the same order), in batches of
+``batch_size``. With ``augment`` each crop gets one of the 8 symmetries of the square (rotations
+by 90 degrees and a mirror; a nadir view has no preferred orientation), drawn from the same
+generator, and its ``l, t, r, b`` targets are permuted to match. The loss is
+:func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
+
+Learning rate per optimiser step ``i`` of ``T`` (``W`` warm-up steps, one epoch at most)::
+
+    lr_i = lr * min(1, (i + 1) / W) * (min_lr_ratio + (1 - min_lr_ratio)
+                                       * (1 + cos(pi * i / T)) / 2)
+
+Validation (after every epoch): the head runs on the validation crops (the real RPN proposals of
+the sampled validation frames, no jittering), boxes are decoded with
+:func:`~sarmission.perception.head.ltrb_to_boxes`, detections with score > ``score_threshold``
+(score = largest class probability, class = its index) go through the inference NMS and are
+scored against all target GT boxes of those frames with
+:func:`sarmission.evaluation.box_metrics.evaluate_boxes` (class-aware; F2 of band ``all``, the
+mean over NWD thresholds 0.5:0.05:0.95). The checkpoint with the best validation F2 (the earlier
+epoch on ties) is written to ``out`` with :func:`~sarmission.perception.runtime.
+save_head_checkpoint`; after every epoch the full state (model, optimiser, epoch, best F2,
+history, torch RNG) goes to ``<out stem>.last.pt`` for ``resume``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from sarmission.evaluation.box_metrics import evaluate_boxes
+from sarmission.evaluation.matching import FrameBoxes
+from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
+from sarmission.perception.mitenet import nms_xyxy
+from sarmission.perception.runtime import save_head_checkpoint
+from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
+from sarmission.training.losses import LossWeights, head_loss
+
+STATE_FORMAT = "sarmission.train_state"
+STATE_VERSION = 1
+#: Config fields that may differ between a run and its resumption.
+_RESUMABLE_CHANGES = ("resume", "progress", "num_threads", "cache_dir")
+#: ``l, t, r, b`` index permutation of a crop rotated by 90 degrees (torch.rot90, k=1) and of
+#: a left-right mirror.
+_ROT90_LTRB = (1, 2, 3, 0)
+_MIRROR_LTRB = (2, 1, 0, 3)
+
+
+@dataclass
+class TrainConfig:
+    """Everything a training run depends on.
+
+    ``optimizer`` is ``"sgd"`` (Nesterov momentum) or ``"adamw"``; ``cache_dir`` ``None`` puts
+    the crop caches in ``<out folder>/.crop_cache``; ``crops`` are the training crop settings
+    (validation uses the same without jittering).
+    """
+
+    train: Path
+    val: Path
+    out: Path
+    epochs: int = 30
+    batch_size: int = 64
+    lr: float = 0.05
+    optimizer: str = "sgd"
+    momentum: float = 0.9
+    weight_decay: float = 5e-4
+    min_lr_ratio: float = 0.01
+    seed: int = 0
+    augment: bool = True
+    crops: CropSettings = field(default_factory=CropSettings)
+    loss: LossWeights = field(default_factory=LossWeights)
+    score_threshold: float = 0.5
+    nms_iou: float = 0.5
+    cache_dir: Path | None = None
+    resume: bool = False
+    num_threads: int = 2
+    progress: bool = True
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` for impossible settings."""
+        if self.epochs < 1 or self.batch_size < 1:
+            raise ValueError("epochs and batch_size must be at least 1")
+        if not self.lr > 0:
+            raise ValueError(f"lr must be positive, got {self.lr}")
+        if self.optimizer not in ("sgd", "adamw"):
+            raise ValueError(f"optimizer must be 'sgd' or 'adamw', got {self.optimizer!r}")
+        if not 0.0 <= self.min_lr_ratio <= 1.0:
+            raise ValueError(f"min_lr_ratio must be in [0, 1], got {self.min_lr_ratio}")
+        self.crops.validate()
+
+    def fingerprint(self) -> dict:
+        """The settings a resumed run must share with the interrupted one (JSON-friendly)."""
+        d = asdict(self)
+        for key in _RESUMABLE_CHANGES:
+            d.pop(key)
+        d["crops"] = self.crops.to_dict()
+        return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
+
+
+@dataclass
+class TrainResult:
+    """Outcome of :func:`train`. ``history`` has one dict per epoch (loss terms, F2, lr, time)."""
+
+    checkpoint: Path
+    state: Path
+    best_f2: float
+    best_epoch: int
+    epochs_run: int
+    history: list[dict]
+    train_crops: int
+    val_crops: int
+
+
+def state_path(out: str | Path) -> Path:
+    """Resume-state file of a run writing ``out``: ``<out stem>.last.pt`` beside it."""
+    out = Path(out)
+    return out.with_name(out.stem + ".last.pt")
+
+
+def lr_at(step: int, total: int, warmup: int, lr: float, min_lr_ratio: float) -> float:
+    """Warm-up then cosine learning rate (formula in the module docstring)."""
+    warm = min(1.0, (step + 1) / max(warmup, 1))
+    cosine = (1.0 + math.cos(math.pi * step / max(total, 1))) / 2.0
+    return lr * warm * (min_lr_ratio + (1.0 - min_lr_ratio) * cosine)
+
+
+def dihedral(crops: Tensor, ltrb: Tensor, scale: Tensor,
+             ops: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """Apply symmetry ``ops[i]`` in 0..7 (``k = op % 4`` quarter turns, then a mirror when
+    ``op >= 4``) to crop ``i`` ``[N, C, S, S]``, its ``l, t, r, b`` ``[N, 4]`` and its
+    ``(sx, sy)`` scale ``[N, 2]`` (swapped by odd turns).
+    """
+    crops, ltrb, scale = crops.clone(), ltrb.clone(), scale.clone()
+    for op in torch.unique(ops).tolist():
+        idx = torch.nonzero(ops == op).flatten()
+        c, t, s = crops[idx], ltrb[idx], scale[idx]
+        for _ in range(op % 4):
+            c, t, s = torch.rot90(c, 1, dims=(2, 3)), t[:, _ROT90_LTRB], s[:, [1, 0]]
+        if op >= 4:
+            c, t = torch.flip(c, dims=(3,)), t[:, _MIRROR_LTRB]
+        crops[idx], ltrb[idx], scale[idx] = c, t, s
+    return crops, ltrb, scale
+
+
+def _optimizer(model: MiteHead, config: TrainConfig) -> torch.optim.Optimizer:
+    decay = [p for p in model.parameters() if p.ndim > 1]
+    no_decay = [p for p in model.parameters() if p.ndim <= 1]
+    groups = [{"params": decay, "weight_decay": config.weight_decay},
+              {"params": no_decay, "weight_decay": 0.0}]
+    if config.optimizer == "sgd":
+        return torch.optim.SGD(groups, lr=config.lr, momentum=config.momentum, nesterov=True)
+    return torch.optim.AdamW(groups, lr=config.lr)
+
+
+@torch.no_grad()
+def validate_f2(model: MiteHead, val: CropSet, score_threshold: float = 0.5,
+                nms_iou: float | None = 0.5, chunk: int = 1024) -> dict[str, float]:
+    """F2, precision and recall of the head on validation crops (module docstring)."""
+    model.eval()
+    logits, ltrb = [], []
+    for start in range(0, len(val), chunk):
+        lo, lt = model(val.crops[start:start + chunk].float())
+        logits.append(lo)
+        ltrb.append(lt)
+    probs = torch.sigmoid(torch.cat(logits)).numpy() if logits else np.zeros((0, 1))
+    scores, classes = probs.max(axis=1), probs.argmax(axis=1)
+    boxes = ltrb_to_boxes(torch.cat(ltrb).numpy() if ltrb else np.zeros((0, 4)),
+                          val.boxes.numpy(), val.crops.shape[-1])
+    image_ids = val.image_ids.numpy()
+    detections, truth = {}, {}
+    gt_images, gt_boxes = val.gt_image_ids.numpy(), val.gt_boxes.numpy()
+    gt_classes = val.gt_classes.numpy()
+    for image_id in val.frame_ids.tolist():
+        keep = np.flatnonzero((image_ids == image_id) & (scores > score_threshold))
+        if nms_iou is not None and keep.size > 1:
+            keep = keep[nms_xyxy(boxes[keep], scores[keep], nms_iou)]
+        detections[image_id] = FrameBoxes.of(boxes[keep], scores[keep], classes[keep])
+        g = gt_images == image_id
+        truth[image_id] = FrameBoxes.of(gt_boxes[g], class_ids=gt_classes[g])
+    band = evaluate_boxes(truth, detections, score_thr=score_threshold).bands["all"]
+    return {"f2": band.f2 or 0.0, "precision": band.precision or 0.0,
+            "recall": band.recall or 0.0}
+
+
+def _load_state(config: TrainConfig, model: MiteHead,
+                optimizer: torch.optim.Optimizer) -> dict:
+    path = state_path(config.out)
+    if not path.is_file():
+        raise FileNotFoundError(f"cannot resume: no training state at {path}")
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
+        raise ValueError(f"cannot resume: {path} is not a sarmission training state")
+    if state.get("version") != STATE_VERSION:
+        raise ValueError(f"cannot resume: {path} has state version {state.get('version')!r}, "
+                         f"this build reads {STATE_VERSION}")
+    saved, now = state["config"], config.fingerprint()
+    changed = sorted(k for k in set(saved) | set(now) if saved.get(k) != now.get(k))
+    if changed:
+        raise ValueError(f"cannot resume {path}: settings differ from the interrupted run "
+                         f"({', '.join(changed)})")
+    model.load_state_dict(state["model"])
+    optimizer.load_state_dict(state["optimizer"])
+    torch.set_rng_state(state["torch_rng"])
+    return state
+
+
+def _train_epoch(model: MiteHead, optimizer: torch.optim.Optimizer, data: CropSet,
+                 config: TrainConfig, epoch: int, bar) -> dict[str, float]:
+    """One pass over the training crops; mean loss terms per batch."""
+    model.train()
+    n = len(data)
+    rng = np.random.default_rng([config.seed, epoch])
+    order = torch.from_numpy(rng.permutation(n))
+    ops = torch.from_numpy(rng.integers(0, 8, size=n))
+    steps = math.ceil(n / config.batch_size)
+    scale_all = data.scale
+    sums = dict.fromkeys(("loss", "cls", "nwd", "dfl"), 0.0)
+    for b in range(steps):
+        idx = order[b * config.batch_size:(b + 1) * config.batch_size]
+        lr = lr_at(epoch * steps + b, config.epochs * steps, steps, config.lr,
+                   config.min_lr_ratio)
+        for group in optimizer.param_groups:
+            group["lr"] = lr
+        crops, target, scale = data.crops[idx].float(), data.target_ltrb[idx], scale_all[idx]
+        if config.augment:
+            crops, target, scale = dihedral(crops, target, scale, ops[idx])
+        cls_logits, bins, ltrb = model.forward_with_bins(crops)
+        terms = head_loss(cls_logits, bins, ltrb, data.labels[idx], target, scale, config.loss)
+        optimizer.zero_grad(set_to_none=True)
+        terms.total.backward()
+        optimizer.step()
+        for key, value in (("loss", terms.total.detach()), ("cls", terms.cls), ("nwd", terms.nwd),
+                           ("dfl", terms.dfl)):
+            sums[key] += float(value)
+        bar.update(1)
+        bar.set_postfix(epoch=epoch + 1, loss=f"{sums['loss'] / (b + 1):.3f}")
+    return {k: v / max(steps, 1) for k, v in sums.items()} | {"lr": lr}
+
+
+def train(config: TrainConfig) -> TrainResult:
+    """Train the head (module docstring); returns where the best checkpoint went and the history.
+
+    Raises ``OSError`` for missing files and ``ValueError`` for bad settings or annotations.
+    """
+    from tqdm import tqdm
+
+    config.validate()
+    torch.set_num_threads(max(1, config.num_threads))
+    cache_dir = Path(config.cache_dir) if config.cache_dir else config.out.parent / ".crop_cache"
+    t0 = time.perf_counter()
+    train_set, _ = load_crop_set(config.train, config.crops, cache_dir, config.progress,
+                                 "train crops")
+    val_set, _ = load_crop_set(config.val, replace(config.crops, jitters_per_gt=0), cache_dir,
+                               config.progress, "val crops")
+    if not (train_set.labels >= 0).any():
+        raise ValueError(f"{config.train}: no positive training crop (no target GT boxes in "
+                         "the sampled frames)")
+    print(f"train: {train_set.summary()}\nval: {val_set.summary()} "
+          f"({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+
+    torch.manual_seed(config.seed)
+    model = MiteHead(HeadConfig(classes=tuple(config.crops.classes)))
+    optimizer = _optimizer(model, config)
+    start, best_f2, best_epoch, history = 0, -1.0, 0, []
+    if config.resume:
+        state = _load_state(config, model, optimizer)
+        start, best_f2, best_epoch = state["epoch"], state["best_f2"], state["best_epoch"]
+        history = list(state["history"])
+    steps = math.ceil(len(train_set) / config.batch_size)
+    with tqdm(total=steps * (config.epochs - start), unit="batch", desc="train",
+              file=sys.stderr, disable=not config.progress) as bar:
+        for epoch in range(start, config.epochs):
+            t_epoch = time.perf_counter()
+            record = _train_epoch(model, optimizer, train_set, config, epoch, bar)
+            record |= validate_f2(model, val_set, config.score_threshold, config.nms_iou)
+            record |= {"epoch": epoch + 1, "seconds": time.perf_counter() - t_epoch}
+            history.append(record)
+            if record["f2"] > best_f2:
+                best_f2, best_epoch = record["f2"], epoch + 1
+                save_head_checkpoint(model, config.out)
+            bar.write(f"epoch {epoch + 1}/{config.epochs}: loss {record['loss']:.4f} "
+                      f"(cls {record['cls']:.3f} nwd {record['nwd']:.3f} dfl {record['dfl']:.3f})"
+                      f" val F2 {record['f2']:.4f} P {record['precision']:.3f} "
+                      f"R {record['recall']:.3f} best {best_f2:.4f}@{best_epoch}")
+            _save_state(config, model, optimizer, epoch + 1, best_f2, best_epoch, history)
+    return TrainResult(config.out, state_path(config.out), best_f2, best_epoch,
+                       config.epochs - start, history, len(train_set), len(val_set))
+
+
+def _save_state(config: TrainConfig, model: MiteHead, optimizer: torch.optim.Optimizer,
+                epoch: int, best_f2: float, best_epoch: int, history: list[dict]) -> None:
+    path = state_path(config.out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save({"format": STATE_FORMAT, "version": STATE_VERSION, "epoch": epoch,
+                "model": model.state_dict(), "optimizer": optimizer.state_dict(),
+                "best_f2": best_f2, "best_epoch": best_epoch, "history": history,
+                "torch_rng": torch.get_rng_state(), "config": config.fingerprint()}, tmp)
+    tmp.replace(path)

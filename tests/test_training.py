@@ -1,0 +1,327 @@
+"""Training of the MITE-Net head: sampling, losses, crop cache, training loop and CLI."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from synthetic_video import write_dataset
+
+from sarmission.commands import train as train_command
+from sarmission.perception.head import ltrb_to_boxes
+from sarmission.perception.runtime import load_head_checkpoint
+from sarmission.perception.types import MotionMaps
+from sarmission.training import train as train_module
+from sarmission.training.dataset import (
+    CropSettings,
+    load_crop_set,
+    ltrb_targets,
+    polarity_near,
+)
+from sarmission.training.losses import LossWeights, dfl_loss, head_loss, ltrb_nwd
+from sarmission.training.sampling import assign_by_nwd, hardest_negatives, jitter_boxes
+from sarmission.training.train import TrainConfig, dihedral, state_path, train
+
+torch.set_num_threads(2)
+
+
+# --------------------------------------------------------------------------- sampling
+
+
+def test_nwd_assignment_hand_computed():
+    gt = np.array([[4, 4, 12, 12], [100, 100, 108, 108]], float)
+    proposals = np.array([[0, 0, 16, 16], [20, 0, 36, 16], [96, 96, 112, 112]], float)
+    # P0 vs A: same centre, sizes 16 vs 8: W = sqrt((8^2 + 8^2) / 4) = sqrt(32).
+    # P1 vs A: dx = 20: W = sqrt(400 + 32).
+    near, far = math.exp(-math.sqrt(32) / 12.8), math.exp(-math.sqrt(432) / 12.8)
+    a = assign_by_nwd(proposals, gt, pos_threshold=0.4)
+    np.testing.assert_array_equal(a.gt_index, [0, 0, 1])
+    np.testing.assert_allclose(a.nwd, [near, far, near], rtol=1e-12)
+    np.testing.assert_array_equal(a.positive, [True, False, True])
+    assert not assign_by_nwd(proposals, gt, pos_threshold=0.65).positive.any()
+    empty = assign_by_nwd(proposals, np.zeros((0, 4)))
+    np.testing.assert_array_equal(empty.gt_index, [-1, -1, -1])
+    assert not empty.positive.any()
+
+
+def test_jitter_stays_within_scale_and_shift():
+    gt = np.array([[50.0, 60.0, 56.0, 64.0], [10.0, 10.0, 13.0, 14.0]])
+    boxes, src = jitter_boxes(gt, np.random.default_rng(3), 500, scale=0.2, shift=0.25, side=16)
+    assert boxes.shape == (1000, 4)
+    np.testing.assert_array_equal(src, np.repeat([0, 1], 500))
+    w, h = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
+    np.testing.assert_allclose(w, h)
+    assert w.min() >= 16 * 0.8 - 1e-9 and w.max() <= 16 * 1.2 + 1e-9
+    assert w.min() < 13.5 and w.max() > 18.5  # the range is used, not just bounded
+    centre = (boxes[:, :2] + boxes[:, 2:]) / 2
+    gt_centre = ((gt[:, :2] + gt[:, 2:]) / 2)[src]
+    assert (np.abs(centre - gt_centre) <= 0.25 * w[:, None] + 1e-9).all()
+    assert np.abs(centre - gt_centre).max() > 0.2 * 16
+    # Without a side the GT's own size is scaled, per axis.
+    own, _ = jitter_boxes(gt[:1], np.random.default_rng(3), 200, scale=0.2, shift=0.0)
+    ow, oh = own[:, 2] - own[:, 0], own[:, 3] - own[:, 1]
+    assert ow.min() >= 6 * 0.8 - 1e-9 and ow.max() <= 6 * 1.2 + 1e-9
+    assert oh.min() >= 4 * 0.8 - 1e-9 and oh.max() <= 4 * 1.2 + 1e-9
+    np.testing.assert_allclose((own[:, :2] + own[:, 2:]) / 2, [[53.0, 62.0]] * 200)
+    again, _ = jitter_boxes(gt, np.random.default_rng(3), 500, side=16)
+    np.testing.assert_array_equal(boxes, again)
+
+
+def test_hard_negatives_keep_three_per_positive_highest_first():
+    logits = torch.tensor([[0.1, -2.0], [3.0, 0.0], [-1.0, 2.5], [0.0, 0.2], [-5.0, -4.0],
+                           [1.0, 1.5], [0.3, 0.0], [-0.5, -0.6]])
+    keep = hardest_negatives(logits, num_positives=2, ratio=3)
+    # max over classes: 0.1, 3.0, 2.5, 0.2, -4.0, 1.5, 0.3, -0.5 → six highest in order.
+    assert keep.tolist() == [1, 2, 5, 6, 3, 0]
+    assert hardest_negatives(logits, num_positives=0, min_negatives=2).tolist() == [1, 2]
+    assert len(hardest_negatives(logits, num_positives=5)) == 8
+    assert len(hardest_negatives(logits[:0], num_positives=1)) == 0
+
+
+# --------------------------------------------------------------------------- losses
+
+
+def test_dfl_hand_computed():
+    torch.manual_seed(0)
+    logits = torch.randn(1, 4, 17)
+    target = torch.tensor([[3.4, 20.0, -1.0, 7.0]])
+    s = torch.softmax(logits[0], dim=-1)
+    expected = -(0.6 * torch.log(s[0, 3]) + 0.4 * torch.log(s[0, 4])
+                 + 0.01 * torch.log(s[1, 15]) + 0.99 * torch.log(s[1, 16])  # clamp to 15.99
+                 + torch.log(s[2, 0])                                        # clamp to 0
+                 + torch.log(s[3, 7]))
+    got = dfl_loss(logits, target, reg_max=16)
+    assert got.shape == (1,)
+    assert got.item() == pytest.approx(expected.item(), rel=1e-5)
+
+
+def test_ltrb_nwd_in_full_resolution_pixels():
+    pred = torch.tensor([[4.0, 4.0, 4.0, 4.0]])
+    target = torch.tensor([[3.0, 4.0, 5.0, 4.0]])  # centre 1 crop px right, same size
+    scale = torch.tensor([[2.0, 2.0]])
+    assert ltrb_nwd(pred, target, scale).item() == pytest.approx(math.exp(-2 / 12.8), rel=1e-5)
+    assert ltrb_nwd(target, target, scale).item() == pytest.approx(1.0, abs=1e-4)
+
+
+def test_head_loss_terms_hand_computed():
+    cls_logits = torch.tensor([[2.0, -1.0], [0.5, 0.0], [-3.0, -2.0], [1.0, 2.0], [0.0, -1.0],
+                               [-1.0, -1.0]])
+    labels = torch.tensor([0, -1, -1, -1, -1, -1])
+    bins = torch.zeros(6, 4, 17)
+    ltrb = torch.full((6, 4), 8.0)
+    target = torch.tensor([[8.0, 8.0, 8.0, 8.0]] * 6)
+    scale = torch.ones(6, 2)
+    terms = head_loss(cls_logits, bins, ltrb, labels, target, scale, LossWeights())
+
+    def bce(z: float, y: float) -> float:
+        p = 1 / (1 + math.exp(-z))
+        return -(y * math.log(p) + (1 - y) * math.log(1 - p))
+
+    # Positive (class 0) plus the 3 negatives with the highest max logit: rows 3, 1, 4.
+    expected_cls = (bce(2.0, 1) + bce(-1.0, 0) + bce(1.0, 0) + bce(2.0, 0) + bce(0.5, 0)
+                    + bce(0.0, 0) + bce(0.0, 0) + bce(-1.0, 0))
+    assert terms.num_pos == 1 and terms.num_neg == 3
+    assert terms.cls.item() == pytest.approx(expected_cls, rel=1e-5)
+    assert terms.nwd.item() == pytest.approx(0.0, abs=1e-4)
+    assert terms.dfl.item() == pytest.approx(4 * math.log(17), rel=1e-5)  # uniform bins
+    total = 1.0 * expected_cls + 5.0 * terms.nwd.item() + 0.5 * 4 * math.log(17)
+    assert terms.total.item() == pytest.approx(total, rel=1e-5)
+    none = head_loss(cls_logits, bins, ltrb, torch.full((6,), -1), target, scale,
+                     LossWeights(min_negatives=2))
+    assert none.num_pos == 0 and none.num_neg == 2 and none.dfl.item() == 0.0
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def test_ltrb_targets_invert_ltrb_to_boxes():
+    crop = np.array([[100.0, 50.0, 116.0, 66.0], [10.0, 10.0, 29.2, 29.2]])
+    gt = np.array([[104.0, 55.0, 110.0, 61.0], [15.0, 12.0, 20.0, 30.0]])
+    ltrb = ltrb_targets(crop, gt)
+    np.testing.assert_allclose(ltrb[0], [4.0, 3.0, 2.0, 3.0])
+    np.testing.assert_allclose(ltrb_to_boxes(ltrb, crop), gt, atol=1e-4)
+
+
+def test_dihedral_moves_boxes_with_crops():
+    crop = torch.zeros(8, 4, 16, 16)
+    crop[:, :, 3:10, 5:15] = 1.0  # rows [3, 10), cols [5, 15) around the centre (8, 8)
+    ltrb = torch.tensor([[3.0, 5.0, 7.0, 2.0]]).repeat(8, 1)
+    scale = torch.tensor([[1.0, 2.0]]).repeat(8, 1)
+    out, t, s = dihedral(crop, ltrb, scale, torch.arange(8))
+    for i in range(8):
+        rows = torch.nonzero(out[i, 0].sum(dim=1)).flatten()
+        cols = torch.nonzero(out[i, 0].sum(dim=0)).flatten()
+        measured = [8 - cols.min().item(), 8 - rows.min().item(), cols.max().item() + 1 - 8,
+                    rows.max().item() + 1 - 8]
+        assert t[i].tolist() == measured, i
+        assert s[i].tolist() == ([1.0, 2.0] if i % 2 == 0 else [2.0, 1.0])
+    assert len({tuple(v.tolist()) for v in t}) == 8
+
+
+def test_polarity_near_takes_the_strongest_response():
+    response = np.zeros((40, 40), np.float32)
+    change = np.full((40, 40), 0.5, np.float32)
+    response[20, 14] = 1.0  # the trailing-edge peak, where L is negative
+    change[20, 14] = -0.3
+    motion = MotionMaps(1, change, change, change, change, response)
+    np.testing.assert_array_equal(polarity_near(motion, np.array([[18.0, 20.0]]), 16.0), [0.0])
+    # Far from any response: the sign of L at the point itself.
+    np.testing.assert_array_equal(polarity_near(motion, np.array([[35.0, 5.0]]), 16.0), [1.0])
+
+
+# --------------------------------------------------------------------------- crops and training
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("train_data")
+    return {"train": write_dataset(root / "train", n_videos=2, n_frames=14, seed=1),
+            "val": write_dataset(root / "val", n_videos=1, n_frames=14, seed=2),
+            "cache": root / "cache"}
+
+
+SETTINGS = CropSettings(frame_stride=2, jitters_per_gt=3)
+
+
+def test_crop_cache_matches_inference_and_is_reused(data):
+    crop_set, cached = load_crop_set(data["train"], SETTINGS, data["cache"], progress=False)
+    assert not cached
+    again, cached = load_crop_set(data["train"], SETTINGS, data["cache"], progress=False)
+    assert cached and torch.equal(again.crops, crop_set.crops)
+    n = len(crop_set)
+    assert crop_set.crops.shape == (n, 4, 16, 16) and crop_set.crops.dtype == torch.float16
+    # Only swimmer (0) and swimmer with life jacket (1) are targets; boats are background.
+    assert set(crop_set.labels.unique().tolist()) == {-1, 0, 1}
+    assert len(crop_set.frame_ids) == 2 * 6  # frames 3, 5, ..., 13 of each video
+    assert len(crop_set.gt_boxes) == 12 * 4
+    assert (crop_set.labels[crop_set.jittered] >= 0).all()
+    assert int(crop_set.jittered.sum()) == 12 * 4 * 3
+    rpn_pos = (crop_set.labels >= 0) & ~crop_set.jittered
+    assert rpn_pos.any() and (crop_set.labels[~crop_set.jittered] == -1).any()
+
+    # The RPN crops are what MiteNet (ds=1) makes at the same frame.
+    from sarmission.data.coco_video import read_coco_video
+    from sarmission.data.sequence import iter_sequence
+    from sarmission.perception.crops import motion_enhanced_crops
+    from sarmission.perception.mitenet import MiteNet, build_head_runtime
+
+    dataset = read_coco_video(data["train"])
+    net = MiteNet(build_head_runtime(None, "torch"), ds=1)
+    frame_id = int(crop_set.frame_ids[1])
+    for item in iter_sequence(dataset, dataset.videos[0].id):
+        result = net.process(item.frame_bgr, 0.0)
+        if item.image.id == frame_id:
+            expected = motion_enhanced_crops(item.frame_bgr, result.motion,
+                                             result.proposals.boxes, result.proposals.polarity)
+            break
+    rows = (crop_set.image_ids == frame_id) & ~crop_set.jittered
+    np.testing.assert_array_equal(crop_set.boxes[rows].numpy(), result.proposals.boxes)
+    torch.testing.assert_close(crop_set.crops[rows].float(), expected, atol=2e-3, rtol=1e-3)
+    # Positive RPN crops clear the NWD threshold against their box target.
+    boxes = ltrb_to_boxes(crop_set.target_ltrb[rpn_pos].numpy(), crop_set.boxes[rpn_pos].numpy())
+    nwd = assign_by_nwd(crop_set.boxes[rpn_pos].numpy(), boxes).nwd
+    assert (nwd >= 0.4 - 1e-4).all()
+
+
+def _config(data: dict[str, Path], out: Path, **kw) -> TrainConfig:
+    base = {"epochs": 3, "batch_size": 32, "crops": SETTINGS, "cache_dir": data["cache"],
+            "progress": False}
+    return TrainConfig(train=data["train"], val=data["val"], out=out, **(base | kw))
+
+
+def _weights(path: Path) -> dict[str, torch.Tensor]:
+    return torch.load(path, weights_only=True)["model"]
+
+
+def test_training_lowers_loss_saves_checkpoint_and_is_deterministic(data, tmp_path):
+    first = train(_config(data, tmp_path / "a" / "head.pt", epochs=4))
+    losses = [h["loss"] for h in first.history]
+    assert len(losses) == 4 and losses[-1] < 0.8 * losses[0]
+    assert first.best_f2 > 0.0 and 1 <= first.best_epoch <= 4
+    model = load_head_checkpoint(first.checkpoint)
+    assert model.config.classes == ("swimmer", "swimmer_with_life_jacket")
+    second = train(_config(data, tmp_path / "b" / "head.pt", epochs=4))
+    a, b = _weights(first.state), _weights(second.state)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    other = train(_config(data, tmp_path / "c" / "head.pt", epochs=1, seed=1))
+    assert not torch.equal(_weights(other.state)["stem.0.0.weight"], a["stem.0.0.weight"])
+
+
+def test_resume_continues_exactly(data, tmp_path, monkeypatch):
+    full = train(_config(data, tmp_path / "full" / "head.pt"))
+    out = tmp_path / "cut" / "head.pt"
+    real_epoch = train_module._train_epoch
+    calls = []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real_epoch(*args, **kwargs)
+
+    monkeypatch.setattr(train_module, "_train_epoch", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        train(_config(data, out))
+    monkeypatch.setattr(train_module, "_train_epoch", real_epoch)
+    assert torch.load(state_path(out), weights_only=True)["epoch"] == 2
+    resumed = train(_config(data, out, resume=True))
+    assert resumed.epochs_run == 1 and len(resumed.history) == 3
+    a, b = _weights(full.state), _weights(resumed.state)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert [h["f2"] for h in resumed.history] == [h["f2"] for h in full.history]
+    with pytest.raises(ValueError, match="lr"):
+        train(_config(data, out, resume=True, lr=0.01))
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    train_command.add_parser(parser.add_subparsers())
+    return parser.parse_args(["train", *argv])
+
+
+def test_cli_trains_and_exports_onnx(data, tmp_path):
+    out = tmp_path / "model.pt"
+    args = _parse(["--train", str(data["train"]), "--val", str(data["val"]), "--out", str(out),
+                   "--epochs", "1", "--frame-stride", "2", "--jitters", "3",
+                   "--cache-dir", str(data["cache"]), "--no-progress", "--onnx"])
+    assert args.func(args) == 0
+    assert load_head_checkpoint(out).config.classes == ("swimmer", "swimmer_with_life_jacket")
+    assert out.with_suffix(".onnx").is_file()
+
+
+def test_cli_errors_are_clear(data, tmp_path):
+    missing = _parse(["--train", str(tmp_path / "nope.json"), "--val", str(data["val"]),
+                      "--out", str(tmp_path / "m.pt")])
+    with pytest.raises(OSError, match="nope.json"):
+        missing.func(missing)
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    broken = _parse(["--train", str(bad), "--val", str(data["val"]), "--out",
+                     str(tmp_path / "m.pt"), "--no-progress"])
+    with pytest.raises(ValueError, match="not valid JSON"):
+        broken.func(broken)
+    foreign = _parse(["--train", str(data["train"]), "--val", str(data["val"]), "--out",
+                      str(tmp_path / "m.pt"), "--classes", "kayak", "--no-progress",
+                      "--cache-dir", str(data["cache"])])
+    with pytest.raises(ValueError, match="kayak"):
+        foreign.func(foreign)
+    resume = _parse(["--train", str(data["train"]), "--val", str(data["val"]), "--out",
+                     str(tmp_path / "fresh.pt"), "--resume", "--no-progress",
+                     "--cache-dir", str(data["cache"]), "--frame-stride", "2"])
+    with pytest.raises(OSError, match="no training state"):
+        resume.func(resume)
+
+
+def test_settings_are_validated():
+    with pytest.raises(ValueError, match="optimizer"):
+        TrainConfig(Path("a"), Path("b"), Path("c"), optimizer="rmsprop").validate()
+    with pytest.raises(ValueError, match="pos_nwd"):
+        replace(SETTINGS, pos_nwd=0.0).validate()
