@@ -1,0 +1,128 @@
+"""Cursor-on-Target (CoT 2.0) events for TAK clients (ATAK, WinTAK, iTAK, TAK Server).
+
+Each alert with a position becomes an event of type ``b-r-f-h-c`` ("casualty / CASEVAC
+request", drawn by ATAK as a casualty marker), the closest standard CoT type for "a person in
+distress here"; ``a-h-G`` would mark a hostile ground unit, which is wrong for rescue.
+``how="m-g"`` says it is machine generated. The uid is stable per target
+(:attr:`Alert.cot_uid`), so a re-sent event updates the same marker. ``point`` carries the
+position at full precision, ``ce`` the horizontal error radius in metres, ``hae`` the height
+above the ellipsoid when known; unknown values are 9999999.0, per the CoT schema.
+
+:class:`CotSender` sends events to ``udp://host:port`` (e.g. the SA multicast group
+``udp://239.2.3.1:6969`` or a TAK client's unicast port 4242) or ``tcp://host:port``
+(a TAK Server's plain streaming input, usually 8087).
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+import xml.etree.ElementTree as ET
+from urllib.parse import urlsplit
+
+from sarmission.alerts.model import Alert, plain_decimal, utc_iso
+from sarmission.errors import SarmissionError
+
+COT_TYPE = "b-r-f-h-c"
+COT_HOW = "m-g"
+#: CoT's value for "unknown" in ``hae``, ``ce`` and ``le``.
+COT_UNKNOWN = 9999999.0
+
+
+def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 3600.0) -> bytes:
+    """The alert as a CoT XML event (UTF-8 bytes, with XML declaration). ``time`` is ``now``
+    (default: the current time), ``start`` the lock time, ``stale`` ``now + stale_after_s``.
+    Raises ValueError for an alert without a position: CoT has no way to say "somewhere"."""
+    if alert.position is None:
+        raise ValueError(f"alert {alert.alert_id} has no position; it cannot become a CoT event")
+    now = time.time() if now is None else now
+    lat, lon = alert.position
+    event = ET.Element(
+        "event",
+        {
+            "version": "2.0",
+            "uid": alert.cot_uid,
+            "type": COT_TYPE,
+            "how": COT_HOW,
+            "time": utc_iso(now),
+            "start": utc_iso(alert.lock_time),
+            "stale": utc_iso(now + stale_after_s),
+        },
+    )
+    ET.SubElement(
+        event,
+        "point",
+        {
+            "lat": plain_decimal(lat),
+            "lon": plain_decimal(lon),
+            "hae": plain_decimal(COT_UNKNOWN if alert.target_hae_m is None else alert.target_hae_m),
+            "ce": plain_decimal(COT_UNKNOWN if alert.error_m is None else alert.error_m),
+            "le": plain_decimal(COT_UNKNOWN),
+        },
+    )
+    detail = ET.SubElement(event, "detail")
+    ET.SubElement(detail, "contact", {"callsign": f"SAR T{alert.target_id} {alert.class_name}"})
+    remarks = ET.SubElement(detail, "remarks")
+    remarks.text = (
+        f"{alert.class_name} score {alert.score:.2f}, target {alert.target_id}, "
+        f"mission {alert.mission_id}, locked {utc_iso(alert.lock_time)}, "
+        f"error {alert.format_error() or 'unknown'}, alert {alert.alert_id}"
+    )
+    ET.SubElement(
+        detail,
+        "precisionlocation",
+        {"geopointsrc": "CALC", "altsrc": "???" if alert.target_hae_m is None else "CALC"},
+    )
+    return ET.tostring(event, encoding="utf-8", xml_declaration=True)
+
+
+class CotSender:
+    """Sends CoT events to ``udp://host:port`` or ``tcp://host:port``. TCP connects on the
+    first send and reconnects once if the connection has dropped."""
+
+    def __init__(self, url: str, timeout_s: float = 3.0) -> None:
+        parts = urlsplit(url)
+        if parts.scheme not in ("udp", "tcp") or not parts.hostname or parts.port is None:
+            raise SarmissionError(
+                f"CoT destination {url!r} must be udp://host:port or tcp://host:port"
+            )
+        self.url = url
+        self.scheme = parts.scheme
+        self.address = (parts.hostname, parts.port)
+        self.timeout_s = timeout_s
+        self._sock: socket.socket | None = None
+
+    def send(self, event: bytes) -> None:
+        """Send one event (as made by :func:`alert_to_cot`). Raises OSError on failure."""
+        if self.scheme == "udp":
+            if self._sock is None:
+                family = socket.getaddrinfo(*self.address, type=socket.SOCK_DGRAM)[0][0]
+                self._sock = socket.socket(family, socket.SOCK_DGRAM)
+            self._sock.sendto(event, self.address)
+            return
+        for attempt in range(2):
+            try:
+                if self._sock is None:
+                    self._sock = socket.create_connection(self.address, timeout=self.timeout_s)
+                self._sock.sendall(event)
+                return
+            except OSError:
+                self.close()
+                if attempt:
+                    raise
+
+    def send_alert(self, alert: Alert) -> None:
+        """Build the alert's CoT event and send it."""
+        self.send(alert_to_cot(alert))
+
+    def close(self) -> None:
+        """Close the socket (a later send opens a new one)."""
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def __enter__(self) -> CotSender:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

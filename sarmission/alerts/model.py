@@ -1,0 +1,168 @@
+"""The alert: one confirmed target, as the operator and the autopilot are told about it.
+
+An :class:`Alert` is created once per confirmed (locked) target and never changes afterwards except
+for its acknowledgement and the channels it has been delivered on, which the store keeps.
+Positions are WGS84 degrees; times are UTC POSIX seconds.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+import uuid
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from typing import Any, Literal
+
+#: STATUSTEXT's ``text`` field holds 50 bytes.
+STATUSTEXT_MAX_BYTES = 50
+
+#: Delivery channel name for the MAVLink STATUSTEXT alert.
+CHANNEL_MAVLINK = "mavlink"
+
+ThumbnailMode = Literal["url", "base64", "omit"]
+
+
+def new_alert_id() -> str:
+    """A fresh, globally unique alert id (uuid4 hex, 32 characters)."""
+    return uuid.uuid4().hex
+
+
+def plain_decimal(value: float) -> str:
+    """``value`` in plain decimal notation at full precision (shortest round-trip digits).
+
+    ``repr`` would write tiny values as ``1e-05``, which KML and CoT readers reject.
+    """
+    text = repr(float(value))
+    if "e" in text or "E" in text:
+        text = f"{value:.17f}".rstrip("0").rstrip(".")
+    return text
+
+
+def utc_iso(t: float) -> str:
+    """POSIX seconds as ISO 8601 UTC with milliseconds, e.g. ``2024-05-01T12:00:00.250Z``."""
+    return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+@dataclass
+class Alert:
+    """A confirmed target.
+
+    ``position`` is ``(lat, lon)`` of the target, or None when it could not be geolocated;
+    ``position_note`` then says why (e.g. ``"telemetry stale (2.3 s)"``). ``error_m`` is the
+    estimated horizontal error radius in metres. ``drone_position`` is ``(lat, lon, alt_m)`` of
+    the aircraft at the frame's capture time, altitude above home. ``track`` holds the target's
+    geolocated history ``(t, lat, lon)``; ``pixel_track`` its image history
+    ``(frame_index, cx, cy)`` in full-resolution pixels. ``thumbnail`` is a JPEG crop of the raw
+    frame around the target. ``delivered`` maps a channel name (e.g. ``"mavlink"``, ``"cot"``)
+    to the POSIX time it was delivered.
+    """
+
+    mission_id: str
+    target_id: int
+    class_name: str
+    score: float
+    lock_time: float
+    frame_index: int
+    position: tuple[float, float] | None = None
+    position_note: str = ""
+    error_m: float | None = None
+    target_hae_m: float | None = None
+    drone_position: tuple[float, float, float] | None = None
+    track: list[tuple[float, float, float]] = field(default_factory=list)
+    pixel_track: list[tuple[int, float, float]] = field(default_factory=list)
+    thumbnail: bytes | None = None
+    alert_id: str = field(default_factory=new_alert_id)
+    ack_time: float | None = None
+    ack_by: str | None = None
+    delivered: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.position is not None:
+            lat, lon = (float(v) for v in self.position)
+            if not (math.isfinite(lat) and math.isfinite(lon)):
+                raise ValueError(f"alert position must be finite, got {self.position}")
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                raise ValueError(f"alert position out of range: {self.position}")
+            self.position = (lat, lon)
+
+    @property
+    def acknowledged(self) -> bool:
+        """True once an operator has acknowledged the alert."""
+        return self.ack_time is not None
+
+    @property
+    def mavlink_sent(self) -> bool:
+        """True once the STATUSTEXT alert has been delivered to the autopilot."""
+        return CHANNEL_MAVLINK in self.delivered
+
+    @property
+    def cot_uid(self) -> str:
+        """Cursor-on-Target uid: stable per target, so a re-sent event moves the same marker."""
+        return f"sarmission.{self.mission_id}.target-{self.target_id}"
+
+    def format_position(self, decimals: int = 5) -> str:
+        """``"lat,lon"`` with ``decimals`` decimals (5 ≈ 1 m), or ``"pos unknown"``."""
+        if self.position is None:
+            return "pos unknown"
+        lat, lon = self.position
+        return f"{lat:.{decimals}f},{lon:.{decimals}f}"
+
+    def format_error(self) -> str:
+        """Error radius as ``"±4m"`` (whole metres, at least 1), or ``""`` when unknown."""
+        if self.error_m is None or not math.isfinite(self.error_m):
+            return ""
+        return f"±{max(1, round(self.error_m))}m"
+
+    def statustext(self) -> str:
+        """One-line alert for MAVLink STATUSTEXT, at most 50 bytes in UTF-8, e.g.
+        ``SAR swimmer 0.91 -35.36291,149.16523 ±4m``. The class name is shortened if needed."""
+        tail = f" {self.score:.2f} {self.format_position()}"
+        if self.position is not None and self.format_error():
+            tail += f" {self.format_error()}"
+        room = STATUSTEXT_MAX_BYTES - len("SAR ") - len(tail.encode())
+        name = self.class_name.encode()[: max(room, 0)].decode(errors="ignore")
+        text = f"SAR {name}{tail}"
+        return text.encode()[:STATUSTEXT_MAX_BYTES].decode(errors="ignore")
+
+    def to_json_dict(self, thumbnail: ThumbnailMode = "url") -> dict[str, Any]:
+        """A JSON-ready document. ``thumbnail``: ``"url"`` gives ``/thumb/<id>.jpg`` (the feed
+        server's route), ``"base64"`` the JPEG itself, ``"omit"`` leaves it out; either way the
+        value is None when there is no thumbnail. Coordinates keep full float precision."""
+        doc: dict[str, Any] = {
+            "alert_id": self.alert_id,
+            "mission_id": self.mission_id,
+            "target_id": self.target_id,
+            "class_name": self.class_name,
+            "score": self.score,
+            "lock_time": self.lock_time,
+            "lock_time_iso": utc_iso(self.lock_time),
+            "frame_index": self.frame_index,
+            "position": (
+                None
+                if self.position is None
+                else {"lat": self.position[0], "lon": self.position[1]}
+            ),
+            "position_note": self.position_note,
+            "error_m": self.error_m,
+            "target_hae_m": self.target_hae_m,
+            "drone_position": (
+                None
+                if self.drone_position is None
+                else dict(zip(("lat", "lon", "alt_m"), self.drone_position, strict=True))
+            ),
+            "track": [list(p) for p in self.track],
+            "pixel_track": [list(p) for p in self.pixel_track],
+            "acknowledged": self.acknowledged,
+            "ack_time": self.ack_time,
+            "ack_by": self.ack_by,
+            "delivered": dict(self.delivered),
+            "statustext": self.statustext(),
+        }
+        if thumbnail == "url":
+            doc["thumbnail"] = f"/thumb/{self.alert_id}.jpg" if self.thumbnail else None
+        elif thumbnail == "base64":
+            doc["thumbnail"] = (
+                base64.b64encode(self.thumbnail).decode("ascii") if self.thumbnail else None
+            )
+        return doc

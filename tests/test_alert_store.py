@@ -1,0 +1,234 @@
+"""Alert store: durable across a killed process, idempotent, acks, deliveries, restarts, and
+clear errors (never overwrites) for files that are not an alert store."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from alert_samples import make_alert
+
+from sarmission.alerts.model import CHANNEL_MAVLINK
+from sarmission.alerts.store import SCHEMA_VERSION, AlertStore
+from sarmission.errors import SarmissionError
+
+_WRITER = textwrap.dedent(
+    """
+    import sys, time
+    from sarmission.alerts.model import Alert
+    from sarmission.alerts.store import AlertStore
+
+    store = AlertStore(sys.argv[1])
+    for i in range(10_000):
+        alert = Alert(mission_id="m", target_id=i, class_name="swimmer", score=0.9,
+                      lock_time=time.time(), frame_index=i, position=(-35.0 - i * 1e-6, 149.0),
+                      thumbnail=bytes(2000))
+        store.add(alert)
+        print(alert.alert_id, flush=True)  # only after add() has returned
+    """
+)
+
+
+def test_alerts_survive_sigkill_of_the_writing_process(tmp_path: Path) -> None:
+    db = tmp_path / "alerts.db"
+    child = subprocess.Popen(
+        [sys.executable, "-c", _WRITER, str(db)], stdout=subprocess.PIPE, text=True
+    )
+    assert child.stdout is not None
+    confirmed = [child.stdout.readline().strip() for _ in range(25)]
+    os.kill(child.pid, signal.SIGKILL)  # mid-stream: it is busy adding more
+    child.wait(timeout=10)
+    assert child.returncode == -signal.SIGKILL
+    assert all(confirmed)
+
+    with AlertStore(db) as store:
+        stored = {a.alert_id for a in store.list()}
+        assert set(confirmed) <= stored
+        assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+
+
+def test_durability_settings(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        assert store._conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+        assert store._conn.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+
+
+def test_round_trip_and_idempotent_add(tmp_path: Path) -> None:
+    alert = make_alert(3)
+    with AlertStore(tmp_path / "a.db") as store:
+        assert store.add(alert) is True
+        assert store.add(alert) is False
+        assert store.add(make_alert(3, alert_id=alert.alert_id, score=0.1)) is False
+        assert store.count() == 1
+        assert store.get(alert.alert_id) == alert
+        assert store.get("nope") is None
+        assert [e.kind for e in store.events()] == ["new"]
+    with AlertStore(tmp_path / "a.db") as store:  # reopened
+        assert store.list() == [alert]
+
+
+def test_alert_without_position_round_trips(tmp_path: Path) -> None:
+    alert = make_alert(1, positioned=False, drone_position=None, thumbnail=None)
+    with AlertStore(tmp_path / "a.db") as store:
+        store.add(alert)
+        got = store.get(alert.alert_id)
+    assert got == alert
+    assert got.position is None and got.position_note.startswith("telemetry stale")
+
+
+def test_list_since_filters_on_lock_time(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        old, new = make_alert(1, lock_time=1000.0), make_alert(2, lock_time=2000.0)
+        store.add(old)
+        store.add(new)
+        assert store.list() == [old, new]
+        assert store.list(since=1500.0) == [new]
+
+
+def test_acknowledge(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        alert = make_alert(1)
+        store.add(alert)
+        assert not store.get(alert.alert_id).acknowledged
+        acked = store.acknowledge(alert.alert_id, "alice", when=1234.5)
+        assert acked.acknowledged and acked.ack_by == "alice" and acked.ack_time == 1234.5
+        again = store.acknowledge(alert.alert_id, "bob")  # the first acknowledgement stands
+        assert again.ack_by == "alice"
+        assert [e.kind for e in store.events()] == ["new", "ack"]
+        with pytest.raises(KeyError):
+            store.acknowledge("missing", "alice")
+        with pytest.raises(ValueError):
+            store.acknowledge(alert.alert_id, "  ")
+
+
+def test_undelivered_and_mark_delivered(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    alerts = [make_alert(i) for i in range(3)]
+    with AlertStore(db) as store:
+        for a in alerts:
+            store.add(a)
+        store.mark_delivered(alerts[1].alert_id, CHANNEL_MAVLINK, when=50.0)
+        store.mark_delivered(alerts[1].alert_id, CHANNEL_MAVLINK, when=60.0)  # first time kept
+        with pytest.raises(KeyError):
+            store.mark_delivered("missing", CHANNEL_MAVLINK)
+    with AlertStore(db) as store:  # after a restart, resend what is missing
+        pending = store.undelivered(CHANNEL_MAVLINK)
+        assert [a.alert_id for a in pending] == [alerts[0].alert_id, alerts[2].alert_id]
+        assert len(store.undelivered("cot")) == 3
+        sent = store.get(alerts[1].alert_id)
+        assert sent.mavlink_sent and sent.delivered == {CHANNEL_MAVLINK: 50.0}
+
+
+def test_known_targets_per_mission(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        first = make_alert(7)
+        store.add(first)
+        store.add(make_alert(7, positioned=False))  # a later alert without a fix keeps the old
+        store.add(make_alert(8, positioned=False))
+        store.add(make_alert(9, mission_id="other-mission"))
+        known = store.known_targets("test-mission")
+    assert known == {7: first.position, 8: None}
+
+
+def test_concurrent_writers_and_readers(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+
+        def writer(base: int) -> None:
+            for i in range(20):
+                alert = make_alert(base + i, thumbnail=None)
+                store.add(alert)
+                store.acknowledge(alert.alert_id, f"op{base}")
+                store.list(since=0.0)
+
+        threads = [threading.Thread(target=writer, args=(k * 100,)) for k in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        alerts = store.list()
+        assert len(alerts) == 80 and all(a.acknowledged for a in alerts)
+        assert [e.seq for e in store.events()] == list(range(1, 161))
+
+
+def test_subscription_sees_new_alerts_and_acks(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        store.add(make_alert(1))
+        sub = store.subscribe()  # from now on
+        alert = make_alert(2)
+        threading.Timer(0.2, store.add, (alert,)).start()
+        t0 = time.monotonic()
+        events = sub.get(timeout=3.0)
+        assert time.monotonic() - t0 < 1.0
+        assert [(e.kind, e.alert.alert_id) for e in events] == [("new", alert.alert_id)]
+        store.acknowledge(alert.alert_id, "op")
+        assert [e.kind for e in sub.get(timeout=1.0)] == ["ack"]
+        assert sub.get(timeout=0.1) == []
+
+
+def test_subscription_sees_writes_from_another_connection(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    with AlertStore(db, poll_interval_s=0.05) as reader, AlertStore(db) as writer:
+        sub = reader.subscribe()
+        alert = make_alert(1)
+        writer.add(alert)
+        events = sub.get(timeout=2.0)
+        assert [e.alert.alert_id for e in events] == [alert.alert_id]
+
+
+def test_not_a_database_is_refused_and_left_alone(tmp_path: Path) -> None:
+    junk = tmp_path / "alerts.db"
+    junk.write_bytes(b"this is a mission log, not SQLite\n" * 200)
+    before = junk.read_bytes()
+    with pytest.raises(SarmissionError, match="not a usable sarmission alert store"):
+        AlertStore(junk)
+    assert junk.read_bytes() == before
+
+
+def test_foreign_sqlite_database_is_refused_and_left_alone(tmp_path: Path) -> None:
+    db = tmp_path / "other.db"
+    with sqlite3.connect(db) as conn:
+        conn.execute("CREATE TABLE waypoints (lat REAL, lon REAL)")
+        conn.execute("INSERT INTO waypoints VALUES (1, 2)")
+    conn.close()
+    before = db.read_bytes()
+    with pytest.raises(SarmissionError, match="another application"):
+        AlertStore(db)
+    assert db.read_bytes() == before
+    assert not (tmp_path / "other.db-wal").exists()
+
+
+def test_damaged_store_is_refused(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    with AlertStore(db) as store:
+        for i in range(20):
+            store.add(make_alert(i))
+    data = bytearray(db.read_bytes())
+    page = 4096
+    data[2 * page : 4 * page] = b"\xab" * (2 * page)
+    db.write_bytes(bytes(data))
+    with pytest.raises(SarmissionError, match="sarmission alert store|damaged"):
+        AlertStore(db)
+
+
+def test_newer_schema_is_refused(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    AlertStore(db).close()
+    with sqlite3.connect(db) as conn:
+        conn.execute(f"PRAGMA user_version={SCHEMA_VERSION + 1}")
+    conn.close()
+    with pytest.raises(SarmissionError, match="newer"):
+        AlertStore(db)
+
+
+def test_directory_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(SarmissionError, match="directory"):
+        AlertStore(tmp_path)
