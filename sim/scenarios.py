@@ -1,0 +1,129 @@
+"""Ready-made scenarios with the survey flight they are meant to be seen from.
+
+Each preset pairs a :class:`Scenario` with a :class:`MissionConfig` (lawnmower legs at a fixed
+altitude, nadir 4K camera on a gimbal, starting at altitude). Targets are spread over the strip the
+legs see (the area widened by half the camera footprint), with counts chosen for an average number
+of targets per frame::
+
+    footprint = (W * gsd) x (H * gsd),   gsd = altitude / f,   f = (W / 2) / tan(hfov / 2)
+    targets   = per_frame * strip_area / footprint_area
+
+Splits differ in seed, sea state, altitude and sun. ``maritime_test`` is dense (about 12 targets
+per frame, like the paper's test split) at 90 m with a 75 degree lens, where head-only swimmers
+fall in the extremely tiny band (<= 64 px^2), head-and-shoulders in the tiny band and swimmers
+floating on their back in the small band.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from sarmission.mission.config import AreaConfig, CameraConfig, FlightConfig, MissionConfig
+from sim.scene import Scenario
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named scenario and the mission (flight and camera) to render it with."""
+
+    name: str
+    scenario: Scenario
+    mission: MissionConfig
+
+
+def _mission(name: str, rect: tuple[float, float, float, float], altitude: float, hfov: float,
+             home: tuple[float, float, float], speed: float = 10.0) -> MissionConfig:
+    return MissionConfig(
+        area=AreaConfig(home_lat=home[0], home_lon=home[1], home_alt_m=home[2],
+                        ground_alt_m=home[2], rectangle_m=rect, leg_spacing_m=60.0,
+                        heading_deg=90.0),
+        flight=FlightConfig(altitude_m=altitude, speed_m_s=speed, takeoff=False),
+        camera=CameraConfig(hfov_deg=hfov, mount_pitch_deg=-90.0, gimbal=True),
+        name=name)
+
+
+def _strip(rect: tuple[float, float, float, float], altitude: float, hfov: float
+           ) -> tuple[tuple[float, float, float, float], float]:
+    """Area the legs see (rect widened by half a 3840x2160 footprint) and the footprint area."""
+    gsd = altitude / (1920.0 / math.tan(math.radians(hfov) / 2))
+    half_e, half_n = 1920 * gsd, 1080 * gsd
+    n0, e0, n1, e1 = rect
+    strip = (n0 - half_n, e0 - half_e, n1 + half_n, e1 + half_e)
+    return strip, (2 * half_e) * (2 * half_n)
+
+
+def _count(per_frame: float, strip: tuple[float, float, float, float], footprint: float) -> int:
+    n0, e0, n1, e1 = strip
+    return max(1, round(per_frame * (n1 - n0) * (e1 - e0) / footprint))
+
+
+def _maritime(name: str, seed: int, altitude: float, hfov: float, sea_state: int,
+              per_frame: float, sun: tuple[float, float]) -> Preset:
+    rect = (30.0, -150.0, 90.0, 150.0)  # two legs, at north 30 and 90
+    strip, footprint = _strip(rect, altitude, hfov)
+    n = _count(per_frame, strip, footprint)
+    scenario = Scenario(
+        kind="maritime", seed=seed, area_ne=strip, sea_state=sea_state,
+        n_swimmers=round(0.65 * n), n_life_jacket=n - round(0.65 * n),
+        n_boats=max(1, round(0.04 * n)), n_birds=max(2, round(0.06 * n)),
+        n_debris=round(0.5 * n), n_glints=round(0.8 * n), head_only_fraction=0.25,
+        floating_fraction=0.2, sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
+    return Preset(name, scenario, _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0)))
+
+
+def _urban(name: str, seed: int, altitude: float, hfov: float, per_frame: float,
+           sun: tuple[float, float]) -> Preset:
+    rect = (30.0, -90.0, 90.0, 90.0)
+    strip, footprint = _strip(rect, altitude, hfov)
+    n = _count(per_frame, strip, footprint)
+    scenario = Scenario(
+        kind="urban", seed=seed, area_ne=strip, n_pedestrians=n, n_parked_cars=3 * n,
+        n_moving_cars=max(2, n // 2), sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
+    return Preset(name, scenario, _mission(name, rect, altitude, hfov, (48.137, 11.576, 519.0),
+                                           speed=8.0))
+
+
+def maritime_train() -> Preset:
+    """Calm to moderate sea, 70 m, about 6 targets per frame."""
+    return _maritime("maritime_train", 1001, 70.0, 70.0, 2, 6.0, (200.0, 45.0))
+
+
+def maritime_val() -> Preset:
+    """Rougher sea (state 4), 100 m, about 8 targets per frame, low sun."""
+    return _maritime("maritime_val", 2002, 100.0, 75.0, 4, 8.0, (150.0, 30.0))
+
+
+def maritime_test() -> Preset:
+    """Dense (about 12 targets per frame), sea state 3, 90 m, 75 degree lens."""
+    return _maritime("maritime_test", 3003, 90.0, 75.0, 3, 12.0, (230.0, 50.0))
+
+
+def urban_train() -> Preset:
+    """City blocks at 60 m, about 6 pedestrians per frame."""
+    return _urban("urban_train", 4004, 60.0, 70.0, 6.0, (160.0, 40.0))
+
+
+def urban_val() -> Preset:
+    """City blocks at 80 m, about 6 pedestrians per frame."""
+    return _urban("urban_val", 5005, 80.0, 75.0, 6.0, (210.0, 55.0))
+
+
+def urban_test() -> Preset:
+    """City blocks at 100 m, about 10 pedestrians per frame (extremely tiny targets)."""
+    return _urban("urban_test", 6006, 100.0, 75.0, 10.0, (120.0, 35.0))
+
+
+PRESETS: dict[str, Callable[[], Preset]] = {
+    f.__name__: f for f in (maritime_train, maritime_val, maritime_test, urban_train, urban_val,
+                            urban_test)
+}
+
+
+def preset(name: str) -> Preset:
+    """The preset called ``name`` (one of :data:`PRESETS`)."""
+    try:
+        return PRESETS[name]()
+    except KeyError:
+        raise ValueError(f"unknown scenario preset {name!r}; known: {', '.join(PRESETS)}") from None
