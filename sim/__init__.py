@@ -1,1 +1,1 @@
-"""Replay simulator: synthetic 4K SAR scenes with ground truth, flight telemetry and a MAVLink vehicle."""
+"""Replay simulator: synthetic SAR scenes with ground truth, flight telemetry, MAVLink vehicle."""

@@ -3,6 +3,17 @@
 Heavy imports (torch, OpenCV, pymavlink) happen inside ``run`` so ``sarmission --help`` is fast.
 """
 
-from sarmission.commands import bench, detect, eval, export, info, sim, train
+from sarmission.commands import (
+    bench,
+    demo,
+    detect,
+    eval,
+    export,
+    info,
+    replay,
+    run,
+    sim,
+    train,
+)
 
-COMMANDS = (info, detect, train, eval, bench, export, sim)
+COMMANDS = (info, detect, train, eval, bench, export, sim, run, replay, demo)
