@@ -13,6 +13,7 @@ target on land; every other category is a distractor).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -26,6 +27,7 @@ from sarmission.data.coco_video import (
     ImageRecord,
     Video,
     VideoDataset,
+    read_coco_video,
     write_coco_video,
 )
 from sarmission.geo.wgs84 import ned_to_geodetic
@@ -129,4 +131,62 @@ def generate_sequence(scenario: Scenario, mission_or_flight: MissionConfig | Fli
               "home": list(home)})
     path = out / f"{name}.json"
     write_coco_video(dataset, path)
+    return path
+
+
+def merge_datasets(datasets: list[VideoDataset], info: dict | None = None) -> VideoDataset:
+    """One dataset holding the videos of several, with image/annotation/video ids renumbered.
+
+    Categories must agree (they do for every simulator output); video ``file_name`` entries
+    are kept, so the merged file must sit in the same folder as the videos.
+    """
+    if not datasets:
+        raise ValueError("nothing to merge")
+    videos, images, annotations = [], [], []
+    for dataset in datasets:
+        if [c.id for c in dataset.categories] != [c.id for c in datasets[0].categories]:
+            raise ValueError("datasets with different categories cannot be merged")
+        video_ids = {v.id: len(videos) + i + 1 for i, v in enumerate(dataset.videos)}
+        image_ids = {im.id: len(images) + i + 1 for i, im in enumerate(dataset.images)}
+        videos += [dataclasses.replace(v, id=video_ids[v.id]) for v in dataset.videos]
+        images += [dataclasses.replace(im, id=image_ids[im.id], video_id=video_ids[im.video_id])
+                   for im in dataset.images]
+        annotations += [dataclasses.replace(a, id=len(annotations) + i + 1,
+                                            image_id=image_ids[a.image_id],
+                                            video_id=video_ids.get(a.video_id, a.video_id))
+                        for i, a in enumerate(dataset.annotations)]
+    return VideoDataset(videos=videos, images=images, annotations=annotations,
+                        categories=datasets[0].categories, info=info or datasets[0].info)
+
+
+def generate_split(preset_name: str, sequences: int, frames: int, out_dir: str | Path,
+                   size: tuple[int, int] = (3840, 2160), fps: float = 30.0,
+                   first_start_s: float = 5.0, spacing_s: float = 15.0, video: bool = True,
+                   progress: bool = True, seed: int | None = None) -> Path:
+    """Render ``sequences`` clips of a preset along its flight and merge them into one file.
+
+    Clip ``i`` starts ``first_start_s + i * spacing_s`` seconds into the flight (the world and the
+    flight share the preset's seed, or ``seed``), so the clips see different stretches of the
+    search area.
+    Returns ``<out_dir>/<preset_name>.json``.
+    """
+    from sim.scenarios import preset
+
+    if sequences < 1:
+        raise ValueError(f"sequences must be at least 1, got {sequences}")
+    chosen = preset(preset_name)
+    scenario = chosen.scenario if seed is None else dataclasses.replace(chosen.scenario, seed=seed)
+    out = Path(out_dir)
+    parts = []
+    for i in range(sequences):
+        path = generate_sequence(scenario, chosen.mission, frames, size=size,
+                                 seed=scenario.seed, out_dir=out, fps=fps, video=video,
+                                 progress=progress, name=f"{preset_name}_{i:02d}",
+                                 start_s=first_start_s + i * spacing_s)
+        parts.append(read_coco_video(path))
+        path.unlink()
+    merged = merge_datasets(parts, info={**parts[0].info, "preset": preset_name,
+                                         "sequences": sequences})
+    path = out / f"{preset_name}.json"
+    write_coco_video(merged, path)
     return path
