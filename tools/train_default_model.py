@@ -1,0 +1,68 @@
+"""Reproduce the default MITE-Net head shipped in ``sarmission/models``.
+
+Renders the simulator's maritime training and validation splits, trains the head with
+``sarmission train`` (seeded, deterministic) and writes ``mitenet_head.pt`` and
+``mitenet_head.onnx`` into the package::
+
+    python tools/train_default_model.py            # about 10 minutes on 2 CPU cores
+    python tools/train_default_model.py --work /tmp/sarmission-train --epochs 30
+
+The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
+are copied into the package.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+from sarmission.cli import main as sarmission
+from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
+
+#: The recipe of the shipped model: (preset, clips, frames per clip) and the training settings.
+TRAIN_SPLIT = ("maritime_train", 6, 90)
+VAL_SPLIT = ("maritime_val", 2, 60)
+TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.05", "--seed", "0",
+              "--frame-stride", "3", "--jitters", "4", "--ds", "1"]
+
+
+def render(work: Path, split: tuple[str, int, int]) -> Path:
+    """Render one split (skipped when its annotation file already exists)."""
+    name, clips, frames = split
+    annotations = work / name / f"{name}.json"
+    if not annotations.is_file():
+        code = sarmission(["sim", "generate", "--scenario", name, "--sequences", str(clips),
+                           "--frames", str(frames), "--out", str(work / name)])
+        if code:
+            sys.exit(code)
+    return annotations
+
+
+def main() -> int:
+    """Render, train, export and copy the default model into the package."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--work", type=Path, default=Path("/tmp/sarmission-default-model"),
+                        help="folder for the rendered data, crop caches and checkpoints")
+    parser.add_argument("--no-install", action="store_true",
+                        help="do not copy the result into sarmission/models")
+    args, extra = parser.parse_known_args()
+    args.work.mkdir(parents=True, exist_ok=True)
+    train = render(args.work, TRAIN_SPLIT)
+    val = render(args.work, VAL_SPLIT)
+    out = args.work / "mitenet_head.pt"
+    code = sarmission(["train", "--train", str(train), "--val", str(val), "--out", str(out),
+                       "--onnx", *TRAIN_ARGS, *extra])
+    if code:
+        return code
+    if not args.no_install:
+        shutil.copyfile(out, DEFAULT_TORCH_MODEL)
+        shutil.copyfile(out.with_suffix(".onnx"), DEFAULT_ONNX_MODEL)
+        print(f"installed {DEFAULT_TORCH_MODEL.name} and {DEFAULT_ONNX_MODEL.name} "
+              f"into {DEFAULT_TORCH_MODEL.parent}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
