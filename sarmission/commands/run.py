@@ -1,0 +1,194 @@
+"""``sarmission run --connect URL``: the live mission - camera in, alerts out to the autopilot
+and the operator - until the source ends, a limit is reached, or Ctrl-C / SIGTERM."""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sarmission.commands.mission_options import (
+    add_mission_options,
+    build_detector,
+    build_recorder,
+    load_mission_from_args,
+)
+
+if TYPE_CHECKING:
+    from sarmission.mission.config import MissionConfig
+    from sarmission.mission.controller import Detector
+    from sarmission.mission.live_sources import LiveSource
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``run``."""
+    parser = sub.add_parser(
+        "run",
+        help="fly a live mission: camera -> MITE-Net -> lock -> geolocation -> alerts",
+        description="Connect to the autopilot (own HEARTBEAT as an onboard controller, telemetry "
+        "streams requested), run the detector on the camera, store every confirmed target "
+        "durably and announce it per the mission's action policy. A restart with the same "
+        "--alerts-db resumes without re-announcing known targets.",
+    )
+    parser.add_argument("--connect", required=True, metavar="URL",
+                        help="autopilot MAVLink connection string (pymavlink), e.g. "
+                        "udp:127.0.0.1:14550, tcp:127.0.0.1:5760, /dev/ttyACM0")
+    src = parser.add_mutually_exclusive_group(required=True)
+    src.add_argument("--video", metavar="PATH", help="play a video file as the camera")
+    src.add_argument("--frames", metavar="DIR", help="play an image folder as the camera")
+    src.add_argument("--camera", type=int, metavar="N", help="camera device N (OpenCV)")
+    src.add_argument("--sim", action="store_true",
+                     help="start the simulated vehicle on the --connect port and use its camera")
+    parser.add_argument("--fps", type=float, default=30.0,
+                        help="frame rate of --frames (and of a video without one; "
+                        "default: %(default)s)")
+    parser.add_argument("--alerts-db", default="alerts.db",
+                        help="durable alert store (default: %(default)s)")
+    parser.add_argument("--feed", metavar="HOST:PORT", default=None,
+                        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765")
+    parser.add_argument("--signing-key-file", default=None,
+                        help="MAVLink 2 signing key: 32 raw bytes, 64 hex digits, or a "
+                        "passphrase (sha256, as MAVProxy)")
+    parser.add_argument("--connect-timeout", type=float, default=30.0,
+                        help="seconds to wait for the autopilot's HEARTBEAT (default: "
+                        "%(default)s)")
+    sim = parser.add_argument_group("simulator (--sim)")
+    sim.add_argument("--sim-size", default=None, metavar="WxH",
+                     help="simulated frame size (default: the mission camera's)")
+    sim.add_argument("--sim-fps", type=float, default=None,
+                     help="most simulated frames per second (default: as fast as processed)")
+    sim.add_argument("--sim-seed", type=int, default=0, help="scenario and flight seed")
+    sim.add_argument("--sim-corrupt-every", type=int, default=0, metavar="N",
+                     help="deliver every N-th simulated frame truncated (sensor glitch)")
+    add_mission_options(parser)
+    parser.set_defaults(func=run)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"960x540"`` -> ``(960, 540)``."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"expected a size like 960x540, got {text!r}") from None
+    if w < 16 or h < 16:
+        raise ValueError(f"frame size {text} is too small")
+    return w, h
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``"127.0.0.1:8765"`` -> ``("127.0.0.1", 8765)``."""
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"expected HOST:PORT, got {text!r}")
+    return host.strip("[]"), int(port)
+
+
+def read_signing_key(path: str) -> bytes:
+    """A 32-byte MAVLink 2 key from a file (raw, hex, or a passphrase hashed with sha256)."""
+    data = Path(path).read_bytes()
+    if len(data) == 32:
+        return data
+    text = data.decode("utf-8", errors="replace").strip()
+    if len(text) == 64 and all(c in "0123456789abcdefABCDEF" for c in text):
+        return bytes.fromhex(text)
+    if not text:
+        raise ValueError(f"{path}: empty signing key file")
+    return hashlib.sha256(text.encode("utf-8")).digest()
+
+
+def vehicle_url(connect: str) -> str:
+    """The simulated vehicle's end of the controller's UDP link (listen <-> send swapped)."""
+    scheme, _, rest = connect.partition(":")
+    if scheme in ("udp", "udpin"):
+        return f"udpout:{rest}"
+    if scheme == "udpout":
+        return f"udpin:{rest}"
+    raise ValueError(f"--sim needs a udp:, udpin: or udpout: connection, got {connect!r}")
+
+
+@contextmanager
+def stop_on_signals() -> Iterator[threading.Event]:
+    """An event set by SIGINT/SIGTERM while inside (handlers only in the main thread)."""
+    stop = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+
+    def handler(signum: int, frame: Any) -> None:
+        print(f"\n{signal.Signals(signum).name}: stopping after this frame", flush=True)
+        stop.set()
+
+    for s in previous:
+        signal.signal(s, handler)
+    try:
+        yield stop
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+def _open_source(args: argparse.Namespace, mission: MissionConfig, renderer: Any
+                 ) -> tuple[LiveSource, Any]:
+    """The frame source and, for --sim, the started simulated vehicle."""
+    from sarmission.mission.live_sources import CameraSource, FileSource
+
+    if args.video or args.frames:
+        return FileSource(args.video or args.frames, args.fps), None
+    if args.camera is not None:
+        return CameraSource(args.camera), None
+    from sim.camera import SimCamera
+    from sim.vehicle import SimVehicle
+
+    size = parse_size(args.sim_size) if args.sim_size else None
+    vehicle = SimVehicle(vehicle_url(args.connect), mission, seed=args.sim_seed,
+                         stream_on_request=True).start()
+    try:
+        camera = SimCamera(vehicle, renderer=renderer, size=size, fps=args.sim_fps,
+                           corrupt_every=args.sim_corrupt_every)
+    except BaseException:
+        vehicle.stop()
+        raise
+    return camera, vehicle
+
+
+def run(args: argparse.Namespace, detector: Detector | None = None, renderer: Any = None,
+        console: Callable[[str], None] | None = None) -> int:
+    """Run the live mission of ``args``. ``detector`` replaces MITE-Net and ``renderer`` the
+    simulator's scene renderer when given (tests)."""
+    from sarmission.mission.live import LiveSession
+
+    say = console or (lambda line: print(line, flush=True))
+    mission = load_mission_from_args(args)
+    key = read_signing_key(args.signing_key_file) if args.signing_key_file else None
+    feed = parse_address(args.feed) if args.feed else None
+    if detector is None:
+        detector, note = build_detector(args, mission)
+        say(note)
+    recorder = build_recorder(args)
+    source, vehicle = _open_source(args, mission, renderer)
+    try:
+        session = LiveSession(mission, detector, source, args.connect, args.alerts_db,
+                              signing_key=key, recorder=recorder, feed_address=feed,
+                              mission_id=args.mission_id,
+                              transport_latency_s=mission.telemetry.latency_s if args.sim else 0,
+                              connect_timeout_s=args.connect_timeout, console=say)
+        say(f"mission '{mission.name}': policy {', '.join(mission.actions.policy)}; "
+            f"alerts in {args.alerts_db}")
+        with stop_on_signals() as stop:
+            try:
+                session.run(stop, args.max_frames, args.duration)
+            finally:
+                say(session.close())
+        if vehicle is not None:
+            say(f"simulator: {len(vehicle.statustexts)} STATUSTEXT and "
+                f"{len(vehicle.commands)} commands received, {vehicle.bad_packets} bad packets")
+    finally:
+        if vehicle is not None:
+            vehicle.stop()
+    return 0

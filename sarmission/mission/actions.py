@@ -1,0 +1,125 @@
+"""Action policy: what the autopilot is told about a confirmed target, and its delivery record.
+
+The mission file's ``[actions] policy`` lists, in order, what to do for each new alert:
+
+- ``alert``: STATUSTEXT with severity ALERT (``Alert.statustext()`` in ASCII, at most 50 bytes);
+- ``loiter``: MAV_CMD_DO_REPOSITION as COMMAND_INT to the target at the loiter altitude
+  (``loiter_altitude_m``, else the survey altitude), switching to guided;
+- ``roi``: MAV_CMD_DO_SET_ROI_LOCATION as COMMAND_INT at the target (camera points at it);
+- ``mission``: upload a one-item mission, NAV_LOITER_UNLIM at the target.
+
+Positional actions are skipped for an alert without a position (there is nowhere to go).
+Everything goes through the :class:`~sarmission.mavlink.commands.Outbox`, which waits for each
+COMMAND_ACK with retries and keeps actions queued while the link is down. Each delivery is
+recorded in the alert store on its own channel (:data:`CHANNELS`), so a restarted controller
+re-submits what never got through (:meth:`ActionPolicy.resume`). Of the positional actions
+only the newest undelivered one per channel is re-submitted: flying to an older target first
+would only delay the newest order.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from sarmission.alerts.model import CHANNEL_MAVLINK, Alert
+from sarmission.alerts.store import AlertStore
+from sarmission.mavlink.commands import Action, CommandResult, MissionItem, Outbox
+from sarmission.mavlink.connection import M
+from sarmission.mission.config import ActionsConfig
+
+log = logging.getLogger(__name__)
+
+#: Alert store channel of each policy entry.
+CHANNELS: dict[str, str] = {
+    "alert": CHANNEL_MAVLINK,
+    "loiter": "mavlink_loiter",
+    "roi": "mavlink_roi",
+    "mission": "mavlink_mission",
+}
+_POSITIONAL = ("loiter", "roi", "mission")
+
+
+class ActionPolicy:
+    """Turns alerts into outbox actions per ``config.policy`` and records their delivery.
+
+    ``survey_altitude_m`` is the loiter altitude when the mission gives none;
+    ``target_altitude_m`` is the target's height above home (ROI and mission item altitude).
+    ``console`` receives one line per delivery or refusal.
+    """
+
+    def __init__(self, config: ActionsConfig, outbox: Outbox, store: AlertStore,
+                 survey_altitude_m: float, target_altitude_m: float = 0.0,
+                 console: Callable[[str], None] = print) -> None:
+        self.policy = list(config.policy)
+        self.outbox = outbox
+        self.store = store
+        self.loiter_altitude_m = (config.loiter_altitude_m if config.loiter_altitude_m is not None
+                                  else survey_altitude_m)
+        self.target_altitude_m = target_altitude_m
+        self.console = console
+        self.delivered = 0
+        self.refused = 0
+        outbox.on_delivered = self._on_delivered
+        outbox.on_refused = self._on_refused
+
+    def announce(self, alert: Alert) -> int:
+        """Queue every action of the policy for a new alert; returns how many were queued."""
+        return sum(self._submit(entry, alert) for entry in self.policy)
+
+    def resume(self) -> int:
+        """Re-queue what earlier runs stored but never delivered; returns the count queued."""
+        queued = 0
+        for entry in self.policy:
+            pending = self.store.undelivered(CHANNELS[entry])
+            if entry in _POSITIONAL:
+                pending = [a for a in pending if a.position is not None][-1:]
+            queued += sum(self._submit(entry, alert) for alert in pending)
+        return queued
+
+    def pending(self) -> int:
+        """Actions still waiting for the autopilot."""
+        return len(self.outbox.pending())
+
+    def _submit(self, entry: str, alert: Alert) -> bool:
+        key = (alert.alert_id, CHANNELS[entry], alert.target_id)
+        if entry == "alert":
+            self.outbox.submit("statustext", ascii_statustext(alert), M.MAV_SEVERITY_ALERT,
+                               key=key)
+            return True
+        if alert.position is None:
+            log.info("target %d has no position: %s skipped", alert.target_id, entry)
+            return False
+        lat, lon = alert.position
+        if entry == "loiter":
+            self.outbox.submit("reposition", lat, lon, self.loiter_altitude_m, key=key)
+        elif entry == "roi":
+            self.outbox.submit("set_roi", lat, lon, self.target_altitude_m, key=key)
+        else:
+            item = MissionItem(M.MAV_CMD_NAV_LOITER_UNLIM, lat, lon, self.loiter_altitude_m)
+            self.outbox.submit("upload_mission", [item], key=key)
+        return True
+
+    def _on_delivered(self, action: Action, result: CommandResult) -> None:
+        alert_id, channel, target_id = _key(action)
+        self.store.mark_delivered(alert_id, channel)
+        self.delivered += 1
+        self.console(f"  -> target {target_id}: {result.name} delivered "
+                     f"({action.attempts} attempt{'s' if action.attempts != 1 else ''})")
+
+    def _on_refused(self, action: Action, result: CommandResult) -> None:
+        _, _, target_id = _key(action)
+        self.refused += 1
+        self.console(f"  -> target {target_id}: {result.error}")
+
+
+def ascii_statustext(alert: Alert) -> str:
+    """The alert's STATUSTEXT in ASCII: the autopilot's text field is ASCII, so "±" (two bytes in
+    UTF-8) becomes "+-" (two bytes), keeping the 50-byte limit."""
+    return alert.statustext().replace("±", "+-")
+
+
+def _key(action: Action) -> tuple[str, str, int]:
+    key: Any = action.key
+    return key[0], key[1], key[2]

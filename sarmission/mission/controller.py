@@ -1,0 +1,331 @@
+"""The mission controller: one frame in, confirmed targets out (alerts, autopilot actions).
+
+Per frame (:meth:`MissionController.process`)::
+
+    frame + capture time
+      -> detector (MITE-Net)                 detections, proposals, image shift
+      -> tracker (camera shift from vSTMD)   tracks; m-of-k lock
+      -> for each locked track seen this frame:
+           telemetry pose at the capture time -> geolocate the box centre -> target registry
+      -> for each new target: Alert -> store.add (durable) -> console line -> action policy
+      -> recorder (frame, proposals, detections, tracks, telemetry, map)
+
+Only locked tracks cost more than tracking; the alert (thumbnail, geolocated history) is built
+once per new target. The same controller runs live (frames stamped with ``time.monotonic()``,
+the clock the MAVLink telemetry is mapped to) and in replay (any clock the telemetry buffer was
+filled in). A frame that is not a BGR ``uint8 [H, W, 3]`` image of the stream's size is skipped,
+counted by reason and logged.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from sarmission.alerts.model import Alert
+from sarmission.alerts.store import AlertStore
+from sarmission.alerts.thumbnail import crop_thumbnail
+from sarmission.geo.camera import CameraIntrinsics
+from sarmission.geo.geolocate import GeoFix, PlatformPose, geolocate
+from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
+from sarmission.mission.actions import ActionPolicy
+from sarmission.mission.config import MissionConfig
+from sarmission.mission.targets import Target, TargetRegistry
+from sarmission.perception.types import FrameResult
+from sarmission.tracking.tracker import Tracker, TrackState
+from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
+
+log = logging.getLogger(__name__)
+
+#: Geolocated history entries put in an alert (the newest ones).
+ALERT_TRACK_POINTS = 10
+DRONE_COLOUR = (60, 140, 255)
+
+
+class Detector(Protocol):
+    """What the controller needs of a detector (:class:`~sarmission.perception.mitenet.MiteNet`).
+
+    ``vstmd.last_shift`` is the image shift of the last frame in full-resolution pixels.
+    """
+
+    vstmd: Any
+    per_stage_ms: dict[str, float]
+
+    @property
+    def classes(self) -> tuple[str, ...]: ...
+
+    def process(self, frame_bgr: np.ndarray, timestamp: float,
+                shift_px: tuple[float, float] | None = None) -> FrameResult: ...
+
+
+@dataclass
+class ControllerStats:
+    """Counters of one run."""
+
+    frames: int = 0
+    skipped: Counter[str] = field(default_factory=Counter)
+    detections: int = 0
+    locks: int = 0
+    alerts: list[Alert] = field(default_factory=list)
+    merged_tracks: int = 0
+    stage_ms: Counter[str] = field(default_factory=Counter)
+    busy_s: float = 0.0
+
+    @property
+    def skipped_total(self) -> int:
+        return sum(self.skipped.values())
+
+
+def monotonic_to_posix() -> Callable[[float], float]:
+    """Map ``time.monotonic()`` stamps to POSIX seconds (offset taken now)."""
+    offset = time.time() - time.monotonic()
+    return lambda t: t + offset
+
+
+class MissionController:
+    """Runs one mission's frames through detection, tracking, geolocation, alerting and actions.
+
+    Args:
+        mission: the mission configuration (camera intrinsics, lock m/k, ground plane).
+        detector: MITE-Net or anything with its ``process`` interface.
+        telemetry: the buffer the frame times are looked up in.
+        store: the durable alert store; its known targets for ``mission_id`` seed the registry.
+        actions: the action policy (None: no autopilot, e.g. replay).
+        recorder: rerun recorder (None: nothing recorded).
+        mission_id: the id alerts are stored under (default: the mission's name).
+        to_posix: maps a frame timestamp to POSIX seconds for the alert's lock time.
+        merge_radius_m: target registry merge radius.
+        console: receives one line per new alert.
+    """
+
+    def __init__(self, mission: MissionConfig, detector: Detector, telemetry: TelemetryBuffer,
+                 store: AlertStore, actions: ActionPolicy | None = None,
+                 recorder: Recorder | None = None, mission_id: str | None = None,
+                 to_posix: Callable[[float], float] | None = None, merge_radius_m: float = 8.0,
+                 console: Callable[[str], None] = print) -> None:
+        self.mission = mission
+        self.detector = detector
+        self.telemetry = telemetry
+        self.store = store
+        self.actions = actions
+        self.recorder = recorder if recorder is not None and recorder.enabled else None
+        self.mission_id = mission_id or mission.name
+        self.to_posix = to_posix or monotonic_to_posix()
+        self.tracker = Tracker(lock_m=mission.lock.m, lock_k=mission.lock.k)
+        self.registry = TargetRegistry(merge_radius_m)
+        self.registry.seed(store.known_targets(self.mission_id))
+        self.known_at_start = len(self.registry)
+        self.console = console
+        self.stats = ControllerStats()
+        self.ground_alt = mission.area.ground_alt_m
+        self._camera = mission.camera.intrinsics()
+        self._intrinsics: CameraIntrinsics | None = None
+        self._shape: tuple[int, int] | None = None
+        self._t0: float | None = None
+
+    # -- per frame -------------------------------------------------------------------------------
+    def process(self, frame_index: int, timestamp: float, frame: Any) -> list[Alert]:
+        """Run one frame captured at ``timestamp`` (telemetry clock); returns its new alerts."""
+        reason = self._check(frame)
+        if reason:
+            self._skip(frame_index, reason)
+            return []
+        started = time.perf_counter()
+        result = self.detector.process(frame, timestamp)
+        shift = getattr(self.detector.vstmd, "last_shift", None)
+        tracks = self.tracker.update(result.detections, frame_index, timestamp,
+                                     camera_shift=shift)
+        self.stats.frames += 1
+        self.stats.detections += len(result.detections)
+        self.stats.stage_ms.update(self.detector.per_stage_ms)
+
+        pose: PlatformPose | StaleTelemetry | None = None
+        alerts: list[Alert] = []
+        changed: list[Target] = []
+        for track in tracks:
+            if not track.locked or track.misses:
+                continue
+            if pose is None:
+                pose = self.telemetry.lookup(timestamp)
+            fix, note = self._locate(track, pose)
+            target, is_new = self.registry.observe(track.track_id, track.class_id, track.score,
+                                                   timestamp, fix, note)
+            changed.append(target)
+            if track.just_locked:
+                self.stats.locks += 1
+                if is_new:
+                    alerts.append(self._alert(target, track, frame, frame_index, pose, fix))
+                else:
+                    self.stats.merged_tracks += 1
+                    log.info("track %d joined target %d", track.track_id, target.target_id)
+        self.stats.busy_s += time.perf_counter() - started
+        if self.recorder is not None:
+            if pose is None:
+                pose = self.telemetry.lookup(timestamp)
+            self._record(frame_index, timestamp, frame, result, tracks, pose, changed)
+        return alerts
+
+    def skip(self, frame_index: int, reason: str) -> None:
+        """Count a frame the source could not deliver (e.g. a read failure)."""
+        self._skip(frame_index, reason)
+
+    def _check(self, frame: Any) -> str:
+        if frame is None:
+            return "no image"
+        if not isinstance(frame, np.ndarray):
+            return f"not an image ({type(frame).__name__})"
+        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+            return f"not a BGR uint8 image (dtype {frame.dtype}, shape {list(frame.shape)})"
+        shape = (int(frame.shape[0]), int(frame.shape[1]))
+        if self._shape is None:
+            if min(shape) < 16:
+                return f"image too small ({shape[1]}x{shape[0]})"
+            self._shape = shape
+            self._intrinsics = self._camera.scaled(shape[1], shape[0])
+        elif shape != self._shape:
+            return (f"size {shape[1]}x{shape[0]} differs from the stream's "
+                    f"{self._shape[1]}x{self._shape[0]}")
+        return ""
+
+    def _skip(self, frame_index: int, reason: str) -> None:
+        key = reason.split(" (")[0]
+        self.stats.skipped[key] += 1
+        log.warning("frame %d skipped: %s (%d skipped so far)", frame_index, reason,
+                    self.stats.skipped_total)
+        if self.recorder is not None:
+            self.recorder.text("skipped", f"frame {frame_index}: {reason}", level="WARN")
+
+    # -- geolocation -----------------------------------------------------------------------------
+    def _home(self) -> tuple[float, float, float]:
+        return self.telemetry.home or self.mission.area.home
+
+    def _locate(self, track: TrackState, pose: PlatformPose | StaleTelemetry,
+                ) -> tuple[GeoFix | None, str]:
+        if isinstance(pose, StaleTelemetry):
+            return None, f"telemetry stale: {pose.reason}"
+        box = track.box
+        centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
+        assert self._intrinsics is not None
+        fix = geolocate(centre, self._intrinsics, pose, self._home(), self.ground_alt)
+        return fix, "" if fix.ok else f"no ground fix: {fix.note}"
+
+    def _history_fixes(self, track: TrackState) -> list[tuple[float, float, float]]:
+        """``(POSIX t, lat, lon)`` of the track's newest centres, where telemetry allows."""
+        points = []
+        assert self._intrinsics is not None
+        for _, t, cx, cy in track.history[-ALERT_TRACK_POINTS:]:
+            pose = self.telemetry.lookup(t)
+            if isinstance(pose, StaleTelemetry):
+                continue
+            fix = geolocate((cx, cy), self._intrinsics, pose, self._home(), self.ground_alt)
+            if fix.ok:
+                points.append((self.to_posix(t), fix.lat, fix.lon))
+        return points
+
+    # -- alerts ----------------------------------------------------------------------------------
+    def _alert(self, target: Target, track: TrackState, frame: np.ndarray, frame_index: int,
+               pose: PlatformPose | StaleTelemetry, fix: GeoFix | None) -> Alert:
+        box = track.box
+        centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
+        classes = self.detector.classes
+        class_name = classes[track.class_id] if 0 <= track.class_id < len(classes) else "target"
+        placed = fix is not None and fix.ok
+        alert = Alert(
+            mission_id=self.mission_id,
+            target_id=target.target_id,
+            class_name=class_name,
+            score=float(track.score),
+            lock_time=self.to_posix(track.history[-1][1]),
+            frame_index=frame_index,
+            position=target.position if placed else None,
+            position_note=target.note if placed else (target.note or "no position"),
+            error_m=target.error_m if placed else None,
+            target_hae_m=self._home()[2] if self.ground_alt is None else self.ground_alt,
+            drone_position=(None if isinstance(pose, StaleTelemetry)
+                            else (pose.lat, pose.lon, pose.rel_alt_m)),
+            track=self._history_fixes(track),
+            pixel_track=[(int(i), float(x), float(y)) for i, _, x, y in track.history],
+            thumbnail=crop_thumbnail(frame, centre),
+        )
+        self.store.add(alert)  # durable before anyone is told
+        target.announced = True
+        self.stats.alerts.append(alert)
+        self.console(format_alert(alert, track.track_id))
+        if self.recorder is not None:
+            self.recorder.text("alerts", format_alert(alert, track.track_id), level="WARN")
+        if self.actions is not None:
+            self.actions.announce(alert)
+        return alert
+
+    # -- recording -------------------------------------------------------------------------------
+    def _record(self, frame_index: int, timestamp: float, frame: np.ndarray,
+                result: FrameResult, tracks: list[TrackState],
+                pose: PlatformPose | StaleTelemetry, changed: list[Target]) -> None:
+        rec = self.recorder
+        assert rec is not None
+        if self._t0 is None:
+            self._t0 = timestamp
+        rec.set_time(frame_index, timestamp - self._t0)
+        rec.frame(frame_index, frame)
+        rec.boxes("proposals", result.proposals.boxes)
+        classes = self.detector.classes
+        det = result.detections
+        rec.boxes("detections", det.boxes, labels=[
+            f"{classes[c] if 0 <= c < len(classes) else c} {s:.2f}"
+            for c, s in zip(det.class_ids.tolist(), det.scores.tolist(), strict=True)])
+        rec.boxes("tracks", np.array([t.box for t in tracks]).reshape(-1, 4),
+                  labels=[f"{t.track_id}{' LOCK' if t.locked else ''}" for t in tracks],
+                  colours=[LOCKED_COLOUR if t.locked else TRACK_COLOUR for t in tracks])
+        for stage, ms in self.detector.per_stage_ms.items():
+            rec.scalar(f"stage_ms/{stage}", ms)
+        if isinstance(pose, PlatformPose):
+            rec.scalar("altitude_m", pose.rel_alt_m)
+            rec.scalar("attitude/roll_deg", math.degrees(pose.roll))
+            rec.scalar("attitude/pitch_deg", math.degrees(pose.pitch))
+            rec.scalar("attitude/yaw_deg", math.degrees(pose.yaw))
+            rec.geo_points("drone", np.array([[pose.lat, pose.lon]]), radius_m=3.0,
+                           colour=DRONE_COLOUR)
+        if changed:
+            placed = [t.position for t in self.registry.targets.values() if t.position]
+            if placed:
+                rec.geo_points("targets", np.array(placed))
+
+    # -- summary ---------------------------------------------------------------------------------
+    def summary(self, wall_s: float | None = None) -> str:
+        """A few lines: frames, skipped, rate, locks, alerts, stage times, targets."""
+        s = self.stats
+        lines = [f"frames processed: {s.frames}"
+                 + (f", skipped: {s.skipped_total} ("
+                    + ", ".join(f"{k}: {n}" for k, n in s.skipped.items()) + ")"
+                    if s.skipped_total else ", skipped: 0")]
+        if s.frames:
+            rate = f"{s.frames / s.busy_s:.1f} fps processing" if s.busy_s > 0 else ""
+            if wall_s:
+                rate += f", {s.frames / wall_s:.1f} fps overall"
+            lines.append(rate)
+            lines.append("mean stage ms: " + ", ".join(
+                f"{k} {v / s.frames:.1f}" for k, v in s.stage_ms.items()))
+        lines.append(f"detections: {s.detections}, locks: {s.locks}, "
+                     f"tracks merged into known targets: {s.merged_tracks}")
+        lines.append(f"targets: {len(self.registry)} ({self.known_at_start} known at start), "
+                     f"new alerts: {len(s.alerts)}")
+        if self.actions is not None:
+            lines.append(f"autopilot actions delivered: {self.actions.delivered}, refused: "
+                         f"{self.actions.refused}, pending: {self.actions.pending()}")
+        return "\n".join(lines)
+
+
+def format_alert(alert: Alert, track_id: int | None = None) -> str:
+    """One console line for a new alert."""
+    where = (f"{alert.format_position(6)} {alert.format_error()}".rstrip()
+             if alert.position is not None else f"position unknown ({alert.position_note})")
+    track = f", track {track_id}" if track_id is not None else ""
+    return (f"ALERT target {alert.target_id}: {alert.class_name} {alert.score:.2f} at {where} "
+            f"(frame {alert.frame_index}{track})")

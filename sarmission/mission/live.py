@@ -1,0 +1,205 @@
+"""A live mission: MAVLink link + telemetry + alert store + actions + feed around the controller.
+
+:class:`LiveSession` wires one run together and owns every resource it opens:
+
+1. the alert store (opened first: a bad file fails before anything else starts); the target
+   registry is seeded from it and undelivered autopilot actions are queued again;
+2. the MAVLink link (our HEARTBEAT as an onboard controller), the wait for the autopilot and the
+   stream requests (an ArduPilot autopilot sends nothing else until asked); every telemetry
+   message goes into the :class:`~sarmission.mavlink.telemetry.TelemetryBuffer`;
+3. the outbox and action policy, the operator feed (optional), the recorder (optional);
+4. :meth:`LiveSession.run` reads frames until the source ends, a frame or time limit is reached
+   or ``stop`` is set; link loss and recovery are reported on the console as they happen;
+5. :meth:`LiveSession.close` gives queued actions a moment to go out, then closes everything
+   and returns the summary. What is still queued stays undelivered in the store, for the next run.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+
+from sarmission.alerts.feed import FeedServer
+from sarmission.alerts.store import AlertStore
+from sarmission.mavlink.commands import CommandSender, Outbox
+from sarmission.mavlink.connection import M, MavlinkLink
+from sarmission.mavlink.telemetry import MESSAGE_TYPES, BootClock, TelemetryBuffer
+from sarmission.mission.actions import ActionPolicy
+from sarmission.mission.config import MissionConfig
+from sarmission.mission.controller import Detector, MissionController
+from sarmission.mission.live_sources import LiveSource
+from sarmission.viz.recorder import Recorder
+
+log = logging.getLogger(__name__)
+
+
+def stream_rates(mission: MissionConfig) -> dict[int, float]:
+    """Telemetry streams (message id -> Hz) the controller asks the autopilot for."""
+    rates = {
+        M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 10.0,
+        M.MAVLINK_MSG_ID_ATTITUDE: 20.0,
+        M.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
+    }
+    if mission.camera.gimbal:
+        rates[M.MAVLINK_MSG_ID_GIMBAL_DEVICE_ATTITUDE_STATUS] = 5.0
+    return rates
+
+
+def telemetry_buffer(mission: MissionConfig, transport_latency_s: float = 0.0) -> TelemetryBuffer:
+    """A telemetry buffer for the mission: staleness limit and the camera's fixed mount."""
+    return TelemetryBuffer(
+        stale_after_s=mission.telemetry.stale_after_s,
+        mount_rpy=(0.0, math.radians(mission.camera.mount_pitch_deg), 0.0),
+        mount_frame="vehicle" if mission.camera.gimbal else "body",
+        clock=BootClock(transport_latency_s=transport_latency_s),
+    )
+
+
+class LiveSession:
+    """One live run against an autopilot at ``url`` (a pymavlink connection string).
+
+    Args:
+        mission: the mission configuration.
+        detector: MITE-Net (or anything with its ``process`` interface).
+        source: the camera (``read() -> Frame | None``).
+        url: the autopilot's MAVLink connection string.
+        alerts_db: the alert store file.
+        signing_key: MAVLink 2 signing key (32 bytes) or None.
+        recorder: rerun recorder or None.
+        feed_address: ``(host, port)`` to serve the operator feed on, or None.
+        mission_id: alerts are stored under this id (default: the mission's name).
+        transport_latency_s: known minimum telemetry delay (see ``BootClock``).
+        connect_timeout_s: how long to wait for the autopilot's HEARTBEAT before going on.
+        console: receives the operator's console lines.
+    """
+
+    def __init__(self, mission: MissionConfig, detector: Detector, source: LiveSource, url: str,
+                 alerts_db: str, *, signing_key: bytes | None = None,
+                 recorder: Recorder | None = None, feed_address: tuple[str, int] | None = None,
+                 mission_id: str | None = None, transport_latency_s: float = 0.0,
+                 connect_timeout_s: float = 30.0,
+                 console: Callable[[str], None] = print) -> None:
+        self.mission = mission
+        self.source = source
+        self.console = console
+        self.recorder = recorder
+        self.feed: FeedServer | None = None
+        self.link: MavlinkLink | None = None
+        self.outbox: Outbox | None = None
+        self.store = AlertStore(alerts_db)
+        try:
+            self._open(detector, url, signing_key, feed_address, mission_id,
+                       transport_latency_s, connect_timeout_s)
+        except BaseException:
+            self._close_resources()
+            raise
+        self.frames_read = 0
+        self._link_was_ok = True
+
+    def _open(self, detector: Detector, url: str, signing_key: bytes | None,
+              feed_address: tuple[str, int] | None, mission_id: str | None,
+              transport_latency_s: float, connect_timeout_s: float) -> None:
+        mission = self.mission
+        self.telemetry = telemetry_buffer(mission, transport_latency_s)
+        self.link = MavlinkLink(url, signing_key=signing_key)
+        self.link.subscribe(self.telemetry.handle_message, MESSAGE_TYPES)
+        self.console(f"waiting for the autopilot on {url} ...")
+        if self.link.wait_autopilot(connect_timeout_s):
+            system, component = self.link.autopilot or (0, 0)
+            self.console(f"autopilot {system}/{component} found")
+        else:
+            self.console(f"no autopilot heard within {connect_timeout_s:.0f} s; going on "
+                         "(targets are alerted without a position until telemetry arrives)")
+        results = self.link.request_streams(stream_rates(mission))
+        refused = [M.enums["MAV_RESULT"][r].name for r in results.values() if r]
+        if refused:
+            log.info("stream requests answered: %s", ", ".join(refused))
+        self.outbox = Outbox(CommandSender(self.link, mission.actions.retries,
+                                           mission.actions.ack_timeout_s))
+        ground = mission.area.ground_alt_m
+        target_alt = 0.0 if ground is None else ground - mission.area.home_alt_m
+        self.actions = ActionPolicy(mission.actions, self.outbox, self.store,
+                                    survey_altitude_m=mission.flight.altitude_m,
+                                    target_altitude_m=target_alt, console=self.console)
+        resumed = self.actions.resume()
+        if resumed:
+            self.console(f"re-sending {resumed} undelivered autopilot action(s) from the store")
+        if feed_address is not None:
+            self.feed = FeedServer(self.store, *feed_address).start()
+            self.console(f"operator feed on {self.feed.url}")
+        self.controller = MissionController(mission, detector, self.telemetry, self.store,
+                                            actions=self.actions, recorder=self.recorder,
+                                            mission_id=mission_id, console=self.console)
+        if self.controller.known_at_start:
+            self.console(f"{self.controller.known_at_start} target(s) already alerted in "
+                         f"mission '{self.controller.mission_id}'; they will not be re-announced")
+
+    def run(self, stop: threading.Event | None = None, max_frames: int | None = None,
+            duration_s: float | None = None) -> None:
+        """Process frames until the source ends, ``max_frames`` were read, ``duration_s``
+        passed or ``stop`` is set."""
+        deadline = None if duration_s is None else time.monotonic() + duration_s
+        while not (stop is not None and stop.is_set()):
+            if max_frames is not None and self.frames_read >= max_frames:
+                break
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+            frame = self.source.read()
+            if frame is None:
+                self.console("frame source ended")
+                break
+            self.frames_read += 1
+            self._watch_link()
+            if frame.image_bgr is None:
+                self.controller.skip(frame.index, "camera delivered no image")
+                continue
+            self.controller.process(frame.index, frame.timestamp_s, frame.image_bgr)
+
+    def _watch_link(self) -> None:
+        assert self.link is not None
+        ok = self.link.link_ok
+        if ok == self._link_was_ok:
+            return
+        self._link_was_ok = ok
+        if ok:
+            self.console(f"link back; {self.actions.pending()} queued action(s) going out")
+        else:
+            self.console(f"link lost: autopilot silent for {self.link.silence_s():.1f} s; "
+                         "alerts are kept and queued")
+
+    def close(self, drain_s: float = 3.0) -> str:
+        """Let queued actions go out for up to ``drain_s`` seconds (while the link is up), close
+        everything and return the run's summary."""
+        deadline = time.monotonic() + drain_s
+        while (self.link is not None and self.link.link_ok and self.actions.pending()
+               and time.monotonic() < deadline):
+            time.sleep(0.05)
+        lines = [self.controller.summary()]
+        assert self.link is not None
+        lines.append(f"MAVLink: {self.link.received} messages received, "
+                     f"{self.link.bad_packets} malformed skipped"
+                     + (f", {self.link.rejected_signatures} bad signatures"
+                        if self.link.rejected_signatures else ""))
+        if self.source.skipped:
+            lines.append(f"frame source: {self.source.skipped} frame(s) could not be read")
+        pending = self.actions.pending()
+        if pending:
+            lines.append(f"{pending} autopilot action(s) not delivered; they stay queued in "
+                         f"{self.store.path} for the next run")
+        self._close_resources()
+        return "\n".join(lines)
+
+    def _close_resources(self) -> None:
+        if self.outbox is not None:
+            self.outbox.close()
+        if self.feed is not None:
+            self.feed.stop()
+        if self.recorder is not None:
+            self.recorder.close()
+        if self.link is not None:
+            self.link.close()
+        self.source.close()
+        self.store.close()

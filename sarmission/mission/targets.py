@@ -1,0 +1,183 @@
+"""Target registry: one target per person on the ground, however many tracks saw them.
+
+The tracker's ids live in image space and break whenever a person leaves the frame, is hidden by
+a wave for too long, or the drone flies a new leg over them. The registry joins tracks in ground
+space:
+
+- a track keeps the target it first joined (``track_id -> target_id``);
+- a new locked track with a position joins the nearest target whose position lies within
+  ``max(merge_radius_m, hypot(target error, fix error))`` of its fix, else it starts a new one;
+- a track without a position (stale telemetry, ray above the horizon) cannot be compared with
+  anything, so it gets a target of its own with ``position None`` and the reason.
+
+A target's position is the inverse-variance weighted mean of its fixes (weights ``1 / e^2``,
+``e`` each fix's 1-sigma error), computed in metres around the first fix. Successive fixes share
+most of their error (GNSS bias, altitude, mounting), so averaging does not shrink it: the
+target's error is the smallest error of any of its fixes.
+
+A restarted controller seeds the registry from the alert store's known targets
+(:meth:`TargetRegistry.seed`): they are already announced, so a person found again joins them
+instead of being announced twice.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from sarmission.geo.geolocate import GeoFix
+from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+
+#: Weight floor: a fix without an error estimate counts as this error (metres).
+DEFAULT_FIX_ERROR_M = 10.0
+
+
+@dataclass
+class Target:
+    """One person on the ground (or one unplaced sighting).
+
+    ``lat``/``lon`` are None when no fix was possible (``note`` says why). ``error_m`` is the
+    1-sigma horizontal error of the position. ``first_seen``/``last_seen`` are the capture times
+    of the frames that showed it. ``announced`` is True once an alert exists for it (seeded
+    targets start announced).
+    """
+
+    target_id: int
+    first_seen: float
+    last_seen: float
+    lat: float | None = None
+    lon: float | None = None
+    error_m: float | None = None
+    note: str = ""
+    best_score: float = 0.0
+    class_votes: Counter[int] = field(default_factory=Counter)
+    track_ids: set[int] = field(default_factory=set)
+    announced: bool = False
+    _sum_w: float = 0.0
+    _sum_wn: float = 0.0
+    _sum_we: float = 0.0
+    _origin: tuple[float, float] | None = None
+
+    @property
+    def position(self) -> tuple[float, float] | None:
+        """``(lat, lon)`` in degrees, or None when the target has no fix."""
+        if self.lat is None or self.lon is None:
+            return None
+        return self.lat, self.lon
+
+    @property
+    def class_id(self) -> int:
+        """The majority class over every observation (-1 for a seeded target never seen)."""
+        if not self.class_votes:
+            return -1
+        return self.class_votes.most_common(1)[0][0]
+
+    def add_fix(self, fix: GeoFix) -> None:
+        """Fold one geolocated observation into the weighted mean position."""
+        assert fix.lat is not None and fix.lon is not None
+        error = fix.error_m if fix.error_m is not None and fix.error_m > 0 else DEFAULT_FIX_ERROR_M
+        if self._origin is None:
+            self._origin = (fix.lat, fix.lon)
+        n, e = offset_m(self._origin, (fix.lat, fix.lon))
+        w = 1.0 / error**2
+        self._sum_w += w
+        self._sum_wn += w * n
+        self._sum_we += w * e
+        lat, lon, _ = ned_to_geodetic(self._sum_wn / self._sum_w, self._sum_we / self._sum_w, 0.0,
+                                      self._origin[0], self._origin[1], 0.0)
+        self.lat, self.lon = float(lat), float(lon)
+        self.error_m = error if self.error_m is None else min(self.error_m, error)
+        self.note = fix.note
+
+
+def offset_m(origin: tuple[float, float], point: tuple[float, float]) -> tuple[float, float]:
+    """``(north, east)`` metres of ``point`` from ``origin`` (both ``(lat, lon)`` degrees)."""
+    n, e, _ = geodetic_to_ned(point[0], point[1], 0.0, origin[0], origin[1], 0.0)
+    return float(n), float(e)
+
+
+def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Horizontal distance in metres between two ``(lat, lon)`` points."""
+    return math.hypot(*offset_m(a, b))
+
+
+class TargetRegistry:
+    """Tracks -> targets (see the module docstring). Not thread-safe: one controller owns it."""
+
+    def __init__(self, merge_radius_m: float = 8.0) -> None:
+        if merge_radius_m < 0:
+            raise ValueError(f"merge_radius_m must be >= 0, got {merge_radius_m}")
+        self.merge_radius_m = merge_radius_m
+        self.targets: dict[int, Target] = {}
+        self._by_track: dict[int, int] = {}
+        self._next_id = 1
+
+    def __len__(self) -> int:
+        return len(self.targets)
+
+    def seed(self, known: Mapping[int, tuple[float, float] | None]) -> None:
+        """Add targets already announced (alert store ``known_targets``: id -> position or None).
+
+        Their error is unknown, so a new fix joins one within ``merge_radius_m`` (or within the
+        fix's own error if larger). New targets are numbered after the highest known id.
+        """
+        for target_id, position in known.items():
+            target = Target(int(target_id), math.nan, math.nan, announced=True)
+            if position is not None:
+                target.lat, target.lon = float(position[0]), float(position[1])
+                target.note = "known from an earlier run"
+            else:
+                target.note = "known from an earlier run, without a position"
+            self.targets[target.target_id] = target
+            self._next_id = max(self._next_id, target.target_id + 1)
+
+    def target_of(self, track_id: int) -> Target | None:
+        """The target a track joined, if any."""
+        target_id = self._by_track.get(track_id)
+        return None if target_id is None else self.targets[target_id]
+
+    def observe(self, track_id: int, class_id: int, score: float, t: float,
+                fix: GeoFix | None, note: str = "") -> tuple[Target, bool]:
+        """Record a locked track's sighting at capture time ``t``; returns ``(target, is_new)``.
+
+        ``fix`` is the sighting's geolocation (None or not ``ok`` when there is none; ``note``,
+        or the fix's own note, then says why). ``is_new`` is True only when this sighting
+        created the target.
+        """
+        placed = fix is not None and fix.ok
+        target = self.target_of(track_id)
+        is_new = False
+        if target is None:
+            target = self._nearest(fix) if placed else None
+            if target is None:
+                is_new = True
+                target = Target(self._next_id, t, t)
+                self._next_id += 1
+                self.targets[target.target_id] = target
+            self._by_track[track_id] = target.target_id
+            target.track_ids.add(track_id)
+        if placed:
+            target.add_fix(fix)
+        elif target.position is None:
+            target.note = note or (fix.note if fix is not None else "") or "no position"
+        target.class_votes[int(class_id)] += 1
+        target.best_score = max(target.best_score, float(score))
+        if math.isnan(target.first_seen):
+            target.first_seen = t
+        target.last_seen = t if math.isnan(target.last_seen) else max(target.last_seen, t)
+        return target, is_new
+
+    def _nearest(self, fix: GeoFix) -> Target | None:
+        assert fix.lat is not None and fix.lon is not None
+        best: Target | None = None
+        best_d = math.inf
+        for target in self.targets.values():
+            if target.position is None:
+                continue
+            d = distance_m(target.position, (fix.lat, fix.lon))
+            gate = max(self.merge_radius_m, math.hypot(target.error_m or 0.0, fix.error_m or 0.0))
+            if d <= gate and d < best_d:
+                best, best_d = target, d
+        return best

@@ -1,0 +1,194 @@
+"""Mission controller: lock -> geolocation -> durable alert -> autopilot, with a scripted detector
+(the telemetry buffer, alert store, geolocation and MAVLink are the real ones)."""
+
+import math
+import socket
+import time
+
+import numpy as np
+import pytest
+from scripted_detector import ScriptedDetector
+
+from sarmission.alerts.store import AlertStore
+from sarmission.geo.camera import project_points
+from sarmission.geo.geolocate import PlatformPose
+from sarmission.geo.wgs84 import ned_to_geodetic
+from sarmission.mavlink.commands import CommandSender, Outbox
+from sarmission.mavlink.connection import M, MavlinkLink
+from sarmission.mavlink.telemetry import TelemetryBuffer
+from sarmission.mission.actions import ActionPolicy, ascii_statustext
+from sarmission.mission.config import load_mission
+from sarmission.mission.controller import MissionController
+from sarmission.mission.targets import distance_m
+from sim.vehicle import SimVehicle
+
+W, H = 960, 540
+DRONE_NED = (30.0, 10.0)
+ALT = 70.0
+YAW = math.radians(35.0)
+TARGET_NED = (38.0, 4.0)
+FPS = 10.0
+
+
+@pytest.fixture
+def mission():
+    return load_mission(overrides={"camera.width": W, "camera.height": H,
+                                   "camera.hfov_deg": 30.0, "name": "ctl_test"})
+
+
+def filled_buffer(mission, t_end: float) -> TelemetryBuffer:
+    """Exact telemetry of a drone hovering at DRONE_NED, 70 m, yawed, camera at nadir."""
+    buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
+    home = mission.area.home
+    buf.set_home(*home)
+    lat, lon, _ = ned_to_geodetic(DRONE_NED[0], DRONE_NED[1], 0.0, *home)
+    for t in np.arange(0.0, t_end + 1e-9, 0.05):
+        buf.push_position(float(t), float(lat), float(lon), ALT)
+        buf.push_attitude(float(t), 0.0, 0.0, YAW)
+    return buf
+
+
+def target_pixel(mission) -> tuple[float, float]:
+    home = mission.area.home
+    lat, lon, _ = ned_to_geodetic(DRONE_NED[0], DRONE_NED[1], 0.0, *home)
+    pose = PlatformPose(float(lat), float(lon), ALT, 0.0, 0.0, YAW)
+    uv, _ = project_points(mission.camera.intrinsics(), pose.camera_pose(home),
+                           np.array([[TARGET_NED[0], TARGET_NED[1], 0.0]]))
+    return float(uv[0, 0]), float(uv[0, 1])
+
+
+def script_3_of_5(mission, n_frames: int):
+    """The target at frames 0, 1, 3 (locks at frame 3), then every frame; a false blip once."""
+    u, v = target_pixel(mission)
+    box = (u - 5, v - 5, u + 5, v + 5)
+    hits = {0, 1, 3} | set(range(5, n_frames))
+    script = [[(box, 0.8, 0)] if i in hits else [] for i in range(n_frames)]
+    script[2] = [((100, 100, 110, 110), 0.9, 1)]  # seen once: never locks
+    return script
+
+
+def truth_latlon(mission) -> tuple[float, float]:
+    lat, lon, _ = ned_to_geodetic(TARGET_NED[0], TARGET_NED[1], 0.0, *mission.area.home)
+    return float(lat), float(lon)
+
+
+def run_frames(ctl, n_frames: int, t0: float = 0.0, frames=None) -> list:
+    alerts = []
+    for i in range(n_frames):
+        frame = np.full((H, W, 3), 90, np.uint8) if frames is None else frames[i]
+        alerts += ctl.process(i, t0 + i / FPS, frame)
+    return alerts
+
+
+def test_target_seen_3_of_5_frames_is_alerted_once_within_1m(tmp_path, mission):
+    n = 20
+    store = AlertStore(tmp_path / "alerts.db")
+    lines = []
+    ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
+                            filled_buffer(mission, n / FPS), store, console=lines.append,
+                            to_posix=lambda t: 1.7e9 + t)
+    alerts = run_frames(ctl, n)
+    assert len(alerts) == 1 and store.count() == 1
+    alert = store.list()[0]
+    assert alert.frame_index == 3  # the third hit in five frames
+    assert alert.lock_time == pytest.approx(1.7e9 + 0.3)
+    assert alert.class_name == "swimmer"
+    assert alert.position is not None
+    assert distance_m(alert.position, truth_latlon(mission)) < 1.0
+    assert 0 < alert.error_m < 10
+    assert alert.drone_position[2] == pytest.approx(ALT)
+    assert alert.thumbnail and alert.thumbnail[:2] == b"\xff\xd8"
+    assert [p[0] for p in alert.pixel_track] == [0, 1, 2, 3]
+    assert len(alert.track) == 4 and distance_m(alert.track[-1][1:], alert.position) < 1.0
+    assert len(lines) == 1 and "ALERT target 1: swimmer" in lines[0]
+    assert ctl.stats.frames == n and ctl.stats.locks == 1
+    store.close()
+
+
+def test_restart_on_the_same_store_does_not_re_announce(tmp_path, mission):
+    n = 12
+    path = tmp_path / "alerts.db"
+    with AlertStore(path) as store:
+        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
+                                filled_buffer(mission, n / FPS), store, console=lambda s: None)
+        assert len(run_frames(ctl, n)) == 1
+    with AlertStore(path) as store:
+        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
+                                filled_buffer(mission, n / FPS), store, console=lambda s: None)
+        assert ctl.known_at_start == 1
+        assert run_frames(ctl, n) == []
+        assert store.count() == 1 and ctl.stats.merged_tracks == 1
+
+
+def test_stale_telemetry_gives_an_alert_without_position_and_the_reason(tmp_path, mission):
+    n = 8
+    buf = filled_buffer(mission, 1.0)  # telemetry ends at t = 1 s; frames from t = 5 s
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)), buf,
+                                store, console=lambda s: None)
+        alerts = run_frames(ctl, n, t0=5.0)
+        assert len(alerts) == 1
+        alert = store.list()[0]
+        assert alert.position is None and alert.error_m is None
+        assert "stale" in alert.position_note and "no position for" in alert.position_note
+        assert alert.drone_position is None
+        assert "pos unknown" in alert.statustext()
+
+
+def test_corrupt_frames_are_skipped_and_counted(tmp_path, mission):
+    good = np.full((H, W, 3), 90, np.uint8)
+    frames = [good, good, None, good, np.zeros((H, W), np.uint8), good,
+              good.astype(np.float32), np.zeros((H // 2, W // 2, 3), np.uint8), "garbage", good]
+    detector = ScriptedDetector(script_3_of_5(mission, len(frames)))
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(mission, detector, filled_buffer(mission, 2.0), store,
+                                console=lambda s: None)
+        alerts = run_frames(ctl, len(frames), frames=frames)
+        assert ctl.stats.skipped_total == 5 and ctl.stats.frames == 5
+        assert detector.calls == 5  # the detector never saw a bad frame
+        assert set(ctl.stats.skipped) == {"no image", "not a BGR uint8 image", "size 480x270 "
+                                          "differs from the stream's 960x540", "not an image"}
+        assert len(alerts) == 1  # frames 0, 1, 3 of the good ones lock the target
+        assert "skipped: 5" in ctl.summary()
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_alert_reaches_the_autopilot_and_is_marked_delivered(tmp_path, mission):
+    n = 10
+    mission.actions.policy = ["alert", "loiter"]
+    port = free_udp_port()
+    vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", mission).start()
+    link = MavlinkLink(f"udpout:127.0.0.1:{port}")
+    outbox = Outbox(CommandSender(link, retries=2, ack_timeout_s=0.5))
+    store = AlertStore(tmp_path / "alerts.db")
+    try:
+        assert link.wait_autopilot(5.0)
+        actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
+                               console=lambda s: None)
+        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
+                                filled_buffer(mission, n / FPS), store, actions=actions,
+                                console=lambda s: None)
+        (alert,) = run_frames(ctl, n)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and len(store.get(alert.alert_id).delivered) < 2:
+            time.sleep(0.05)
+        assert set(store.get(alert.alert_id).delivered) == {"mavlink", "mavlink_loiter"}
+        assert [s.text for s in vehicle.statustexts] == [ascii_statustext(alert)]
+        assert vehicle.statustexts[0].text.endswith("+-2m")
+        assert vehicle.statustexts[0].severity == M.MAV_SEVERITY_ALERT
+        (cmd,) = [c for c in vehicle.commands if c.command == M.MAV_CMD_DO_REPOSITION]
+        assert cmd.is_int and cmd.result == M.MAV_RESULT_ACCEPTED
+        lat, lon = cmd.params[4] / 1e7, cmd.params[5] / 1e7
+        assert distance_m((lat, lon), alert.position) < 0.1
+        assert cmd.params[6] == pytest.approx(50.0)
+        assert actions.delivered == 2 and store.undelivered("mavlink") == []
+    finally:
+        outbox.close()
+        link.close()
+        vehicle.stop()
+        store.close()

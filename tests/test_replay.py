@@ -1,0 +1,89 @@
+"""``sarmission replay``: offline runs of the mission controller with the real MITE-Net, writing
+a rerun recording, with synthetic (flight) and dataset (meta) telemetry."""
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import rerun.chunk
+
+from sarmission.cli import main
+from sarmission.data.coco_video import Category, ImageRecord, Video, VideoDataset, write_coco_video
+
+MISSION = Path(__file__).resolve().parents[1] / "missions" / "maritime_demo.toml"
+N_FRAMES = 12
+
+
+def write_clip(folder: Path) -> list[Path]:
+    """320x180 frames of a textured sea with a bright dot moving right, then one corrupt file."""
+    folder.mkdir(parents=True)
+    rng = np.random.default_rng(0)
+    sea = cv2.GaussianBlur(rng.random((180, 320)).astype(np.float32), (0, 0), 3.0)
+    sea = (90 + 60 * (sea - sea.mean()) / sea.std()).clip(0, 255)
+    paths = []
+    for i in range(N_FRAMES):
+        img = np.repeat(sea[..., None], 3, axis=2).astype(np.uint8)
+        cv2.circle(img, (60 + 4 * i, 90), 3, (240, 240, 250), -1)
+        paths.append(folder / f"f{i:03d}.png")
+        cv2.imwrite(str(paths[-1]), img)
+    (folder / f"f{N_FRAMES:03d}.png").write_bytes(b"not a png")
+    return paths
+
+
+def entity_paths(rrd: Path) -> str:
+    return str(rerun.chunk.RrdReader(rrd).store().schema())
+
+
+def test_replay_of_a_frames_folder_with_flight_telemetry_writes_a_recording(tmp_path, capsys):
+    write_clip(tmp_path / "clip")
+    rrd = tmp_path / "out.rrd"
+    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
+                 "--rerun", "save", str(rrd), "--alerts-db", str(tmp_path / "alerts.db"),
+                 "--ds", "1"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "telemetry: simulated flight of the mission" in out
+    assert f"frames processed: {N_FRAMES}" in out
+    assert "unreadable frames skipped by the reader: 1" in out
+    assert "targets:" in out and f"wrote {rrd}" in out
+    assert rrd.stat().st_size > 10_000
+    schema = entity_paths(rrd)
+    for entity in ("/camera/frame", "/camera/proposals", "/camera/detections", "/camera/tracks",
+                   "/telemetry/altitude_m", "/telemetry/stage_ms/vstmd", "/map/drone"):
+        assert entity in schema, entity
+
+
+def test_replay_of_a_coco_dataset_uses_its_meta_telemetry(tmp_path, capsys):
+    paths = write_clip(tmp_path / "images")
+    images = [ImageRecord(i + 1, p.name, 180, 320, video_id=1, frame_index=i,
+                          meta={"gps_latitude": 54.178, "gps_longitude": 7.892 + 1e-5 * i,
+                                "altitude": 60.0, "gimbal_pitch": -90.0, "compass_heading": 90.0})
+              for i, p in enumerate(paths)]
+    dataset = VideoDataset([Video(1, "clip")], images, [], [Category(1, "swimmer")])
+    ann = tmp_path / "annotations.json"
+    write_coco_video(dataset, ann)
+    code = main(["replay", str(ann), "--fps", "10", "--rerun", "save", str(tmp_path / "d.rrd"),
+                 "--max-frames", "8"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "telemetry: dataset meta" in out
+    assert "frames processed: 8" in out
+    assert "/map/drone" in entity_paths(tmp_path / "d.rrd")
+
+
+def test_replay_refuses_meta_telemetry_that_is_not_there(tmp_path, capsys):
+    paths = write_clip(tmp_path / "images")
+    images = [ImageRecord(i + 1, p.name, 180, 320, video_id=1, frame_index=i)
+              for i, p in enumerate(paths)]
+    ann = tmp_path / "annotations.json"
+    write_coco_video(VideoDataset([Video(1, "clip")], images, [], [Category(1, "swimmer")]), ann)
+    assert main(["replay", str(ann), "--telemetry", "meta"]) == 2
+    assert "no per-frame telemetry" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("rerun_args", [["save"], ["record", "x.rrd"]])
+def test_replay_rejects_bad_rerun_options(tmp_path, capsys, rerun_args):
+    write_clip(tmp_path / "clip")
+    assert main(["replay", str(tmp_path / "clip"), "--rerun", *rerun_args]) == 2
+    assert "--rerun expects" in capsys.readouterr().err

@@ -1,0 +1,114 @@
+"""Target registry: one target per person, merging tracks in ground space."""
+
+import math
+
+import pytest
+
+from sarmission.geo.geolocate import GeoFix
+from sarmission.geo.wgs84 import ned_to_geodetic
+from sarmission.mission.targets import TargetRegistry, distance_m
+
+HOME = (54.178, 7.892)
+
+
+def fix_at(north: float, east: float, error: float = 2.0) -> GeoFix:
+    lat, lon, _ = ned_to_geodetic(north, east, 0.0, HOME[0], HOME[1], 0.0)
+    return GeoFix(float(lat), float(lon), error, 70.0, 80.0, "ground plane at home altitude")
+
+
+def ll(north: float, east: float) -> tuple[float, float]:
+    lat, lon, _ = ned_to_geodetic(north, east, 0.0, HOME[0], HOME[1], 0.0)
+    return float(lat), float(lon)
+
+
+def test_tracks_within_radius_merge_into_one_target():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    a, new_a = reg.observe(1, 0, 0.8, 10.0, fix_at(50, 20))
+    b, new_b = reg.observe(2, 1, 0.9, 12.0, fix_at(53, 21))
+    assert new_a and not new_b
+    assert a is b and len(reg) == 1
+    assert a.track_ids == {1, 2}
+    assert a.best_score == pytest.approx(0.9)
+    assert (a.first_seen, a.last_seen) == (10.0, 12.0)
+    # equal errors: the mean lies halfway
+    assert distance_m(a.position, ll(51.5, 20.5)) < 0.05
+    assert a.error_m == pytest.approx(2.0)
+
+
+def test_error_weighted_mean_favours_the_better_fix():
+    reg = TargetRegistry(merge_radius_m=10.0)
+    t, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=1.0))
+    reg.observe(2, 0, 0.8, 1.0, fix_at(6, 0, error=3.0))
+    # weights 1 and 1/9: north = 6 * (1/9) / (1 + 1/9) = 0.6
+    assert distance_m(t.position, ll(0.6, 0.0)) < 0.05
+    assert t.error_m == pytest.approx(1.0)
+
+
+def test_targets_beyond_radius_stay_separate():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    a, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=1.0))
+    b, new_b = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 12, error=1.0))
+    assert new_b and a is not b and len(reg) == 2
+    assert a.target_id != b.target_id
+
+
+def test_large_errors_widen_the_merge_gate():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    a, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=6.0))
+    b, new_b = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 8, error=6.0))  # hypot(6, 6) = 8.5 m
+    assert not new_b and a is b
+
+
+def test_nearest_target_wins():
+    reg = TargetRegistry(merge_radius_m=6.0)
+    far, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=0.5))
+    near, _ = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 10, error=0.5))
+    joined, new = reg.observe(3, 0, 0.8, 0.0, fix_at(0, 6, error=0.5))
+    assert not new and joined is near and joined is not far
+
+
+def test_a_track_keeps_its_target_and_one_person_is_one_target():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    first, _ = reg.observe(7, 1, 0.6, 0.0, fix_at(100, -40))
+    # the same track drifting (current) and being seen again: same target, no new one
+    for k in range(1, 10):
+        target, new = reg.observe(7, 1, 0.6, float(k), fix_at(100 + 0.3 * k, -40))
+        assert target is first and not new
+    # the person leaves the frame and a new track picks them up on the next leg
+    again, new = reg.observe(31, 0, 0.7, 40.0, fix_at(103.5, -39))
+    assert again is first and not new
+    assert len(reg) == 1 and first.track_ids == {7, 31}
+    assert first.class_id == 1  # 10 votes for class 1, one for class 0
+    assert reg.target_of(31) is first
+
+
+def test_no_position_target_has_the_reason_and_is_never_merged():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    placed, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0))
+    blind, new = reg.observe(2, 0, 0.8, 1.0, None, "telemetry stale: no position for 3.0 s")
+    assert new and blind is not placed
+    assert blind.position is None and blind.error_m is None
+    assert "no position for 3.0 s" in blind.note
+    unplaced = GeoFix(None, None, None, None, -5.0, "ray at or above the horizon")
+    other, new = reg.observe(3, 0, 0.8, 2.0, unplaced)
+    assert new and other.note == "ray at or above the horizon"
+    # once its telemetry recovers, the track's own target gets the position
+    same, new = reg.observe(2, 0, 0.8, 3.0, fix_at(30, 30))
+    assert same is blind and not new and blind.position is not None
+    assert len(reg) == 3
+
+
+def test_seeding_from_known_targets_prevents_re_announcing():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    reg.seed({1: ll(20, 20), 4: ll(-50, 10), 5: None})
+    assert len(reg) == 3 and all(t.announced for t in reg.targets.values())
+    seen, new = reg.observe(1, 0, 0.8, 0.0, fix_at(22, 19))  # track 1 of the new run
+    assert not new and seen.target_id == 1
+    fresh, new = reg.observe(2, 0, 0.8, 0.0, fix_at(200, 200))
+    assert new and fresh.target_id == 6 and not fresh.announced
+    assert math.isfinite(seen.first_seen)
+
+
+def test_negative_radius_is_refused():
+    with pytest.raises(ValueError):
+        TargetRegistry(merge_radius_m=-1.0)
