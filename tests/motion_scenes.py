@@ -65,6 +65,30 @@ def to_bgr(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
 
 
+def periodic_texture(height: int, width: int, rng: np.random.Generator,
+                     grain: float) -> np.ndarray:
+    """Spectrum of a periodic band-limited texture: uniform noise Gaussian-filtered with sigma
+    ``grain`` px, zero mean (translate it with :func:`translated`).
+    """
+    spectrum = np.fft.fft2(rng.random((height, width)))
+    fy = np.fft.fftfreq(height)[:, None]
+    fx = np.fft.fftfreq(width)[None, :]
+    spectrum *= np.exp(-2.0 * (np.pi * grain) ** 2 * (fx * fx + fy * fy))
+    spectrum[0, 0] = 0.0
+    return spectrum
+
+
+def translated(spectrum: np.ndarray, dx: float, dy: float, amplitude: float) -> np.ndarray:
+    """The texture of ``spectrum`` moved exactly by ``(dx, dy)`` px (Fourier phase ramp), scaled
+    to a standard deviation of ``amplitude / 2``.
+    """
+    height, width = spectrum.shape
+    fy = np.fft.fftfreq(height)[:, None]
+    fx = np.fft.fftfreq(width)[None, :]
+    scale = amplitude / (2.0 * np.sqrt(np.mean(np.abs(spectrum) ** 2)) / np.sqrt(spectrum.size))
+    return scale * np.real(np.fft.ifft2(spectrum * np.exp(-2j * np.pi * (fx * dx + fy * dy))))
+
+
 def drifting_scene(height: int, width: int, n_frames: int, camera_velocity: tuple[float, float],
                    start: tuple[float, float], relative_velocity: tuple[float, float],
                    size: float, value: float = 0.95, seed: int = 0, grain: float = 2.0,
@@ -76,19 +100,43 @@ def drifting_scene(height: int, width: int, n_frames: int, camera_velocity: tupl
     Returns the frames (float32 in [0, 1]) and the ``[n_frames, 2]`` true target centres.
     """
     rng = np.random.default_rng(seed)
-    spectrum = np.fft.fft2(rng.random((height, width)))
-    fy = np.fft.fftfreq(height)[:, None]
-    fx = np.fft.fftfreq(width)[None, :]
-    spectrum *= np.exp(-2.0 * (np.pi * grain) ** 2 * (fx * fx + fy * fy))
-    spectrum[0, 0] = 0.0
-    scale = amplitude / (2.0 * np.sqrt(np.mean(np.abs(spectrum) ** 2)) / np.sqrt(spectrum.size))
+    spectrum = periodic_texture(height, width, rng, grain)
     cam = np.asarray(camera_velocity, np.float64)
     centres = (np.asarray(start, np.float64)
                + np.arange(n_frames)[:, None] * (cam + np.asarray(relative_velocity)))
     frames = []
     for t, (cx, cy) in enumerate(centres):
         dx, dy = cam * t
-        tex = np.real(np.fft.ifft2(spectrum * np.exp(-2j * np.pi * (fx * dx + fy * dy))))
-        bg = np.clip(0.4 + scale * tex, 0.0, 1.0).astype(np.float32)
+        bg = np.clip(0.4 + translated(spectrum, dx, dy, amplitude), 0.0, 1.0).astype(np.float32)
+        frames.append(render(bg, float(cx), float(cy), size, value))
+    return frames, centres
+
+
+def sea_scene(height: int, width: int, n_frames: int, camera_velocity: tuple[float, float],
+              start: tuple[float, float], relative_velocity: tuple[float, float], size: float,
+              value: float = 0.95, seed: int = 0, grain: float = 2.0, amplitude: float = 0.3,
+              wave_velocity: tuple[float, float] = (1.0, -0.5), wave_grain: float = 3.0,
+              wave_amplitude: float = 0.15, sparkles: int = 4,
+              sparkle_size: float = 2.0) -> tuple[list[np.ndarray], np.ndarray]:
+    """:func:`drifting_scene` with sea-like clutter: a second texture layer (waves, sigma
+    ``wave_grain``) moving at ``camera_velocity + wave_velocity``, so that no single shift
+    explains all the change, and ``sparkles`` bright ``sparkle_size``-px glints at random places,
+    each lasting one frame. The target is drawn over both.
+    """
+    rng = np.random.default_rng(seed)
+    ground = periodic_texture(height, width, rng, grain)
+    waves = periodic_texture(height, width, rng, wave_grain)
+    cam = np.asarray(camera_velocity, np.float64)
+    wave = cam + np.asarray(wave_velocity, np.float64)
+    centres = (np.asarray(start, np.float64)
+               + np.arange(n_frames)[:, None] * (cam + np.asarray(relative_velocity)))
+    frames = []
+    for t, (cx, cy) in enumerate(centres):
+        bg = (0.4 + translated(ground, *(cam * t), amplitude)
+              + translated(waves, *(wave * t), wave_amplitude))
+        bg = np.clip(bg, 0.0, 1.0).astype(np.float32)
+        for _ in range(sparkles):
+            x, y = rng.uniform(4, width - 4), rng.uniform(4, height - 4)
+            bg = render(bg, float(x), float(y), sparkle_size, 0.95, "disc")
         frames.append(render(bg, float(cx), float(cy), size, value))
     return frames, centres

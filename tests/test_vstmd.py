@@ -2,13 +2,23 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 import pytest
-from motion_scenes import drifting_scene, moving_target, render, textured_background, to_bgr
+from motion_scenes import (
+    drifting_scene,
+    moving_target,
+    render,
+    sea_scene,
+    textured_background,
+    to_bgr,
+)
 
+from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.types import MotionMaps
-from sarmission.perception.vstmd import VSTMD, direction_at, map_to_full
+from sarmission.perception.vstmd import VSTMD, VSTMDParams, direction_at, lobe_radius, map_to_full
 
 
 def run(model: VSTMD, frames: list[np.ndarray]) -> MotionMaps:
@@ -174,10 +184,41 @@ def test_bad_frames_are_refused() -> None:
 
 
 def test_sigmas_follow_size_and_pooling() -> None:
-    s1, s2 = VSTMD.dog_sigmas(1, 6.25)
-    assert (s1, s2) == pytest.approx((5.0, 10.0))
+    reference = VSTMDParams(dog_e=3.0)
+    s1, s2 = VSTMD.dog_sigmas(1, 6.25, reference)
+    assert (s1, s2) == pytest.approx((5.0, 10.0))  # the reference kernel for the reference e
     assert VSTMD.dog_sigmas(2, 16.0)[0] == pytest.approx(VSTMD.dog_sigmas(1, 16.0)[0] / 2)
     assert VSTMD.dog_sigmas(4, 16.0)[0] == pytest.approx(VSTMD.dog_sigmas(1, 8.0)[0] / 2)
+    # Any e keeps the reference's excitatory-lobe radius per target size (0.88 * 5 px for 6.25).
+    for e in (1.0, 1.5, 2.0, 3.0):
+        p = VSTMDParams(dog_e=e)
+        s1, s2 = VSTMD.dog_sigmas(2, 16.0, p)
+        assert s2 == pytest.approx(2.0 * s1)
+        assert lobe_radius(s1, s2, e) == pytest.approx(lobe_radius(5.0, 10.0, 3.0) / 6.25 * 8.0)
+
+
+def test_lobe_radius_is_the_zero_crossing() -> None:
+    assert lobe_radius(1.0, 2.0, 3.0) == pytest.approx(math.sqrt(8.0 / 3.0 * math.log(4.0 / 3.0)))
+    for s1, s2, e in ((2.0, 4.0, 1.5), (1.5, 4.5, 1.0), (3.0, 6.0, 3.0)):
+        r = lobe_radius(s1, s2, e)
+
+        def dog(x: float, s1: float = s1, s2: float = s2, e: float = e) -> float:
+            return (math.exp(-x * x / (2 * s1 * s1)) / s1 ** 2
+                    - e * math.exp(-x * x / (2 * s2 * s2)) / s2 ** 2)
+
+        assert dog(0.99 * r) > 0 > dog(1.01 * r)
+    # The dense kernel's positive part is exactly the disc inside the lobe radius.
+    model = VSTMD(ds=1, target_size=16.0)
+    w = model.dog_kernel()
+    c = w.shape[0] // 2
+    yy, xx = np.mgrid[-c:c + 1, -c:c + 1]
+    radius = np.hypot(xx, yy)
+    r = lobe_radius(model.sigma1, model.sigma2, model.params.dog_e)
+    assert np.all(w[radius < r - 0.25] > 0) and np.all(w[radius > r + 0.25] <= 0)
+    with pytest.raises(ValueError, match="excitatory centre"):
+        VSTMDParams(dog_e=4.0)
+    with pytest.raises(ValueError, match="excitatory centre"):
+        VSTMDParams(dog_e=0.0)
 
 
 def test_flops_shrink_with_ds() -> None:
@@ -263,3 +304,29 @@ def test_supplied_shift_overrides_and_reset_clears() -> None:
         model.step(frames[6], shift_px=(float("nan"), 0.0))
     with pytest.raises(ValueError, match="ego_motion"):
         VSTMD(ego_motion="telemetry")
+
+
+@pytest.mark.parametrize("ds", [1, 2])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_target_on_cluttered_sea_needs_the_weaker_surround(ds: int, seed: int) -> None:
+    """Sea clutter: a texture moving with the camera, a wave layer moving across it (no single
+    shift removes it) and one-frame sparkles. After ego-motion compensation the residual wave
+    motion leaves a dense correlation map; the reference surround (e = 3: kernel integral about
+    -6) drives ``W * C`` negative everywhere, target included, while the default e keeps the
+    target as a top proposal (the reason for the default, see the module docstring).
+    """
+    size = 8
+    frames, centres = sea_scene(240, 320, 14, (6.0, 1.5), (100.0, 110.0), (1.5, 0.5), size,
+                                seed=seed)
+    frames = [to_bgr(f) for f in frames]
+
+    def rank(params: VSTMDParams) -> int | None:
+        model = VSTMD(ds=ds, target_size=size, params=params, ego_motion="estimate")
+        props = TTMRPN(topn=25).propose(run(model, frames))
+        centre = props.boxes.reshape(-1, 2, 2).mean(axis=1)
+        hits = np.flatnonzero(np.linalg.norm(centre - centres[-1], axis=1) <= size / 2 + 8)
+        return int(hits[0]) if hits.size else None
+
+    best = rank(VSTMDParams())
+    assert best is not None and best < 3
+    assert rank(VSTMDParams(dog_e=3.0)) is None
