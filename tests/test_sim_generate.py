@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sarmission.cli import main
 from sarmission.data.coco_video import read_coco_video
@@ -34,6 +35,31 @@ def test_generate_writes_merged_clips_that_read_back_frame_by_frame(tmp_path: Pa
     # every target annotation carries its true position on the globe
     targets = [a for a in dataset.annotations if a.category_id in (1, 2)]
     assert targets and all(a.gt_lat is not None and a.gt_lon is not None for a in targets)
+
+
+def test_generate_writes_mot_and_yolo_that_agree_with_the_coco_file(tmp_path: Path) -> None:
+    from sarmission.boxes import xywh_to_xyxy
+    from sarmission.data.mot import read_mot
+    from sarmission.data.yolo import read_yolo, yolo_to_xyxy
+
+    out = tmp_path / "gen"
+    assert main(["sim", "generate", "--scenario", "maritime_test", "--frames", "2", "--size",
+                 "480x270", "--mot", "--yolo", "--out", str(out)]) == 0
+    dataset = read_coco_video(out / "maritime_test.json")
+    video = dataset.videos[0].name
+    rows = read_mot(out / "mot" / f"{video}.txt")
+    assert len(rows) == len(dataset.annotations) > 0
+    by_track = {(r.frame, r.track_id): r for r in rows}
+    images = {im.id: im for im in dataset.images}
+    for ann in dataset.annotations:
+        row = by_track[(images[ann.image_id].frame_index + 1, ann.track_id)]
+        assert row.bbox == pytest.approx(ann.bbox) and row.class_id == ann.category_id
+    first = dataset.images[0]
+    anns = dataset.annotations_by_image()[first.id]
+    boxes, classes = yolo_to_xyxy(read_yolo(out / "yolo" / video / "000000.txt"), 480, 270)
+    expected = xywh_to_xyxy(np.array([a.bbox for a in anns]))
+    assert np.allclose(boxes, expected, atol=1e-3)
+    assert list(classes) == [a.category_id - 1 for a in anns]
 
 
 def test_generate_rejects_an_unknown_preset(tmp_path: Path, capsys) -> None:

@@ -3,6 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sarmission.mission.config import MissionConfig
+    from sim.footage import FootageCamera
+    from sim.vehicle import SimVehicle
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -31,6 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          help="stop after this many wall-clock seconds (default: run until Ctrl-C)")
     vehicle.set_defaults(func=_run_vehicle)
     add_generate_parser(sim_sub)
+    add_replay_parser(sim_sub)
 
 
 def _run_vehicle(args: argparse.Namespace) -> int:
@@ -69,6 +76,10 @@ def add_generate_parser(sim_sub: argparse._SubParsersAction) -> None:
                      help="seconds of flight between clip starts (default: %(default)s)")
     gen.add_argument("--images", action="store_true",
                      help="write a JPEG image folder instead of an MP4 video")
+    gen.add_argument("--mot", action="store_true",
+                     help="also write MOT ground truth (mot/<video>.txt)")
+    gen.add_argument("--yolo", action="store_true",
+                     help="also write YOLO labels (yolo/<video>/<frame>.txt)")
     gen.add_argument("--out", required=True, help="output folder")
     gen.set_defaults(func=_run_generate)
 
@@ -84,4 +95,123 @@ def _run_generate(args: argparse.Namespace) -> int:
         name, args.sequences, args.frames, args.out, size=_size(args.size), fps=args.fps,
         first_start_s=args.start, spacing_s=args.spacing, video=not args.images, seed=args.seed)
     print(f"wrote {args.sequences} x {args.frames} frames of {name} -> {annotations}")
+    if args.mot or args.yolo:
+        from sarmission.data.coco_video import read_coco_video
+        from sarmission.data.convert import write_mot_files, write_yolo_files
+
+        dataset = read_coco_video(annotations)
+        if args.mot:
+            paths = write_mot_files(dataset, annotations.parent / "mot")
+            print(f"wrote MOT ground truth: {', '.join(str(p) for p in paths)}")
+        if args.yolo:
+            count = write_yolo_files(dataset, annotations.parent / "yolo")
+            print(f"wrote {count} YOLO label files under {annotations.parent / 'yolo'}")
+    return 0
+
+
+def add_replay_parser(sim_sub: argparse._SubParsersAction) -> None:
+    """Register ``sim replay``."""
+    from sarmission.commands.mission_options import add_mission_options
+    from sarmission.commands.run import add_session_options
+
+    rep = sim_sub.add_parser(
+        "replay",
+        help="play recorded footage through the simulated vehicle and camera into a live run",
+        description="Play a video, an image folder or a COCO video annotation file as the "
+        "simulated camera while the simulated vehicle (on the --connect port, as 'run --sim') "
+        "streams the footage's own per-frame telemetry ('meta') over MAVLink - or, without "
+        "usable meta, the mission's synthetic flight - and run the live mission controller on "
+        "it until the footage ends. Reposition and ROI commands are answered "
+        "MAV_RESULT_DENIED while following the footage's telemetry: recorded footage cannot be "
+        "steered. Ground truth in the annotations scores the alerts.",
+    )
+    rep.add_argument("footage", metavar="VIDEO_OR_FOLDER_OR_ANNOTATIONS_JSON",
+                     help="video file, image folder, or COCO video annotation file (.json)")
+    rep.add_argument("--annotations", metavar="ANN.json", default=None,
+                     help="COCO video annotation file for a video or folder: per-frame meta "
+                     "telemetry and ground truth")
+    rep.add_argument("--video-id", type=int, default=None,
+                     help="which video of the annotation file (default: the first)")
+    rep.add_argument("--connect", required=True, metavar="URL",
+                     help="the controller's MAVLink connection string (udp:, udpin: or udpout:); "
+                     "the vehicle takes the other end, e.g. udp:127.0.0.1:14550")
+    rep.add_argument("--speedup", type=float, default=1.0,
+                     help="sim seconds per wall second; frames are paired with telemetry "
+                     "exactly only at 1 (default: %(default)s)")
+    rep.add_argument("--fps", type=float, default=None,
+                     help="frame rate of the footage; when given, frames are timed by "
+                     "frame index / fps instead of their meta time (default: the video's own "
+                     "rate, else the annotation file's, else 30)")
+    rep.add_argument("--loop", action="store_true",
+                     help="start the footage (and its flight) again after the last frame; "
+                     "stop with Ctrl-C, --duration or --max-frames")
+    rep.add_argument("--seed", type=int, default=0, help="synthetic flight and telemetry seed")
+    add_session_options(rep)
+    add_mission_options(rep)
+    rep.set_defaults(func=_run_replay)
+
+
+def _run_replay(args: argparse.Namespace) -> int:
+    from sarmission.commands.demo import score
+    from sarmission.commands.mission_options import load_mission_from_args
+    from sarmission.commands.run import run_live, vehicle_url
+    from sim.footage import FootageCamera, FootageRenderer
+    from sim.meta_flight import MetaFlight, NoUsableMeta
+    from sim.vehicle import SimVehicle
+
+    if args.speedup <= 0:
+        raise ValueError(f"--speedup must be positive, got {args.speedup}")
+    url = vehicle_url(args.connect)
+    mission = load_mission_from_args(args)
+    renderer = FootageRenderer(args.footage, fps=args.fps, annotations=args.annotations,
+                               video_id=args.video_id, loop=args.loop)
+    flight = None
+    if renderer.dataset is None:
+        print("replay: no annotation file: telemetry from the mission's synthetic flight",
+              flush=True)
+    else:
+        try:
+            flight = MetaFlight(renderer.dataset, renderer.video_id, mission=mission,
+                                fps=renderer.fps, use_meta_time=args.fps is None,
+                                loop=args.loop, start_s=None)
+        except NoUsableMeta as exc:
+            print(f"replay: {exc}; telemetry from the mission's synthetic flight instead",
+                  flush=True)
+        else:
+            mission = flight.mission
+            print(f"replay: {flight.note}", flush=True)
+    if args.speedup != 1.0:
+        print(f"replay: speedup {args.speedup:g}: telemetry time runs apart from the frames' "
+              "clock, so positions are only approximate", flush=True)
+    length = renderer.length
+    print(f"replay: {renderer.path or 'dataset images'}: "
+          f"{length if length is not None else 'unknown number of'} frames at "
+          f"{renderer.fps:g} fps{', looping' if args.loop else ''}; vehicle on {url}", flush=True)
+    camera: FootageCamera | None = None
+
+    def open_source(m: MissionConfig) -> tuple[FootageCamera, SimVehicle]:
+        nonlocal camera
+        vehicle = SimVehicle(url, m, speedup=args.speedup, seed=args.seed,
+                             stream_on_request=True, flight=flight).start()
+        try:
+            camera = FootageCamera(vehicle, renderer=renderer, fps=renderer.fps * args.speedup)
+        except BaseException:
+            vehicle.stop()
+            raise
+        return camera, vehicle
+
+    try:
+        session = run_live(args, mission, open_source)
+    finally:
+        renderer.close()
+    assert camera is not None
+    shown = len(renderer.frames_shown)
+    total = renderer.length
+    print(f"replay: {len(camera.truth)} frames delivered, {shown} distinct footage frames "
+          f"shown" + (f" of {total}" if total is not None else "")
+          + (f" ({total - shown} passed while processing)" if total and not args.loop
+             and total > shown else ""), flush=True)
+    if renderer.has_ground_truth:
+        for line in score(list(session.controller.stats.alerts), camera, mission.lock.m):
+            print(line, flush=True)
     return 0
