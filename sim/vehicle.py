@@ -9,7 +9,8 @@ MAV_AUTOPILOT_ARDUPILOTMEGA) as seen from a companion computer:
   HEARTBEAT until MAV_CMD_SET_MESSAGE_INTERVAL asks for a message (ArduPilot behaviour).
 - COMMAND_LONG / COMMAND_INT get a COMMAND_ACK: SET_MESSAGE_INTERVAL, REQUEST_MESSAGE,
   GET_HOME_POSITION, REQUEST_AUTOPILOT_CAPABILITIES, DO_REPOSITION (flies there and holds),
-  DO_SET_ROI_LOCATION / DO_SET_ROI_NONE (points the gimbal), COMPONENT_ARM_DISARM; anything else
+  DO_SET_ROI_LOCATION / DO_SET_ROI_NONE (points the gimbal; these three are MAV_RESULT_DENIED for
+  a flight that cannot be steered, such as replayed footage), COMPONENT_ARM_DISARM; anything else
   is MAV_RESULT_UNSUPPORTED.
 - Mission protocol as server: upload (MISSION_COUNT -> MISSION_REQUEST_INT, or MISSION_REQUEST
   with ``legacy_mission_request=True`` like ArduPilot -> MISSION_ITEM_INT -> MISSION_ACK) with
@@ -144,6 +145,11 @@ class SimVehicle:
     ``listen_url``: pymavlink URL (``udpin:127.0.0.1:14550`` waits for a client and answers the
     last sender; ``udpout:127.0.0.1:14540`` sends to a client that listens, e.g. MAVSDK with
     ``udpin://0.0.0.0:14540``). ``mission``: a :class:`MissionConfig` or a TOML path.
+    ``flight``: a ready flight to fly instead of the mission's planned one (anything with
+    :class:`Flight`'s ``mission``, ``state_at``, ``camera_pose_at``, ``reposition``, ``set_roi``
+    and ``survey_duration``, e.g. :class:`sim.meta_flight.MetaFlight`); ``mission`` defaults to
+    its mission. A flight whose ``steerable`` is False gets DO_REPOSITION and DO_SET_ROI_*
+    answered with MAV_RESULT_DENIED.
     """
 
     def __init__(
@@ -156,9 +162,12 @@ class SimVehicle:
         legacy_mission_request: bool = False,
         system_id: int = 1,
         component_id: int = 1,
+        flight: Any = None,
     ) -> None:
         if speedup <= 0:
             raise ValueError("speedup must be positive")
+        if mission is None and flight is not None:
+            mission = flight.mission
         if not isinstance(mission, MissionConfig):
             mission = load_mission(mission)
         self.mission = mission
@@ -169,7 +178,7 @@ class SimVehicle:
         self.legacy_mission_request = legacy_mission_request
         self.system_id = system_id
         self.component_id = component_id
-        self.flight = Flight(mission, seed=seed)
+        self.flight = Flight(mission, seed=seed) if flight is None else flight
         self.telemetry = TelemetryModel(self.flight, mission, seed=seed)
         self.home = mission.area.home
         self.has_gimbal = mission.camera.gimbal
@@ -554,6 +563,11 @@ class SimVehicle:
             return M.MAV_RESULT_ACCEPTED
         if command == M.MAV_CMD_COMPONENT_ARM_DISARM:
             return M.MAV_RESULT_ACCEPTED if p[0] == 1 else M.MAV_RESULT_DENIED
+        if command in (M.MAV_CMD_DO_REPOSITION, M.MAV_CMD_DO_SET_ROI_LOCATION,
+                       M.MAV_CMD_DO_SET_ROI_NONE) and not getattr(self.flight, "steerable", True):
+            log.info("command %d denied: this flight cannot be steered (replayed footage)",
+                     command)
+            return M.MAV_RESULT_DENIED
         if command == M.MAV_CMD_DO_REPOSITION:
             target = self._location_ned(p, frame, is_int)
             speed = p[0] if p[0] is not None and math.isfinite(p[0]) and p[0] > 0 else None

@@ -22,6 +22,7 @@ from sarmission.commands.mission_options import (
 if TYPE_CHECKING:
     from sarmission.mission.config import MissionConfig
     from sarmission.mission.controller import Detector
+    from sarmission.mission.live import LiveSession
     from sarmission.mission.live_sources import LiveSource
 
 
@@ -47,16 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--fps", type=float, default=30.0,
                         help="frame rate of --frames (and of a video without one; "
                         "default: %(default)s)")
-    parser.add_argument("--alerts-db", default="alerts.db",
-                        help="durable alert store (default: %(default)s)")
-    parser.add_argument("--feed", metavar="HOST:PORT", default=None,
-                        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765")
-    parser.add_argument("--signing-key-file", default=None,
-                        help="MAVLink 2 signing key: 32 raw bytes, 64 hex digits, or a "
-                        "passphrase (sha256, as MAVProxy)")
-    parser.add_argument("--connect-timeout", type=float, default=30.0,
-                        help="seconds to wait for the autopilot's HEARTBEAT (default: "
-                        "%(default)s)")
+    add_session_options(parser)
     sim = parser.add_argument_group("simulator (--sim)")
     sim.add_argument("--sim-size", default=None, metavar="WxH",
                      help="simulated frame size (default: the mission camera's)")
@@ -67,6 +59,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                      help="deliver every N-th simulated frame truncated (sensor glitch)")
     add_mission_options(parser)
     parser.set_defaults(func=run)
+
+
+def add_session_options(parser: argparse.ArgumentParser) -> None:
+    """``--alerts-db --feed --signing-key-file --connect-timeout`` of a live session."""
+    parser.add_argument("--alerts-db", default="alerts.db",
+                        help="durable alert store (default: %(default)s)")
+    parser.add_argument("--feed", metavar="HOST:PORT", default=None,
+                        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765")
+    parser.add_argument("--signing-key-file", default=None,
+                        help="MAVLink 2 signing key: 32 raw bytes, 64 hex digits, or a "
+                        "passphrase (sha256, as MAVProxy)")
+    parser.add_argument("--connect-timeout", type=float, default=30.0,
+                        help="seconds to wait for the autopilot's HEARTBEAT (default: "
+                        "%(default)s)")
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -161,22 +167,37 @@ def run(args: argparse.Namespace, detector: Detector | None = None, renderer: An
         console: Callable[[str], None] | None = None) -> int:
     """Run the live mission of ``args``. ``detector`` replaces MITE-Net and ``renderer`` the
     simulator's scene renderer when given (tests)."""
+    mission = load_mission_from_args(args)
+    run_live(args, mission, lambda m: _open_source(args, m, renderer), detector, console)
+    return 0
+
+
+def run_live(args: argparse.Namespace, mission: MissionConfig,
+             open_source: Callable[[MissionConfig], tuple[LiveSource, Any]],
+             detector: Detector | None = None,
+             console: Callable[[str], None] | None = None) -> LiveSession:
+    """One live session of ``mission`` with the link/store/feed/recorder options of ``args``.
+
+    ``open_source(mission)`` returns the frame source and the started simulated vehicle (or None
+    for a real one); it is called once the detector and recorder are ready, and the vehicle is
+    stopped at the end. Returns the closed session (its controller's statistics stay readable).
+    """
     from sarmission.mission.live import LiveSession
 
     say = console or (lambda line: print(line, flush=True))
-    mission = load_mission_from_args(args)
     key = read_signing_key(args.signing_key_file) if args.signing_key_file else None
     feed = parse_address(args.feed) if args.feed else None
     if detector is None:
         detector, note = build_detector(args, mission)
         say(note)
     recorder = build_recorder(args)
-    source, vehicle = _open_source(args, mission, renderer)
+    source, vehicle = open_source(mission)
     try:
         session = LiveSession(mission, detector, source, args.connect, args.alerts_db,
                               signing_key=key, recorder=recorder, feed_address=feed,
                               mission_id=args.mission_id,
-                              transport_latency_s=mission.telemetry.latency_s if args.sim else 0,
+                              transport_latency_s=(mission.telemetry.latency_s
+                                                   if vehicle is not None else 0),
                               connect_timeout_s=args.connect_timeout, console=say)
         say(f"mission '{mission.name}': policy {', '.join(mission.actions.policy)}; "
             f"alerts in {args.alerts_db}")
@@ -191,4 +212,4 @@ def run(args: argparse.Namespace, detector: Detector | None = None, renderer: An
     finally:
         if vehicle is not None:
             vehicle.stop()
-    return 0
+    return session
