@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from motion_scenes import moving_target, textured_background, to_bgr
+from motion_scenes import drifting_scene, moving_target, sea_scene, textured_background, to_bgr
 
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.types import MotionMaps
@@ -136,3 +136,38 @@ def test_flops() -> None:
     rpn = TTMRPN(topn=25)
     assert rpn.flops(1080, 1920) > 5 * 1080 * 1920
     assert rpn.flops(540, 960) < rpn.flops(1080, 1920)
+
+
+@pytest.mark.parametrize("ds", [1, 2])
+@pytest.mark.parametrize(("start", "relative"), [((7.0, 100.0), (-2.0, 2.0)),
+                                                 ((150.0, 7.0), (0.0, -1.0)),
+                                                 ((296.0, 206.0), (-1.0, 0.0))])
+def test_target_at_the_frame_edge_is_proposed_first(
+        ds: int, start: tuple[float, float], relative: tuple[float, float]) -> None:
+    # A camera moving by (2, 1) px/frame over texture; the target ends 7 px from the left, 7 px
+    # from the top (the new-content side) or 11-21 px from the right and bottom edges.
+    frames, centres = drifting_scene(240, 320, 14, (2.0, 1.0), start, relative, 8.0, seed=3)
+    maps = final_maps([to_bgr(f) for f in frames], ds, 8.0)
+    props = TTMRPN(topn=5).propose(maps)
+    assert len(props) >= 1
+    assert np.linalg.norm(props.points[0] - centres[-1]) <= 8.0 + 4
+
+
+def test_proposals_do_not_pile_up_on_the_frame_edge() -> None:
+    # Sea-like clutter (texture, waves with their own motion, glints) from a moving camera: the
+    # share of proposals in the 8-px strip along the frame edge stays near the strip's area share
+    # (11 %), although the lobula counts pixels outside the map as zero.
+    points = []
+    for seed in range(3):
+        frames, _ = sea_scene(240, 320, 16, (3.0, 1.5), (160.0, 120.0), (1.0, 0.0), 8.0,
+                              seed=seed)
+        model = VSTMD(ds=2, target_size=8.0)
+        for i, f in enumerate(frames):
+            maps = model.step(to_bgr(f))
+            if i >= 4:
+                points.append(TTMRPN(topn=25).propose(maps).points)
+    pts = np.concatenate(points)
+    edge = np.minimum.reduce([pts[:, 0], pts[:, 1], 319 - pts[:, 0], 239 - pts[:, 1]])
+    strip_share = 1.0 - (320 - 16) * (240 - 16) / (320 * 240)
+    assert len(pts) >= 50
+    assert np.mean(edge < 8) <= 2.0 * strip_share
