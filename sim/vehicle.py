@@ -36,11 +36,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sarmission.geo.camera import CameraPose
 from sarmission.geo.wgs84 import geodetic_to_ned
+from sarmission.mavlink.connection import mavlink2_connection
 from sarmission.mission.config import MissionConfig, load_mission
 from sim.flight import Flight, VehicleState
 from sim.telemetry import AttitudeSample, GimbalSample, PositionSample, TelemetryModel
@@ -62,23 +62,6 @@ STREAMS: dict[int, tuple[str, float]] = {
 
 UPLOAD_RETRY_S = 0.5
 UPLOAD_MAX_RETRIES = 6
-
-
-def mavlink2_connection(url: str, source_system: int = 255, source_component: int = 190) -> Any:
-    """A pymavlink connection for ``url`` that always speaks MAVLink 2 (ardupilotmega dialect).
-
-    pymavlink picks its wire protocol from process-wide state; this replaces the connection's
-    codec with a MAVLink 2 one so GIMBAL_DEVICE_ATTITUDE_STATUS (id 285) can be sent and parsed
-    whatever the rest of the process uses.
-    """
-    conn = mavutil.mavlink_connection(
-        url, source_system=source_system, source_component=source_component
-    )
-    conn.mav = mavlink2.MAVLink(conn, srcSystem=source_system, srcComponent=source_component)
-    conn.mav.robust_parsing = True
-    conn.WIRE_PROTOCOL_VERSION = "2.0"
-    conn.first_byte = False
-    return conn
 
 
 @dataclass

@@ -20,12 +20,13 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 from sarmission.cli import main
 from sarmission.data.coco_video import FrameTelemetry, read_coco_video
 from sarmission.geo.wgs84 import ned_to_geodetic
+from sarmission.mavlink.connection import mavlink2_connection
 from sarmission.mission.targets import distance_m
 from sim.footage import EndOfFootage, FootageRenderer
 from sim.generate import generate_sequence
 from sim.meta_flight import MetaFlight, NoUsableMeta
 from sim.scenarios import preset
-from sim.vehicle import SimVehicle, mavlink2_connection
+from sim.vehicle import SimVehicle
 
 FPS = 10.0
 FRAMES = 20

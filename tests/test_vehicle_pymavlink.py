@@ -9,8 +9,9 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+from sarmission.mavlink.connection import mavlink2_connection
 from sarmission.mission.config import load_mission
-from sim.vehicle import SimVehicle, mavlink2_connection
+from sim.vehicle import SimVehicle
 
 
 def free_udp_port() -> int:

@@ -86,6 +86,27 @@ class MessageQueue:
         self.close()
 
 
+def mavlink2_connection(url: str, source_system: int, source_component: int) -> Any:
+    """A pymavlink connection for ``url`` that always speaks MAVLink 2 (ardupilotmega dialect).
+
+    pymavlink picks its wire protocol from process-wide state; this replaces the connection's
+    codec with a MAVLink 2 one so MAVLink 2-only messages (e.g. GIMBAL_DEVICE_ATTITUDE_STATUS,
+    id 285) can be sent and parsed whatever the rest of the process uses. An address that cannot
+    be opened raises ``OSError`` naming the URL.
+    """
+    try:
+        conn = mavutil.mavlink_connection(
+            url, source_system=source_system, source_component=source_component
+        )
+    except OSError as exc:
+        raise OSError(f"cannot open MAVLink connection {url!r}: {exc.strerror or exc}") from exc
+    conn.mav = mavlink2.MAVLink(conn, srcSystem=source_system, srcComponent=source_component)
+    conn.mav.robust_parsing = True
+    conn.WIRE_PROTOCOL_VERSION = "2.0"
+    conn.first_byte = False
+    return conn
+
+
 class MavlinkLink:
     """A MAVLink 2 connection of a companion component to one autopilot.
 
@@ -123,15 +144,7 @@ class MavlinkLink:
         self._sub_lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._stop = threading.Event()
-        self._conn = mavutil.mavlink_connection(
-            url, source_system=source_system, source_component=source_component
-        )
-        self._conn.mav = mavlink2.MAVLink(
-            self._conn, srcSystem=source_system, srcComponent=source_component
-        )
-        self._conn.mav.robust_parsing = True
-        self._conn.WIRE_PROTOCOL_VERSION = "2.0"
-        self._conn.first_byte = False
+        self._conn = mavlink2_connection(url, source_system, source_component)
         if signing_key is not None:
             if len(signing_key) != 32:
                 raise ValueError(f"signing key must be 32 bytes, got {len(signing_key)}")
