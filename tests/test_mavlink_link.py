@@ -52,7 +52,8 @@ def ardupilot(mission):
     vehicle = SimVehicle(
         f"udpin:127.0.0.1:{port}", mission, stream_on_request=True, legacy_mission_request=True
     ).start()
-    link = MavlinkLink(f"udpout:127.0.0.1:{port}", link_timeout_s=1.0)
+    # link lost after two missed 1 Hz heartbeats (a 1 s timeout flaps on scheduling jitter)
+    link = MavlinkLink(f"udpout:127.0.0.1:{port}", link_timeout_s=2.0)
     assert link.wait_autopilot(3.0), "no autopilot HEARTBEAT"
     yield vehicle, link
     link.close()
