@@ -128,6 +128,56 @@ def test_undelivered_and_mark_delivered(tmp_path: Path) -> None:
         assert sent.mavlink_sent and sent.delivered == {CHANNEL_MAVLINK: 50.0}
 
 
+def test_position_found_later_is_attached_once_and_logged(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        blind, placed = make_alert(1, positioned=False), make_alert(2)
+        store.add(blind)
+        store.add(placed)
+        sub = store.subscribe()
+        assert store.attach_position(blind.alert_id, (-35.36, 149.17), 3.5, "ground plane")
+        got = store.get(blind.alert_id)
+        assert got.position == (-35.36, 149.17) and got.error_m == 3.5
+        assert got.position_note == "ground plane"
+        assert [(e.kind, e.alert.position) for e in sub.get(timeout=1.0)] == [
+            ("position", (-35.36, 149.17))]
+        # only the first position is attached; an alert placed from the start keeps its own
+        assert not store.attach_position(blind.alert_id, (-35.0, 149.0), 1.0, "again")
+        assert not store.attach_position(placed.alert_id, (-35.0, 149.0), 1.0, "again")
+        assert store.get(blind.alert_id).position == (-35.36, 149.17)
+        assert store.get(placed.alert_id) == placed
+        assert store.known_targets("test-mission")[1] == (-35.36, 149.17)
+        with pytest.raises(KeyError):
+            store.attach_position("missing", (0.0, 0.0), None, "")
+        with pytest.raises(ValueError):
+            store.attach_position(placed.alert_id, (95.0, 0.0), None, "")
+        assert [e.kind for e in store.events()] == ["new", "new", "position"]
+
+
+def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    blind = make_alert(1, positioned=False)
+    with AlertStore(db) as store:
+        store.add(blind)
+        store.acknowledge(blind.alert_id, "alice")
+    with sqlite3.connect(db) as conn:  # back to schema 1: events without 'position'
+        conn.executescript(
+            "CREATE TABLE events_1 (seq INTEGER PRIMARY KEY AUTOINCREMENT, kind TEXT NOT NULL "
+            "CHECK (kind IN ('new', 'ack', 'delivered')), alert_id TEXT NOT NULL REFERENCES "
+            "alerts (alert_id), time REAL NOT NULL);"
+            "INSERT INTO events_1 SELECT * FROM events; DROP TABLE events;"
+            "ALTER TABLE events_1 RENAME TO events; PRAGMA user_version=1;")
+        with pytest.raises(sqlite3.IntegrityError):
+            conn.execute("INSERT INTO events (kind, alert_id, time) VALUES ('position', ?, 0)",
+                         (blind.alert_id,))
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+        assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
+        assert store.attach_position(blind.alert_id, (-35.36, 149.17), 3.5, "ground plane")
+        assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
+        assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+
+
 def test_known_targets_per_mission(tmp_path: Path) -> None:
     with AlertStore(tmp_path / "a.db") as store:
         first = make_alert(7)

@@ -117,3 +117,18 @@ def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> Non
         main(["bench", "--size", "big"])
     assert stop.value.code == 2
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
+
+
+def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
+    index = 99  # no such /dev/video99 on a test machine
+    assert not Path(f"/dev/video{index}").exists()
+    done = subprocess.run(
+        [sys.executable, "-m", "sarmission.cli", "run", "--connect", "udp:127.0.0.1:14599",
+         "--camera", str(index), "--alerts-db", str(tmp_path / "alerts.db")],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [
+        f"sarmission run: error: cannot open camera {index}: no such device "
+        f"(/dev/video{index} does not exist)"]
+    assert not (tmp_path / "alerts.db").exists()  # nothing was started

@@ -36,13 +36,13 @@ def mission():
                                    "camera.hfov_deg": 30.0, "name": "ctl_test"})
 
 
-def filled_buffer(mission, t_end: float) -> TelemetryBuffer:
+def filled_buffer(mission, t_end: float, t_start: float = 0.0) -> TelemetryBuffer:
     """Exact telemetry of a drone hovering at DRONE_NED, 70 m, yawed, camera at nadir."""
     buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
     home = mission.area.home
     buf.set_home(*home)
     lat, lon, _ = ned_to_geodetic(DRONE_NED[0], DRONE_NED[1], 0.0, *home)
-    for t in np.arange(0.0, t_end + 1e-9, 0.05):
+    for t in np.arange(t_start, t_end + 1e-9, 0.05):
         buf.push_position(float(t), float(lat), float(lon), ALT)
         buf.push_attitude(float(t), 0.0, 0.0, YAW)
     return buf
@@ -133,6 +133,52 @@ def test_stale_telemetry_gives_an_alert_without_position_and_the_reason(tmp_path
         assert "stale" in alert.position_note and "no position for" in alert.position_note
         assert alert.drone_position is None
         assert "pos unknown" in alert.statustext()
+
+
+class AnnouncedActions:
+    """Stands in for the action policy: remembers what it was asked to announce."""
+
+    delivered = refused = 0
+
+    def __init__(self) -> None:
+        self.announced: list = []
+
+    def announce(self, alert) -> int:
+        self.announced.append((alert.alert_id, alert.position))
+        return 1
+
+    def pending(self) -> int:
+        return 0
+
+
+@pytest.mark.parametrize("reborn", [False, True], ids=["same track", "track re-born"])
+def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission, reborn):
+    """Telemetry starts at t = 2 s; the target locks at frame 2 (t = 0.2 s) without a position.
+    Either its track goes on, or it is lost for 2 s and a new track locks on it (frame 25) with
+    telemetry: one alert either way, which gets the position."""
+    n = 31
+    u, v = target_pixel(mission)
+    box = (u - 5, v - 5, u + 5, v + 5)
+    seen = set(range(n)) - (set(range(5, 23)) if reborn else set())
+    script = [[(box, 0.8, 0)] if i in seen else [] for i in range(n)]
+    lines: list[str] = []
+    actions = AnnouncedActions()
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(mission, ScriptedDetector(script),
+                                filled_buffer(mission, 4.0, t_start=2.0), store,
+                                actions=actions, console=lines.append)
+        alerts = run_frames(ctl, n)
+        assert len(alerts) == 1 and store.count() == 1
+        stored = store.get(alerts[0].alert_id)
+        assert [e.kind for e in store.events()] == ["new", "position"]
+    assert alerts[0].frame_index == 2
+    assert distance_m(stored.position, truth_latlon(mission)) < 1.0
+    assert 0 < stored.error_m < 10 and "stale" not in stored.position_note
+    assert alerts[0].position == stored.position  # the run's own record follows
+    assert ctl.stats.located_later == 1 and ctl.stats.merged_tracks == int(reborn)
+    assert [p for _, p in actions.announced] == [None, stored.position]
+    assert [line.split(":")[0] for line in lines] == ["ALERT target 1", "POSITION target 1"]
+    assert "positions found after the alert: 1" in ctl.summary()
 
 
 def test_corrupt_frames_are_skipped_and_counted(tmp_path, mission):

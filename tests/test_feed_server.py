@@ -218,6 +218,25 @@ def test_jsonl_lists_and_follows(store: AlertStore, feed: FeedServer) -> None:
         conn.close()
 
 
+def test_position_found_later_reaches_jsonl_and_sse(store: AlertStore, feed: FeedServer) -> None:
+    blind = make_alert(1, positioned=False)
+    store.add(blind)
+    conn, response = open_stream(feed, "/alerts.jsonl?follow=1")
+    sse_conn, sse = open_stream(feed, "/events")
+    try:
+        assert json.loads(response.readline())["position"] is None
+        read_sse(sse, until="hello")
+        store.attach_position(blind.alert_id, (-35.36, 149.17), 3.5, "ground plane")
+        line = json.loads(response.readline())  # the same alert again, now with its position
+        assert line["alert_id"] == blind.alert_id
+        assert line["position"] == {"lat": -35.36, "lon": 149.17} and line["error_m"] == 3.5
+        (update,) = read_sse(sse, until="update")
+        assert json.loads(update["data"])["position"] == {"lat": -35.36, "lon": 149.17}
+    finally:
+        conn.close()
+        sse_conn.close()
+
+
 def test_client_disconnects_are_quiet_and_stop_is_prompt(
     store: AlertStore, feed: FeedServer, caplog: pytest.LogCaptureFixture
 ) -> None:

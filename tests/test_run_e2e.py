@@ -11,9 +11,11 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.request
 from pathlib import Path
 
 import pytest
+import run_scripted
 from dot_scene import DotRenderer
 from scripted_detector import BlobDetector
 
@@ -204,6 +206,49 @@ def test_alert_during_link_loss_is_delivered_after(tmp_path):
     assert any(line.startswith("link lost") for line in lines), lines
     assert any(line.startswith("link back") for line in lines), lines
     assert "pending" in summary
+
+
+def free_tcp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_run_serves_its_alerts_on_the_feed(tmp_path):
+    """``run --feed``: the alert confirmed by the run is on the JSON-lines stream as it is
+    stored, and on the JSON API, as it is in the store."""
+    port, feed_port = free_udp_port(), free_tcp_port()
+    db = tmp_path / "alerts.db"
+    argv = [json.dumps([[20.0, -25.0]]), "--connect", f"udp:127.0.0.1:{port}", "--sim",
+            "--sim-fps", "15", "--alerts-db", str(db), "--connect-timeout", "5",
+            "--feed", f"127.0.0.1:{feed_port}", "--duration", "4", *SET_ARGS]
+    outcome: list[int] = []
+    runner = threading.Thread(target=lambda: outcome.append(run_scripted.main(argv)))
+    runner.start()
+    base = f"http://127.0.0.1:{feed_port}"
+    try:
+        deadline = time.monotonic() + 15
+        while True:  # the feed starts once the link is up
+            try:
+                urllib.request.urlopen(base + "/healthz", timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline and runner.is_alive(), "no feed"
+                time.sleep(0.1)
+        with urllib.request.urlopen(base + "/alerts.jsonl?follow=1", timeout=10) as stream:
+            streamed = json.loads(stream.readline())  # blocks until the run stores an alert
+        with urllib.request.urlopen(base + "/api/alerts", timeout=5) as r:
+            (listed,) = json.loads(r.read())
+    finally:
+        runner.join(30)
+    assert outcome == [0]
+    with AlertStore(db) as store:
+        (stored,) = store.list()
+    assert streamed["alert_id"] == listed["alert_id"] == stored.alert_id
+    for served in (streamed, listed):  # deliveries may have come in between the reads
+        assert {k: v for k, v in served.items() if k != "delivered"} == {
+            k: v for k, v in stored.to_json_dict().items() if k != "delivered"}
+    assert distance_m(stored.position, truth(mission_with(), 20.0, -25.0)) < 5.0
 
 
 def test_cli_run_sim_with_mitenet(tmp_path, capsys):

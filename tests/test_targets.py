@@ -82,7 +82,7 @@ def test_a_track_keeps_its_target_and_one_person_is_one_target():
     assert reg.target_of(31) is first
 
 
-def test_no_position_target_has_the_reason_and_is_never_merged():
+def test_no_position_target_without_a_box_has_the_reason_and_is_never_merged():
     reg = TargetRegistry(merge_radius_m=5.0)
     placed, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0))
     blind, new = reg.observe(2, 0, 0.8, 1.0, None, "telemetry stale: no position for 3.0 s")
@@ -109,6 +109,85 @@ def test_seeding_from_known_targets_prevents_re_announcing():
     assert math.isfinite(seen.first_seen)
 
 
-def test_negative_radius_is_refused():
+def box_at(cx: float, cy: float, side: float = 12.0) -> tuple[float, float, float, float]:
+    return cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2
+
+
+STALE = "telemetry stale: no position for 3.0 s"
+
+
+def test_reborn_track_without_position_joins_the_recent_target_in_the_image():
+    reg = TargetRegistry(merge_radius_m=5.0, merge_window_s=5.0, merge_gate_px=64.0)
+    first, new = reg.observe(1, 0, 0.8, 10.0, None, STALE, box=box_at(500, 300))
+    assert new and first.position is None
+    # the same track drifts on: its target follows the box
+    reg.observe(1, 0, 0.8, 11.0, None, STALE, box=box_at(510, 302))
+    # track 1 is lost; track 2 picks the person up 3 s later, 50 px from where 1 was last seen
+    again, new = reg.observe(2, 1, 0.7, 14.0, None, STALE, box=box_at(545, 330))
+    assert again is first and not new
+    assert len(reg) == 1 and first.track_ids == {1, 2}
+    assert first.box == pytest.approx(box_at(545, 330)) and first.box_time == 14.0
+    assert first.position is None and first.note == STALE
+
+
+def test_second_lock_on_the_same_person_in_the_same_frame_joins():
+    reg = TargetRegistry()
+    a, _ = reg.observe(1, 0, 0.8, 5.0, None, STALE, box=box_at(200, 200))
+    b, new = reg.observe(2, 0, 0.8, 5.0, None, STALE, box=box_at(208, 196))
+    assert b is a and not new and len(reg) == 1
+
+
+def test_image_merge_needs_proximity_and_a_recent_box():
+    reg = TargetRegistry(merge_window_s=5.0, merge_gate_px=64.0)
+    a, _ = reg.observe(1, 0, 0.8, 0.0, None, STALE, box=box_at(500, 300))
+    far, new_far = reg.observe(2, 0, 0.8, 1.0, None, STALE, box=box_at(500 + 70, 300))
+    assert new_far and far is not a  # 70 px > 64 px gate, and both boxes are 12 px
+    late, new_late = reg.observe(3, 0, 0.8, 5.5, None, STALE, box=box_at(505, 300))
+    assert new_late and late is not a  # a's box is 5.5 s old, far's 65 px away
+    assert len(reg) == 3
+
+
+def test_image_gate_grows_with_the_box_and_the_nearest_target_wins():
+    reg = TargetRegistry(merge_gate_px=64.0)
+    big, _ = reg.observe(1, 0, 0.8, 0.0, None, STALE, box=box_at(1000, 1000, side=120))
+    joined, new = reg.observe(2, 0, 0.8, 1.0, None, STALE, box=box_at(1100, 1000, side=20))
+    assert joined is big and not new  # 100 px apart, within the 120 px box
+    left, _ = reg.observe(3, 0, 0.8, 0.0, None, STALE, box=box_at(100, 100))
+    right, _ = reg.observe(4, 0, 0.8, 0.0, None, STALE, box=box_at(200, 100))
+    assert left is not right
+    nearest, new = reg.observe(5, 0, 0.8, 0.5, None, STALE, box=box_at(160, 100))
+    assert nearest is right and not new
+
+
+def test_later_fix_gives_the_unplaced_target_its_position():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    blind, _ = reg.observe(1, 0, 0.8, 0.0, None, STALE, box=box_at(400, 400))
+    placed, _ = reg.observe(2, 0, 0.8, 0.5, fix_at(500, 500), box=box_at(900, 400))
+    # telemetry back: a new track on the first person, with a fix nowhere near target 2
+    seen, new = reg.observe(3, 0, 0.8, 2.0, fix_at(20, 30), box=box_at(410, 395))
+    assert seen is blind and not new and len(reg) == 2
+    assert distance_m(blind.position, ll(20, 30)) < 0.05
+    assert blind.note == "ground plane at home altitude"
+    assert placed.track_ids == {2}
+
+
+def test_a_fix_is_not_merged_in_the_image_with_a_target_placed_elsewhere():
+    reg = TargetRegistry(merge_radius_m=5.0)
+    a, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0), box=box_at(400, 400))
+    b, new = reg.observe(2, 0, 0.8, 1.0, fix_at(0, 30), box=box_at(410, 400))
+    assert new and b is not a  # the ground says 30 m apart, whatever the image says
+
+
+def test_track_without_position_joins_a_placed_target_seen_there_just_before():
+    reg = TargetRegistry()
+    a, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(10, 10), box=box_at(400, 400))
+    b, new = reg.observe(2, 0, 0.8, 2.0, None, STALE, box=box_at(420, 410))
+    assert b is a and not new
+    assert distance_m(a.position, ll(10, 10)) < 0.05 and a.note != STALE
+
+
+@pytest.mark.parametrize("kwargs", [{"merge_radius_m": -1.0}, {"merge_window_s": -0.1},
+                                    {"merge_gate_px": float("nan")}])
+def test_negative_or_nan_settings_are_refused(kwargs):
     with pytest.raises(ValueError):
-        TargetRegistry(merge_radius_m=-1.0)
+        TargetRegistry(**kwargs)

@@ -4,15 +4,17 @@ Routes (all JSON errors are ``{"error": ...}``):
 
 - ``GET /``: the operator page (self-contained HTML, live over ``/events``).
 - ``GET /events``: Server-Sent Events. On connect, every stored alert as an ``alert`` event,
-  then ``hello``; afterwards ``alert`` for each new alert and ``update`` for acknowledgements and
-  deliveries. Data is the alert's JSON document; ``id`` is the store's event sequence number, so a
-  reconnecting browser (``Last-Event-ID``) gets only what it missed.
+  then ``hello``; afterwards ``alert`` for each new alert and ``update`` for acknowledgements,
+  deliveries and positions attached later. Data is the alert's JSON document; ``id`` is the
+  store's event sequence number, so a reconnecting browser (``Last-Event-ID``) gets only what it
+  missed.
 - ``GET /api/alerts[?since=T]``: JSON list of alerts (``since``: lock time, POSIX seconds).
 - ``GET /api/alerts/<id>``: one alert.
 - ``POST /api/alerts/<id>/ack``: acknowledge; body ``{"by": "name"}``, ``Content-Type:
   application/json`` required (a cross-site form cannot send it). Returns the alert.
 - ``GET /alerts.jsonl[?since=T][&follow=1]``: one alert per line; with ``follow=1`` the
-  response stays open and each new alert is written as it is stored.
+  response stays open and each new alert is written as it is stored, and again when a position
+  is attached to an alert stored without one (same ``alert_id``: the later line supersedes).
 - ``GET /alerts.geojson``, ``GET /alerts.kml``: exports (see :mod:`sarmission.alerts.export`).
 - ``GET /thumb/<id>.jpg``: the alert's thumbnail.
 - ``GET /healthz``: ``{"ok": true, "alerts": n, "last_event": seq}``.
@@ -338,7 +340,7 @@ class _Handler(BaseHTTPRequestHandler):
                 sent.add(alert.alert_id)
             self.wfile.flush()
             while follow and self._streaming():
-                new = [e for e in sub.get(timeout=_TICK_S) if _is_new(e, sent, since)]
+                new = [e for e in sub.get(timeout=_TICK_S) if _is_line(e, sent, since)]
                 for event in new:
                     self._line(event.alert)
                     sent.add(event.alert.alert_id)
@@ -349,10 +351,11 @@ class _Handler(BaseHTTPRequestHandler):
         self.wfile.write(json.dumps(alert.to_json_dict()).encode() + b"\n")
 
 
-def _is_new(event: AlertEvent, sent: set[str], since: float | None) -> bool:
+def _is_line(event: AlertEvent, sent: set[str], since: float | None) -> bool:
+    """Whether a followed JSON-lines stream writes ``event``: a new alert not yet written, or
+    an alert's position found after it was stored."""
     return (
-        event.kind == "new"
-        and event.alert.alert_id not in sent
+        (event.kind == "position" or event.kind == "new" and event.alert.alert_id not in sent)
         and (since is None or event.alert.lock_time >= since)
     )
 

@@ -1,7 +1,8 @@
 """The alert: one confirmed target, as the operator and the autopilot are told about it.
 
 An :class:`Alert` is created once per confirmed (locked) target and never changes afterwards except
-for its acknowledgement and the channels it has been delivered on, which the store keeps.
+for its acknowledgement, the channels it has been delivered on, and - for a target that could not
+be geolocated when it was confirmed - the position attached once it is; the store keeps these.
 Positions are WGS84 degrees; times are UTC POSIX seconds.
 """
 
@@ -37,6 +38,16 @@ def plain_decimal(value: float) -> str:
     if "e" in text or "E" in text:
         text = f"{value:.17f}".rstrip("0").rstrip(".")
     return text
+
+
+def check_position(position: tuple[float, float]) -> tuple[float, float]:
+    """``(lat, lon)`` as floats; ValueError unless both are finite and in range."""
+    lat, lon = (float(v) for v in position)
+    if not (math.isfinite(lat) and math.isfinite(lon)):
+        raise ValueError(f"alert position must be finite, got {position}")
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        raise ValueError(f"alert position out of range: {position}")
+    return lat, lon
 
 
 def utc_iso(t: float) -> str:
@@ -79,12 +90,7 @@ class Alert:
 
     def __post_init__(self) -> None:
         if self.position is not None:
-            lat, lon = (float(v) for v in self.position)
-            if not (math.isfinite(lat) and math.isfinite(lon)):
-                raise ValueError(f"alert position must be finite, got {self.position}")
-            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-                raise ValueError(f"alert position out of range: {self.position}")
-            self.position = (lat, lon)
+            self.position = check_position(self.position)
 
     @property
     def acknowledged(self) -> bool:

@@ -2,7 +2,7 @@
 
 No external assets (the ground station may be offline). Alerts arrive over Server-Sent Events
 from ``/events`` (``hello`` once connected, ``alert`` for each stored or new alert, ``update``
-for acknowledgements and deliveries); the Acknowledge button POSTs to
+for acknowledgements, deliveries and positions found later); the Acknowledge button POSTs to
 ``/api/alerts/<id>/ack``. Light, high-contrast theme for use in daylight.
 """
 

@@ -2,13 +2,14 @@
 
 A confirmed alert must survive a crash: the database runs in WAL mode with ``synchronous=FULL``,
 so :meth:`AlertStore.add` returns only once the alert is on disk. Every change (new alert,
-acknowledgement, delivery) also appends a row to an ``events`` log; :meth:`AlertStore.subscribe`
-follows that log, which is how the operator feed learns of changes, including ones written by
-another process on the same file.
+acknowledgement, delivery, a position found after the alert) also appends a row to an ``events``
+log; :meth:`AlertStore.subscribe` follows that log, which is how the operator feed learns of
+changes, including ones written by another process on the same file.
 
 The file is marked with an SQLite ``application_id`` and a schema version (``user_version``).
 A file that is not an SQLite database, belongs to another application, or is damaged raises
-:class:`~sarmission.errors.SarmissionError` and is left untouched.
+:class:`~sarmission.errors.SarmissionError` and is left untouched. A store of an older schema is
+upgraded in place when opened (schema 2 added the ``position`` event).
 """
 
 from __future__ import annotations
@@ -23,14 +24,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from sarmission.alerts.model import Alert
+from sarmission.alerts.model import Alert, check_position
 from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
-EventKind = Literal["new", "ack", "delivered"]
+EventKind = Literal["new", "ack", "delivered", "position"]
 
 _SCHEMA = """
 CREATE TABLE alerts (
@@ -66,11 +67,26 @@ CREATE TABLE deliveries (
 ) WITHOUT ROWID;
 CREATE TABLE events (
     seq      INTEGER PRIMARY KEY AUTOINCREMENT,
-    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered')),
+    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
     alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
     time     REAL NOT NULL
 );
 """
+
+#: Statements taking a store from schema ``n`` to ``n + 1``.
+_UPGRADES: dict[int, str] = {
+    1: """
+CREATE TABLE events_2 (
+    seq      INTEGER PRIMARY KEY AUTOINCREMENT,
+    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
+    time     REAL NOT NULL
+);
+INSERT INTO events_2 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
+DROP TABLE events;
+ALTER TABLE events_2 RENAME TO events
+""",
+}
 
 _SELECT = """
 SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time,
@@ -85,8 +101,9 @@ FROM alerts a
 
 @dataclass(frozen=True)
 class AlertEvent:
-    """One change in the store: ``kind`` is ``"new"``, ``"ack"`` or ``"delivered"``; ``seq`` is
-    its position in the store's event log; ``alert`` is the alert as it is now."""
+    """One change in the store: ``kind`` is ``"new"``, ``"ack"``, ``"delivered"`` or
+    ``"position"`` (a position attached to an alert that had none); ``seq`` is its position in
+    the store's event log; ``alert`` is the alert as it is now."""
 
     seq: int
     kind: EventKind
@@ -164,6 +181,15 @@ class AlertStore:
                             conn.execute(statement)
                     conn.execute(f"PRAGMA application_id={APPLICATION_ID}")
                     conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+        elif version < SCHEMA_VERSION:
+            with self._transaction():
+                # Another process may have upgraded it between our check and the write lock.
+                version = conn.execute("PRAGMA user_version").fetchone()[0]
+                for step in range(version, SCHEMA_VERSION):
+                    for statement in _UPGRADES[step].split(";"):
+                        if statement.strip():
+                            conn.execute(statement)
+                conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
 
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
@@ -258,6 +284,27 @@ class AlertStore:
                 self._log(conn, "delivered", alert_id)
         if cur.rowcount:
             self._notify()
+
+    def attach_position(self, alert_id: str, position: tuple[float, float],
+                        error_m: float | None, note: str) -> bool:
+        """Give an alert stored without a position its ``(lat, lon)``, error and note, durably.
+
+        For a target first alerted while it could not be geolocated and located later. Only the
+        first position is attached: True when it was attached now, False when the alert already
+        had one. Unknown id: KeyError; a position not finite or out of range: ValueError."""
+        lat, lon = check_position(position)
+        with self._transaction() as conn:
+            self._require(conn, alert_id)
+            cur = conn.execute(
+                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ? "
+                "WHERE alert_id = ? AND lat IS NULL",
+                (lat, lon, error_m, note, alert_id),
+            )
+            if cur.rowcount:
+                self._log(conn, "position", alert_id)
+        if cur.rowcount:
+            self._notify()
+        return bool(cur.rowcount)
 
     @staticmethod
     def _require(conn: sqlite3.Connection, alert_id: str) -> None:

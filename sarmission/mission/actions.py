@@ -8,7 +8,8 @@ The mission file's ``[actions] policy`` lists, in order, what to do for each new
 - ``roi``: MAV_CMD_DO_SET_ROI_LOCATION as COMMAND_INT at the target (camera points at it);
 - ``mission``: upload a one-item mission, NAV_LOITER_UNLIM at the target.
 
-Positional actions are skipped for an alert without a position (there is nowhere to go).
+Positional actions are skipped for an alert without a position (there is nowhere to go); when
+its position is found later, the alert is announced again with it.
 Everything goes through the :class:`~sarmission.mavlink.commands.Outbox`, which waits for each
 COMMAND_ACK with retries and keeps actions queued while the link is down. Each delivery is
 recorded in the alert store on its own channel (:data:`CHANNELS`), so a restarted controller
@@ -65,7 +66,9 @@ class ActionPolicy:
         outbox.on_refused = self._on_refused
 
     def announce(self, alert: Alert) -> int:
-        """Queue every action of the policy for a new alert; returns how many were queued."""
+        """Queue every action of the policy for a new alert, or again for an alert whose position
+        was found after it was announced (the STATUSTEXT then carries the position, and the
+        positional actions skipped the first time go out); returns how many were queued."""
         return sum(self._submit(entry, alert) for entry in self.policy)
 
     def resume(self) -> int:

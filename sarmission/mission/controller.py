@@ -7,7 +7,10 @@ Per frame (:meth:`MissionController.process`)::
       -> tracker (camera shift from vSTMD)   tracks; m-of-k lock
       -> for each locked track seen this frame:
            telemetry pose at the capture time -> geolocate the box centre -> target registry
+           (box in scene pixels: the image shifts since the first frame taken out)
       -> for each new target: Alert -> store.add (durable) -> console line -> action policy
+      -> for a target alerted without a position that now has one:
+           store.attach_position (durable) -> console line -> action policy (now with a place)
       -> recorder (frame, proposals, detections, tracks, telemetry, map)
 
 Only locked tracks cost more than tracking; the alert (thumbnail, geolocated history) is built
@@ -74,6 +77,7 @@ class ControllerStats:
     detections: int = 0
     locks: int = 0
     alerts: list[Alert] = field(default_factory=list)
+    located_later: int = 0
     merged_tracks: int = 0
     stage_ms: Counter[str] = field(default_factory=Counter)
     busy_s: float = 0.0
@@ -129,6 +133,8 @@ class MissionController:
         self._intrinsics: CameraIntrinsics | None = None
         self._shape: tuple[int, int] | None = None
         self._t0: float | None = None
+        self._scene_offset = np.zeros(2)
+        self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
 
     # -- per frame -------------------------------------------------------------------------------
     def process(self, frame_index: int, timestamp: float, frame: Any) -> list[Alert]:
@@ -142,6 +148,9 @@ class MissionController:
         shift = getattr(self.detector.vstmd, "last_shift", None)
         tracks = self.tracker.update(result.detections, frame_index, timestamp,
                                      camera_shift=shift)
+        if shift is not None:
+            self._scene_offset += shift
+        scene = np.tile(self._scene_offset, 2)
         self.stats.frames += 1
         self.stats.detections += len(result.detections)
         self.stats.stage_ms.update(self.detector.per_stage_ms)
@@ -156,7 +165,7 @@ class MissionController:
                 pose = self.telemetry.lookup(timestamp)
             fix, note = self._locate(track, pose)
             target, is_new = self.registry.observe(track.track_id, track.class_id, track.score,
-                                                   timestamp, fix, note)
+                                                   timestamp, fix, note, box=track.box - scene)
             changed.append(target)
             if track.just_locked:
                 self.stats.locks += 1
@@ -165,6 +174,8 @@ class MissionController:
                 else:
                     self.stats.merged_tracks += 1
                     log.info("track %d joined target %d", track.track_id, target.target_id)
+            if target.position is not None and target.target_id in self._unplaced:
+                self._attach_position(target, track.track_id, frame_index)
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:
@@ -257,12 +268,31 @@ class MissionController:
         self.store.add(alert)  # durable before anyone is told
         target.announced = True
         self.stats.alerts.append(alert)
+        if alert.position is None:
+            self._unplaced[target.target_id] = alert
         self.console(format_alert(alert, track.track_id))
         if self.recorder is not None:
             self.recorder.text("alerts", format_alert(alert, track.track_id), level="WARN")
         if self.actions is not None:
             self.actions.announce(alert)
         return alert
+
+    def _attach_position(self, target: Target, track_id: int, frame_index: int) -> None:
+        """The first position of a target alerted without one: into its stored alert, then told."""
+        alert = self._unplaced.pop(target.target_id)
+        assert target.position is not None
+        if not self.store.attach_position(alert.alert_id, target.position, target.error_m,
+                                          target.note):  # durable before anyone is told
+            return
+        alert.position, alert.error_m, alert.position_note = (target.position, target.error_m,
+                                                              target.note)
+        self.stats.located_later += 1
+        line = format_located(alert, frame_index, track_id)
+        self.console(line)
+        if self.recorder is not None:
+            self.recorder.text("alerts", line, level="WARN")
+        if self.actions is not None:
+            self.actions.announce(alert)
 
     # -- recording -------------------------------------------------------------------------------
     def _record(self, frame_index: int, timestamp: float, frame: np.ndarray,
@@ -315,7 +345,9 @@ class MissionController:
         lines.append(f"detections: {s.detections}, locks: {s.locks}, "
                      f"tracks merged into known targets: {s.merged_tracks}")
         lines.append(f"targets: {len(self.registry)} ({self.known_at_start} known at start), "
-                     f"new alerts: {len(s.alerts)}")
+                     f"new alerts: {len(s.alerts)}"
+                     + (f", positions found after the alert: {s.located_later}"
+                        if s.located_later else ""))
         if self.actions is not None:
             lines.append(f"autopilot actions delivered: {self.actions.delivered}, refused: "
                          f"{self.actions.refused}, pending: {self.actions.pending()}")
@@ -329,3 +361,10 @@ def format_alert(alert: Alert, track_id: int | None = None) -> str:
     track = f", track {track_id}" if track_id is not None else ""
     return (f"ALERT target {alert.target_id}: {alert.class_name} {alert.score:.2f} at {where} "
             f"(frame {alert.frame_index}{track})")
+
+
+def format_located(alert: Alert, frame_index: int, track_id: int) -> str:
+    """One console line for a position found after its target was alerted without one."""
+    where = f"{alert.format_position(6)} {alert.format_error()}".rstrip()
+    return (f"POSITION target {alert.target_id}: {alert.class_name} at {where} "
+            f"(alerted without a position; frame {frame_index}, track {track_id})")

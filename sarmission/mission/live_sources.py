@@ -3,6 +3,9 @@
 
 - :class:`CameraSource`: a camera device through ``cv2.VideoCapture(N)``; a failed grab is a
   frame without an image (the controller counts it as skipped); many failures in a row end it.
+  It asks for a one-frame driver queue (a slow consumer gets the newest frame, not one that
+  waited in the queue) and stamps each frame when its grab returns, before it is decoded, or
+  with the driver's own capture time where that is on the same clock (:func:`capture_time`).
 - :class:`FileSource`: a video file or an image folder played as a camera at its frame rate
   (a frame is not returned before it is due; the stamp is the time it was returned).
 
@@ -13,6 +16,8 @@ Every source has ``read() -> Frame | None`` (None: the source has ended), ``skip
 from __future__ import annotations
 
 import logging
+import os
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,6 +31,8 @@ log = logging.getLogger(__name__)
 
 #: Consecutive failed grabs after which a camera is taken to be gone.
 MAX_CAMERA_FAILURES = 50
+#: A driver frame time older than this when the grab returns is not believed (seconds).
+DRIVER_STAMP_MAX_AGE_S = 1.0
 
 
 class LiveSource(Protocol):
@@ -38,15 +45,51 @@ class LiveSource(Protocol):
     def close(self) -> None: ...
 
 
+def capture_time(driver_ms: float, grabbed_at: float) -> float:
+    """A grabbed frame's capture time on the ``time.monotonic()`` clock.
+
+    ``driver_ms`` is OpenCV's ``CAP_PROP_POS_MSEC`` after the grab: with V4L2 the buffer's
+    timestamp, which UVC and most capture drivers take on CLOCK_MONOTONIC (Python's monotonic
+    clock) when the frame was captured. Other backends report a stream position there instead.
+    So the driver's time is used when it lies at most :data:`DRIVER_STAMP_MAX_AGE_S` before
+    ``grabbed_at`` (when the grab returned), else ``grabbed_at`` itself.
+    """
+    driver_s = driver_ms / 1000.0
+    if 0.0 <= grabbed_at - driver_s <= DRIVER_STAMP_MAX_AGE_S:
+        return driver_s
+    return grabbed_at
+
+
+def _camera_problem(index: int) -> str:
+    """Why camera ``index`` may not open, as far as the system tells (Linux device nodes)."""
+    device = Path(f"/dev/video{index}")
+    if sys.platform.startswith("linux"):
+        if not device.exists():
+            return f"no such device ({device} does not exist)"
+        if not os.access(device, os.R_OK | os.W_OK):
+            return f"permission denied on {device} (is this user in its group, e.g. 'video'?)"
+    return "OpenCV could not open it (in use by another program, or not a capture device?)"
+
+
 class CameraSource:
-    """Camera device ``index`` via OpenCV; ``width``/``height`` request a capture size."""
+    """Camera device ``index`` via OpenCV; ``width``/``height`` request a capture size.
+
+    Raises OSError with one line saying why (e.g. ``cannot open camera 0: no such device``)
+    when the camera cannot be opened; OpenCV's own warnings about it are kept off the console.
+    """
 
     def __init__(self, index: int, width: int | None = None, height: int | None = None) -> None:
         self.index = index
-        self.capture = cv2.VideoCapture(index)
+        level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+        try:
+            self.capture = cv2.VideoCapture(index)
+        finally:
+            cv2.utils.logging.setLogLevel(level)
         if not self.capture.isOpened():
             self.capture.release()
-            raise OSError(f"cannot open camera {index} (cv2.VideoCapture({index}) failed)")
+            raise OSError(f"cannot open camera {index}: {_camera_problem(index)}")
+        self.capture.set(cv2.CAP_PROP_BUFFERSIZE, 1)
         if width:
             self.capture.set(cv2.CAP_PROP_FRAME_WIDTH, width)
         if height:
@@ -57,11 +100,13 @@ class CameraSource:
 
     def read(self) -> Frame | None:
         """The next frame; its image is None when the grab failed; None once the camera is gone."""
-        ok, image = self.capture.read()
-        stamp = time.monotonic()
+        ok = self.capture.grab()
+        grabbed_at = time.monotonic()
+        stamp = capture_time(self.capture.get(cv2.CAP_PROP_POS_MSEC), grabbed_at)
+        image = self.capture.retrieve()[1] if ok else None
         index = self._count
         self._count += 1
-        if ok and image is not None:
+        if image is not None:
             self._failures = 0
             return Frame(index, stamp, image)
         self._failures += 1

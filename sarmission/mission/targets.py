@@ -2,13 +2,27 @@
 
 The tracker's ids live in image space and break whenever a person leaves the frame, is hidden by
 a wave for too long, or the drone flies a new leg over them. The registry joins tracks in ground
-space:
+space, and in the image where there is no ground position to compare:
 
 - a track keeps the target it first joined (``track_id -> target_id``);
 - a new locked track with a position joins the nearest target whose position lies within
-  ``max(merge_radius_m, hypot(target error, fix error))`` of its fix, else it starts a new one;
-- a track without a position (stale telemetry, ray above the horizon) cannot be compared with
-  anything, so it gets a target of its own with ``position None`` and the reason.
+  ``max(merge_radius_m, hypot(target error, fix error))`` of its fix;
+- a new locked track without a position (stale telemetry, ray above the horizon) cannot be
+  compared on the ground, so it is compared in the image: it joins the target whose last box
+  was seen at most ``merge_window_s`` earlier (or later) with its centre within
+  ``max(merge_gate_px, the larger side of either box)`` of the track's box centre (nearest
+  wins). This keeps one person one target while telemetry is out: a track lost and re-born,
+  or a second track locking on the same person;
+- a new locked track with a position that matches no target on the ground is compared in the
+  image with the targets that have no position yet, the same way: the person first seen
+  while telemetry was out gets their position from it;
+- otherwise the track starts a new target (``position None`` and the reason if it has no fix).
+
+Boxes are ``[x1, y1, x2, y2]`` in full-resolution pixels of the scene: the caller removes the
+camera's own motion (the sum of the image shifts since the stream began), so a person who
+stays put keeps their coordinates while the drone flies on. The defaults (5 s, 64 px) cover a
+track that coasts through its misses and locks again at a few frames per second, while 64 px
+at 4K is about 1.5-2 m on the water from 60-80 m: closer than the ground merge radius.
 
 A target's position is the inverse-variance weighted mean of its fixes (weights ``1 / e^2``,
 ``e`` each fix's 1-sigma error), computed in metres around the first fix. Successive fixes share
@@ -24,7 +38,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 from sarmission.geo.geolocate import GeoFix
@@ -41,7 +55,8 @@ class Target:
     ``lat``/``lon`` are None when no fix was possible (``note`` says why). ``error_m`` is the
     1-sigma horizontal error of the position. ``first_seen``/``last_seen`` are the capture times
     of the frames that showed it. ``announced`` is True once an alert exists for it (seeded
-    targets start announced).
+    targets start announced). ``box`` is the last box seen, in scene pixels (see the module
+    docstring), at capture time ``box_time`` (None and NaN for a seeded target).
     """
 
     target_id: int
@@ -55,6 +70,8 @@ class Target:
     class_votes: Counter[int] = field(default_factory=Counter)
     track_ids: set[int] = field(default_factory=set)
     announced: bool = False
+    box: tuple[float, float, float, float] | None = None
+    box_time: float = math.nan
     _sum_w: float = 0.0
     _sum_wn: float = 0.0
     _sum_we: float = 0.0
@@ -103,13 +120,35 @@ def distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.hypot(*offset_m(a, b))
 
 
-class TargetRegistry:
-    """Tracks -> targets (see the module docstring). Not thread-safe: one controller owns it."""
+def _centre(box: Sequence[float]) -> tuple[float, float]:
+    return (box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0
 
-    def __init__(self, merge_radius_m: float = 8.0) -> None:
-        if merge_radius_m < 0:
-            raise ValueError(f"merge_radius_m must be >= 0, got {merge_radius_m}")
+
+def _side(box: Sequence[float]) -> float:
+    return max(box[2] - box[0], box[3] - box[1])
+
+
+class TargetRegistry:
+    """Tracks -> targets (see the module docstring). Not thread-safe: one controller owns it.
+
+    Args:
+        merge_radius_m: a new fix joins a target within this distance (metres) or within the
+            combined 1-sigma errors, whichever is larger.
+        merge_window_s: a new track is compared in the image only with targets whose last box
+            was seen at most this many seconds from its sighting.
+        merge_gate_px: the largest distance (full-resolution pixels) between box centres for
+            the image comparison to match, unless either box's larger side is larger still.
+    """
+
+    def __init__(self, merge_radius_m: float = 8.0, merge_window_s: float = 5.0,
+                 merge_gate_px: float = 64.0) -> None:
+        for name, value in (("merge_radius_m", merge_radius_m),
+                            ("merge_window_s", merge_window_s), ("merge_gate_px", merge_gate_px)):
+            if not value >= 0:
+                raise ValueError(f"{name} must be >= 0, got {value}")
         self.merge_radius_m = merge_radius_m
+        self.merge_window_s = merge_window_s
+        self.merge_gate_px = merge_gate_px
         self.targets: dict[int, Target] = {}
         self._by_track: dict[int, int] = {}
         self._next_id = 1
@@ -139,18 +178,22 @@ class TargetRegistry:
         return None if target_id is None else self.targets[target_id]
 
     def observe(self, track_id: int, class_id: int, score: float, t: float,
-                fix: GeoFix | None, note: str = "") -> tuple[Target, bool]:
+                fix: GeoFix | None, note: str = "",
+                box: Sequence[float] | None = None) -> tuple[Target, bool]:
         """Record a locked track's sighting at capture time ``t``; returns ``(target, is_new)``.
 
         ``fix`` is the sighting's geolocation (None or not ``ok`` when there is none; ``note``,
-        or the fix's own note, then says why). ``is_new`` is True only when this sighting
-        created the target.
+        or the fix's own note, then says why). ``box`` is the track's box in scene pixels (see
+        the module docstring); without it a new track is compared on the ground only.
+        ``is_new`` is True only when this sighting created the target.
         """
         placed = fix is not None and fix.ok
         target = self.target_of(track_id)
         is_new = False
         if target is None:
             target = self._nearest(fix) if placed else None
+            if target is None and box is not None:
+                target = self._nearest_in_image(box, t, unplaced_only=placed)
             if target is None:
                 is_new = True
                 target = Target(self._next_id, t, t)
@@ -167,6 +210,9 @@ class TargetRegistry:
         if math.isnan(target.first_seen):
             target.first_seen = t
         target.last_seen = t if math.isnan(target.last_seen) else max(target.last_seen, t)
+        if box is not None:
+            target.box = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
+            target.box_time = t
         return target, is_new
 
     def _nearest(self, fix: GeoFix) -> Target | None:
@@ -178,6 +224,22 @@ class TargetRegistry:
                 continue
             d = distance_m(target.position, (fix.lat, fix.lon))
             gate = max(self.merge_radius_m, math.hypot(target.error_m or 0.0, fix.error_m or 0.0))
+            if d <= gate and d < best_d:
+                best, best_d = target, d
+        return best
+
+    def _nearest_in_image(self, box: Sequence[float], t: float,
+                          unplaced_only: bool) -> Target | None:
+        centre = _centre(box)
+        best: Target | None = None
+        best_d = math.inf
+        for target in self.targets.values():
+            if target.box is None or (unplaced_only and target.position is not None):
+                continue
+            if not abs(t - target.box_time) <= self.merge_window_s:
+                continue
+            d = math.dist(centre, _centre(target.box))
+            gate = max(self.merge_gate_px, _side(box), _side(target.box))
             if d <= gate and d < best_d:
                 best, best_d = target, d
         return best

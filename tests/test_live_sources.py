@@ -1,0 +1,102 @@
+"""Live frame sources: a camera's frames are stamped with their capture time on the clock the
+telemetry is mapped to (``time.monotonic()``), and a camera that cannot be opened says why."""
+
+from __future__ import annotations
+
+import time
+
+import cv2
+import numpy as np
+import pytest
+
+from sarmission.mission import live_sources
+from sarmission.mission.live_sources import CameraSource, capture_time
+
+
+class FakeCapture:
+    """Stands in for ``cv2.VideoCapture``: grabs succeed per ``grabs``; ``driver_ms`` is what
+    the backend reports as ``CAP_PROP_POS_MSEC`` after each grab (None: the grab time)."""
+
+    def __init__(self, grabs: list[bool], driver_ms: list[float | None]) -> None:
+        self.grabs = list(grabs)
+        self.driver_ms = list(driver_ms)
+        self.settings: dict[int, float] = {}
+        self.grabbed_at: list[float] = []
+        self.released = False
+
+    def isOpened(self) -> bool:  # noqa: N802 - OpenCV's name
+        return True
+
+    def set(self, prop: int, value: float) -> bool:
+        self.settings[prop] = value
+        return True
+
+    def grab(self) -> bool:
+        time.sleep(0.01)  # the frame arrives ...
+        self.grabbed_at.append(time.monotonic())
+        return self.grabs.pop(0)
+
+    def get(self, prop: int) -> float:
+        assert prop == cv2.CAP_PROP_POS_MSEC
+        ms = self.driver_ms.pop(0)
+        return self.grabbed_at[-1] * 1000.0 if ms is None else ms
+
+    def retrieve(self) -> tuple[bool, np.ndarray]:
+        time.sleep(0.05)  # ... and takes a while to decode
+        return True, np.zeros((4, 4, 3), np.uint8)
+
+    def release(self) -> None:
+        self.released = True
+
+
+def camera_with(monkeypatch: pytest.MonkeyPatch, capture: FakeCapture) -> CameraSource:
+    monkeypatch.setattr(live_sources.cv2, "VideoCapture", lambda index: capture)
+    return CameraSource(0)
+
+
+def test_frames_are_stamped_at_the_grab_not_after_decoding(monkeypatch):
+    capture = FakeCapture([True, True], [12.5, None])  # 12.5 ms: a stream position, not a time
+    camera = camera_with(monkeypatch, capture)
+    assert capture.settings[cv2.CAP_PROP_BUFFERSIZE] == 1  # the newest frame, not a queued one
+    first, second = camera.read(), camera.read()
+    # within 20 ms of the grab, not 50 ms later when the image is decoded
+    assert first.timestamp_s == pytest.approx(capture.grabbed_at[0], abs=0.02)
+    assert second.timestamp_s == pytest.approx(capture.grabbed_at[1], abs=0.02)
+    assert (first.index, second.index) == (0, 1) and first.image_bgr is not None
+
+
+def test_the_drivers_capture_time_is_used_when_it_is_on_our_clock(monkeypatch):
+    exposure = time.monotonic() + 0.005  # during the next grab, before it returns
+    capture = FakeCapture([True, False], [exposure * 1000.0, None])
+    camera = camera_with(monkeypatch, capture)
+    frame = camera.read()
+    assert frame.timestamp_s == pytest.approx(exposure, abs=1e-6)
+    failed = camera.read()
+    assert failed.image_bgr is None and failed.index == 1 and camera.skipped == 1
+    camera.close()
+    assert capture.released
+
+
+@pytest.mark.parametrize(("driver_ms", "expected"), [
+    (99_800.0, 99.8),      # 0.2 s before the grab returned: the driver's time
+    (100_000.0, 100.0),
+    (98_500.0, 100.0),     # 1.5 s old: not believable, the grab's time
+    (100_300.0, 100.0),    # in the future: another clock
+    (0.0, 100.0),          # the first frame's stream position
+])
+def test_capture_time(driver_ms, expected):
+    assert capture_time(driver_ms, 100.0) == pytest.approx(expected)
+
+
+def test_a_camera_that_cannot_be_opened_says_why(monkeypatch):
+    class Closed(FakeCapture):
+        def isOpened(self) -> bool:  # noqa: N802
+            return False
+
+    capture = Closed([], [])
+    monkeypatch.setattr(live_sources.cv2, "VideoCapture", lambda index: capture)
+    monkeypatch.setattr(live_sources.sys, "platform", "linux")
+    with pytest.raises(OSError, match=r"^cannot open camera 97: no such device "
+                                      r"\(/dev/video97 does not exist\)$"):
+        CameraSource(97)
+    assert capture.released
