@@ -8,7 +8,9 @@ of targets per frame::
     footprint = (W * gsd) x (H * gsd),   gsd = altitude / f,   f = (W / 2) / tan(hfov / 2)
     targets   = per_frame * strip_area / footprint_area
 
-Splits differ in seed, sea state, altitude and sun. ``maritime_test`` is dense (about 12 targets
+Splits differ in seed, sea state, altitude and sun. Training draws on two presets that bracket
+the validation and test conditions: ``maritime_train`` (70 m, sea state 2) and
+``maritime_train_high`` (110 m, sea state 4). ``maritime_test`` is dense (about 12 targets
 per frame, like the paper's test split) at 90 m with a 75 degree lens, where head-only swimmers
 fall in the extremely tiny band (<= 64 px^2), head-and-shoulders in the tiny band and swimmers
 floating on their back in the small band.
@@ -90,6 +92,11 @@ def maritime_train() -> Preset:
     return _maritime("maritime_train", 1001, 70.0, 70.0, 2, 6.0, (200.0, 45.0))
 
 
+def maritime_train_high() -> Preset:
+    """Rough sea (state 4), 110 m, about 10 targets per frame: the training split's far end."""
+    return _maritime("maritime_train_high", 1102, 110.0, 75.0, 4, 10.0, (300.0, 40.0))
+
+
 def maritime_val() -> Preset:
     """Rougher sea (state 4), 100 m, about 8 targets per frame, low sun."""
     return _maritime("maritime_val", 2002, 100.0, 75.0, 4, 8.0, (150.0, 30.0))
@@ -116,8 +123,8 @@ def urban_test() -> Preset:
 
 
 PRESETS: dict[str, Callable[[], Preset]] = {
-    f.__name__: f for f in (maritime_train, maritime_val, maritime_test, urban_train, urban_val,
-                            urban_test)
+    f.__name__: f for f in (maritime_train, maritime_train_high, maritime_val, maritime_test,
+                            urban_train, urban_val, urban_test)
 }
 
 

@@ -1,6 +1,8 @@
 """Reproduce the default MITE-Net head shipped in ``sarmission/models``.
 
-Renders the simulator's maritime training and validation splits, trains the head with
+Renders the simulator's maritime training presets (``maritime_train`` at 70 m on a calm sea and
+``maritime_train_high`` at 110 m on a rough one, merged into one training file) and the
+validation split, trains the head with
 ``sarmission train`` (seeded, deterministic) and writes ``mitenet_head.pt`` and
 ``mitenet_head.onnx`` into the package::
 
@@ -19,25 +21,38 @@ import sys
 from pathlib import Path
 
 from sarmission.cli import main as sarmission
+from sarmission.data.coco_video import read_coco_video, write_coco_video
 from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
+from sim.generate import merge_datasets
 
 #: The recipe of the shipped model: (preset, clips, frames per clip) and the training settings.
-TRAIN_SPLIT = ("maritime_train", 6, 90)
+TRAIN_SPLITS = (("maritime_train", 6, 90), ("maritime_train_high", 4, 90))
 VAL_SPLIT = ("maritime_val", 2, 60)
 TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.05", "--seed", "0",
               "--frame-stride", "3", "--jitters", "4", "--ds", "1"]
 
 
-def render(work: Path, split: tuple[str, int, int]) -> Path:
-    """Render one split (skipped when its annotation file already exists)."""
+def render(folder: Path, split: tuple[str, int, int]) -> Path:
+    """Render one split into ``folder`` (skipped when its annotation file already exists)."""
     name, clips, frames = split
-    annotations = work / name / f"{name}.json"
+    annotations = folder / f"{name}.json"
     if not annotations.is_file():
         code = sarmission(["sim", "generate", "--scenario", name, "--sequences", str(clips),
-                           "--frames", str(frames), "--out", str(work / name)])
+                           "--frames", str(frames), "--out", str(folder)])
         if code:
             sys.exit(code)
     return annotations
+
+
+def render_training_set(work: Path) -> Path:
+    """Render every training preset into one folder and merge their annotations there."""
+    folder = work / "maritime_train_mix"
+    merged = folder / "maritime_train_mix.json"
+    if not merged.is_file():
+        parts = [read_coco_video(render(folder, split)) for split in TRAIN_SPLITS]
+        write_coco_video(merge_datasets(parts, info={"presets": [s[0] for s in TRAIN_SPLITS]}),
+                         merged)
+    return merged
 
 
 def main() -> int:
@@ -49,8 +64,8 @@ def main() -> int:
                         help="do not copy the result into sarmission/models")
     args, extra = parser.parse_known_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    train = render(args.work, TRAIN_SPLIT)
-    val = render(args.work, VAL_SPLIT)
+    train = render_training_set(args.work)
+    val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
     out = args.work / "mitenet_head.pt"
     code = sarmission(["train", "--train", str(train), "--val", str(val), "--out", str(out),
                        "--onnx", *TRAIN_ARGS, *extra])

@@ -35,6 +35,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--frame-stride", type=int, default=5,
                         help="cut crops at every k-th frame (all frames still go through vSTMD)")
     parser.add_argument("--jitters", type=int, default=4, help="jittered copies per GT box")
+    parser.add_argument("--jitter-shift", type=float, default=0.5,
+                        help="largest centre shift of a jittered box per axis, as a fraction of "
+                             "its side (the RPN's boxes land up to about half a side off)")
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
     parser.add_argument("--pos-nwd", type=float, default=0.4,
                         help="NWD at or above which a proposal is positive")
@@ -66,7 +69,8 @@ def config_from_args(args: argparse.Namespace):
         raise ValueError(f"--out must be a .pt or .pth file, got {args.out}")
     crops = CropSettings(classes=classes, ds=args.ds, topn=args.topn,
                          frame_stride=args.frame_stride, pos_nwd=args.pos_nwd,
-                         jitters_per_gt=args.jitters, seed=args.seed)
+                         jitters_per_gt=args.jitters,
+                         jitter_shift=args.jitter_shift, seed=args.seed)
     return TrainConfig(train=args.train, val=args.val, out=args.out, epochs=args.epochs,
                        batch_size=args.batch_size, lr=args.lr, optimizer=args.optimizer,
                        seed=args.seed, crops=crops, cache_dir=args.cache_dir,

@@ -13,7 +13,9 @@ Learning rate per optimiser step ``i`` of ``T`` (``W`` warm-up steps, one epoch 
                                        * (1 + cos(pi * i / T)) / 2)
 
 Validation (after every epoch): the head runs on the validation crops (the real RPN proposals of
-the sampled validation frames, no jittering), boxes are decoded with
+every validation frame after the warm-up, whatever ``frame_stride`` the training crops use: a
+sparse validation set makes the F2 that selects the checkpoint swing by tens of percent between
+epochs; no jittering), boxes are decoded with
 :func:`~sarmission.perception.head.ltrb_to_boxes`, detections with score > ``score_threshold``
 (score = largest class probability, class = its index) go through the inference NMS and are
 scored against all target GT boxes of those frames with
@@ -62,7 +64,7 @@ class TrainConfig:
 
     ``optimizer`` is ``"sgd"`` (Nesterov momentum) or ``"adamw"``; ``cache_dir`` ``None`` puts
     the crop caches in ``<out folder>/.crop_cache``; ``crops`` are the training crop settings
-    (validation uses the same without jittering).
+    (validation uses the same without jittering, on every frame).
     """
 
     train: Path
@@ -265,8 +267,8 @@ def train(config: TrainConfig) -> TrainResult:
     t0 = time.perf_counter()
     train_set, _ = load_crop_set(config.train, config.crops, cache_dir, config.progress,
                                  "train crops")
-    val_set, _ = load_crop_set(config.val, replace(config.crops, jitters_per_gt=0), cache_dir,
-                               config.progress, "val crops")
+    val_set, _ = load_crop_set(config.val, replace(config.crops, jitters_per_gt=0, frame_stride=1),
+                               cache_dir, config.progress, "val crops")
     if not (train_set.labels >= 0).any():
         raise ValueError(f"{config.train}: no positive training crop (no target GT boxes in "
                          "the sampled frames)")
