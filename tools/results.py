@@ -506,8 +506,8 @@ def _scalability_section(results: Mapping[str, Any]) -> list[str]:
             continue
         tag = f"ds={key[0]}, N={key[1]}"
         findings.add(f"SSR at {tag}", r["ssr"], p["ssr"], True, 0.5, ".2f", " %", why={
-            "worse": "See section 1: synthetic test split denser than the training clips, "
-                     "short clips, head trained on little data."})
+            "worse": "See section 1: the motion front-end does not propose every target "
+                     "(section 4), and the clips are short."})
         findings.add(f"FAR per detection at {tag}", r["far_detections"], p["far"], False, 0.5,
                      ".2f", " %")
         findings.add(f"Total GFLOPs at {tag}", r["gflops"]["total"], p["total"], False, 0.02,

@@ -28,7 +28,7 @@ from sim.generate import merge_datasets
 #: The recipe of the shipped model: (preset, clips, frames per clip) and the training settings.
 TRAIN_SPLITS = (("maritime_train", 6, 90), ("maritime_train_high", 4, 90))
 VAL_SPLIT = ("maritime_val", 2, 60)
-TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.05", "--seed", "0",
+TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.02", "--seed", "0",
               "--frame-stride", "3", "--jitters", "4", "--ds", "1"]
 
 

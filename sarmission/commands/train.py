@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", required=True, type=Path, help="best checkpoint (.pt) to write")
     parser.add_argument("--epochs", type=int, default=30)
     parser.add_argument("--batch-size", type=int, default=64)
-    parser.add_argument("--lr", type=float, default=0.05, help="peak learning rate")
+    parser.add_argument("--lr", type=float, default=0.02, help="peak learning rate")
     parser.add_argument("--optimizer", choices=("sgd", "adamw"), default="sgd")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ds", type=int, default=1, choices=(1, 2, 4, 8),
