@@ -1,8 +1,8 @@
 """Reproduce the default MITE-Net head shipped in ``sarmission/models``.
 
-Renders the simulator's maritime training presets (``maritime_train`` at 70 m on a calm sea and
-``maritime_train_high`` at 110 m on a rough one, merged into one training file) and the
-validation split, trains the head with
+Renders the simulator's maritime training presets (``maritime_train`` at 70 m on a calm sea,
+``maritime_train_high`` at 110 m on a rough one, both 4K, and ``maritime_train_narrow``, the
+demo's 960x540 view; merged into one training file) and the validation split, trains the head with
 ``sarmission train`` (seeded, deterministic) and writes ``mitenet_head.pt`` and
 ``mitenet_head.onnx`` into the package::
 
@@ -26,19 +26,22 @@ from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
 from sim.generate import merge_datasets
 
 #: The recipe of the shipped model: (preset, clips, frames per clip) and the training settings.
-TRAIN_SPLITS = (("maritime_train", 6, 90), ("maritime_train_high", 4, 90))
+TRAIN_SPLITS = (("maritime_train", 6, 90), ("maritime_train_high", 4, 90),
+                ("maritime_train_narrow", 6, 90, "960x540"))
 VAL_SPLIT = ("maritime_val", 2, 60)
 TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.02", "--seed", "0",
               "--frame-stride", "3", "--jitters", "4", "--ds", "1"]
 
 
-def render(folder: Path, split: tuple[str, int, int]) -> Path:
-    """Render one split into ``folder`` (skipped when its annotation file already exists)."""
-    name, clips, frames = split
+def render(folder: Path, split: tuple) -> Path:
+    """Render one split ``(preset, clips, frames[, WxH])`` into ``folder`` (4K unless a size is
+    given; skipped when its annotation file already exists)."""
+    name, clips, frames, *size = split
     annotations = folder / f"{name}.json"
     if not annotations.is_file():
         code = sarmission(["sim", "generate", "--scenario", name, "--sequences", str(clips),
-                           "--frames", str(frames), "--out", str(folder)])
+                           "--frames", str(frames), "--out", str(folder),
+                           "--size", size[0] if size else "3840x2160"])
         if code:
             sys.exit(code)
     return annotations
