@@ -13,7 +13,6 @@ from sarmission.perception.head import (
     dfl_decode,
     head_flops_per_proposal,
     ltrb_to_boxes,
-    standardise_colour,
 )
 
 
@@ -76,39 +75,3 @@ def test_ltrb_to_boxes_scales_with_the_crop():
     np.testing.assert_allclose(out[0], boxes[0])
     np.testing.assert_allclose(out[1], [16 - 4, 16 - 6, 16 + 8, 16 + 10])  # 2 full-res px per bin
     assert ltrb_to_boxes(np.zeros((0, 4)), np.zeros((0, 4))).shape == (0, 4)
-
-
-def test_standardised_colour_has_zero_means_and_unit_common_spread():
-    torch.manual_seed(1)
-    crops = torch.rand(5, 4, 16, 16)
-    out = standardise_colour(crops)
-    colour = out[:, :3]
-    assert torch.allclose(colour.mean(dim=(2, 3)), torch.zeros(5, 3), atol=1e-5)
-    assert torch.allclose(colour.square().mean(dim=(1, 2, 3)), torch.ones(5), atol=1e-4)
-    assert torch.equal(out[:, 3], crops[:, 3])  # the response channel is not touched
-
-
-def test_standardised_colour_keeps_flat_crops_flat():
-    crops = torch.full((1, 4, 16, 16), 0.5)
-    crops[0, 0, 8, 8] += 0.004  # one grey level of noise on open water
-    out = standardise_colour(crops)
-    assert float(out[:, :3].abs().max()) < 0.2  # below the floor: not blown up to unit spread
-
-
-def test_head_ignores_scene_brightness_and_colour_cast(head: MiteHead):
-    torch.manual_seed(2)
-    crops = torch.rand(3, 4, 16, 16) * 0.5
-    brighter = crops.clone()
-    brighter[:, :3] = brighter[:, :3] * 1.6 + torch.tensor([0.1, 0.05, 0.2])[None, :, None, None]
-    with torch.no_grad():
-        logits, ltrb = head(crops)
-        logits2, ltrb2 = head(brighter)
-    assert torch.allclose(logits, logits2, atol=1e-4)
-    assert torch.allclose(ltrb, ltrb2, atol=1e-4)
-
-
-def test_configurations_saved_before_colour_norm_load_without_it():
-    saved = HeadConfig().to_dict()
-    assert saved["colour_norm"] is True
-    del saved["colour_norm"]
-    assert HeadConfig.from_dict(saved).colour_norm is False

@@ -50,8 +50,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--hfov", type=float, default=35.0,
                         help="horizontal field of view in degrees; narrow keeps swimmers about "
                         "10 px wide at 70 m in small frames (default: %(default)s)")
-    parser.add_argument("--fps", type=float, default=None,
-                        help="most camera frames per second (default: as fast as processed)")
+    parser.add_argument("--fps", type=float, default=30.0,
+                        help="most camera frames per second, as a real camera delivers them "
+                        "(the motion front-end is tuned for 30); 0: as fast as processed "
+                        "(default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="scenario seed (default: 0)")
     add_detector_options(parser)
     parser.set_defaults(func=run)
@@ -148,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
           f"{args.hfov:g} deg HFOV; vehicle on udp 127.0.0.1:{port}", flush=True)
     try:
         camera = SimCamera(vehicle, scenario=mission_scenario(vehicle, seed=args.seed),
-                           size=size, fps=args.fps)
+                           size=size, fps=args.fps or None)
         session = LiveSession(mission, detector, camera, f"udpin:127.0.0.1:{port}", str(db),
                               recorder=Recorder("save", out / "demo.rrd"),
                               transport_latency_s=mission.telemetry.latency_s,

@@ -3,8 +3,6 @@
 Input: motion-enhanced crops ``[N, 4, S, S]`` (S = 16: RGB in [0, 1] and the enhanced response E,
 see :mod:`sarmission.perception.crops`). Layers::
 
-    colour norm    per crop: RGB minus its channel means, over their common spread (optional,
-                   :func:`standardise_colour`; no parameters)
     CoordConv      append x, y in [-1, 1]                                   → 6 x S x S
     stem           conv3x3 6→w0, BN, ReLU                                   → w0 x S x S
     block d=2      conv3x3(d2) w0→w1, BN, ReLU, conv3x3(d2) w1→w1, BN, + 1x1 skip, ReLU
@@ -40,9 +38,6 @@ class HeadConfig:
 
     ``widths`` is ``(stem, backbone)`` channels, ``reg_bottleneck`` the channels of the regression
     bottleneck before the linear layer, ``crop_size`` the side S of the square input crops.
-    ``colour_norm`` standardises each crop's colour channels before the stem
-    (:func:`standardise_colour`); configurations saved without the key predate it and load as
-    ``False``.
     """
 
     classes: tuple[str, ...] = DEFAULT_CLASSES
@@ -53,7 +48,6 @@ class HeadConfig:
     in_channels: int = 4
     attention_reduction: int = 4
     cls_hidden: int = 32
-    colour_norm: bool = True
 
     @property
     def num_classes(self) -> int:
@@ -75,7 +69,6 @@ class HeadConfig:
             d["classes"] = tuple(str(c) for c in d["classes"])
         if "widths" in d:
             d["widths"] = tuple(int(w) for w in d["widths"])
-        d.setdefault("colour_norm", False)
         cfg = cls(**d)
         cfg.validate()
         return cfg
@@ -163,24 +156,6 @@ def coord_channels(size: int) -> Tensor:
     return torch.stack([xx, yy])[None]
 
 
-#: Smallest colour spread :func:`standardise_colour` divides by (about 5 grey levels in [0, 1]):
-#: flat crops of open water are not blown up into noise.
-COLOUR_STD_FLOOR = 0.02
-
-
-def standardise_colour(crops: Tensor) -> Tensor:
-    """Per crop, subtract each colour channel's mean and divide all three by their common
-    standard deviation (at least :data:`COLOUR_STD_FLOOR`); the response channel E is untouched.
-
-    The head then sees contrast, not the scene's brightness or colour cast (sun, sea state, haze),
-    while a life jacket's colour relative to the water stays: one spread for the three channels.
-    """
-    colour = crops[:, :3]
-    centred = colour - colour.mean(dim=(2, 3), keepdim=True)
-    spread = centred.square().mean(dim=(1, 2, 3), keepdim=True).sqrt()
-    return torch.cat([centred / spread.clamp_min(COLOUR_STD_FLOOR), crops[:, 3:]], dim=1)
-
-
 class MiteHead(nn.Module):
     """The MITE-Net head. ``forward(crops) -> (cls_logits [N, C], ltrb [N, 4])``.
 
@@ -203,8 +178,6 @@ class MiteHead(nn.Module):
 
     def forward_with_bins(self, crops: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """``crops [N, 4, S, S]`` → ``(cls_logits [N, C], bin_logits [N, 4, R+1], ltrb [N, 4])``."""
-        if self.config.colour_norm:
-            crops = standardise_colour(crops)
         coords = self.coords.expand(crops.shape[0], -1, -1, -1)
         f = self.backbone(self.stem(torch.cat([crops, coords], dim=1)))
         bins = self.reg_branch(f)
@@ -271,5 +244,5 @@ def ltrb_to_boxes(ltrb: np.ndarray, proposal_boxes: np.ndarray, crop_size: int =
 
 __all__ = [
     "DEFAULT_CLASSES", "HeadConfig", "MiteHead", "count_parameters", "dfl_decode",
-    "head_flops_per_proposal", "ltrb_to_boxes", "standardise_colour",
+    "head_flops_per_proposal", "ltrb_to_boxes",
 ]

@@ -18,9 +18,9 @@ frames before it responds) the frame yields:
   when ``R`` is zero there. The default shift, half a side (±8 px for 16-px boxes), spans the
   offsets of the RPN's own boxes on targets (its peak on the trailing edge, the 0.3 S forward
   shift); with a quarter side the head learned centred targets only and scored the offset ones
-  it meets at inference low (measured on the simulator's maritime splits, ds 2, N 25: share of
-  target boxes detected with score > 0.5 and NWD > 0.5 per frame, maritime_val 0.157 -> 0.188,
-  maritime_test 0.335 -> 0.396).
+  it meets at inference low (measured on the simulator's maritime splits while the recipe was
+  being settled, ds 2, N 25: share of target boxes detected with score > 0.5 and NWD > 0.5 per
+  frame, maritime_val 0.157 -> 0.188, maritime_test 0.335 -> 0.396).
 
 Targets: annotations of the categories that map to a head class
 (:func:`sarmission.evaluation.report.target_category_map`: normalised name equal to a class or an
