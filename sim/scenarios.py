@@ -8,9 +8,9 @@ of targets per frame::
     footprint = (W * gsd) x (H * gsd),   gsd = altitude / f,   f = (W / 2) / tan(hfov / 2)
     targets   = per_frame * strip_area / footprint_area
 
-Splits differ in seed, sea state, altitude and sun. Training draws on two presets that bracket
-the validation and test conditions: ``maritime_train`` (70 m, sea state 2) and
-``maritime_train_high`` (110 m, sea state 4), and on ``maritime_train_narrow``, rendered small
+Splits differ in seed, sea state, altitude and sun. Training draws on three presets:
+``maritime_train`` (70 m, sea state 2) and ``maritime_train_high`` (110 m, sea state 4), which
+bracket the validation and test conditions, and ``maritime_train_narrow``, rendered small
 (960x540 through a 35 degree lens, the view of ``sarmission demo``), where wave and foam detail
 falls on far fewer pixels than at 4K. ``maritime_test`` is dense (about 12 targets
 per frame, like the paper's test split) at 90 m with a 75 degree lens, where head-only swimmers

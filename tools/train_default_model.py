@@ -25,23 +25,24 @@ from sarmission.data.coco_video import read_coco_video, write_coco_video
 from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
 from sim.generate import merge_datasets
 
-#: The recipe of the shipped model: (preset, clips, frames per clip) and the training settings.
-TRAIN_SPLITS = (("maritime_train", 6, 90), ("maritime_train_high", 4, 90),
+#: The recipe of the shipped model: (preset, clips, frames per clip, frame size) and the
+#: training settings.
+TRAIN_SPLITS = (("maritime_train", 6, 90, "3840x2160"), ("maritime_train_high", 4, 90, "3840x2160"),
                 ("maritime_train_narrow", 6, 90, "960x540"))
-VAL_SPLIT = ("maritime_val", 2, 60)
+VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.02", "--seed", "0",
               "--frame-stride", "3", "--jitters", "4", "--ds", "1"]
 
 
-def render(folder: Path, split: tuple) -> Path:
-    """Render one split ``(preset, clips, frames[, WxH])`` into ``folder`` (4K unless a size is
-    given; skipped when its annotation file already exists)."""
-    name, clips, frames, *size = split
+def render(folder: Path, split: tuple[str, int, int, str]) -> Path:
+    """Render one split ``(preset, clips, frames, WxH)`` into ``folder`` (skipped when its
+    annotation file already exists)."""
+    name, clips, frames, size = split
     annotations = folder / f"{name}.json"
     if not annotations.is_file():
         code = sarmission(["sim", "generate", "--scenario", name, "--sequences", str(clips),
                            "--frames", str(frames), "--out", str(folder),
-                           "--size", size[0] if size else "3840x2160"])
+                           "--size", size])
         if code:
             sys.exit(code)
     return annotations

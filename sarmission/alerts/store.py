@@ -33,6 +33,17 @@ SCHEMA_VERSION = 2
 
 EventKind = Literal["new", "ack", "delivered", "position"]
 
+def _events_table(name: str) -> str:
+    """The event log's table definition (schema 2), under ``name``."""
+    return f"""
+CREATE TABLE {name} (
+    seq      INTEGER PRIMARY KEY AUTOINCREMENT,
+    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
+    time     REAL NOT NULL
+)"""
+
+
 _SCHEMA = """
 CREATE TABLE alerts (
     seq           INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -65,28 +76,24 @@ CREATE TABLE deliveries (
     time     REAL NOT NULL,
     PRIMARY KEY (alert_id, channel)
 ) WITHOUT ROWID;
-CREATE TABLE events (
-    seq      INTEGER PRIMARY KEY AUTOINCREMENT,
-    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
-    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
-    time     REAL NOT NULL
-);
-"""
+""" + _events_table("events")
 
 #: Statements taking a store from schema ``n`` to ``n + 1``.
 _UPGRADES: dict[int, str] = {
-    1: """
-CREATE TABLE events_2 (
-    seq      INTEGER PRIMARY KEY AUTOINCREMENT,
-    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
-    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
-    time     REAL NOT NULL
-);
+    1: _events_table("events_2") + """;
 INSERT INTO events_2 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
 DROP TABLE events;
 ALTER TABLE events_2 RENAME TO events
 """,
 }
+
+def _execute_script(conn: sqlite3.Connection, script: str) -> None:
+    """Run ``;``-separated statements inside the open transaction (``executescript`` would
+    commit it first)."""
+    for statement in script.split(";"):
+        if statement.strip():
+            conn.execute(statement)
+
 
 _SELECT = """
 SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time,
@@ -176,9 +183,7 @@ class AlertStore:
             with self._transaction():
                 # Another process may have created it between our check and the write lock.
                 if conn.execute("PRAGMA user_version").fetchone()[0] == 0:
-                    for statement in _SCHEMA.split(";"):
-                        if statement.strip():
-                            conn.execute(statement)
+                    _execute_script(conn, _SCHEMA)
                     conn.execute(f"PRAGMA application_id={APPLICATION_ID}")
                     conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
         elif version < SCHEMA_VERSION:
@@ -186,9 +191,7 @@ class AlertStore:
                 # Another process may have upgraded it between our check and the write lock.
                 version = conn.execute("PRAGMA user_version").fetchone()[0]
                 for step in range(version, SCHEMA_VERSION):
-                    for statement in _UPGRADES[step].split(";"):
-                        if statement.strip():
-                            conn.execute(statement)
+                    _execute_script(conn, _UPGRADES[step])
                 conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
 
     @contextmanager
