@@ -18,7 +18,6 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-STAGES = ("vstmd", "rpn", "crops", "head")
 BLOBS = 120  # enough moving targets that every N up to 100 is filled
 WARMUP_FRAMES = 8  # JIT compilation, allocator, and the medulla building up its potentials
 
@@ -82,7 +81,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
     """Time one configuration in this process (call it in a fresh process for memory figures)."""
     import cv2
 
-    from sarmission.perception.mitenet import MiteNet, build_head_runtime
+    from sarmission.perception.mitenet import STAGES, MiteNet, build_head_runtime
 
     images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
     memory_pass = []
@@ -140,13 +139,14 @@ def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: 
 
 def format_table(rows: list[BenchRow]) -> str:
     """Render the rows as a fixed-width text table."""
-    header = (f"{'ds':>2} {'N':>4} {'vstmd':>7} {'rpn':>6} {'crops':>6} {'head':>6} "
+    header = (f"{'ds':>2} {'N':>4} {'vstmd':>7} {'colour':>6} {'rpn':>6} {'crops':>6} {'head':>6} "
               f"{'total':>7} {'FPS':>6} {'mem':>6} {'ratio':>6} {'GFLOPs':>7} {'RSS MB':>7} "
               f"{'props':>6}")
     lines = [header, "-" * len(header)]
     for r in rows:
         lines.append(
-            f"{r.ds:>2} {r.topn:>4} {r.ms['vstmd']:>7.2f} {r.ms['rpn']:>6.2f} "
+            f"{r.ds:>2} {r.topn:>4} {r.ms['vstmd']:>7.2f} {r.ms.get('colour', 0.0):>6.2f} "
+            f"{r.ms['rpn']:>6.2f} "
             f"{r.ms['crops']:>6.2f} {r.ms['head']:>6.2f} {r.total_ms:>7.2f} {r.fps:>6.1f} "
             f"{r.memory_pass_ms:>6.2f} {r.ratio_to_memory_pass:>6.1f} "
             f"{r.gflops.get('total', float('nan')):>7.4f} {r.peak_rss_mb:>7.0f} "

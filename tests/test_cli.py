@@ -109,7 +109,7 @@ def test_bench_prints_a_json_row_per_configuration() -> None:
     assert [(r["ds"], r["topn"]) for r in rows] == [(2, 10), (4, 10)]
     for row in rows:
         assert row["total_ms"] > 0 and row["memory_pass_ms"] > 0 and row["peak_rss_mb"] > 0
-        assert set(row["ms"]) == {"vstmd", "rpn", "crops", "head"}
+        assert set(row["ms"]) == {"vstmd", "colour", "rpn", "crops", "head"}
 
 
 def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> None:
@@ -117,6 +117,16 @@ def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> Non
         main(["bench", "--size", "big"])
     assert stop.value.code == 2
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
+
+
+def test_detect_rejects_a_colour_share_outside_0_1(clip: Path, tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "d.json"
+    code = main(["detect", str(clip), "--colour-share", "1.2", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--colour-share must be in [0, 1], got 1.2" in err and "Traceback" not in err
+    assert not out.exists()
 
 
 def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:

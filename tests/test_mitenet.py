@@ -42,7 +42,7 @@ def test_proposals_find_the_moving_target(head: MiteHead):
         inside = ((boxes[:, 0] <= cx) & (cx <= boxes[:, 2])
                   & (boxes[:, 1] <= cy) & (cy <= boxes[:, 3]))
         assert inside.any(), (result.timestamp, boxes, (cx, cy))
-    assert set(net.per_stage_ms) == {"vstmd", "rpn", "crops", "head"}
+    assert set(net.per_stage_ms) == {"vstmd", "colour", "rpn", "crops", "head"}
     assert all(v >= 0 for v in net.per_stage_ms.values())
     assert results[0].motion.response.shape == (H // 2, W // 2)
 
@@ -121,3 +121,30 @@ def test_nms_drops_overlapping_lower_scores():
     boxes = np.array([[0, 0, 10, 10], [1, 1, 11, 11], [20, 20, 30, 30]], np.float32)
     keep = nms_xyxy(boxes, np.array([0.5, 0.9, 0.3]), 0.5)
     np.testing.assert_array_equal(keep, [1, 2])
+
+
+def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
+    """A still orange patch on tinted water next to the moving disc: only the colour proposals
+    reach it; with colour_share 0 (the paper's motion-only RPN) none does."""
+    frames, _ = _clip(8)
+    still = (110, 35)  # centre (x, y), well away from the disc's path
+    tinted = []
+    for frame in frames:
+        f = (frame.astype(np.float32) * np.array([0.95, 0.75, 0.4], np.float32)).astype(np.uint8)
+        f[still[1] - 5:still[1] + 5, still[0] - 5:still[0] + 5] = (20, 110, 240)
+        tinted.append(f)
+
+    def reaches(result) -> bool:
+        b = result.proposals.boxes
+        return bool(np.any((b[:, 0] <= still[0]) & (still[0] <= b[:, 2])
+                           & (b[:, 1] <= still[1]) & (still[1] <= b[:, 3])))
+
+    with_colour = _run(MiteNet(TorchHeadRuntime(head), ds=2, topn=5, colour_share=0.4), tinted)
+    motion_only = _run(MiteNet(TorchHeadRuntime(head), ds=2, topn=5, colour_share=0.0), tinted)
+    assert all(reaches(r) for r in with_colour[4:])
+    assert not any(reaches(r) for r in motion_only[4:])
+    assert all(r.proposals.from_colour.any() for r in with_colour[4:])
+    net = MiteNet(TorchHeadRuntime(head), ds=2, topn=25)
+    colour_flops = net.complexity(2160, 3840)["flops"]["rpn_other"]
+    no_colour = MiteNet(TorchHeadRuntime(head), ds=2, topn=25, colour_share=0.0)
+    assert colour_flops > no_colour.complexity(2160, 3840)["flops"]["rpn_other"]

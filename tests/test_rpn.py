@@ -171,3 +171,61 @@ def test_proposals_do_not_pile_up_on_the_frame_edge() -> None:
     strip_share = 1.0 - (320 - 16) * (240 - 16) / (320 * 240)
     assert len(pts) >= 50
     assert np.mean(edge < 8) <= 2.0 * strip_share
+
+
+def chroma_with_peaks(shape: tuple[int, int], peaks: list[tuple[int, int, float]]) -> np.ndarray:
+    """A chroma map (1/8 resolution), zero but for the given ``(row, col, value)`` maxima."""
+    chroma = np.zeros(shape, np.float32)
+    for row, col, value in peaks:
+        chroma[row, col] = value
+    return chroma
+
+
+def test_colour_slots_take_chroma_maxima_away_from_motion_points() -> None:
+    response = np.zeros((80, 80), np.float32)  # ds 2: a 160 x 160 frame
+    for k, (row, col) in enumerate([(10, 10), (10, 40), (40, 10), (40, 40), (70, 70)]):
+        response[row, col] = 1.0 - 0.1 * k
+    maps = maps_from_response(response, ds=2)
+    # 20 x 20 chroma map; (2, 2) sits on the first motion point (x = y = 19.5 vs 20.5).
+    chroma = chroma_with_peaks((20, 20), [(2, 2, 50.0), (15, 5, 40.0), (5, 15, 30.0),
+                                          (17, 17, 20.0)])
+    rpn = TTMRPN(topn=5, colour_share=0.4)
+    assert rpn.colour_slots == 2
+    props = rpn.propose(maps, chroma)
+    assert len(props) == 5
+    np.testing.assert_array_equal(props.source, [0, 0, 0, 1, 1])
+    np.testing.assert_array_equal(props.from_colour, [False, False, False, True, True])
+    # The colour proposals: the two strongest maxima not within 0.75 S of a kept motion point,
+    # boxes of side S centred on them (no forward shift), scored with the chroma value.
+    np.testing.assert_allclose(props.points[3:], [[43.5, 123.5], [123.5, 43.5]])
+    centres = (props.boxes[3:, :2] + props.boxes[3:, 2:]) / 2
+    np.testing.assert_allclose(centres, props.points[3:])
+    np.testing.assert_allclose(props.boxes[3:, 2] - props.boxes[3:, 0], 16.0)
+    np.testing.assert_allclose(props.scores[3:], [40.0, 30.0])
+
+
+def test_empty_colour_slots_go_back_to_motion_and_share_zero_ignores_colour() -> None:
+    response = np.zeros((80, 80), np.float32)
+    for k in range(6):
+        response[10 + 10 * k, 20] = 1.0 - 0.1 * k
+    maps = maps_from_response(response, ds=2)
+    flat = np.zeros((20, 20), np.float32)  # no anomaly anywhere (a grey frame)
+    props = TTMRPN(topn=5, colour_share=0.4).propose(maps, flat)
+    assert len(props) == 5 and not props.from_colour.any()
+    chroma = chroma_with_peaks((20, 20), [(18, 18, 9.0)])
+    only_motion = TTMRPN(topn=5, colour_share=0.0).propose(maps, chroma)
+    assert len(only_motion) == 5 and not only_motion.from_colour.any()
+    # Few motion maxima: colour proposals may fill more than their share.
+    sparse = np.zeros((80, 80), np.float32)
+    sparse[40, 40] = 1.0
+    mixed = TTMRPN(topn=5, colour_share=0.2).propose(
+        maps_from_response(sparse, ds=2),
+        chroma_with_peaks((20, 20), [(2, 2, 5.0), (2, 17, 4.0), (17, 2, 3.0)]))
+    np.testing.assert_array_equal(mixed.source, [0, 1, 1, 1])
+
+
+def test_colour_parameters_are_checked() -> None:
+    with pytest.raises(ValueError, match="colour_share"):
+        TTMRPN(colour_share=1.5)
+    with pytest.raises(ValueError, match="colour_nms"):
+        TTMRPN(colour_nms=2)

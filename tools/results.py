@@ -41,6 +41,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "docs" / "results.md"
 
@@ -670,7 +672,7 @@ def evaluate_split(head: Any, dataset: Any, ds: int, settings: Mapping[str, Any]
     from sarmission.perception.mitenet import MiteNet
 
     net = MiteNet(head, ds=ds, topn=settings["topn"], score_threshold=settings["conf"],
-                  ego_motion=settings["ego_motion"])
+                  ego_motion=settings["ego_motion"], colour_share=settings["colour_share"])
     run = run_mitenet(net, dataset, progress=progress, desc=f"ds={ds}")
     if run.frame_size is None or run.median_ms is None:
         raise ValueError("no frame of the dataset could be read")
@@ -714,7 +716,8 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
         label = f"`{model}`"
     settings = {"frames": args.frames, "sequences": args.sequences, "size": list(SIZE),
                 "fps": 30.0, "model": label, "runtime": args.runtime, "topn": TOPN,
-                "conf": args.conf, "ego_motion": "estimate", "m": 3, "k": 5,
+                "colour_share": args.colour_share, "conf": args.conf, "ego_motion": "estimate",
+                "m": 3, "k": 5,
                 "score_thr": 0.5, "nwd_thr": 0.5}
     head = build_head_runtime(model, args.runtime)
     args.work.mkdir(parents=True, exist_ok=True)
@@ -745,7 +748,7 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
         rows = []
         for ds, n in sorted(grid):
             rows += run_sweep(head, datasets["maritime_test"], [ds], [n], args.conf,
-                              progress=not args.no_progress)
+                              progress=not args.no_progress, colour_share=args.colour_share)
         results["sweep"] = rows
     return results
 
@@ -769,6 +772,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--runtime", choices=("onnx", "torch"), default="onnx")
     parser.add_argument("--conf", type=float, default=0.3,
                         help="minimum detection score kept (default: 0.3, as sarmission eval)")
+    parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
+                        help="share of the proposals from colour anomalies (default: %(default)s)")
     parser.add_argument("--ds8", action=argparse.BooleanOptionalAction, default=True,
                         help="also evaluate ds=8 (the paper's second column; default: on)")
     parser.add_argument("--sweep", action="store_true",

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+
 if TYPE_CHECKING:
     from sarmission.perception.mitenet import MiteNet
 
@@ -14,7 +16,7 @@ DEFAULT_SCORE_THRESHOLD = 0.3
 
 
 def add_detector_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--model --runtime --ds --topn --conf`` to ``parser``."""
+    """Add ``--model --runtime --ds --topn --colour-share --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument("--model", default=None,
                        help="head weights (.pt or .onnx); default: the shipped model")
@@ -24,6 +26,9 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
                        help="vSTMD down-sampling factor (default: %(default)s)")
     group.add_argument("--topn", type=int, default=DEFAULT_TOPN,
                        help="proposals per frame (default: %(default)s)")
+    group.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
+                       help="share of the proposals taken from colour anomalies rather than motion "
+                       "(0 = motion only, as in the paper; default: %(default)s)")
     group.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
                        help="compensate the camera's own motion (moving drone) or assume a still "
                        "camera (default: %(default)s)")
@@ -39,7 +44,14 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
 
     if args.topn < 1:
         raise ValueError(f"--topn must be at least 1, got {args.topn}")
+    check_colour_share(args.colour_share)
     model_path = args.model or default_model_path(args.runtime)
     head = load_head_runtime(model_path, runtime=args.runtime)
     return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
-                   ego_motion=args.ego_motion)
+                   ego_motion=args.ego_motion, colour_share=args.colour_share)
+
+
+def check_colour_share(value: float) -> None:
+    """Raise ``ValueError`` unless ``--colour-share`` is in [0, 1]."""
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"--colour-share must be in [0, 1], got {value}")

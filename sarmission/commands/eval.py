@@ -23,7 +23,7 @@ import argparse
 import logging
 from typing import Any
 
-from sarmission.commands.detector_options import add_detector_options
+from sarmission.commands.detector_options import add_detector_options, check_colour_share
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +90,7 @@ def _check_args(args: argparse.Namespace) -> None:
     topn = args.sweep_topn if args.sweep else [args.topn]
     if min(topn) < 1:
         raise ValueError(f"proposal counts must be at least 1, got {topn}")
+    check_colour_share(args.colour_share)
     bad = [d for d in args.sweep_ds if d not in DS_CHOICES]
     if args.sweep and bad:
         raise ValueError(f"--sweep-ds accepts {', '.join(map(str, DS_CHOICES))}, got {bad}")
@@ -130,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     if args.sweep:
         rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
                          max_frames=args.max_frames, progress=not args.no_progress,
-                         ego_motion=args.ego_motion,
+                         ego_motion=args.ego_motion, colour_share=args.colour_share,
                          **metric_options)
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
         return 0
@@ -165,7 +166,7 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
     from sarmission.perception.mitenet import MiteNet
 
     net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
-                  ego_motion=args.ego_motion)
+                  ego_motion=args.ego_motion, colour_share=args.colour_share)
     target_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=not args.no_progress)
     if not run.frame_ms:
@@ -175,13 +176,15 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
     median = run.median_ms
     return {**report, "detector": {
         "model": label, "runtime": args.runtime, "ds": args.ds, "topn": args.topn,
-        "conf": args.conf, "frames": len(run.frame_ms), "skipped_frames": run.skipped,
+        "colour_share": args.colour_share, "conf": args.conf, "frames": len(run.frame_ms),
+        "skipped_frames": run.skipped,
         "median_ms": median, "fps": 1e3 / median if median else None}}
 
 
 def _format_detector(detector: dict[str, Any]) -> str:
     skipped = detector["skipped_frames"]
     return (f"detector: {detector['model']} ({detector['runtime']}), ds={detector['ds']}, "
-            f"N={detector['topn']}, conf={detector['conf']:g}; {detector['frames']} frames"
+            f"N={detector['topn']}, colour share={detector['colour_share']:g}, "
+            f"conf={detector['conf']:g}; {detector['frames']} frames"
             + (f" ({skipped} unreadable, skipped)" if skipped else "")
             + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)")

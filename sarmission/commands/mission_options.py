@@ -16,7 +16,8 @@ if TYPE_CHECKING:
 
 def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool = False) -> None:
     """``--mission --set --alerts-db --rerun --max-frames --duration`` and the detector options
-    (``--ds --topn --conf`` default to the mission file's ``[detector]`` values)."""
+    (``--ds --topn --colour-share --conf`` default to the mission file's ``[detector]``
+    values)."""
     group = parser.add_argument_group("mission")
     group.add_argument("--mission", required=mission_required, default=None,
                        help="mission file (TOML); default: built-in defaults")
@@ -33,15 +34,17 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
                        help="stop after this many seconds")
     add_detector_options(parser)
     # None = the mission file's [detector] value (the file overrides code, the CLI the file).
-    parser.set_defaults(ds=None, topn=None, conf=None)
+    parser.set_defaults(ds=None, topn=None, colour_share=None, conf=None)
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
-    """The mission file with ``--set`` overrides, then ``--ds/--topn/--conf`` on top."""
+    """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/--conf``
+    on top."""
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
     for option, key in (("ds", "detector.ds"), ("topn", "detector.topn"),
+                        ("colour_share", "detector.colour_share"),
                         ("conf", "detector.score_threshold")):
         value = getattr(args, option)
         if value is not None:
@@ -73,7 +76,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
                 "many false ones). Pass --model PATH.")
     d = mission.detector
     detector = MiteNet(head, ds=d.ds, topn=d.topn, score_threshold=d.score_threshold,
-                       ego_motion=args.ego_motion)
+                       ego_motion=args.ego_motion, colour_share=d.colour_share)
     return detector, note
 
 

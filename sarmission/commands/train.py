@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+
 _DEFAULT_CLASSES = "swimmer,swimmer_with_life_jacket"
 
 
@@ -39,6 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="largest centre shift of a jittered box per axis, as a fraction of "
                              "its side (the RPN's boxes land up to about half a side off)")
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
+    parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
+                        help="share of the proposals taken from colour anomalies (0 = motion "
+                             "only; default: %(default)s)")
     parser.add_argument("--pos-nwd", type=float, default=0.4,
                         help="NWD at or above which a proposal is positive")
     parser.add_argument("--classes", default=_DEFAULT_CLASSES,
@@ -68,6 +73,7 @@ def config_from_args(args: argparse.Namespace):
     if args.out.suffix.lower() not in (".pt", ".pth"):
         raise ValueError(f"--out must be a .pt or .pth file, got {args.out}")
     crops = CropSettings(classes=classes, ds=args.ds, topn=args.topn,
+                         colour_share=args.colour_share,
                          frame_stride=args.frame_stride, pos_nwd=args.pos_nwd,
                          jitters_per_gt=args.jitters,
                          jitter_shift=args.jitter_shift, seed=args.seed)

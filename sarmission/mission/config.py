@@ -37,6 +37,7 @@ from typing import Any
 
 from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE
 
 ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
 
@@ -139,10 +140,12 @@ class CameraConfig:
 
 @dataclass
 class DetectorConfig:
-    """MITE-Net run-time settings: vSTMD down-sampling ``ds``, proposals ``topn``, threshold."""
+    """MITE-Net run-time settings: vSTMD down-sampling ``ds``, proposals ``topn`` (of which the
+    share ``colour_share`` comes from colour anomalies), detection threshold."""
 
     ds: int = 2
     topn: int = 25
+    colour_share: float = DEFAULT_COLOUR_SHARE
     score_threshold: float = 0.3
 
 
@@ -359,6 +362,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
         raise bad("[detector] ds", "expected an integer >= 1")
     if d.topn < 1:
         raise bad("[detector] topn", "expected an integer >= 1")
+    if not 0.0 <= d.colour_share <= 1.0:
+        raise bad("[detector] colour_share", "expected a number in [0, 1]")
     if not 0.0 <= d.score_threshold <= 1.0:
         raise bad("[detector] score_threshold", "expected a number in [0, 1]")
     if not 1 <= cfg.lock.m <= cfg.lock.k:

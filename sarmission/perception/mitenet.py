@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from sarmission.perception.chroma import CHROMA_SCALE, chroma_flops, chroma_if_wanted
 from sarmission.perception.crops import CROP_SIZE, crop_flops, motion_enhanced_crops
 from sarmission.perception.head import (
     HeadConfig,
@@ -28,10 +29,15 @@ from sarmission.perception.runtime import (
     TorchHeadRuntime,
     load_head_runtime,
 )
-from sarmission.perception.types import Detections, FrameResult, Proposals
+from sarmission.perception.types import (
+    DEFAULT_COLOUR_SHARE,
+    Detections,
+    FrameResult,
+    Proposals,
+)
 from sarmission.perception.vstmd import VSTMD
 
-STAGES = ("vstmd", "rpn", "crops", "head")
+STAGES = ("vstmd", "colour", "rpn", "crops", "head")
 
 
 def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "torch",
@@ -92,12 +98,15 @@ class MiteNet:
         nms_iou: IoU above which the lower-scored of two detections is dropped (None: no NMS).
         ego_motion: "estimate" compensates the camera's own motion in vSTMD (moving drone);
             "none" assumes a still camera and saves the estimate's cost.
+        colour_share: share of the N proposals taken from the chromatic anomaly map
+            (:mod:`~sarmission.perception.chroma`); 0 = motion proposals only (the paper's RPN).
     """
 
     def __init__(self, head_runtime: HeadRuntime, ds: int = 2, topn: int = 25,
                  target_size: float | None = None, box_size: float = 16.0,
                  score_threshold: float = 0.3, classes: tuple[str, ...] | None = None,
-                 nms_iou: float | None = 0.5, ego_motion: str = "estimate") -> None:
+                 nms_iou: float | None = 0.5, ego_motion: str = "estimate",
+                 colour_share: float = DEFAULT_COLOUR_SHARE) -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
             raise ValueError(f"classes {tuple(classes)} differ from the head's "
                              f"{tuple(head_runtime.classes)}")
@@ -111,7 +120,7 @@ class MiteNet:
         self.nms_iou = nms_iou
         size = {} if target_size is None else {"target_size": target_size}
         self.vstmd = VSTMD(ds=ds, ego_motion=ego_motion, **size)
-        self.rpn = TTMRPN(topn=topn, box_size=box_size)
+        self.rpn = TTMRPN(topn=topn, box_size=box_size, colour_share=colour_share)
         self.per_stage_ms: dict[str, float] = {}
         self._frame_shape: tuple[int, int] | None = None
 
@@ -159,14 +168,17 @@ class MiteNet:
         t0 = time.perf_counter()
         motion = self.vstmd.step(frame, shift_px=shift_px)
         t1 = time.perf_counter()
-        proposals = self.rpn.propose(motion)
+        chroma = chroma_if_wanted(frame, self.rpn.colour_slots > 0)
         t2 = time.perf_counter()
-        crops = motion_enhanced_crops(frame, motion, proposals.boxes, proposals.polarity)
+        proposals = self.rpn.propose(motion, chroma)
         t3 = time.perf_counter()
-        detections = self._detect(crops, proposals)
+        crops = motion_enhanced_crops(frame, motion, proposals.boxes, proposals.polarity)
         t4 = time.perf_counter()
-        self.per_stage_ms = {"vstmd": (t1 - t0) * 1e3, "rpn": (t2 - t1) * 1e3,
-                             "crops": (t3 - t2) * 1e3, "head": (t4 - t3) * 1e3}
+        detections = self._detect(crops, proposals)
+        t5 = time.perf_counter()
+        self.per_stage_ms = {"vstmd": (t1 - t0) * 1e3, "colour": (t2 - t1) * 1e3,
+                             "rpn": (t3 - t2) * 1e3, "crops": (t4 - t3) * 1e3,
+                             "head": (t5 - t4) * 1e3}
         return FrameResult(timestamp=float(timestamp), detections=detections,
                            proposals=proposals, motion=motion)
 
@@ -189,16 +201,21 @@ class MiteNet:
     def complexity(self, height: int, width: int) -> dict[str, dict[str, int]]:
         """Parameters and FLOPs per frame of each stage for ``height x width`` frames (Table 4).
 
-        ``flops``: ``vstmd`` (``VSTMD.flops``), ``rpn_other`` (``TTMRPN.flops`` on the 1/ds maps
-        plus the N crops), ``head`` (2 x MACs of every conv/linear per proposal, times N),
-        ``total``. N is ``topn``, the most proposals a frame can have. ``parameters``: ``head``
-        (learned) and ``total`` (vSTMD and the RPN learn nothing).
+        ``flops``: ``vstmd`` (``VSTMD.flops``), ``rpn_other`` (``TTMRPN.flops`` on the 1/ds maps,
+        the chromatic anomaly map when colour proposals are on, and the N crops), ``head``
+        (2 x MACs of every conv/linear per proposal, times N), ``total``. N is ``topn``, the most
+        proposals a frame can have. ``parameters``: ``head`` (learned) and ``total`` (vSTMD and
+        the RPN learn nothing).
         """
         head = MiteHead(HeadConfig.from_dict(self.head.config.to_dict()))
         map_h, map_w = self.vstmd.map_shape(height, width)
+        colour = self.rpn.colour_slots > 0 and min(height, width) >= CHROMA_SCALE
+        chroma_shape = (height // CHROMA_SCALE, width // CHROMA_SCALE) if colour else None
         flops = {
             "vstmd": int(self.vstmd.flops(height, width)),
-            "rpn_other": int(self.rpn.flops(map_h, map_w)) + crop_flops(self.topn, CROP_SIZE),
+            "rpn_other": (int(self.rpn.flops(map_h, map_w, chroma_shape))
+                          + crop_flops(self.topn, CROP_SIZE)
+                          + (chroma_flops(height, width) if colour else 0)),
             "head": head_flops_per_proposal(head) * self.topn,
         }
         flops["total"] = sum(flops.values())

@@ -24,6 +24,13 @@ class MotionMaps:
     response: np.ndarray
 
 
+#: :attr:`Proposals.source` values.
+MOTION, COLOUR = 0, 1
+#: Share of the N proposals that come from the chromatic anomaly map by default
+#: (:class:`~sarmission.perception.rpn.TTMRPN`).
+DEFAULT_COLOUR_SHARE = 0.4
+
+
 @dataclass
 class Proposals:
     """TTM-RPN proposals in full-resolution pixels (``N`` rows; ``N`` may be 0).
@@ -31,7 +38,9 @@ class Proposals:
     ``points`` are the response maxima (x, y) in full-resolution pixels before the forward shift,
     ``boxes`` the shifted square boxes ``[x1, y1, x2, y2]`` of side S, ``theta`` the motion
     direction in radians (0 = +x, counter-clockwise with y pointing up), ``polarity`` 1 for ON
-    (L > 0 at the point) and 0 for OFF.
+    (L > 0 at the point) and 0 for OFF, ``source`` :data:`MOTION` or :data:`COLOUR` (which map
+    the point is a maximum of; ``scores`` are that map's values). An empty ``source`` means all
+    motion.
     """
 
     points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.float32))
@@ -39,9 +48,17 @@ class Proposals:
     scores: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
     theta: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
     polarity: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.float32))
+    source: np.ndarray = field(default_factory=lambda: np.zeros((0,), np.uint8))
 
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
+
+    @property
+    def from_colour(self) -> np.ndarray:
+        """Boolean mask of the proposals that come from the chromatic anomaly map."""
+        if self.source.shape[0] != len(self):
+            return np.zeros(len(self), bool)
+        return self.source == COLOUR
 
 
 @dataclass

@@ -4,7 +4,8 @@ For each annotated video, frames go in order through vSTMD (``ds = 1`` by defaul
 trains) and TTM-RPN; at every ``frame_stride``-th frame after ``warmup_frames`` (vSTMD needs a few
 frames before it responds) the frame yields:
 
-* **RPN samples**: every proposal, labelled by NWD assignment to the frame's target GT
+* **RPN samples**: every proposal (motion and colour, ``colour_share``), labelled by NWD
+  assignment to the frame's target GT
   (:func:`~.sampling.assign_by_nwd`): positive (class of its best GT) when ``NWD >= pos_nwd``,
   otherwise negative. Crops come from
   :func:`~sarmission.perception.crops.motion_enhanced_crops` with the proposal boxes and
@@ -55,10 +56,11 @@ from sarmission.boxes import xywh_to_xyxy
 from sarmission.data.coco_video import VideoDataset, read_coco_video
 from sarmission.data.sequence import iter_sequence, sequence_ids, sequence_images
 from sarmission.evaluation.report import target_category_map
+from sarmission.perception.chroma import chroma_if_wanted
 from sarmission.perception.crops import CROP_SIZE, motion_enhanced_crops
 from sarmission.perception.head import DEFAULT_CLASSES
 from sarmission.perception.rpn import TTMRPN
-from sarmission.perception.types import MotionMaps
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MotionMaps
 from sarmission.perception.vstmd import VSTMD
 from sarmission.training.sampling import assign_by_nwd, jitter_boxes
 
@@ -72,8 +74,9 @@ CACHE_FORMAT = "sarmission.crop_cache"
 class CropSettings:
     """How crops are cut (part of the cache key).
 
-    ``target_size`` ``None`` keeps the vSTMD default; ``topn`` and ``box_size`` are the RPN's
-    N and S; ``jitters_per_gt`` 0 disables GT jittering (validation); ``crop_dtype`` is
+    ``target_size`` ``None`` keeps the vSTMD default; ``topn``, ``box_size`` and
+    ``colour_share`` are the RPN's N, S and share of colour proposals; ``jitters_per_gt`` 0
+    disables GT jittering (validation); ``crop_dtype`` is
     ``"float16"`` or ``"float32"``.
     """
 
@@ -82,6 +85,7 @@ class CropSettings:
     target_size: float | None = None
     topn: int = 25
     box_size: float = 16.0
+    colour_share: float = DEFAULT_COLOUR_SHARE
     frame_stride: int = 5
     warmup_frames: int = 3
     pos_nwd: float = 0.4
@@ -97,6 +101,8 @@ class CropSettings:
             raise ValueError("at least one class is needed")
         if self.frame_stride < 1 or self.warmup_frames < 0 or self.jitters_per_gt < 0:
             raise ValueError("frame_stride must be >= 1, warmup_frames and jitters_per_gt >= 0")
+        if not 0.0 <= self.colour_share <= 1.0:
+            raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
         if not 0.0 < self.pos_nwd <= 1.0:
             raise ValueError(f"pos_nwd must be in (0, 1], got {self.pos_nwd}")
         if self.crop_dtype not in ("float16", "float32"):
@@ -220,7 +226,7 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
                    settings: CropSettings, rng: np.random.Generator) -> dict[str, Tensor]:
     """Crops, labels, targets and boxes of one sampled frame (RPN samples, then jittered GT)."""
     gt_boxes, gt_classes = gt
-    proposals = rpn.propose(motion)
+    proposals = rpn.propose(motion, chroma_if_wanted(frame, rpn.colour_slots > 0))
     assignment = assign_by_nwd(proposals.boxes, gt_boxes, settings.pos_nwd)
     pos = assignment.positive
     labels = np.full(len(proposals), -1, np.int64)
@@ -273,7 +279,8 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
     with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, disable=not progress) as bar:
         for video_id in sequence_ids(dataset):
             vstmd = VSTMD(ds=settings.ds, **vstmd_kwargs)
-            rpn = TTMRPN(topn=settings.topn, box_size=settings.box_size)
+            rpn = TTMRPN(topn=settings.topn, box_size=settings.box_size,
+                         colour_share=settings.colour_share)
             for position, item in enumerate(iter_sequence(dataset, video_id, counters)):
                 bar.update(1)
                 motion = vstmd.step(item.frame_bgr)
