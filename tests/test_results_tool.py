@@ -179,3 +179,22 @@ def test_split_notes(tool):
     urban = _section(tool.render_results_md(results), "### `urban_test` vs UAVID-Tiny", "## 2.")
     assert "category `person` is scored as the head's class `swimmer`" in urban
     assert "No ground-truth target in these frames" in urban
+
+
+def test_colour_section_sets_both_rpns_side_by_side(tool):
+    results = _results()
+    assert "1b. Colour proposals" not in tool.render_results_md(results)  # older JSON: no runs
+    results["settings"]["colour_share"] = 0.4
+    results["splits"]["maritime_test"]["motion_only"] = _run(
+        2, 60.0, 30.0, 100.0, 25.0, 59, 240.0, {}, {"R@0.1": 0.5512, "R@0.5": 0.2},
+        {"R@0.1": 0.4412, "R@0.5": 0.3})
+    md = tool.render_results_md(results)
+    assert "N = 25 proposals (40% of them from colour anomalies" in md
+    section = _section(md, "## 1b. Colour proposals", "## 2.")
+    mixed = _line(section, "`maritime_test`, motion + colour").split("|")[2:9]
+    paper = _line(section, "`maritime_test`, motion only (paper)").split("|")[2:9]
+    assert mixed == [" 80.00 ", " 8/10 ", " 50.00 ", " 12.50 ", " 0.8123 ", " 0.5123 ",
+                     " 250.00 "]
+    assert paper == [" 60.00 ", " 8/10 ", " 30.00 ", " 25.00 ", " 0.5512 ", " 0.4412 ",
+                     " 240.00 "]
+    assert "`urban_test`" not in section  # no motion-only run there

@@ -124,12 +124,40 @@ def test_direction_convention_on_hand_made_maps() -> None:
 @pytest.mark.parametrize("ds", [1, 2, 4])
 def test_separable_lobula_equals_dense_kernel(ds: int) -> None:
     frames, _ = moving_target(150, 170, 10, (60.0, 70.0), (2.5, 1.0), 8, seed=4)
-    model = VSTMD(ds=ds, target_size=8)
+    model = VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds=1))
+    assert model.lobula_pool == 1
     maps = run(model, frames)
     dense = cv2.filter2D(maps.correlation.astype(np.float64), -1, model.dog_kernel(),
                          borderType=cv2.BORDER_CONSTANT)
     np.testing.assert_allclose(maps.response, np.maximum(dense, 0.0), rtol=0,
                                atol=1e-3 * float(maps.response.max()))
+
+
+@pytest.mark.parametrize("ds", [1, 2])
+def test_pooled_lobula_is_the_coarse_dense_lobula_resized(ds: int) -> None:
+    """For ds < lobula_ds (4): C block-averaged by 4/ds, the dense kernel sized for ds 4,
+    rectified, bilinearly resized back; the peak stays on the target, as without pooling."""
+    frames, centres = moving_target(150, 170, 10, (60.0, 70.0), (2.5, 1.0), 8, seed=4)
+    model = VSTMD(ds=ds, target_size=8)
+    f = 4 // ds
+    assert model.lobula_pool == f
+    assert model.sigma1 == pytest.approx(VSTMD.dog_sigmas(4, 8.0)[0])
+    maps = run(model, frames)
+    h, w = maps.correlation.shape
+    hl, wl = h // f, w // f
+    blocks = maps.correlation[:hl * f, :wl * f].astype(np.float64)
+    pooled = blocks.reshape(hl, f, wl, f).mean(axis=(1, 3))
+    coarse = np.maximum(cv2.filter2D(pooled, -1, model.dog_kernel(),
+                                     borderType=cv2.BORDER_CONSTANT), 0.0)
+    expected = np.zeros((h, w))
+    expected[:hl * f, :wl * f] = cv2.resize(coarse, (wl * f, hl * f),
+                                            interpolation=cv2.INTER_LINEAR)
+    np.testing.assert_allclose(maps.response, expected, rtol=0,
+                               atol=1e-3 * float(maps.response.max()))
+    exact = run(VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds=1)), frames)
+    # On the target or its trailing edge, as in test_peak_response_on_small_moving_target.
+    assert np.linalg.norm(peak_full_res(maps) - centres[-1]) <= 8 + 4
+    assert np.linalg.norm(peak_full_res(maps) - peak_full_res(exact)) <= 4
 
 
 def test_stream_equals_replay_and_reset() -> None:

@@ -20,6 +20,9 @@ Per frame ``I_t`` (grayscale in [0, 1]) the model runs, with state carried betwe
 
        W = A * [G(s1) - e * G(s2) - rho]^+  -  B * [G(s1) - e * G(s2) - rho]^-
 
+   evaluated at 1/max(ds, ``lobula_ds``) resolution (``lobula_ds = 4`` by default; see
+   "Lobula resolution" below) and returned on the 1/ds map.
+
 5. Direction (CDGC, evaluated only at requested points, :func:`direction_at`).
 
 **Linear shortcut.** Grayscale conversion, the retina blur, the temporal difference, the lamina
@@ -99,6 +102,20 @@ Gaussian is truncated at ``truncate`` sigmas and normalised to unit sum; pixels 
 count as zero. For a given T a weaker surround makes the sigmas smaller (the lobe is a larger
 multiple of s1), so the filters get cheaper: at 4K, ds 2, T 16 the lobula takes about 35 ms per
 frame with e = 1.5 against 64 ms with e = 3 (19 ms for the old default e = 3, T = 6.25).
+
+**Lobula resolution.** The lobula's kernels are several map pixels wide at ds 1 and 2 (T = 16,
+ds 2: s1 = 3.5, s2 = 6.9 map px, 23- and 43-tap Gaussians and an 11 x 11 bump), and its response
+is smooth at that scale, so it need not be computed on every map pixel. For ``ds <
+lobula_ds`` the model area-pools ``C`` by ``f = lobula_ds / ds`` (exact 2x halvings), filters it
+with the kernels sized for ``ds * f`` (the same size rule, so the same preferred target size)
+and resizes the rectified response back to the 1/ds map bilinearly (pixel-centre aligned; the
+last ``h % f`` rows and ``w % f`` columns, which no pooled pixel covers, get ``R = 0``). The
+lamina, medulla and ``C`` stay at 1/ds, and so do the RPN's maxima, direction and polarity.
+Measured at ds 2 (4K, T 16, maritime_test 2 x 150 frames and maritime_val 2 x 60, full MITE-Net
+with colour proposals, N 25): SSR 93.0 % and 70 % with and without pooling alike, RPN R@0.1
+0.843 vs 0.849 and 0.616 vs 0.616, detection-level FAR 45.2 vs 45.4 % and 55.7 vs 55.8 %, while
+the lobula's cost drops from about 15 ms to 4 ms per frame on two cores. ``lobula_ds = 1``
+restores the lobula at the map's own resolution.
 
 **Ego-motion compensation.** On a moving camera the whole scene translates by ``s_t``
 (content at ``x`` in frame t-1 is at ``x + s_t`` in frame t). The correlation only answers to
@@ -180,6 +197,8 @@ class VSTMDParams:
     size_ref: float = 6.25
     #: Smallest centre sigma in map pixels (below this the Gaussian is a single tap).
     min_sigma: float = 0.5
+    #: The lobula runs at 1/max(ds, lobula_ds) resolution (1, 2, 4 or 8; 1 = on the 1/ds map).
+    lobula_ds: int = 4
     #: Gaussian kernels are cut at this many sigmas.
     truncate: float = 3.0
     #: Ego-motion estimation: largest image (width, height) the shift is estimated on.
@@ -207,6 +226,8 @@ class VSTMDParams:
             if not 0 < e < ratio * ratio:
                 raise ValueError(f"{name} must be in (0, (sigma2/sigma1)^2 = {ratio * ratio:g}) "
                                  f"for the kernel to have an excitatory centre, got {e}")
+        if self.lobula_ds not in VALID_DS:
+            raise ValueError(f"lobula_ds must be one of {VALID_DS}, got {self.lobula_ds}")
         if not (self.dog_a > 0 and self.dog_b >= 0):
             raise ValueError(f"need dog_a > 0 and dog_b >= 0, got {self.dog_a}, {self.dog_b}")
 
@@ -624,7 +645,10 @@ class VSTMD:
         p = self.params
         a0, decay = p.lamina_coefficients()
         self._a0, self._decay = np.float32(a0), np.float32(decay)
-        self.sigma1, self.sigma2 = self.dog_sigmas(self.ds, self.target_size, p)
+        #: The lobula's pooling of ``C`` (1 = none); its sigmas are in pooled map pixels.
+        self.lobula_pool = max(1, p.lobula_ds // self.ds)
+        self.sigma1, self.sigma2 = self.dog_sigmas(self.ds * self.lobula_pool,
+                                                   self.target_size, p)
         self._build_lobula_kernels()
         self._estimator = ShiftEstimator(p) if ego_motion == "estimate" else None
         self.reset()
@@ -705,7 +729,10 @@ class VSTMD:
     def _allocate(self, h: int, w: int) -> None:
         names = ("temporal_change", "v_on", "v_off", "correlation", "response")
         self._sets = [{n: np.zeros((h, w), np.float32) for n in names} for _ in range(2)]
-        self._scratch = {n: np.empty((h, w), np.float32) for n in ("centre", "surround", "bump")}
+        f = self.lobula_pool
+        hl, wl = h // f, w // f
+        lobula = ("centre", "surround", "bump") + (("pooled", "coarse") if f > 1 else ())
+        self._scratch = {n: np.empty((hl, wl), np.float32) for n in lobula}
         self._scratch["column"] = np.empty(w + 3, np.float32)
         self._p_prev = np.zeros((h, w), np.float32)
         self._p_spare = np.zeros((h, w), np.float32)
@@ -801,6 +828,26 @@ class VSTMD:
         return (0.0, 0.0) if self._first else moved
 
     def _lobula(self, corr: np.ndarray, out: np.ndarray) -> None:
+        """``out = max(W * corr, 0)``, at the lobula's resolution (module docstring)."""
+        f = self.lobula_pool
+        if f == 1:
+            self._lobula_filter(corr, out)
+            return
+        s = self._scratch
+        hl, wl = s["pooled"].shape
+        if hl == 0 or wl == 0:
+            out[...] = 0.0
+            return
+        s["pooled"][...] = _halve_to(corr[:hl * f, :wl * f], int(math.log2(f)))
+        self._lobula_filter(s["pooled"], s["coarse"])
+        size = (wl * f, hl * f)
+        if out.shape == size[::-1]:
+            cv2.resize(s["coarse"], size, dst=out, interpolation=cv2.INTER_LINEAR)
+            return
+        out[...] = 0.0
+        out[:hl * f, :wl * f] = cv2.resize(s["coarse"], size, interpolation=cv2.INTER_LINEAR)
+
+    def _lobula_filter(self, corr: np.ndarray, out: np.ndarray) -> None:
         """``out = max(W * corr, 0)`` via the separable decomposition of ``W``."""
         s = self._scratch
         border = cv2.BORDER_CONSTANT
@@ -821,19 +868,24 @@ class VSTMD:
 
             gray 5/px and retina 3x3 separable 10/px at full resolution (cropped to ds multiples);
             per map px: pooling ds^2 (ds > 1), scale 1, lamina 4, ON/OFF 2, cIDP 2 x (7 + 14),
-            C 1, lobula 2(2K1-1) + 2(2K2-1) + (2Kb^2 - 1) (+ 4 for rho != 0), combine 3;
-            with ego_motion="estimate" also the shift resampling, 34 per map px, and
-            :meth:`ShiftEstimator.flops`.
+            C 1; per lobula px: 2(2K1-1) + 2(2K2-1) + (2Kb^2 - 1) (+ 4 for rho != 0), combine 3;
+            when the lobula pools C by f > 1, also the pooling (4/3 per map px) and the bilinear
+            resize back (6 per map px); with ego_motion="estimate" also the shift resampling,
+            34 per map px, and :meth:`ShiftEstimator.flops`.
         """
         h, w = self.map_shape(height, width)
         full = h * self.ds * w * self.ds
         maps = h * w
+        f = self.lobula_pool
+        lobula_px = (h // f) * (w // f)
         per_map = (self.ds ** 2 if self.ds > 1 else 0) + 1 + 4 + 2 + 2 * (7 + 14) + 1
         k1, k2, kb = self._g1.size, self._g2.size, self._bump.shape[0]
-        per_map += 2 * (2 * k1 - 1) + 2 * (2 * k2 - 1) + (2 * kb * kb - 1) + 3
+        per_lobula = 2 * (2 * k1 - 1) + 2 * (2 * k2 - 1) + (2 * kb * kb - 1) + 3
         if self._rho_scaled:
-            per_map += 4
-        total = full * (5 + 10) + maps * per_map
+            per_lobula += 4
+        total = full * (5 + 10) + maps * per_map + lobula_px * per_lobula
+        if f > 1:
+            total += int(maps * (4 / 3 + 6))
         if self._estimator is not None:
             # cubic P~ (4 + 4 taps, 2 ops each) and bilinear L~, V~ (3 x 6) when the camera moves
             total += maps * 34 + self._estimator.flops(h, w)
