@@ -29,14 +29,19 @@ def sea_with_patch(height: int, width: int, cx: int, cy: int, side: int,
     return frame
 
 
-def test_pooling_is_the_block_mean_and_ignores_the_remainder() -> None:
+def test_pooling_averages_the_sampled_pixels_and_ignores_the_remainder() -> None:
     rng = np.random.default_rng(0)
     frame = rng.integers(0, 256, (70, 93, 3), dtype=np.uint8)
     pooled = pooled_colour(frame)
     assert pooled.shape == (70 // 8, 93 // 8, 3)
-    blocks = frame[:64, :88].reshape(8, 8, 11, 8, 3).astype(np.float64).mean(axis=(1, 3))
-    # Three rounded 2x halvings: within 1.5 grey levels of the exact block mean.
-    assert np.abs(pooled.astype(np.float64) - blocks).max() <= 1.5
+    # Rows and columns 1 and 2 of every 4 are sampled: each map pixel is the mean of 16.
+    sampled = np.arange(88) % 4
+    keep_cols = (sampled == 1) | (sampled == 2)
+    keep_rows = keep_cols[:64]
+    picked = frame[:64, :88][keep_rows][:, keep_cols].astype(np.float64)
+    expected = picked.reshape(8, 4, 11, 4, 3).mean(axis=(1, 3))
+    # Two rounded uint8 stages: within 1.5 grey levels of the exact mean.
+    assert np.abs(pooled.astype(np.float64) - expected).max() <= 1.5
 
 
 def test_a_coloured_patch_is_the_strongest_anomaly() -> None:

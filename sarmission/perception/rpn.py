@@ -144,11 +144,15 @@ class TTMRPN:
     @staticmethod
     def _drop_plateau_twins(rows: np.ndarray, cols: np.ndarray, scores: np.ndarray,
                             half: int) -> np.ndarray:
-        """Indices of ranked maxima without an equal-scored, better-ranked one in its window."""
+        """Indices of ranked maxima without an equal-scored, better-ranked one in its window
+        (scores are sorted best first, so only runs of equal scores need checking)."""
+        tied = np.zeros(scores.size, bool)
+        tied[1:] = scores[1:] == scores[:-1]
         kept: list[int] = []
         for k in range(rows.size):
-            twin = any(scores[q] == scores[k] and abs(int(rows[q]) - int(rows[k])) <= half
-                       and abs(int(cols[q]) - int(cols[k])) <= half for q in kept)
+            twin = tied[k] and any(
+                scores[q] == scores[k] and abs(int(rows[q]) - int(rows[k])) <= half
+                and abs(int(cols[q]) - int(cols[k])) <= half for q in kept)
             if not twin:
                 kept.append(k)
         return np.asarray(kept, dtype=np.int64)
