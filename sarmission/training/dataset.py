@@ -66,7 +66,9 @@ from sarmission.training.sampling import assign_by_nwd, jitter_boxes
 
 log = logging.getLogger(__name__)
 
-CACHE_VERSION = 1
+#: Bumped whenever the proposals or crops a setting produces change (2: colour proposals and the
+#: pooled lobula), so that an old cache is never mistaken for the current recipe.
+CACHE_VERSION = 2
 CACHE_FORMAT = "sarmission.crop_cache"
 
 
