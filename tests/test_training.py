@@ -252,6 +252,19 @@ def test_training_lowers_loss_saves_checkpoint_and_is_deterministic(data, tmp_pa
     assert not torch.equal(_weights(other.state)["stem.0.0.weight"], a["stem.0.0.weight"])
 
 
+def test_checkpoint_is_chosen_from_select_from_on(data, tmp_path):
+    """Same run, epochs 1-2 barred: the best of epochs 3-4 by validation F2 is kept."""
+    late = train(_config(data, tmp_path / "late" / "head.pt", epochs=4, select_from=3))
+    f2 = [h["f2"] for h in late.history]
+    assert late.best_epoch in (3, 4)
+    assert late.best_f2 == max(f2[2:])
+    assert late.best_epoch == 3 + int(f2[3] > f2[2])
+    with pytest.raises(ValueError, match="select_from"):
+        _config(data, tmp_path / "x.pt", epochs=4, select_from=5).validate()
+    with pytest.raises(ValueError, match="select_from"):
+        _config(data, tmp_path / "x.pt", epochs=4, select_from=0).validate()
+
+
 def test_resume_continues_exactly(data, tmp_path, monkeypatch):
     full = train(_config(data, tmp_path / "full" / "head.pt"))
     out = tmp_path / "cut" / "head.pt"

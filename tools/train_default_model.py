@@ -31,7 +31,7 @@ TRAIN_SPLITS = (("maritime_train", 6, 90, "3840x2160"), ("maritime_train_high", 
                 ("maritime_train_narrow", 6, 90, "960x540"))
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.02", "--seed", "0",
-              "--frame-stride", "3", "--jitters", "4", "--ds", "1"]
+              "--frame-stride", "3", "--jitters", "4", "--ds", "1", "--select-from", "10"]
 
 
 def render(folder: Path, split: tuple[str, int, int, str]) -> Path:

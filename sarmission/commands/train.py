@@ -31,6 +31,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--batch-size", type=int, default=64)
     parser.add_argument("--lr", type=float, default=0.02, help="peak learning rate")
     parser.add_argument("--optimizer", choices=("sgd", "adamw"), default="sgd")
+    parser.add_argument("--select-from", type=int, default=1,
+                        help="first epoch whose head may be kept as the best checkpoint "
+                             "(default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ds", type=int, default=1, choices=(1, 2, 4, 8),
                         help="vSTMD down-sampling factor for the training crops")
@@ -79,6 +82,7 @@ def config_from_args(args: argparse.Namespace):
                          jitter_shift=args.jitter_shift, seed=args.seed)
     return TrainConfig(train=args.train, val=args.val, out=args.out, epochs=args.epochs,
                        batch_size=args.batch_size, lr=args.lr, optimizer=args.optimizer,
+                       select_from=args.select_from,
                        seed=args.seed, crops=crops, cache_dir=args.cache_dir,
                        resume=args.resume, num_threads=args.threads,
                        progress=not args.no_progress)
