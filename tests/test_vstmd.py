@@ -124,7 +124,7 @@ def test_direction_convention_on_hand_made_maps() -> None:
 @pytest.mark.parametrize("ds", [1, 2, 4])
 def test_separable_lobula_equals_dense_kernel(ds: int) -> None:
     frames, _ = moving_target(150, 170, 10, (60.0, 70.0), (2.5, 1.0), 8, seed=4)
-    model = VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds=1))
+    model = VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds_range=(1, 1)))
     assert model.lobula_pool == 1
     maps = run(model, frames)
     dense = cv2.filter2D(maps.correlation.astype(np.float64), -1, model.dog_kernel(),
@@ -135,12 +135,16 @@ def test_separable_lobula_equals_dense_kernel(ds: int) -> None:
 
 @pytest.mark.parametrize("ds", [1, 2])
 def test_pooled_lobula_is_the_coarse_dense_lobula_resized(ds: int) -> None:
-    """For ds < lobula_ds (4): C block-averaged by 4/ds, the dense kernel sized for ds 4,
+    """ds 1 and 2 (lobula at 1/4): C block-averaged by 4/ds, the dense kernel sized for ds 4,
     rectified, bilinearly resized back; the peak stays on the target, as without pooling."""
     frames, centres = moving_target(150, 170, 10, (60.0, 70.0), (2.5, 1.0), 8, seed=4)
     model = VSTMD(ds=ds, target_size=8)
     f = 4 // ds
     assert model.lobula_pool == f
+    assert VSTMD(ds=4).lobula_pool == 2 and VSTMD(ds=8).lobula_pool == 1
+    assert VSTMD(ds=4, target_size=8).lobula_pool == 1  # s1 at 1/8 would be 0.43 px
+    with pytest.raises(ValueError, match="lobula_ds_range"):
+        VSTMDParams(lobula_ds_range=(8, 4))
     assert model.sigma1 == pytest.approx(VSTMD.dog_sigmas(4, 8.0)[0])
     maps = run(model, frames)
     h, w = maps.correlation.shape
@@ -154,7 +158,7 @@ def test_pooled_lobula_is_the_coarse_dense_lobula_resized(ds: int) -> None:
                                             interpolation=cv2.INTER_LINEAR)
     np.testing.assert_allclose(maps.response, expected, rtol=0,
                                atol=1e-3 * float(maps.response.max()))
-    exact = run(VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds=1)), frames)
+    exact = run(VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds_range=(1, 1))), frames)
     # On the target or its trailing edge, as in test_peak_response_on_small_moving_target.
     assert np.linalg.norm(peak_full_res(maps) - centres[-1]) <= 8 + 4
     assert np.linalg.norm(peak_full_res(maps) - peak_full_res(exact)) <= 4

@@ -123,12 +123,19 @@ class TTMRPN:
         count = self.topn if count is None else count
         window = self._window if window is None else window
         flat = response.ravel()
-        above = np.flatnonzero(flat > self.min_score)
-        if above.size == 0 or count < 1:
+        positive = flat > self.min_score
+        n_positive = int(np.count_nonzero(positive))
+        if n_positive == 0 or count < 1:
             empty = np.zeros(0, np.int64)
             return empty, empty, np.zeros(0, np.float32)
-        dilated = cv2.dilate(response, window, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-        cand = above[flat[above] == dilated.ravel()[above]]
+        dilated = cv2.dilate(response, window, borderType=cv2.BORDER_CONSTANT,
+                             borderValue=0).ravel()
+        if n_positive > flat.size // 16:  # dense (a chroma map): compare whole arrays
+            positive &= flat == dilated
+            cand = np.flatnonzero(positive)
+        else:  # sparse (the rectified R): compare at the positive pixels only
+            above = np.flatnonzero(positive)
+            cand = above[flat[above] == dilated[above]]
         scores = flat[cand]
         # Keep a margin over N so that plateau duplicates removed below cannot starve the list.
         keep = min(cand.size, 2 * count)
