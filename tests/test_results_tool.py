@@ -121,6 +121,18 @@ def test_statements_follow_the_numbers(tool):
     assert "**Worse**" not in _line(urban, "SSR at ds=2")
 
 
+def test_ssr_shortfall_counts_the_unlocked_trajectories(tool):
+    results = _results()
+    sar = results["splits"]["maritime_test"]["runs"]["2"]["sar"]
+    sar.update(m=3, k=5, unlocked=[{"n_frames": 1, "n_hits": 0}, {"n_frames": 7, "n_hits": 3},
+                                   {"n_frames": 150, "n_hits": 1}])
+    line = _line(tool.render_results_md(results), "**Worse** — SSR at ds=2")
+    assert ("Of the 3 unlocked trajectories, 1 are annotated in fewer than 3 frames (no detector "
+            "can lock them) and 1 have 3 or more hits that never fall inside one 5-frame "
+            "window.") in line
+    assert "come within NWD 0.1 of 81 % of the target boxes" in line
+
+
 def test_box_table_and_statements(tool):
     md = tool.render_results_md(_results())
     boxes = _section(md, "## 2.", "## 3.")

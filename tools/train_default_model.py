@@ -6,7 +6,7 @@ demo's 960x540 view; merged into one training file) and the validation split, tr
 ``sarmission train`` (seeded, deterministic) and writes ``mitenet_head.pt`` and
 ``mitenet_head.onnx`` into the package::
 
-    python tools/train_default_model.py            # about 10 minutes on 2 CPU cores
+    python tools/train_default_model.py            # about 11 minutes on 2 CPU cores
     python tools/train_default_model.py --work /tmp/sarmission-train --epochs 30
 
 The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
