@@ -159,9 +159,11 @@ def _rpn_limit(run: dict) -> str:
     if unlocked:
         short = sum(1 for t in unlocked if t["n_frames"] < m)
         hits = sum(1 for t in unlocked if t["n_hits"] >= m)
-        lines = (f"Of the {len(unlocked)} unlocked trajectories, {short} are annotated in fewer "
-                 f"than {m} frames (no detector can lock them) and {hits} have {m} or more hits "
-                 f"that never fall inside one {k}-frame window. ")
+        lines = (f"Of the {len(unlocked)} unlocked trajectories, {short} "
+                 f"{'is' if short == 1 else 'are'} annotated in fewer than {m} frames (no "
+                 f"detector can lock {'it' if short == 1 else 'them'}) and {hits} "
+                 f"{'has' if hits == 1 else 'have'} {m} or more hits that never fall inside one "
+                 f"{k}-frame window. ")
     return (lines + f"The RPN's top-N proposals come within NWD 0.1 of "
             f"{100 * rpn['R@0.1']:.0f} % of the target boxes (section 4); a target it does not "
             "propose cannot be detected. Large swimmers (30-40 px) are proposed, but the head "
