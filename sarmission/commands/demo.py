@@ -59,8 +59,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="scenario seed (default: 0)")
     add_detector_options(parser)
     # Motion proposals only by default: in this narrow 960x540 view the colour proposals land on
-    # boats and birds, which the head calls swimmers (four demo runs: 134-187 false alerts in
-    # 43 s with colour share 0.2 or 0.4, 18-27 with 0); --colour-share 0.4 shows that trade-off.
+    # boats and birds, which the head calls swimmers (demo runs of 43 s: 134-187 false alerts
+    # with colour share 0.2 or 0.4 in all four, 27-87 with 0 in three); --colour-share 0.4
+    # shows that trade-off.
     parser.set_defaults(func=run, colour_share=DEMO_COLOUR_SHARE)
 
 
