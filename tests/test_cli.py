@@ -142,3 +142,10 @@ def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
         f"sarmission run: error: cannot open camera {index}: no such device "
         f"(/dev/video{index} does not exist)"]
     assert not (tmp_path / "alerts.db").exists()  # nothing was started
+
+
+def test_bad_crop_scales_exit_with_a_message(capsys: pytest.CaptureFixture) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(["detect", "clip.mp4", "--crop-scales", "1,0"])
+    assert stop.value.code == 2
+    assert "--crop-scales: expected comma-separated numbers in (0, 8]" in capsys.readouterr().err

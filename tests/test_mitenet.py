@@ -148,3 +148,29 @@ def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
     colour_flops = net.complexity(2160, 3840)["flops"]["rpn_other"]
     no_colour = MiteNet(TorchHeadRuntime(head), ds=2, topn=25, colour_share=0.0)
     assert colour_flops > no_colour.complexity(2160, 3840)["flops"]["rpn_other"]
+
+
+def test_crop_scales_cut_every_proposal_at_each_scale(head: MiteHead):
+    """Scales (1, 2): the head sees each proposal box and its double around the same centre;
+    detections of both go through one NMS, and the head's FLOPs and crops double."""
+    frames, _ = _clip(8)
+    single = MiteNet(TorchHeadRuntime(head), ds=2, topn=5, score_threshold=0.0, nms_iou=None)
+    double = MiteNet(TorchHeadRuntime(head), ds=2, topn=5, score_threshold=0.0, nms_iou=None,
+                     crop_scales=(1.0, 2.0))
+    last_single, last_double = _run(single, frames)[-1], _run(double, frames)[-1]
+    n = len(last_double.proposals)
+    np.testing.assert_array_equal(last_single.proposals.boxes, last_double.proposals.boxes)
+    assert len(last_double.detections) == 2 * n
+    np.testing.assert_allclose(last_double.detections.boxes[:n], last_single.detections.boxes,
+                               atol=1e-3)  # batch size changes float rounding only
+    boxes, polarity = double._scaled_boxes(last_double.proposals)
+    p = last_double.proposals.boxes
+    np.testing.assert_allclose((boxes[n:, :2] + boxes[n:, 2:]) / 2, (p[:, :2] + p[:, 2:]) / 2)
+    np.testing.assert_allclose(boxes[n:, 2] - boxes[n:, 0], 2 * (p[:, 2] - p[:, 0]))
+    np.testing.assert_array_equal(polarity, np.tile(last_double.proposals.polarity, 2))
+    one, two = (net.complexity(2160, 3840)["flops"]["head"] for net in (single, double))
+    assert two == 2 * one
+    with pytest.raises(ValueError, match="crop_scales"):
+        MiteNet(TorchHeadRuntime(head), crop_scales=(1.0, 0.0))
+    with pytest.raises(ValueError, match="crop_scales"):
+        MiteNet(TorchHeadRuntime(head), crop_scales=())

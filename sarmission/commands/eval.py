@@ -132,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
         rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
                          max_frames=args.max_frames, progress=not args.no_progress,
                          ego_motion=args.ego_motion, colour_share=args.colour_share,
-                         **metric_options)
+                         crop_scales=args.crop_scales, **metric_options)
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
         return 0
     report = _evaluate_model(args, dataset, head, label, metric_options)
@@ -166,7 +166,8 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
     from sarmission.perception.mitenet import MiteNet
 
     net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
-                  ego_motion=args.ego_motion, colour_share=args.colour_share)
+                  ego_motion=args.ego_motion, colour_share=args.colour_share,
+                  crop_scales=args.crop_scales)
     target_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=not args.no_progress)
     if not run.frame_ms:
@@ -176,7 +177,8 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
     median = run.median_ms
     return {**report, "detector": {
         "model": label, "runtime": args.runtime, "ds": args.ds, "topn": args.topn,
-        "colour_share": args.colour_share, "conf": args.conf, "frames": len(run.frame_ms),
+        "colour_share": args.colour_share, "crop_scales": list(args.crop_scales),
+        "conf": args.conf, "frames": len(run.frame_ms),
         "skipped_frames": run.skipped,
         "median_ms": median, "fps": 1e3 / median if median else None}}
 

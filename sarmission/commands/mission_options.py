@@ -34,19 +34,22 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
                        help="stop after this many seconds")
     add_detector_options(parser)
     # None = the mission file's [detector] value (the file overrides code, the CLI the file).
-    parser.set_defaults(ds=None, topn=None, colour_share=None, conf=None)
+    parser.set_defaults(ds=None, topn=None, colour_share=None, crop_scales=None, conf=None)
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
-    """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/--conf``
-    on top."""
+    """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/
+    --crop-scales/--conf`` on top."""
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
     for option, key in (("ds", "detector.ds"), ("topn", "detector.topn"),
                         ("colour_share", "detector.colour_share"),
+                        ("crop_scales", "detector.crop_scales"),
                         ("conf", "detector.score_threshold")):
         value = getattr(args, option)
+        if isinstance(value, tuple):
+            value = "[" + ", ".join(repr(v) for v in value) + "]"
         if value is not None:
             overrides.append(f"{key}={value}")
     if args.max_frames is not None and args.max_frames < 1:
@@ -76,7 +79,8 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
                 "many false ones). Pass --model PATH.")
     d = mission.detector
     detector = MiteNet(head, ds=d.ds, topn=d.topn, score_threshold=d.score_threshold,
-                       ego_motion=args.ego_motion, colour_share=d.colour_share)
+                       ego_motion=args.ego_motion, colour_share=d.colour_share,
+                       crop_scales=tuple(d.crop_scales))
     return detector, note
 
 

@@ -98,7 +98,8 @@ def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int]
               topn_values: Sequence[int], score_threshold: float, *, m: int = 3, k: int = 5,
               score_thr: float = 0.5, nwd_thr: float = 0.5, max_frames: int | None = None,
               progress: bool = True, ego_motion: str = "estimate",
-              colour_share: float = DEFAULT_COLOUR_SHARE) -> list[dict[str, Any]]:
+              colour_share: float = DEFAULT_COLOUR_SHARE,
+              crop_scales: tuple[float, ...] = (1.0,)) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
     Row keys: ``ds``, ``topn``, ``ssr`` and ``far_per_frame`` (%), ``far_detections`` (%),
@@ -110,7 +111,8 @@ def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int]
     for ds in ds_values:
         for topn in topn_values:
             net = MiteNet(head, ds=ds, topn=topn, score_threshold=score_threshold,
-                          ego_motion=ego_motion, colour_share=colour_share)
+                          ego_motion=ego_motion, colour_share=colour_share,
+                          crop_scales=crop_scales)
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:
                 raise ValueError("no frame of the dataset could be read")

@@ -141,11 +141,13 @@ class CameraConfig:
 @dataclass
 class DetectorConfig:
     """MITE-Net run-time settings: vSTMD down-sampling ``ds``, proposals ``topn`` (of which the
-    share ``colour_share`` comes from colour anomalies), detection threshold."""
+    share ``colour_share`` comes from colour anomalies), the head's ``crop_scales`` (see
+    :class:`~sarmission.perception.mitenet.MiteNet`), detection threshold."""
 
     ds: int = 2
     topn: int = 25
     colour_share: float = DEFAULT_COLOUR_SHARE
+    crop_scales: tuple[float, ...] = (1.0,)
     score_threshold: float = 0.3
 
 
@@ -364,6 +366,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
         raise bad("[detector] topn", "expected an integer >= 1")
     if not 0.0 <= d.colour_share <= 1.0:
         raise bad("[detector] colour_share", "expected a number in [0, 1]")
+    if not d.crop_scales or any(not 0.0 < s <= 8.0 for s in d.crop_scales):
+        raise bad("[detector] crop_scales", "expected a list of numbers in (0, 8]")
     if not 0.0 <= d.score_threshold <= 1.0:
         raise bad("[detector] score_threshold", "expected a number in [0, 1]")
     if not 1 <= cfg.lock.m <= cfg.lock.k:
