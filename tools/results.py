@@ -20,7 +20,8 @@ function of that dict (:func:`render_results_md`). Its keys::
     settings {frames, sequences, size, fps, model, runtime, topn, colour_share, conf,
               ego_motion, m, k, score_thr, nwd_thr},
     splits {<preset>: {preset {seed, description}, runs {"<ds>": run},
-                       motion_only: run at ds=2 with colour_share 0 (or None)}},
+                       motion_only: run at ds=2 with colour_share 0 (or None),
+                       two_scales: run at ds=2 with crop_scales (1, 2) (or None)}},
     sweep  [rows of sarmission.evaluation.run_model.run_sweep] or None,
     definitions {name: text}
 
@@ -413,11 +414,11 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
 
 
 def _colour_section(results: Mapping[str, Any]) -> list[str]:
-    """Colour proposals against the paper's motion-only RPN, same head, same frames."""
-    pairs = [(split, _run(results, split, MAIN_DS), info.get("motion_only"))
-             for split, info in results.get("splits", {}).items()]
-    pairs = [(split, mixed, motion) for split, mixed, motion in pairs
-             if mixed is not None and motion is not None]
+    """Colour proposals against the paper's motion-only RPN (and, when measured, the second crop
+    scale), same head, same frames."""
+    pairs = [(split, _run(results, split, MAIN_DS), info.get("motion_only"),
+              info.get("two_scales")) for split, info in results.get("splits", {}).items()]
+    pairs = [p for p in pairs if p[1] is not None and p[2] is not None]
     if not pairs:
         return []
     share = results["settings"].get("colour_share", 0.0)
@@ -429,10 +430,15 @@ def _colour_section(results: Mapping[str, Any]) -> list[str]:
              "with the water barely moves against it once the camera's motion is compensated, "
              "and one larger than vSTMD's preferred size is suppressed by the lobula's "
              "surround; colour still singles both out. Same head, frames and ds = "
-             f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN.", ""]
+             f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. Where measured, a third "
+             "row crops every proposal at its box and at twice its box (`--crop-scales 1,2`, "
+             "not the default), so that the head sees swimmers of 25-40 px whole.", ""]
     rows = []
-    for split, mixed, motion in pairs:
-        for label, run in (("motion + colour", mixed), ("motion only (paper)", motion)):
+    for split, mixed, motion, two in pairs:
+        variants = [("motion + colour", mixed), ("motion only (paper)", motion)]
+        if two is not None:
+            variants.append(("motion + colour, crops at 1 and 2 S", two))
+        for label, run in variants:
             sar, recall = run["sar"], run["module_recall"]
             rows.append([f"`{split}`, {label}", _f(sar["search_success_rate"], ".2f"),
                          f"{sar['n_locked']}/{sar['n_trajectories']}",
@@ -718,7 +724,8 @@ def evaluate_split(head: Any, dataset: Any, ds: int, settings: Mapping[str, Any]
     from sarmission.perception.mitenet import MiteNet
 
     net = MiteNet(head, ds=ds, topn=settings["topn"], score_threshold=settings["conf"],
-                  ego_motion=settings["ego_motion"], colour_share=settings["colour_share"])
+                  ego_motion=settings["ego_motion"], colour_share=settings["colour_share"],
+                  crop_scales=tuple(settings.get("crop_scales", (1.0,))))
     run = run_mitenet(net, dataset, progress=progress, desc=f"ds={ds}")
     if run.frame_size is None or run.median_ms is None:
         raise ValueError("no frame of the dataset could be read")
@@ -793,10 +800,14 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
             motion_only = evaluate_split(head, dataset, MAIN_DS, {**settings, "colour_share": 0.0},
                                          not args.no_progress)
             motion_only.pop("definitions")
+        print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, crops at 1 and 2 S", file=sys.stderr)
+        two_scales = evaluate_split(head, dataset, MAIN_DS, {**settings, "crop_scales": [1.0, 2.0]},
+                                    not args.no_progress)
+        two_scales.pop("definitions")
         results["splits"][name] = {
             "preset": {"seed": chosen.scenario.seed, "description": _preset_doc(name)},
             "annotations": str(annotations), "category_as_class": dict(aliases), "runs": runs,
-            "motion_only": motion_only}
+            "motion_only": motion_only, "two_scales": two_scales}
     if args.sweep:
         grid = [(ds, n) for ds in args.sweep_ds for n in args.sweep_topn]
         grid += [(1, n) for n in args.sweep_ds1_topn if (1, n) not in grid]
