@@ -7,6 +7,7 @@ import pytest
 import torch
 from motion_scenes import moving_target, to_bgr
 
+from sarmission.perception.crops import motion_enhanced_crops
 from sarmission.perception.export import head_onnx_bytes
 from sarmission.perception.head import MiteHead, head_flops_per_proposal
 from sarmission.perception.mitenet import MiteNet, nms_xyxy
@@ -151,8 +152,8 @@ def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
 
 
 def test_crop_scales_cut_every_proposal_at_each_scale(head: MiteHead):
-    """Scales (1, 2): the head sees each proposal box and its double around the same centre;
-    detections of both go through one NMS, and the head's FLOPs and crops double."""
+    """Scales (1, 2): the head sees each proposal box and its double around the same centre,
+    each proposal keeps the detection of its higher-scored crop, and the head's FLOPs double."""
     frames, _ = _clip(8)
     single = MiteNet(TorchHeadRuntime(head), ds=2, topn=5, score_threshold=0.0, nms_iou=None)
     double = MiteNet(TorchHeadRuntime(head), ds=2, topn=5, score_threshold=0.0, nms_iou=None,
@@ -160,9 +161,14 @@ def test_crop_scales_cut_every_proposal_at_each_scale(head: MiteHead):
     last_single, last_double = _run(single, frames)[-1], _run(double, frames)[-1]
     n = len(last_double.proposals)
     np.testing.assert_array_equal(last_single.proposals.boxes, last_double.proposals.boxes)
-    assert len(last_double.detections) == 2 * n
-    np.testing.assert_allclose(last_double.detections.boxes[:n], last_single.detections.boxes,
-                               atol=1e-3)  # batch size changes float rounding only
+    assert len(last_double.detections) == n
+    boxes, _ = double._scaled_boxes(last_double.proposals)
+    logits, _ = double.head.predict(motion_enhanced_crops(
+        frames[-1], last_double.motion, boxes, np.tile(last_double.proposals.polarity, 2)))
+    probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
+    best = probs.max(axis=1).reshape(2, n).max(axis=0)
+    np.testing.assert_allclose(last_double.detections.scores, best, atol=1e-5)
+    assert np.all(last_double.detections.scores >= last_single.detections.scores - 1e-4)
     boxes, polarity = double._scaled_boxes(last_double.proposals)
     p = last_double.proposals.boxes
     np.testing.assert_allclose((boxes[n:, :2] + boxes[n:, 2:]) / 2, (p[:, :2] + p[:, 2:]) / 2)

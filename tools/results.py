@@ -431,8 +431,9 @@ def _colour_section(results: Mapping[str, Any]) -> list[str]:
              "and one larger than vSTMD's preferred size is suppressed by the lobula's "
              "surround; colour still singles both out. Same head, frames and ds = "
              f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. Where measured, a third "
-             "row crops every proposal at its box and at twice its box (`--crop-scales 1,2`, "
-             "not the default), so that the head sees swimmers of 25-40 px whole.", ""]
+             "row crops every proposal at its box and at twice its box and keeps the crop the head "
+             "scores higher (`--crop-scales 1,2`, not the default), so that the head sees "
+             "swimmers of 25-40 px whole.", ""]
     rows = []
     for split, mixed, motion, two in pairs:
         variants = [("motion + colour", mixed), ("motion only (paper)", motion)]
