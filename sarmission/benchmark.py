@@ -40,6 +40,8 @@ class BenchRow:
     gflops: dict[str, float]
     peak_rss_mb: float
     proposals_per_frame: float
+    colour_share: float = 0.0
+    crop_scales: tuple[float, ...] = (1.0,)
 
 
 def synthetic_frames(width: int, height: int, count: int, seed: int = 0) -> list[np.ndarray]:
@@ -77,11 +79,16 @@ def _median(values: list[float]) -> float:
 
 
 def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
-                   model: str | None, runtime: str, ego_motion: str = "estimate") -> BenchRow:
+                   model: str | None, runtime: str, ego_motion: str = "estimate",
+                   colour_share: float | None = None,
+                   crop_scales: tuple[float, ...] = (1.0,)) -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures)."""
     import cv2
 
     from sarmission.perception.mitenet import STAGES, MiteNet, build_head_runtime
+    from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+
+    colour_share = DEFAULT_COLOUR_SHARE if colour_share is None else colour_share
 
     images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
     memory_pass = []
@@ -91,7 +98,8 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         cv2.cvtColor(copy, cv2.COLOR_BGR2GRAY)
         memory_pass.append((time.perf_counter() - start) * 1e3)
 
-    net = MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion)
+    net = MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion,
+                  colour_share=colour_share, crop_scales=crop_scales)
     stage_ms: dict[str, list[float]] = {stage: [] for stage in STAGES}
     totals, proposals = [], []
     for i, image in enumerate(images):
@@ -115,12 +123,14 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         gflops={k: round(v / 1e9, 4) for k, v in flops["flops"].items()},
         peak_rss_mb=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
         proposals_per_frame=round(float(np.mean(proposals)), 1),
+        colour_share=colour_share, crop_scales=tuple(crop_scales),
     )
 
 
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
               frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
-              progress: bool = True) -> list[BenchRow]:
+              progress: bool = True, colour_share: float | None = None,
+              crop_scales: tuple[float, ...] = (1.0,)) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process and collect the rows."""
     from tqdm import tqdm
 
@@ -129,11 +139,15 @@ def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: 
     for ds, topn in tqdm(configs, desc="bench", unit="config", disable=not progress,
                          file=sys.stderr):
         cmd = [sys.executable, "-m", "sarmission.benchmark", str(ds), str(topn), str(width),
-               str(height), str(frames), model or "", runtime, ego_motion]
+               str(height), str(frames), model or "", runtime, ego_motion,
+               "" if colour_share is None else repr(colour_share),
+               ",".join(repr(v) for v in crop_scales)]
         done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
         if done.returncode != 0:
             raise RuntimeError(f"benchmark of ds={ds} N={topn} failed:\n{done.stderr[-2000:]}")
-        rows.append(BenchRow(**json.loads(done.stdout.strip().splitlines()[-1])))
+        row = json.loads(done.stdout.strip().splitlines()[-1])
+        row["crop_scales"] = tuple(row["crop_scales"])
+        rows.append(BenchRow(**row))
     return rows
 
 
@@ -153,7 +167,10 @@ def format_table(rows: list[BenchRow]) -> str:
             f"{r.proposals_per_frame:>6.1f}")
     lines.append("times in ms (medians per frame); mem = plain memory pass (BGR copy + grayscale) "
                  "on the same frames; ratio = total / mem")
-    lines.append(f"ego-motion compensation: {rows[0].ego_motion if rows else '-'}")
+    if rows:
+        scales = ",".join(f"{v:g}" for v in rows[0].crop_scales)
+        lines.append(f"ego-motion compensation: {rows[0].ego_motion}; colour share "
+                     f"{rows[0].colour_share:g}; crop scales {scales}")
     return "\n".join(lines)
 
 
@@ -165,7 +182,10 @@ def rows_to_json(rows: list[BenchRow]) -> str:
 def _worker(argv: list[str]) -> None:
     ds, topn, width, height, frames = (int(v) for v in argv[:5])
     model, runtime, ego_motion = argv[5] or None, argv[6], argv[7]
-    row = measure_config(ds, topn, width, height, frames, model, runtime, ego_motion)
+    colour_share = float(argv[8]) if argv[8] else None
+    crop_scales = tuple(float(v) for v in argv[9].split(","))
+    row = measure_config(ds, topn, width, height, frames, model, runtime, ego_motion,
+                         colour_share, crop_scales)
     print(json.dumps(asdict(row)))
 
 

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 
+from sarmission.commands.detector_options import check_colour_share, parse_crop_scales
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+
 
 def _int_list(text: str) -> list[int]:
     try:
@@ -50,6 +53,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="head runtime (default: %(default)s)")
     parser.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
                         help="vSTMD ego-motion compensation (default: %(default)s)")
+    parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
+                        help="share of the proposals from colour anomalies (default: %(default)s)")
+    parser.add_argument("--crop-scales", type=parse_crop_scales, default=(1.0,),
+                        metavar="S[,S...]",
+                        help="crop every proposal at these multiples of its box (default: 1)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 
@@ -67,7 +75,9 @@ def run(args: argparse.Namespace) -> int:
     if frames < 1 or min(topn_values) < 1:
         raise ValueError("--frames and --topn must be positive")
     width, height = args.size
+    check_colour_share(args.colour_share)
     rows = run_sweep(ds_values, topn_values, width, height, frames, args.model, args.runtime,
-                     args.ego_motion)
+                     args.ego_motion, colour_share=args.colour_share,
+                     crop_scales=args.crop_scales)
     print(rows_to_json(rows) if args.json else format_table(rows))
     return 0
