@@ -18,6 +18,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+
 BLOBS = 120  # enough moving targets that every N up to 100 is filled
 WARMUP_FRAMES = 8  # JIT compilation, allocator, and the medulla building up its potentials
 
@@ -80,15 +82,12 @@ def _median(values: list[float]) -> float:
 
 def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
                    model: str | None, runtime: str, ego_motion: str = "estimate",
-                   colour_share: float | None = None,
+                   colour_share: float = DEFAULT_COLOUR_SHARE,
                    crop_scales: tuple[float, ...] = (1.0,)) -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures)."""
     import cv2
 
     from sarmission.perception.mitenet import STAGES, MiteNet, build_head_runtime
-    from sarmission.perception.types import DEFAULT_COLOUR_SHARE
-
-    colour_share = DEFAULT_COLOUR_SHARE if colour_share is None else colour_share
 
     images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
     memory_pass = []
@@ -129,7 +128,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
 
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
               frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
-              progress: bool = True, colour_share: float | None = None,
+              progress: bool = True, colour_share: float = DEFAULT_COLOUR_SHARE,
               crop_scales: tuple[float, ...] = (1.0,)) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process and collect the rows."""
     from tqdm import tqdm
@@ -140,7 +139,7 @@ def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: 
                          file=sys.stderr):
         cmd = [sys.executable, "-m", "sarmission.benchmark", str(ds), str(topn), str(width),
                str(height), str(frames), model or "", runtime, ego_motion,
-               "" if colour_share is None else repr(colour_share),
+               repr(colour_share),
                ",".join(repr(v) for v in crop_scales)]
         done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
         if done.returncode != 0:
@@ -182,10 +181,9 @@ def rows_to_json(rows: list[BenchRow]) -> str:
 def _worker(argv: list[str]) -> None:
     ds, topn, width, height, frames = (int(v) for v in argv[:5])
     model, runtime, ego_motion = argv[5] or None, argv[6], argv[7]
-    colour_share = float(argv[8]) if argv[8] else None
     crop_scales = tuple(float(v) for v in argv[9].split(","))
     row = measure_config(ds, topn, width, height, frames, model, runtime, ego_motion,
-                         colour_share, crop_scales)
+                         float(argv[8]), crop_scales)
     print(json.dumps(asdict(row)))
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MAX_CROP_SCALE
 
 if TYPE_CHECKING:
     from sarmission.perception.mitenet import MiteNet
@@ -63,9 +63,10 @@ def parse_crop_scales(text: str) -> tuple[float, ...]:
         scales = tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
         scales = ()
-    if not scales or any(not 0.0 < s <= 8.0 for s in scales):
+    if not scales or any(not 0.0 < s <= MAX_CROP_SCALE for s in scales):
         raise argparse.ArgumentTypeError(
-            f"expected comma-separated numbers in (0, 8], e.g. 1,2; got {text!r}")
+            f"expected comma-separated numbers in (0, {MAX_CROP_SCALE:g}], e.g. 1,2; got "
+            f"{text!r}")
     return scales
 
 

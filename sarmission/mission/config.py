@@ -37,7 +37,7 @@ from typing import Any
 
 from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MAX_CROP_SCALE
 
 ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
 
@@ -366,8 +366,9 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
         raise bad("[detector] topn", "expected an integer >= 1")
     if not 0.0 <= d.colour_share <= 1.0:
         raise bad("[detector] colour_share", "expected a number in [0, 1]")
-    if not d.crop_scales or any(not 0.0 < s <= 8.0 for s in d.crop_scales):
-        raise bad("[detector] crop_scales", "expected a list of numbers in (0, 8]")
+    if not d.crop_scales or any(not 0.0 < s <= MAX_CROP_SCALE for s in d.crop_scales):
+        raise bad("[detector] crop_scales",
+                  f"expected a list of numbers in (0, {MAX_CROP_SCALE:g}]")
     if not 0.0 <= d.score_threshold <= 1.0:
         raise bad("[detector] score_threshold", "expected a number in [0, 1]")
     if not 1 <= cfg.lock.m <= cfg.lock.k:

@@ -91,10 +91,15 @@ def chroma_anomaly(frame_bgr: np.ndarray, params: ChromaParams | None = None) ->
     return cv2.divide(energy, local, dst=energy)
 
 
+def chroma_applies(height: int, width: int) -> bool:
+    """Whether a ``height x width`` frame is large enough for a chroma map (one map pixel)."""
+    return min(height, width) >= CHROMA_SCALE
+
+
 def chroma_if_wanted(frame_bgr: np.ndarray, wanted: bool) -> np.ndarray | None:
-    """:func:`chroma_anomaly` of the frame when ``wanted`` and the frame is at least
-    :data:`CHROMA_SCALE` pixels in each direction, else ``None`` (no colour proposals)."""
-    if not wanted or min(frame_bgr.shape[:2]) < CHROMA_SCALE:
+    """:func:`chroma_anomaly` of the frame when ``wanted`` and :func:`chroma_applies`, else
+    ``None`` (no colour proposals)."""
+    if not (wanted and chroma_applies(*frame_bgr.shape[:2])):
         return None
     return chroma_anomaly(frame_bgr)
 

@@ -13,7 +13,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from sarmission.perception.chroma import CHROMA_SCALE, chroma_flops, chroma_if_wanted
+from sarmission.perception.chroma import (
+    CHROMA_SCALE,
+    chroma_applies,
+    chroma_flops,
+    chroma_if_wanted,
+)
 from sarmission.perception.crops import CROP_SIZE, crop_flops, motion_enhanced_crops
 from sarmission.perception.head import (
     HeadConfig,
@@ -39,13 +44,6 @@ from sarmission.perception.types import (
 from sarmission.perception.vstmd import VSTMD
 
 STAGES = ("vstmd", "colour", "rpn", "crops", "head")
-#: Crop scales that let the head box large swimmers (``MiteNet(crop_scales=...)``,
-#: ``--crop-scales 1,2``). Measured on maritime_test (ds 2, N 25, 2 x 150 frames of 4K, shipped
-#: head): SSR 90.7 -> 95.3 % (39 -> 41 of 43 trajectories; the two left are annotated in 1 and
-#: 7 frames), FAR 30.9 -> 33.2 % per detection, 3.1 -> 4.0 false detections per frame;
-#: maritime_val SSR 70 % both, FAR 25.8 -> 32.4 %. Keeping both crops' detections instead of
-#: the better one gave the same SSR at 45.3 % FAR and 7.2 false detections per frame.
-LARGE_TARGET_SCALES = (1.0, 2.0)
 
 
 def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "torch",
@@ -111,8 +109,13 @@ class MiteNet:
         crop_scales: every proposal is cropped once per scale, a box of side ``scale * S``
             around its centre resampled to the head's 16 x 16 input, and keeps the detection
             of the crop the head scores highest (one per proposal). ``(1.0,)`` is the paper's
-            single crop; a second scale of 2 lets the head see (and box) swimmers of 25-40 px
-            whole, for twice the head's cost (see :data:`LARGE_TARGET_SCALES`).
+            single crop; ``(1.0, 2.0)`` lets the head see (and box) swimmers of 25-40 px whole,
+            for twice the head's cost. Measured on maritime_test (ds 2, N 25, 2 x 150 frames
+            of 4K, shipped head): SSR 90.7 -> 95.3 % (39 -> 41 of 43 trajectories; the two
+            left are annotated in 1 and 7 frames), FAR 30.9 -> 33.2 % per detection, 3.1 ->
+            4.0 false detections per frame; maritime_val SSR 70 % both, FAR 25.8 -> 32.4 %.
+            Keeping both crops' detections instead of the better one gave the same SSR at
+            45.3 % FAR and 7.2 false detections per frame.
     """
 
     def __init__(self, head_runtime: HeadRuntime, ds: int = 2, topn: int = 25,
@@ -243,7 +246,7 @@ class MiteNet:
         """
         head = MiteHead(HeadConfig.from_dict(self.head.config.to_dict()))
         map_h, map_w = self.vstmd.map_shape(height, width)
-        colour = self.rpn.colour_slots > 0 and min(height, width) >= CHROMA_SCALE
+        colour = self.rpn.colour_slots > 0 and chroma_applies(height, width)
         chroma_shape = (height // CHROMA_SCALE, width // CHROMA_SCALE) if colour else None
         flops = {
             "vstmd": int(self.vstmd.flops(height, width)),

@@ -65,7 +65,7 @@ from sarmission.perception.types import (
     MotionMaps,
     Proposals,
 )
-from sarmission.perception.vstmd import direction_at, map_to_full
+from sarmission.perception.vstmd import direction_at, full_to_map_index, map_to_full
 
 
 class TTMRPN:
@@ -179,21 +179,20 @@ class TTMRPN:
         n_motion = min(rows.size, self.topn - cx.size)
         if n_motion + cx.size == 0:
             return Proposals()
-        theta = direction_at(motion, cols[:n_motion], rows[:n_motion]).astype(np.float64)
-        shift = self.shift_ratio * self.box_size
-        bx = np.concatenate([x[:n_motion] + shift * np.cos(theta), cx])
-        by = np.concatenate([y[:n_motion] - shift * np.sin(theta), cy])
-        map_rows = np.concatenate([rows[:n_motion], self._to_map(cy, motion, 0)])
-        map_cols = np.concatenate([cols[:n_motion], self._to_map(cx, motion, 1)])
-        theta = np.concatenate([theta, direction_at(motion, map_cols[n_motion:],
-                                                    map_rows[n_motion:])])
+        h, w = motion.response.shape
+        map_rows = np.concatenate([rows[:n_motion], full_to_map_index(cy, motion.ds, h)])
+        map_cols = np.concatenate([cols[:n_motion], full_to_map_index(cx, motion.ds, w)])
+        theta = direction_at(motion, map_cols, map_rows).astype(np.float64)
         polarity = (motion.temporal_change[map_rows, map_cols] > 0).astype(np.float32)
-        half = 0.5 * self.box_size
-        boxes = np.stack([bx - half, by - half, bx + half, by + half], axis=1)
-        points = np.stack([np.concatenate([x[:n_motion], cx]),
-                           np.concatenate([y[:n_motion], cy])], axis=1)
         source = np.concatenate([np.full(n_motion, MOTION, np.uint8),
                                  np.full(cx.size, COLOUR, np.uint8)])
+        px, py = np.concatenate([x[:n_motion], cx]), np.concatenate([y[:n_motion], cy])
+        # Motion boxes move forward along theta (the peak trails the target); colour ones do not.
+        shift = np.where(source == MOTION, self.shift_ratio * self.box_size, 0.0)
+        bx, by = px + shift * np.cos(theta), py - shift * np.sin(theta)
+        half = 0.5 * self.box_size
+        boxes = np.stack([bx - half, by - half, bx + half, by + half], axis=1)
+        points = np.stack([px, py], axis=1)
         return Proposals(points=points.astype(np.float32), boxes=boxes.astype(np.float32),
                          scores=np.concatenate([scores[:n_motion], cs]).astype(np.float32),
                          theta=theta.astype(np.float32), polarity=polarity, source=source)
@@ -209,12 +208,6 @@ class TTMRPN:
             far = gap >= self.colour_spacing
             x, y, scores = x[far], y[far], scores[far]
         return x[:count], y[:count], scores[:count].astype(np.float64)
-
-    @staticmethod
-    def _to_map(full: np.ndarray, motion: MotionMaps, axis: int) -> np.ndarray:
-        """Full-resolution coordinates → nearest motion-map index along ``axis`` (0 rows)."""
-        index = np.rint((full + 0.5) / motion.ds - 0.5).astype(np.int64)
-        return np.clip(index, 0, motion.response.shape[axis] - 1)
 
     def flops(self, map_h: int, map_w: int, chroma_shape: tuple[int, int] | None = None) -> int:
         """Operations per frame on ``map_h x map_w`` maps: threshold 1/px, separable max filter

@@ -29,6 +29,8 @@ MOTION, COLOUR = 0, 1
 #: Share of the N proposals that come from the chromatic anomaly map by default
 #: (:class:`~sarmission.perception.rpn.TTMRPN`).
 DEFAULT_COLOUR_SHARE = 0.4
+#: Largest crop scale (multiple of the proposal box) the command line and mission files accept.
+MAX_CROP_SCALE = 8.0
 
 
 @dataclass

@@ -262,6 +262,13 @@ def map_to_full(u: np.ndarray | float, ds: int) -> np.ndarray | float:
     return (u + 0.5) * ds - 0.5
 
 
+def full_to_map_index(x: np.ndarray | float, ds: int, size: int) -> np.ndarray:
+    """Nearest 1/ds map index of full-resolution coordinate ``x`` (the inverse of
+    :func:`map_to_full`, rounded), clipped to ``[0, size - 1]``."""
+    index = np.rint((np.asarray(x, dtype=np.float64) + 0.5) / ds - 0.5).astype(np.int64)
+    return np.clip(index, 0, size - 1)
+
+
 def lobe_radius(sigma1: float, sigma2: float, e: float) -> float:
     """Radius where ``G(s1) - e * G(s2)`` (2-D Gaussians, unit integral, ``rho = 0``) crosses zero.
 
@@ -755,7 +762,7 @@ class VSTMD:
         self._sets = [{n: np.zeros((h, w), np.float32) for n in names} for _ in range(2)]
         f = self.lobula_pool
         hl, wl = h // f, w // f
-        lobula = ("centre", "surround", "bump") + (("pooled", "coarse") if f > 1 else ())
+        lobula = ("centre", "surround", "bump") + (("coarse",) if f > 1 else ())
         self._scratch = {n: np.empty((hl, wl), np.float32) for n in lobula}
         self._scratch["column"] = np.empty(w + 3, np.float32)
         self._p_prev = np.zeros((h, w), np.float32)
@@ -858,12 +865,11 @@ class VSTMD:
             self._lobula_filter(corr, out)
             return
         s = self._scratch
-        hl, wl = s["pooled"].shape
+        hl, wl = s["coarse"].shape
         if hl == 0 or wl == 0:
             out[...] = 0.0
             return
-        s["pooled"][...] = _halve_to(corr[:hl * f, :wl * f], int(math.log2(f)))
-        self._lobula_filter(s["pooled"], s["coarse"])
+        self._lobula_filter(_halve_to(corr[:hl * f, :wl * f], int(math.log2(f))), s["coarse"])
         size = (wl * f, hl * f)
         if out.shape == size[::-1]:
             cv2.resize(s["coarse"], size, dst=out, interpolation=cv2.INTER_LINEAR)

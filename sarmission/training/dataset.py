@@ -61,7 +61,7 @@ from sarmission.perception.crops import CROP_SIZE, motion_enhanced_crops
 from sarmission.perception.head import DEFAULT_CLASSES
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MotionMaps
-from sarmission.perception.vstmd import VSTMD
+from sarmission.perception.vstmd import VSTMD, full_to_map_index
 from sarmission.training.sampling import assign_by_nwd, jitter_boxes
 
 log = logging.getLogger(__name__)
@@ -202,8 +202,7 @@ def polarity_near(motion: MotionMaps, centres: np.ndarray, box_size: float) -> n
     ds = motion.ds
     out = np.zeros(len(centres), np.float32)
     for k, (x, y) in enumerate(np.asarray(centres, dtype=np.float64).reshape(-1, 2)):
-        col = int(np.clip(np.rint((x + 0.5) / ds - 0.5), 0, w - 1))
-        row = int(np.clip(np.rint((y + 0.5) / ds - 0.5), 0, h - 1))
+        col, row = int(full_to_map_index(x, ds, w)), int(full_to_map_index(y, ds, h))
         half = max(int(np.ceil(box_size / (2 * ds))), 0)
         r0, c0 = max(row - half, 0), max(col - half, 0)
         window = motion.response[r0:row + half + 1, c0:col + half + 1]
