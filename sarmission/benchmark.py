@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
 
 BLOBS = 120  # enough moving targets that every N up to 100 is filled
 WARMUP_FRAMES = 8  # JIT compilation, allocator, and the medulla building up its potentials
@@ -43,7 +43,7 @@ class BenchRow:
     peak_rss_mb: float
     proposals_per_frame: float
     colour_share: float = 0.0
-    crop_scales: tuple[float, ...] = (1.0,)
+    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
 
 
 def synthetic_frames(width: int, height: int, count: int, seed: int = 0) -> list[np.ndarray]:
@@ -83,7 +83,7 @@ def _median(values: list[float]) -> float:
 def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
                    model: str | None, runtime: str, ego_motion: str = "estimate",
                    colour_share: float = DEFAULT_COLOUR_SHARE,
-                   crop_scales: tuple[float, ...] = (1.0,)) -> BenchRow:
+                   crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES) -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures)."""
     import cv2
 
@@ -129,7 +129,7 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
               frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
               progress: bool = True, colour_share: float = DEFAULT_COLOUR_SHARE,
-              crop_scales: tuple[float, ...] = (1.0,)) -> list[BenchRow]:
+              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process and collect the rows."""
     from tqdm import tqdm
 

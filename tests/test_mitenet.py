@@ -9,8 +9,8 @@ from motion_scenes import moving_target, to_bgr
 
 from sarmission.perception.crops import motion_enhanced_crops
 from sarmission.perception.export import head_onnx_bytes
-from sarmission.perception.head import MiteHead, head_flops_per_proposal
-from sarmission.perception.mitenet import MiteNet, nms_xyxy
+from sarmission.perception.head import MiteHead, head_flops_per_proposal, ltrb_to_boxes
+from sarmission.perception.mitenet import MiteNet, build_head_runtime, nms_xyxy, scaled_boxes
 from sarmission.perception.runtime import OnnxHeadRuntime, TorchHeadRuntime
 
 H, W = 120, 160
@@ -112,7 +112,8 @@ def test_complexity(head: MiteHead):
     report = net.complexity(2160, 3840)
     flops = report["flops"]
     assert flops["vstmd"] == net.vstmd.flops(2160, 3840)
-    assert flops["head"] == 25 * head_flops_per_proposal(head)
+    # The default second crop scale may refine every proposal: the head's FLOPs are that bound.
+    assert flops["head"] == 2 * 25 * head_flops_per_proposal(head)
     assert flops["rpn_other"] > net.rpn.flops(1080, 1920)
     assert flops["total"] == flops["vstmd"] + flops["rpn_other"] + flops["head"]
     assert report["parameters"]["head"] < 140_000
@@ -151,32 +152,66 @@ def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
     assert colour_flops > no_colour.complexity(2160, 3840)["flops"]["rpn_other"]
 
 
-def test_crop_scales_cut_every_proposal_at_each_scale(head: MiteHead):
-    """Scales (1, 2): the head sees each proposal box and its double around the same centre,
-    each proposal keeps the detection of its higher-scored crop, and the head's FLOPs double."""
-    frames, _ = _clip(8)
-    single = MiteNet(TorchHeadRuntime(head), ds=2, topn=5, score_threshold=0.0, nms_iou=None)
-    double = MiteNet(TorchHeadRuntime(head), ds=2, topn=5, score_threshold=0.0, nms_iou=None,
-                     crop_scales=(1.0, 2.0))
-    last_single, last_double = _run(single, frames)[-1], _run(double, frames)[-1]
-    n = len(last_double.proposals)
-    np.testing.assert_array_equal(last_single.proposals.boxes, last_double.proposals.boxes)
-    assert len(last_double.detections) == n
-    boxes, _ = double._scaled_boxes(last_double.proposals)
-    logits, _ = double.head.predict(motion_enhanced_crops(
-        frames[-1], last_double.motion, boxes, np.tile(last_double.proposals.polarity, 2)))
+def _crop_scores(net: MiteNet, frame: np.ndarray, result, scale: float):
+    """Best-class probability and decoded box of every proposal's crop at ``scale``."""
+    boxes = scaled_boxes(result.proposals.boxes, scale)
+    logits, ltrb = net.head.predict(motion_enhanced_crops(frame, result.motion, boxes,
+                                                          result.proposals.polarity))
     probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
-    best = probs.max(axis=1).reshape(2, n).max(axis=0)
-    np.testing.assert_allclose(last_double.detections.scores, best, atol=1e-5)
-    assert np.all(last_double.detections.scores >= last_single.detections.scores - 1e-4)
-    boxes, polarity = double._scaled_boxes(last_double.proposals)
-    p = last_double.proposals.boxes
-    np.testing.assert_allclose((boxes[n:, :2] + boxes[n:, 2:]) / 2, (p[:, :2] + p[:, 2:]) / 2)
-    np.testing.assert_allclose(boxes[n:, 2] - boxes[n:, 0], 2 * (p[:, 2] - p[:, 0]))
-    np.testing.assert_array_equal(polarity, np.tile(last_double.proposals.polarity, 2))
-    one, two = (net.complexity(2160, 3840)["flops"]["head"] for net in (single, double))
-    assert two == 2 * one
-    with pytest.raises(ValueError, match="crop_scales"):
-        MiteNet(TorchHeadRuntime(head), crop_scales=(1.0, 0.0))
-    with pytest.raises(ValueError, match="crop_scales"):
-        MiteNet(TorchHeadRuntime(head), crop_scales=())
+    return probs.max(axis=1), ltrb_to_boxes(ltrb, boxes, 16)
+
+
+def test_second_crop_scale_refines_the_proposals_that_score_enough():
+    """Scales (1, 2), shipped head, a 24 px disc: every proposal is scored on its box; those at or
+    above refine_threshold are scored again on the box doubled about its centre and keep the
+    better crop's score and box; the others keep their first crop's."""
+    images, _ = moving_target(160, 200, 10, start=(60.0, 70.0), velocity=(2.0, 1.0), size=24.0,
+                              shape="disc", seed=7)
+    frames = [to_bgr(im) for im in images]
+    shipped = build_head_runtime(None, "onnx")
+    options = {"ds": 2, "topn": 6, "score_threshold": 0.0, "nms_iou": None}
+    single = MiteNet(shipped, crop_scales=(1.0,), **options)
+    firsts, wides = [], []
+    for i, frame in enumerate(frames):
+        result = single.process(frame, i / 30.0)  # its motion maps live two calls only
+        if i < 4:
+            continue
+        firsts.append(_crop_scores(single, frame, result, 1.0))
+        wides.append(_crop_scores(single, frame, result, 2.0))
+        np.testing.assert_allclose(result.detections.scores, firsts[-1][0], atol=1e-5)
+    threshold = 0.5
+    net = MiteNet(shipped, crop_scales=(1.0, 2.0), refine_threshold=threshold, **options)
+    every = MiteNet(shipped, refine_threshold=0.0, **options)
+    assert every.crop_scales == (1.0, 2.0)  # the default
+    outcomes = []
+    for result, best, (first_scores, first_boxes), (wide_scores, wide_boxes) in zip(
+            _run(net, frames)[4:], _run(every, frames)[4:], firsts, wides, strict=True):
+        refined = first_scores >= threshold
+        wide_wins = refined & (wide_scores > first_scores)
+        outcomes += list(zip(refined, wide_wins, wide_scores > first_scores, strict=True))
+        np.testing.assert_allclose(result.detections.scores,
+                                   np.where(wide_wins, wide_scores, first_scores), atol=1e-5)
+        np.testing.assert_allclose(result.detections.boxes,
+                                   np.where(wide_wins[:, None], wide_boxes, first_boxes),
+                                   atol=1e-3)
+        np.testing.assert_allclose(best.detections.scores,
+                                   np.maximum(first_scores, wide_scores), atol=1e-5)
+    # Every case occurred: refined and the wide crop won, refined and it lost, not refined
+    # although the wide crop would have won.
+    assert (True, True, True) in outcomes and (True, False, False) in outcomes
+    assert (False, False, True) in outcomes
+    head = MiteHead()
+    one, two = (MiteNet(TorchHeadRuntime(head), crop_scales=scales).complexity(2160, 3840)
+                ["flops"]["head"] for scales in ((1.0,), (1.0, 2.0)))
+    assert two == 2 * one  # the most the refinement can cost: every proposal refined
+    for bad in ({"crop_scales": (1.0, 0.0)}, {"crop_scales": ()}):
+        with pytest.raises(ValueError, match="crop_scales"):
+            MiteNet(TorchHeadRuntime(head), **bad)
+    with pytest.raises(ValueError, match="refine_threshold"):
+        MiteNet(TorchHeadRuntime(head), refine_threshold=1.5)
+
+
+def test_scaled_boxes_keep_the_centre():
+    boxes = np.array([[10.0, 20.0, 26.0, 36.0], [0.0, 0.0, 4.0, 8.0]], np.float32)
+    np.testing.assert_allclose(scaled_boxes(boxes, 2.0),
+                               [[2.0, 12.0, 34.0, 44.0], [-2.0, -4.0, 6.0, 12.0]])

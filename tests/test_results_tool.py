@@ -193,7 +193,7 @@ def test_split_notes(tool):
     assert "No ground-truth target in these frames" in urban
 
 
-def test_colour_section_sets_both_rpns_side_by_side(tool):
+def test_colour_section_sets_the_variants_side_by_side(tool):
     results = _results()
     assert "1b. Colour proposals" not in tool.render_results_md(results)  # older JSON: no runs
     results["settings"]["colour_share"] = 0.4
@@ -210,10 +210,15 @@ def test_colour_section_sets_both_rpns_side_by_side(tool):
     assert paper == [" 60.00 ", " 8/10 ", " 30.00 ", " 25.00 ", " 0.5512 ", " 0.4412 ",
                      " 240.00 "]
     assert "`urban_test`" not in section  # no motion-only run there
-    assert "crops at 1 and 2 S" not in section
-    results["splits"]["maritime_test"]["two_scales"] = _run(
+    assert "colour, single crop" not in section and "colour, every proposal" not in section
+    results["splits"]["maritime_test"]["single_crop"] = _run(
         2, 95.0, 45.0, 700.0, 5.0, 44, 260.0, {}, {"R@0.1": 0.8123, "R@0.5": 0.2},
         {"R@0.1": 0.8012, "R@0.5": 0.3})
+    results["splits"]["maritime_test"]["refine_all"] = _run(
+        2, 70.0, 35.0, 600.0, 6.0, 44, 270.0, {}, {"R@0.1": 0.8123, "R@0.5": 0.2},
+        {"R@0.1": 0.7012, "R@0.5": 0.3})
     section = _section(tool.render_results_md(results), "## 1b. Colour proposals", "## 2.")
-    two = _line(section, "`maritime_test`, motion + colour, crops at 1 and 2 S").split("|")[2:9]
+    two = _line(section, "`maritime_test`, motion + colour, single crop").split("|")[2:9]
+    every = _line(section, "`maritime_test`, motion + colour, every proposal").split("|")[2:9]
+    assert every == [" 70.00 ", " 8/10 ", " 35.00 ", " 6.00 ", " 0.8123 ", " 0.7012 ", " 270.00 "]
     assert two == [" 95.00 ", " 8/10 ", " 45.00 ", " 5.00 ", " 0.8123 ", " 0.8012 ", " 260.00 "]

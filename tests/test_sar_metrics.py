@@ -53,7 +53,7 @@ def sequences():
 
 def test_hand_made_sequences():
     r = evaluate_sar(sequences(), m=3, k=5)
-    assert r.n_trajectories == 3 and r.n_locked == 2
+    assert r.n_trajectories == 3 and r.n_locked == 2 and r.n_lockable == 3
     assert r.search_success_rate == pytest.approx(200 / 3)
     by_key = {(t.sequence, t.track_id): t for t in r.trajectories}
     assert by_key["v", 1].lock_frame == 3 and by_key["v", 1].search_time == 3
@@ -71,6 +71,7 @@ def test_hand_made_sequences():
 def test_stricter_lock_changes_ssr():
     r = evaluate_sar(sequences(), m=4, k=5)
     assert r.n_locked == 0 and r.search_success_rate == 0.0
+    assert r.n_lockable == 2  # w's track is annotated in 3 frames only: never 4 hits
     assert r.avg_search_time_frames is None and r.max_search_time_frames is None
 
 

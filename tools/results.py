@@ -17,11 +17,12 @@ The measured numbers are also written as JSON (``<work>/results.json``); the Mar
 function of that dict (:func:`render_results_md`). Its keys::
 
     command, generated (ISO date), machine {nproc, cpu, python, platform},
-    settings {frames, sequences, size, fps, model, runtime, topn, colour_share, conf,
-              ego_motion, m, k, score_thr, nwd_thr},
+    settings {frames, sequences, size, fps, model, runtime, topn, colour_share, crop_scales,
+              conf, ego_motion, m, k, score_thr, nwd_thr},
     splits {<preset>: {preset {seed, description}, runs {"<ds>": run},
                        motion_only: run at ds=2 with colour_share 0 (or None),
-                       two_scales: run at ds=2 with crop_scales (1, 2) (or None)}},
+                       single_crop: run at ds=2 with crop_scales (1,) (or None),
+                       refine_all: run at ds=2 refining every proposal (or None)}},
     sweep  [rows of sarmission.evaluation.run_model.run_sweep] or None,
     definitions {name: text}
 
@@ -43,7 +44,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "docs" / "results.md"
@@ -414,10 +415,10 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
 
 
 def _colour_section(results: Mapping[str, Any]) -> list[str]:
-    """Colour proposals against the paper's motion-only RPN (and, when measured, the second crop
-    scale), same head, same frames."""
-    pairs = [(split, _run(results, split, MAIN_DS), info.get("motion_only"),
-              info.get("two_scales")) for split, info in results.get("splits", {}).items()]
+    """Colour proposals against the paper's motion-only RPN and (when measured) the second crop
+    scale against the single crop, same head, same frames."""
+    pairs = [(split, _run(results, split, MAIN_DS), info.get("motion_only"), info)
+             for split, info in results.get("splits", {}).items()]
     pairs = [p for p in pairs if p[1] is not None and p[2] is not None]
     if not pairs:
         return []
@@ -430,15 +431,21 @@ def _colour_section(results: Mapping[str, Any]) -> list[str]:
              "with the water barely moves against it once the camera's motion is compensated, "
              "and one larger than vSTMD's preferred size is suppressed by the lobula's "
              "surround; colour still singles both out. Same head, frames and ds = "
-             f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. Where measured, a third "
-             "row crops every proposal at its box and at twice its box and keeps the crop the head "
-             "scores higher (`--crop-scales 1,2`, not the default), so that the head sees "
-             "swimmers of 25-40 px whole.", ""]
+             f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. The head also departs from "
+             "the paper: every proposal is cropped at its box (S) and the proposals the head "
+             "would keep are cropped again at 2 S, keeping the crop it scores higher, so that "
+             "the head sees swimmers of 25-40 px whole. Where measured, further rows show the "
+             "paper's single crop (`--crop-scales 1`) and every proposal cropped at both "
+             "scales (`MiteNet(refine_threshold=0)`).", ""]
     rows = []
-    for split, mixed, motion, two in pairs:
-        variants = [("motion + colour", mixed), ("motion only (paper)", motion)]
-        if two is not None:
-            variants.append(("motion + colour, crops at 1 and 2 S", two))
+    for split, mixed, motion, info in pairs:
+        variants = [("motion + colour, crops S and 2 S", mixed),
+                    ("motion only (paper), crops S and 2 S", motion)]
+        if info.get("single_crop") is not None:
+            variants.append(("motion + colour, single crop (paper)", info["single_crop"]))
+        if info.get("refine_all") is not None:
+            variants.append(("motion + colour, every proposal at S and 2 S",
+                             info["refine_all"]))
         for label, run in variants:
             sar, recall = run["sar"], run["module_recall"]
             rows.append([f"`{split}`, {label}", _f(sar["search_success_rate"], ".2f"),
@@ -726,7 +733,8 @@ def evaluate_split(head: Any, dataset: Any, ds: int, settings: Mapping[str, Any]
 
     net = MiteNet(head, ds=ds, topn=settings["topn"], score_threshold=settings["conf"],
                   ego_motion=settings["ego_motion"], colour_share=settings["colour_share"],
-                  crop_scales=tuple(settings.get("crop_scales", (1.0,))))
+                  crop_scales=tuple(settings.get("crop_scales", DEFAULT_CROP_SCALES)),
+                  refine_threshold=settings.get("refine_threshold"))
     run = run_mitenet(net, dataset, progress=progress, desc=f"ds={ds}")
     if run.frame_size is None or run.median_ms is None:
         raise ValueError("no frame of the dataset could be read")
@@ -771,7 +779,8 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
         label = f"`{model}`"
     settings = {"frames": args.frames, "sequences": args.sequences, "size": list(SIZE),
                 "fps": 30.0, "model": label, "runtime": args.runtime, "topn": TOPN,
-                "colour_share": args.colour_share, "conf": args.conf, "ego_motion": "estimate",
+                "colour_share": args.colour_share, "crop_scales": list(DEFAULT_CROP_SCALES),
+                "conf": args.conf, "ego_motion": "estimate",
                 "m": 3, "k": 5,
                 "score_thr": 0.5, "nwd_thr": 0.5}
     head = build_head_runtime(model, args.runtime)
@@ -801,14 +810,19 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
             motion_only = evaluate_split(head, dataset, MAIN_DS, {**settings, "colour_share": 0.0},
                                          not args.no_progress)
             motion_only.pop("definitions")
-        print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, crops at 1 and 2 S", file=sys.stderr)
-        two_scales = evaluate_split(head, dataset, MAIN_DS, {**settings, "crop_scales": [1.0, 2.0]},
+        print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, single crop", file=sys.stderr)
+        single_crop = evaluate_split(head, dataset, MAIN_DS, {**settings, "crop_scales": [1.0]},
+                                     not args.no_progress)
+        single_crop.pop("definitions")
+        print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, every proposal at every crop scale",
+              file=sys.stderr)
+        refine_all = evaluate_split(head, dataset, MAIN_DS, {**settings, "refine_threshold": 0.0},
                                     not args.no_progress)
-        two_scales.pop("definitions")
+        refine_all.pop("definitions")
         results["splits"][name] = {
             "preset": {"seed": chosen.scenario.seed, "description": _preset_doc(name)},
             "annotations": str(annotations), "category_as_class": dict(aliases), "runs": runs,
-            "motion_only": motion_only, "two_scales": two_scales}
+            "motion_only": motion_only, "single_crop": single_crop, "refine_all": refine_all}
     if args.sweep:
         grid = [(ds, n) for ds in args.sweep_ds for n in args.sweep_topn]
         grid += [(1, n) for n in args.sweep_ds1_topn if (1, n) not in grid]

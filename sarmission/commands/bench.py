@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from sarmission.commands.detector_options import check_colour_share, parse_crop_scales
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
 
 
 def _int_list(text: str) -> list[int]:
@@ -55,9 +55,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="vSTMD ego-motion compensation (default: %(default)s)")
     parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
                         help="share of the proposals from colour anomalies (default: %(default)s)")
-    parser.add_argument("--crop-scales", type=parse_crop_scales, default=(1.0,),
+    parser.add_argument("--crop-scales", type=parse_crop_scales, default=DEFAULT_CROP_SCALES,
                         metavar="S[,S...]",
-                        help="crop every proposal at these multiples of its box (default: 1)")
+                        help="crop sides as multiples of the proposal box: every proposal at the "
+                        "first, would-be detections also at the others (default: 1,2)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 

@@ -5,7 +5,11 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MAX_CROP_SCALE
+from sarmission.perception.types import (
+    DEFAULT_COLOUR_SHARE,
+    DEFAULT_CROP_SCALES,
+    MAX_CROP_SCALE,
+)
 
 if TYPE_CHECKING:
     from sarmission.perception.mitenet import MiteNet
@@ -30,10 +34,12 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
                        help="share of the proposals taken from colour anomalies rather than motion "
                        "(0 = motion only, as in the paper; default: %(default)s)")
-    group.add_argument("--crop-scales", type=parse_crop_scales, default=(1.0,),
+    group.add_argument("--crop-scales", type=parse_crop_scales, default=DEFAULT_CROP_SCALES,
                        metavar="S[,S...]",
-                       help="crop every proposal at these multiples of its box; 1,2 lets the "
-                       "head box swimmers of 25-40 px whole for twice its cost (default: 1)")
+                       help="crop sides as multiples of the proposal box: every proposal at the "
+                       "first, would-be detections again at the others, keeping the best-scored "
+                       "crop; 1,2 lets the head box swimmers of 25-40 px whole, 1 is the paper's "
+                       "single crop (default: 1,2)")
     group.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
                        help="compensate the camera's own motion (moving drone) or assume a still "
                        "camera (default: %(default)s)")

@@ -223,7 +223,8 @@ def format_report(report: Mapping[str, Any]) -> str:
         f"SAR criteria (lock = matched in >= {settings['m']} of {settings['k']} frames; "
         f"match = Hungarian, score > {settings['score_thr']:g}, NWD > {settings['nwd_thr']:g})",
         f"  {'Search Success Rate (%)':<38}{_num(sar['search_success_rate'], '8.2f'):>8}"
-        f"   {sar['n_locked']}/{sar['n_trajectories']} trajectories locked",
+        f"   {sar['n_locked']}/{sar['n_trajectories']} trajectories locked"
+        f" ({sar['n_lockable']} annotated in >= {settings['m']} frames)",
         f"  {'False Alarm Rate, per frame (%)':<38}"
         f"{_num(sar['false_alarm_rate_per_frame'], '8.2f'):>8}"
         f"   {sar['n_false_alarms']} unmatched detections / {sar['n_frames']} frames",

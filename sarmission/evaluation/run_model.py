@@ -20,7 +20,7 @@ from sarmission.evaluation.matching import FrameBoxes
 from sarmission.evaluation.report import evaluate_detections
 from sarmission.perception.mitenet import MiteNet
 from sarmission.perception.runtime import HeadRuntime
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
 
 #: Nominal frame rate for the timestamps passed to the detector (they do not change its output).
 NOMINAL_FPS = 30.0
@@ -99,7 +99,7 @@ def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int]
               score_thr: float = 0.5, nwd_thr: float = 0.5, max_frames: int | None = None,
               progress: bool = True, ego_motion: str = "estimate",
               colour_share: float = DEFAULT_COLOUR_SHARE,
-              crop_scales: tuple[float, ...] = (1.0,)) -> list[dict[str, Any]]:
+              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
     Row keys: ``ds``, ``topn``, ``ssr`` and ``far_per_frame`` (%), ``far_detections`` (%),

@@ -21,7 +21,9 @@ DEFINITIONS: dict[str, str] = {
         "100 * locked trajectories / GT trajectories. A trajectory (one track_id within one "
         "sequence) is locked when it is matched in at least m of some k consecutive frames of "
         "its own annotated frames (ordered by frame index). GT boxes without a track id are "
-        "matched but belong to no trajectory."),
+        "matched but belong to no trajectory. n_lockable counts the trajectories annotated in at "
+        "least m frames: a shorter one (e.g. entering the view in a clip's last frames) can "
+        "never be locked, yet counts in the denominator."),
     "search_time_frames": (
         "Per locked trajectory: frame_index(lock frame) - frame_index(first annotated frame); "
         "the lock frame is the frame of the m-th hit inside the first qualifying k-window, so "
@@ -74,6 +76,7 @@ class SarMetrics:
     false_alarm_rate_detections: float
     n_trajectories: int
     n_locked: int
+    n_lockable: int
     n_frames: int
     n_detections: int
     n_false_alarms: int
@@ -130,7 +133,8 @@ def evaluate_sar(sequences: Mapping[Hashable, Sequence[SequenceFrame]], m: int =
         max_search_time_frames=max(times) if times else None,
         false_alarm_rate_per_frame=100.0 * n_false_alarms / n_frames if n_frames else None,
         false_alarm_rate_detections=100.0 * n_false_alarms / n_detections if n_detections else 0.0,
-        n_trajectories=len(trajectories), n_locked=len(times), n_frames=n_frames,
+        n_trajectories=len(trajectories), n_locked=len(times),
+        n_lockable=sum(t.n_frames >= m for t in trajectories), n_frames=n_frames,
         n_detections=n_detections, n_false_alarms=n_false_alarms, n_matched=n_matched,
         m=m, k=k, score_thr=score_thr, nwd_thr=nwd_thr, trajectories=trajectories,
     )

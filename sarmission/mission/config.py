@@ -37,7 +37,11 @@ from typing import Any
 
 from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MAX_CROP_SCALE
+from sarmission.perception.types import (
+    DEFAULT_COLOUR_SHARE,
+    DEFAULT_CROP_SCALES,
+    MAX_CROP_SCALE,
+)
 
 ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
 
@@ -147,7 +151,7 @@ class DetectorConfig:
     ds: int = 2
     topn: int = 25
     colour_share: float = DEFAULT_COLOUR_SHARE
-    crop_scales: tuple[float, ...] = (1.0,)
+    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
     score_threshold: float = 0.3
 
 
