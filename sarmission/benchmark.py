@@ -44,6 +44,7 @@ class BenchRow:
     proposals_per_frame: float
     colour_share: float = 0.0
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
+    refine_threshold: float | None = None
 
 
 def synthetic_frames(width: int, height: int, count: int, seed: int = 0) -> list[np.ndarray]:
@@ -83,7 +84,8 @@ def _median(values: list[float]) -> float:
 def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
                    model: str | None, runtime: str, ego_motion: str = "estimate",
                    colour_share: float = DEFAULT_COLOUR_SHARE,
-                   crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES) -> BenchRow:
+                   crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+                   refine_threshold: float | None = None) -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures)."""
     import cv2
 
@@ -98,7 +100,8 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         memory_pass.append((time.perf_counter() - start) * 1e3)
 
     net = MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion,
-                  colour_share=colour_share, crop_scales=crop_scales)
+                  colour_share=colour_share, crop_scales=crop_scales,
+                  refine_threshold=refine_threshold)
     stage_ms: dict[str, list[float]] = {stage: [] for stage in STAGES}
     totals, proposals = [], []
     for i, image in enumerate(images):
@@ -123,13 +126,15 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         peak_rss_mb=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
         proposals_per_frame=round(float(np.mean(proposals)), 1),
         colour_share=colour_share, crop_scales=tuple(crop_scales),
+        refine_threshold=net.refine_threshold,
     )
 
 
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
               frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
               progress: bool = True, colour_share: float = DEFAULT_COLOUR_SHARE,
-              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES) -> list[BenchRow]:
+              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+              refine_threshold: float | None = None) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process and collect the rows."""
     from tqdm import tqdm
 
@@ -140,7 +145,8 @@ def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: 
         cmd = [sys.executable, "-m", "sarmission.benchmark", str(ds), str(topn), str(width),
                str(height), str(frames), model or "", runtime, ego_motion,
                repr(colour_share),
-               ",".join(repr(v) for v in crop_scales)]
+               ",".join(repr(v) for v in crop_scales),
+               "" if refine_threshold is None else repr(refine_threshold)]
         done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
         if done.returncode != 0:
             raise RuntimeError(f"benchmark of ds={ds} N={topn} failed:\n{done.stderr[-2000:]}")
@@ -169,7 +175,10 @@ def format_table(rows: list[BenchRow]) -> str:
     if rows:
         scales = ",".join(f"{v:g}" for v in rows[0].crop_scales)
         lines.append(f"ego-motion compensation: {rows[0].ego_motion}; colour share "
-                     f"{rows[0].colour_share:g}; crop scales {scales}")
+                     f"{rows[0].colour_share:g}; crop scales {scales}"
+                     + (f" (further scales from first-crop score {rows[0].refine_threshold:g})"
+                        if len(rows[0].crop_scales) > 1 and rows[0].refine_threshold is not None
+                        else ""))
     return "\n".join(lines)
 
 
@@ -182,8 +191,9 @@ def _worker(argv: list[str]) -> None:
     ds, topn, width, height, frames = (int(v) for v in argv[:5])
     model, runtime, ego_motion = argv[5] or None, argv[6], argv[7]
     crop_scales = tuple(float(v) for v in argv[9].split(","))
+    refine_threshold = float(argv[10]) if argv[10] else None
     row = measure_config(ds, topn, width, height, frames, model, runtime, ego_motion,
-                         float(argv[8]), crop_scales)
+                         float(argv[8]), crop_scales, refine_threshold)
     print(json.dumps(asdict(row)))
 
 

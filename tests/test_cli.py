@@ -13,7 +13,7 @@ import onnx
 import pytest
 from motion_scenes import moving_target, to_bgr
 
-from sarmission.cli import main
+from sarmission.cli import build_parser, main
 from sarmission.perception.head import MiteHead
 from sarmission.perception.runtime import save_head_checkpoint
 
@@ -118,8 +118,10 @@ def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
               "--topn", "10", "--frames", "2", "--json"]
     runs = [json.loads(subprocess.run(common + extra, capture_output=True, text=True,
                                       timeout=240, check=True).stdout)[0]
-            for extra in ([], ["--colour-share", "0", "--crop-scales", "1"])]
+            for extra in ([], ["--colour-share", "0", "--crop-scales", "1"],
+                          ["--refine-threshold", "0"])]
     assert runs[1]["colour_share"] == 0.0 and runs[1]["crop_scales"] == [1.0]
+    assert runs[0]["refine_threshold"] == 0.3 and runs[2]["refine_threshold"] == 0.0
     # The default second crop scale may refine every proposal: its bound is twice the single.
     assert runs[0]["gflops"]["head"] == pytest.approx(2 * runs[1]["gflops"]["head"], rel=1e-3)
 
@@ -161,3 +163,24 @@ def test_bad_crop_scales_exit_with_a_message(capsys: pytest.CaptureFixture) -> N
         main(["detect", "clip.mp4", "--crop-scales", "1,0"])
     assert stop.value.code == 2
     assert "--crop-scales: expected comma-separated numbers in (0, 8]" in capsys.readouterr().err
+
+
+def test_bad_refine_threshold_exits_with_a_message(capsys: pytest.CaptureFixture) -> None:
+    assert main(["bench", "--refine-threshold", "-0.5", "--quick"]) != 0
+    assert "--refine-threshold must be in [0, 1], got -0.5" in capsys.readouterr().err
+
+
+def test_mission_commands_hand_the_crop_options_to_the_detector(tmp_path: Path) -> None:
+    """--crop-scales and --refine-threshold override the mission file's [detector] values."""
+    from sarmission.commands.mission_options import build_detector, load_mission_from_args
+
+    mission_file = tmp_path / "m.toml"
+    mission_file.write_text("[detector]\ncrop_scales = [1.0]\nrefine_threshold = 0.6\n")
+    parser = build_parser()
+    from_file = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    net, _ = build_detector(from_file, load_mission_from_args(from_file))
+    assert net.crop_scales == (1.0,) and net.refine_threshold == 0.6
+    overridden = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file),
+                                    "--crop-scales", "1,3", "--refine-threshold", "0"])
+    net, _ = build_detector(overridden, load_mission_from_args(overridden))
+    assert net.crop_scales == (1.0, 3.0) and net.refine_threshold == 0.0

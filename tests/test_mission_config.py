@@ -73,6 +73,7 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[lock]\nm = 6\nk = 5", "expected 1 <= m <= k"),
         ("[detector]\ncolour_share = 1.5", "[detector] colour_share"),
         ("[detector]\ncrop_scales = [1.0, -2.0]", "[detector] crop_scales"),
+        ("[detector]\nrefine_threshold = 1.5", "[detector] refine_threshold"),
         ('[actions]\npolicy = ["alert", "dance"]', "unknown action 'dance'"),
         ("[camera]\nmount_pitch_deg = 30", "mount_pitch_deg"),
         ("[area]\nrectangle_m = [10, 0, 0, 10]", "rectangle_m"),

@@ -444,10 +444,11 @@ def _colour_section(results: Mapping[str, Any]) -> list[str]:
              "surround; colour still singles both out. Same head, frames and ds = "
              f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. The head also departs from "
              "the paper: every proposal is cropped at its box (S) and the proposals the head "
-             "would keep are cropped again at 2 S, keeping the crop it scores higher, so that "
-             "the head sees swimmers of 25-40 px whole. Where measured, further rows show the "
-             "paper's single crop (`--crop-scales 1`) and every proposal cropped at both "
-             "scales (`MiteNet(refine_threshold=0)`).", ""]
+             "would keep are cropped again at 2 S; the wider crop wins when the head scores it "
+             "higher and boxes the target larger than S, so that the head sees swimmers of "
+             "25-40 px whole. Where measured, further rows show the paper's single crop "
+             "(`--crop-scales 1`) and every proposal cropped at both scales "
+             "(`--refine-threshold 0`).", ""]
     rows = []
     for split, mixed, motion, info in pairs:
         variants = [("motion + colour, crops S and 2 S", mixed),

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import argparse
 
-from sarmission.commands.detector_options import check_colour_share, parse_crop_scales
+from sarmission.commands.detector_options import (
+    check_colour_share,
+    check_refine_threshold,
+    parse_crop_scales,
+)
 from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
 
 
@@ -59,6 +63,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         metavar="S[,S...]",
                         help="crop sides as multiples of the proposal box: every proposal at the "
                         "first, would-be detections also at the others (default: 1,2)")
+    parser.add_argument("--refine-threshold", type=float, default=None, metavar="SCORE",
+                        help="first-crop score from which a proposal is cropped again at the "
+                        "further scales; 0 = every proposal (default: 0.3, the detection score)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 
@@ -77,8 +84,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--frames and --topn must be positive")
     width, height = args.size
     check_colour_share(args.colour_share)
+    check_refine_threshold(args.refine_threshold)
     rows = run_sweep(ds_values, topn_values, width, height, frames, args.model, args.runtime,
                      args.ego_motion, colour_share=args.colour_share,
-                     crop_scales=args.crop_scales)
+                     crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
     print(rows_to_json(rows) if args.json else format_table(rows))
     return 0

@@ -81,6 +81,7 @@ def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -
                       "detector.ds": args.ds, "detector.topn": args.topn,
                       "detector.colour_share": args.colour_share,
                       "detector.crop_scales": list(args.crop_scales),
+                      "detector.refine_threshold": args.refine_threshold,
                       "detector.score_threshold": args.conf})
     return load_mission(DEMO_MISSION if DEMO_MISSION.is_file() else None, overrides)
 

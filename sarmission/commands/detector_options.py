@@ -40,6 +40,10 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
                        "first, would-be detections again at the others, keeping the best-scored "
                        "crop; 1,2 lets the head box swimmers of 25-40 px whole, 1 is the paper's "
                        "single crop (default: 1,2)")
+    group.add_argument("--refine-threshold", type=float, default=None, metavar="SCORE",
+                       help="first-crop score from which a proposal is cropped again at the "
+                       "further scales; 0 = every proposal: more found, ~2 ms more per 4K frame "
+                       "(default: the --conf value)")
     group.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
                        help="compensate the camera's own motion (moving drone) or assume a still "
                        "camera (default: %(default)s)")
@@ -56,11 +60,18 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
     if args.topn < 1:
         raise ValueError(f"--topn must be at least 1, got {args.topn}")
     check_colour_share(args.colour_share)
+    check_refine_threshold(args.refine_threshold)
     model_path = args.model or default_model_path(args.runtime)
     head = load_head_runtime(model_path, runtime=args.runtime)
     return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
                    ego_motion=args.ego_motion, colour_share=args.colour_share,
-                   crop_scales=args.crop_scales)
+                   crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
+
+
+def check_refine_threshold(value: float | None) -> None:
+    """``ValueError`` unless ``--refine-threshold`` is unset or in [0, 1]."""
+    if value is not None and not 0.0 <= value <= 1.0:
+        raise ValueError(f"--refine-threshold must be in [0, 1], got {value}")
 
 
 def parse_crop_scales(text: str) -> tuple[float, ...]:

@@ -23,7 +23,11 @@ import argparse
 import logging
 from typing import Any
 
-from sarmission.commands.detector_options import add_detector_options, check_colour_share
+from sarmission.commands.detector_options import (
+    add_detector_options,
+    check_colour_share,
+    check_refine_threshold,
+)
 
 log = logging.getLogger(__name__)
 
@@ -91,6 +95,7 @@ def _check_args(args: argparse.Namespace) -> None:
     if min(topn) < 1:
         raise ValueError(f"proposal counts must be at least 1, got {topn}")
     check_colour_share(args.colour_share)
+    check_refine_threshold(args.refine_threshold)
     bad = [d for d in args.sweep_ds if d not in DS_CHOICES]
     if args.sweep and bad:
         raise ValueError(f"--sweep-ds accepts {', '.join(map(str, DS_CHOICES))}, got {bad}")
@@ -132,7 +137,8 @@ def run(args: argparse.Namespace) -> int:
         rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
                          max_frames=args.max_frames, progress=not args.no_progress,
                          ego_motion=args.ego_motion, colour_share=args.colour_share,
-                         crop_scales=args.crop_scales, **metric_options)
+                         crop_scales=args.crop_scales, refine_threshold=args.refine_threshold,
+                         **metric_options)
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
         return 0
     report = _evaluate_model(args, dataset, head, label, metric_options)
@@ -167,7 +173,7 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
 
     net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
                   ego_motion=args.ego_motion, colour_share=args.colour_share,
-                  crop_scales=args.crop_scales)
+                  crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
     target_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=not args.no_progress)
     if not run.frame_ms:
@@ -178,6 +184,7 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
     return {**report, "detector": {
         "model": label, "runtime": args.runtime, "ds": args.ds, "topn": args.topn,
         "colour_share": args.colour_share, "crop_scales": list(args.crop_scales),
+        "refine_threshold": net.refine_threshold,
         "conf": args.conf, "frames": len(run.frame_ms),
         "skipped_frames": run.skipped,
         "median_ms": median, "fps": 1e3 / median if median else None}}

@@ -34,18 +34,20 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
                        help="stop after this many seconds")
     add_detector_options(parser)
     # None = the mission file's [detector] value (the file overrides code, the CLI the file).
-    parser.set_defaults(ds=None, topn=None, colour_share=None, crop_scales=None, conf=None)
+    parser.set_defaults(ds=None, topn=None, colour_share=None, crop_scales=None,
+                        refine_threshold=None, conf=None)
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
     """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/
-    --crop-scales/--conf`` on top."""
+    --crop-scales/--refine-threshold/--conf`` on top."""
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
     for option, key in (("ds", "detector.ds"), ("topn", "detector.topn"),
                         ("colour_share", "detector.colour_share"),
                         ("crop_scales", "detector.crop_scales"),
+                        ("refine_threshold", "detector.refine_threshold"),
                         ("conf", "detector.score_threshold")):
         value = getattr(args, option)
         if isinstance(value, tuple):
@@ -80,7 +82,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
     d = mission.detector
     detector = MiteNet(head, ds=d.ds, topn=d.topn, score_threshold=d.score_threshold,
                        ego_motion=args.ego_motion, colour_share=d.colour_share,
-                       crop_scales=tuple(d.crop_scales))
+                       crop_scales=tuple(d.crop_scales), refine_threshold=d.refine_threshold)
     return detector, note
 
 

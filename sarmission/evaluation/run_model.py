@@ -99,7 +99,8 @@ def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int]
               score_thr: float = 0.5, nwd_thr: float = 0.5, max_frames: int | None = None,
               progress: bool = True, ego_motion: str = "estimate",
               colour_share: float = DEFAULT_COLOUR_SHARE,
-              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES) -> list[dict[str, Any]]:
+              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+              refine_threshold: float | None = None) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
     Row keys: ``ds``, ``topn``, ``ssr`` and ``far_per_frame`` (%), ``far_detections`` (%),
@@ -112,7 +113,7 @@ def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int]
         for topn in topn_values:
             net = MiteNet(head, ds=ds, topn=topn, score_threshold=score_threshold,
                           ego_motion=ego_motion, colour_share=colour_share,
-                          crop_scales=crop_scales)
+                          crop_scales=crop_scales, refine_threshold=refine_threshold)
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:
                 raise ValueError("no frame of the dataset could be read")

@@ -145,13 +145,16 @@ class CameraConfig:
 @dataclass
 class DetectorConfig:
     """MITE-Net run-time settings: vSTMD down-sampling ``ds``, proposals ``topn`` (of which the
-    share ``colour_share`` comes from colour anomalies), the head's ``crop_scales`` (see
-    :class:`~sarmission.perception.mitenet.MiteNet`), detection threshold."""
+    share ``colour_share`` comes from colour anomalies), the head's ``crop_scales`` and the
+    first-crop score from which a proposal gets the further ones, ``refine_threshold`` (None: the
+    detection threshold; see :class:`~sarmission.perception.mitenet.MiteNet`), detection
+    threshold."""
 
     ds: int = 2
     topn: int = 25
     colour_share: float = DEFAULT_COLOUR_SHARE
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
+    refine_threshold: float | None = None
     score_threshold: float = 0.3
 
 
@@ -375,6 +378,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
                   f"expected a list of numbers in (0, {MAX_CROP_SCALE:g}]")
     if not 0.0 <= d.score_threshold <= 1.0:
         raise bad("[detector] score_threshold", "expected a number in [0, 1]")
+    if d.refine_threshold is not None and not 0.0 <= d.refine_threshold <= 1.0:
+        raise bad("[detector] refine_threshold", "expected a number in [0, 1]")
     if not 1 <= cfg.lock.m <= cfg.lock.k:
         raise bad("[lock] m/k", f"expected 1 <= m <= k, got m={cfg.lock.m}, k={cfg.lock.k}")
     for p in cfg.actions.policy:
