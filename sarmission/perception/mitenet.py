@@ -49,7 +49,9 @@ STAGES = ("vstmd", "colour", "rpn", "crops", "head")
 
 
 def scaled_boxes(boxes: np.ndarray, scale: float) -> np.ndarray:
-    """``xyxy`` boxes scaled by ``scale`` about their centres (float32; a copy)."""
+    """``xyxy`` boxes scaled by ``scale`` about their centres (float32; a copy, exact at 1)."""
+    if scale == 1.0:
+        return np.array(boxes, dtype=np.float32)
     centre = (boxes[:, :2] + boxes[:, 2:]) / 2
     half = (boxes[:, 2:] - boxes[:, :2]) / 2 * scale
     return np.concatenate([centre - half, centre + half], axis=1).astype(np.float32)
