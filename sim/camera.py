@@ -15,7 +15,7 @@ consumer must skip.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -35,11 +35,13 @@ class Renderer(Protocol):
 
 @dataclass
 class FrameTruth:
-    """Ground truth of one delivered frame: sim time and the target annotations in view."""
+    """Ground truth of one delivered frame: sim time, the target annotations in view and the
+    other objects' (boats, birds, debris, glints)."""
 
     index: int
     sim_time: float
     targets: list[ObjectAnnotation]
+    others: list[ObjectAnnotation] = field(default_factory=list)
 
 
 def mission_scenario(vehicle: SimVehicle, seed: int | None = None, **kwargs: object) -> Scenario:
@@ -97,7 +99,8 @@ class SimCamera:
         image, annotations = self.renderer.render(t, self.vehicle.camera_pose(t))
         index = self._count
         self._count += 1
-        self.truth.append(FrameTruth(index, t, [a for a in annotations if a.is_target]))
+        self.truth.append(FrameTruth(index, t, [a for a in annotations if a.is_target],
+                                     [a for a in annotations if not a.is_target]))
         if self.corrupt_every and (index + 1) % self.corrupt_every == 0:
             self.corrupted += 1
             image = image[: image.shape[0] // 2]
@@ -116,6 +119,13 @@ class SimCamera:
 
     def targets_at(self, frame_index: int) -> list[ObjectAnnotation]:
         """The target annotations of one delivered frame."""
+        return self._frame(frame_index).targets
+
+    def others_at(self, frame_index: int) -> list[ObjectAnnotation]:
+        """The annotations of the non-target objects (boats, birds, ...) of one delivered frame."""
+        return self._frame(frame_index).others
+
+    def _frame(self, frame_index: int) -> FrameTruth:
         if not 0 <= frame_index < len(self.truth):
             raise IndexError(f"no frame {frame_index} (delivered {len(self.truth)})")
-        return self.truth[frame_index].targets
+        return self.truth[frame_index]

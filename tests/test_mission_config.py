@@ -71,6 +71,7 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[lock]\nm = 2.5", "[lock] m: expected integer, got number"),
         ("[lock]\nm = true", "[lock] m: expected integer, got boolean"),
         ("[lock]\nm = 6\nk = 5", "expected 1 <= m <= k"),
+        ("[lock]\nmin_score = 1.2", "[lock] min_score"),
         ("[detector]\ncolour_share = 1.5", "[detector] colour_share"),
         ("[detector]\ncrop_scales = [1.0, -2.0]", "[detector] crop_scales"),
         ("[detector]\nrefine_threshold = 1.5", "[detector] refine_threshold"),

@@ -144,6 +144,21 @@ def test_three_hits_in_five_frames_lock_at_the_third_hit() -> None:
     assert {s.track_id for s in states} == {1}
 
 
+def test_low_scored_detections_keep_the_track_but_do_not_lock_it() -> None:
+    """lock_min_score 0.5: scores 0.9, 0.4, 0.4, 0.9, 0.9 -> the same track all along, locked at
+    its third detection scored >= 0.5 (frame 4), not at its third detection (frame 2)."""
+    scores = [0.9, 0.4, 0.4, 0.9, 0.9]
+    strict = Tracker(lock_m=3, lock_k=5, lock_min_score=0.5)
+    loose = Tracker(lock_m=3, lock_k=5)
+    for tracker, lock_frame in ((strict, 4), (loose, 2)):
+        states = [tracker.update(dets((50.0 + i, 80.0), score=sc), i, i / 30)[0]
+                  for i, sc in enumerate(scores)]
+        assert {st.track_id for st in states} == {1} and states[-1].hits == 5
+        assert [st.just_locked for st in states].index(True) == lock_frame
+    with pytest.raises(ValueError, match="lock_min_score"):
+        Tracker(lock_min_score=1.5)
+
+
 def test_hits_spread_wider_than_k_never_lock() -> None:
     tracker = Tracker(max_age=5, lock_m=3, lock_k=5)
     states = [tracker.update(dets((50.0, 80.0)) if i % 3 == 0 else Detections(), i, i / 30)

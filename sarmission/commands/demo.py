@@ -7,6 +7,7 @@ import argparse
 import math
 import socket
 import time
+from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,8 +24,9 @@ DEMO_OVERRIDES = {
     "area.rectangle_m": [90.0, -80.0, 150.0, 80.0],
     "area.leg_spacing_m": 40.0,
     "flight.takeoff": False,
-    "actions.policy": ["alert", "roi"],
 }
+#: What the demo does with a confirmed target by default (see add_parser).
+DEMO_ACTIONS = ("alert",)
 #: The demo's share of colour proposals (see add_parser).
 DEMO_COLOUR_SHARE = 0.0
 #: Alerts listed one by one in the summary (the rest are counted).
@@ -57,12 +59,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(the motion front-end is tuned for 30); 0: as fast as processed "
                         "(default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="scenario seed (default: 0)")
+    parser.add_argument("--actions", type=parse_actions, default=DEMO_ACTIONS,
+                        metavar="A[,A...]",
+                        help="what to do with a confirmed target: alert (STATUSTEXT), roi "
+                        "(point the camera at it), loiter, mission (default: alert). roi turns the "
+                        "camera off nadir for good, where the motion front-end sees the waves "
+                        "move and the false alerts multiply")
     add_detector_options(parser)
-    # Motion proposals only by default: in this narrow 960x540 view the colour proposals land on
-    # boats and birds, which the head calls swimmers (demo runs of 43 s: 134-187 false alerts
-    # with colour share 0.2 or 0.4 in all four, 27-87 with 0 in three); --colour-share 0.4
-    # shows that trade-off.
+    # Motion proposals only by default: in this narrow 960x540 view the colour proposals find
+    # more people but raise many more false alerts (one 43 s flight, alert action: 12 vs 9 of
+    # 17 people found, 26 vs 5 false alerts); --colour-share 0.4 shows that trade-off.
     parser.set_defaults(func=run, colour_share=DEMO_COLOUR_SHARE)
+
+
+def parse_actions(text: str) -> tuple[str, ...]:
+    """``"alert,roi"`` -> ``("alert", "roi")``; an argparse error for an unknown action."""
+    from sarmission.mission.config import ACTION_POLICIES
+
+    actions = tuple(a.strip() for a in text.split(",") if a.strip())
+    unknown = [a for a in actions if a not in ACTION_POLICIES]
+    if not actions or unknown:
+        raise argparse.ArgumentTypeError(
+            f"expected a comma-separated list of {', '.join(ACTION_POLICIES)}; got {text!r}")
+    return actions
 
 
 def free_udp_port() -> int:
@@ -80,10 +99,22 @@ def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -
     overrides.update({"camera.width": size[0], "camera.height": size[1], "camera.hfov_deg": hfov,
                       "detector.ds": args.ds, "detector.topn": args.topn,
                       "detector.colour_share": args.colour_share,
+                      "actions.policy": list(args.actions),
                       "detector.crop_scales": list(args.crop_scales),
                       "detector.refine_threshold": args.refine_threshold,
                       "detector.score_threshold": args.conf})
     return load_mission(DEMO_MISSION if DEMO_MISSION.is_file() else None, overrides)
+
+
+def nearest(annotations: list[Any], cx: float, cy: float) -> Any:
+    """The annotation whose box centre is nearest ``(cx, cy)`` within :data:`MATCH_PX`, or None."""
+    best, best_d = None, MATCH_PX
+    for a in annotations:
+        x0, y0, x1, y1 = a.bbox_xyxy
+        d = math.hypot((x0 + x1) / 2 - 0.5 - cx, (y0 + y1) / 2 - 0.5 - cy)
+        if d <= best_d:
+            best, best_d = a, d
+    return best
 
 
 def score(alerts: list[Alert], camera: Any, min_frames: int) -> list[str]:
@@ -95,19 +126,17 @@ def score(alerts: list[Alert], camera: Any, min_frames: int) -> list[str]:
         for a in frame.targets:
             frames_seen[a.track_id] = frames_seen.get(a.track_id, 0) + 1
     present = {tid for tid, n in frames_seen.items() if n >= min_frames}
-    lines, found, errors, false_alerts, duplicates = [], set(), [], 0, 0
+    lines, found, errors, duplicates = [], set(), [], 0
+    false_on: Counter[str] = Counter()
     for alert in alerts:
         cx, cy = alert.pixel_track[-1][1:] if alert.pixel_track else (math.nan, math.nan)
-        best, best_d = None, MATCH_PX
-        for a in camera.targets_at(alert.frame_index):
-            x0, y0, x1, y1 = a.bbox_xyxy
-            d = math.hypot((x0 + x1) / 2 - 0.5 - cx, (y0 + y1) / 2 - 0.5 - cy)
-            if d <= best_d:
-                best, best_d = a, d
+        best = nearest(camera.targets_at(alert.frame_index), cx, cy)
         if best is None:
-            false_alerts += 1
+            other = nearest(camera.others_at(alert.frame_index), cx, cy)
+            on = other.category if other is not None else "open water"
+            false_on[on] += 1
             lines.append(f"  target {alert.target_id}: FALSE ALERT ({alert.class_name} "
-                         f"{alert.score:.2f}, frame {alert.frame_index})")
+                         f"{alert.score:.2f}, frame {alert.frame_index}, on {on})")
             continue
         tag = ""
         if best.track_id in found:
@@ -124,7 +153,9 @@ def score(alerts: list[Alert], camera: Any, min_frames: int) -> list[str]:
     head = [f"people in view (>= {min_frames} frames): {len(present)}, found: "
             f"{len(found & present)} of them" + (f" (+{len(found - present)} seen briefly)"
                                                  if found - present else ""),
-            f"alerts: {len(alerts)}, false alerts: {false_alerts}, duplicates: {duplicates}"]
+            f"alerts: {len(alerts)}, false alerts: {sum(false_on.values())}"
+            + (" (on " + ", ".join(f"{what} {n}" for what, n in false_on.most_common()) + ")"
+               if false_on else "") + f", duplicates: {duplicates}"]
     if errors:
         head.append(f"geolocation error: mean {sum(errors) / len(errors):.1f} m, "
                     f"max {max(errors):.1f} m over {len(errors)} alerts")

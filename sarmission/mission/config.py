@@ -160,10 +160,13 @@ class DetectorConfig:
 
 @dataclass
 class LockConfig:
-    """m-of-k confirmation: a track locks when matched in ``m`` of the last ``k`` frames."""
+    """m-of-k confirmation: a track locks when matched in ``m`` of the last ``k`` frames by a
+    detection scored at least ``min_score`` (lower-scored ones keep the track alive but do not
+    count, as in the evaluation's lock)."""
 
     m: int = 3
     k: int = 5
+    min_score: float = 0.5
 
 
 @dataclass
@@ -380,6 +383,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
         raise bad("[detector] score_threshold", "expected a number in [0, 1]")
     if d.refine_threshold is not None and not 0.0 <= d.refine_threshold <= 1.0:
         raise bad("[detector] refine_threshold", "expected a number in [0, 1]")
+    if not 0.0 <= cfg.lock.min_score <= 1.0:
+        raise bad("[lock] min_score", "expected a number in [0, 1]")
     if not 1 <= cfg.lock.m <= cfg.lock.k:
         raise bad("[lock] m/k", f"expected 1 <= m <= k, got m={cfg.lock.m}, k={cfg.lock.k}")
     for p in cfg.actions.policy:

@@ -122,7 +122,8 @@ class MissionController:
         self.recorder = recorder if recorder is not None and recorder.enabled else None
         self.mission_id = mission_id or mission.name
         self.to_posix = to_posix or monotonic_to_posix()
-        self.tracker = Tracker(lock_m=mission.lock.m, lock_k=mission.lock.k)
+        self.tracker = Tracker(lock_m=mission.lock.m, lock_k=mission.lock.k,
+                               lock_min_score=mission.lock.min_score)
         self.registry = TargetRegistry(merge_radius_m)
         self.registry.seed(store.known_targets(self.mission_id))
         self.known_at_start = len(self.registry)

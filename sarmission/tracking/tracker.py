@@ -102,8 +102,10 @@ class _Track:
     """One target's filter, lock and bookkeeping; born from a detection (its first hit)."""
 
     def __init__(self, track_id: int, box: np.ndarray, score: float, class_id: int,
-                 noise: MotionNoise, lock: MofKLock, history_length: int) -> None:
+                 noise: MotionNoise, lock: MofKLock, history_length: int,
+                 lock_min_score: float = 0.0) -> None:
         self.track_id = track_id
+        self.lock_min_score = lock_min_score
         self.kalman = BoxKalman(box, noise)
         self.lock = lock
         self.raw_box = np.asarray(box, dtype=np.float64).copy()
@@ -138,7 +140,8 @@ class _Track:
         self.class_votes[int(class_id)] += 1
         self.last_class = int(class_id)
         was_locked = self.lock.locked
-        self.just_locked = self.lock.update(True) and not was_locked
+        self.just_locked = (self.lock.update(score >= self.lock_min_score)
+                            and not was_locked)
 
     def end_frame(self, frame_index: int, timestamp: float) -> None:
         """Record this frame's centre and, if the lock just happened, its frame index."""
@@ -172,14 +175,16 @@ class Tracker:
     ``match_nwd`` / ``max_centre_distance``: association gate (see the module docstring). NWD 0.3
     is a Wasserstein distance of about 15 px at C = 12.8; 8 px covers a new track's first step
     under platform motion even when the detector's size estimate disagrees.
-    ``lock_m`` / ``lock_k``: a track locks at the ``lock_m``-th hit within ``lock_k`` frames.
+    ``lock_m`` / ``lock_k``: a track locks at the ``lock_m``-th hit within ``lock_k`` frames;
+    ``lock_min_score``: a detection scored below it still feeds the track (filter, age) but counts
+    as a miss for the lock, as the evaluation's lock counts only detections scored above 0.5.
     ``noise``: Kalman noise levels; ``history_length``: centres kept per track.
     """
 
     def __init__(self, max_age: int = 15, min_hits_to_report: int = 1, match_nwd: float = 0.3,
                  max_centre_distance: float = 8.0, lock_m: int = 3, lock_k: int = 5,
                  noise: MotionNoise | None = None, history_length: int = 300,
-                 nwd_constant: float = NWD_CONSTANT) -> None:
+                 nwd_constant: float = NWD_CONSTANT, lock_min_score: float = 0.0) -> None:
         if max_age < 0 or history_length < 1:
             raise ValueError("max_age must be >= 0 and history_length >= 1")
         MofKLock(lock_m, lock_k)  # validates m and k now rather than at the first birth
@@ -188,6 +193,9 @@ class Tracker:
         self.match_nwd = match_nwd
         self.max_centre_distance = max_centre_distance
         self.lock_m, self.lock_k = lock_m, lock_k
+        if not 0.0 <= lock_min_score <= 1.0:
+            raise ValueError(f"lock_min_score must be in [0, 1], got {lock_min_score}")
+        self.lock_min_score = lock_min_score
         self.noise = noise or MotionNoise()
         self.history_length = history_length
         self.nwd_constant = nwd_constant
@@ -221,7 +229,8 @@ class Tracker:
         for di in unmatched_dets:
             self._tracks.append(_Track(
                 self._next_id, boxes[di], detections.scores[di], detections.class_ids[di],
-                self.noise, MofKLock(self.lock_m, self.lock_k), self.history_length))
+                self.noise, MofKLock(self.lock_m, self.lock_k), self.history_length,
+                self.lock_min_score))
             self._next_id += 1
 
         for track in self._tracks:
