@@ -162,6 +162,9 @@ def test_model_run_reports_module_recall(annotations, tmp_path, capsys):
                               "--runtime", "torch", "--topn", "5", "--max-frames", "3")) == 0
     text = capsys.readouterr().out
     assert "6 frames" in text and "TTM-RPN (no category)" in text
+    assert "crop scales=1,2 (further scales from score 0.3)" in text
+    assert report["detector"]["crop_scales"] == [1.0, 2.0]
+    assert report["detector"]["refine_threshold"] == 0.3
 
 
 def test_unknown_image_ids_are_an_error(annotations, tmp_path):

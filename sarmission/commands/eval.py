@@ -194,6 +194,9 @@ def _format_detector(detector: dict[str, Any]) -> str:
     skipped = detector["skipped_frames"]
     return (f"detector: {detector['model']} ({detector['runtime']}), ds={detector['ds']}, "
             f"N={detector['topn']}, colour share={detector['colour_share']:g}, "
-            f"conf={detector['conf']:g}; {detector['frames']} frames"
+            f"crop scales={','.join(f'{v:g}' for v in detector['crop_scales'])}"
+            + (f" (further scales from score {detector['refine_threshold']:g})"
+               if len(detector["crop_scales"]) > 1 else "")
+            + f", conf={detector['conf']:g}; {detector['frames']} frames"
             + (f" ({skipped} unreadable, skipped)" if skipped else "")
             + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)")
