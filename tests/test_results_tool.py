@@ -104,6 +104,11 @@ def test_sar_rows_hold_measured_and_published_numbers(tool):
     assert "| 250.00 | 32.97 | 120.00 | 19.11 |" in _line(maritime, "Latency")
     urban = _section(md, "### `urban_test` vs UAVID-Tiny", "## 2.")
     assert "| 50.00 | 8.33 | not run | 0.00 |" in _line(urban, "Search Success Rate (%)")
+    assert "| 8/10 | — |" in _line(maritime, "Trajectories locked")  # older JSON: no n_lockable
+    results = _results()
+    results["splits"]["maritime_test"]["runs"]["2"]["sar"]["n_lockable"] = 9
+    maritime = _section(tool.render_results_md(results), "### `maritime_test`", "### `urban_test`")
+    assert "| 8/10 (9 lockable) | — |" in _line(maritime, "Trajectories locked")
 
 
 def test_statements_follow_the_numbers(tool):

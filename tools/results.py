@@ -306,8 +306,7 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
                      lambda r: r["sar"]["search_success_rate"],
                      lambda ds, p=paper: p[ds]["ssr"], ".2f"),
             ["Trajectories locked"] + sum(
-                (["not run" if runs[ds] is None else
-                  f"{runs[ds]['sar']['n_locked']}/{runs[ds]['sar']['n_trajectories']}", "—"]
+                (["not run" if runs[ds] is None else _locked_text(runs[ds]["sar"]), "—"]
                  for ds in PAPER_DS), []),
             _sar_row("False Alarm Rate, per detection (%) ↓ ¹", runs,
                      lambda r: r["sar"]["false_alarm_rate_detections"],
@@ -414,6 +413,14 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
             "synthetic footage with the paper's real test split, so a single trajectory moves "
             "the SSR by several points.")
     return lines
+
+
+def _locked_text(sar: Mapping[str, Any]) -> str:
+    """``locked/all``, and how many could be locked at all when the JSON says."""
+    text = f"{sar['n_locked']}/{sar['n_trajectories']}"
+    if sar.get("n_lockable") is not None and sar["n_lockable"] < sar["n_trajectories"]:
+        text += f" ({sar['n_lockable']} lockable)"
+    return text
 
 
 def _crop_scales_text(scales: Sequence[float]) -> str:
