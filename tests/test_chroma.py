@@ -13,6 +13,7 @@ from sarmission.perception.chroma import (
     chroma_if_wanted,
     pooled_colour,
 )
+from sarmission.perception.pyramid import half_resolution
 
 ORANGE = (20, 110, 240)  # BGR, a life-jacket colour
 
@@ -29,19 +30,16 @@ def sea_with_patch(height: int, width: int, cx: int, cy: int, side: int,
     return frame
 
 
-def test_pooling_averages_the_sampled_pixels_and_ignores_the_remainder() -> None:
+def test_pooling_averages_8x8_blocks_and_ignores_the_remainder() -> None:
     rng = np.random.default_rng(0)
     frame = rng.integers(0, 256, (70, 93, 3), dtype=np.uint8)
     pooled = pooled_colour(frame)
     assert pooled.shape == (70 // 8, 93 // 8, 3)
-    # Rows and columns 1 and 2 of every 4 are sampled: each map pixel is the mean of 16.
-    sampled = np.arange(88) % 4
-    keep_cols = (sampled == 1) | (sampled == 2)
-    keep_rows = keep_cols[:64]
-    picked = frame[:64, :88][keep_rows][:, keep_cols].astype(np.float64)
-    expected = picked.reshape(8, 4, 11, 4, 3).mean(axis=(1, 3))
-    # Two rounded uint8 stages: within 1.5 grey levels of the exact mean.
+    expected = frame[:64, :88].astype(np.float64).reshape(8, 8, 11, 8, 3).mean(axis=(1, 3))
+    # Three rounded uint8 halvings: within 1.5 grey levels of the exact mean.
     assert np.abs(pooled.astype(np.float64) - expected).max() <= 1.5
+    # The shared half-resolution frame gives the same map.
+    np.testing.assert_array_equal(pooled_colour(frame, half_resolution(frame)), pooled)
 
 
 def test_a_coloured_patch_is_the_strongest_anomaly() -> None:

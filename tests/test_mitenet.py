@@ -166,10 +166,11 @@ def _crop_scores(net: MiteNet, frame: np.ndarray, result, scale: float):
 
 @pytest.fixture(scope="module")
 def sea_frames(tmp_path_factory: pytest.TempPathFactory) -> list[np.ndarray]:
-    """Eight 1920x1080 frames of the simulator's maritime test scene (swimmers, boats, foam)."""
-    chosen = preset("maritime_test")
+    """Twelve 960x540 frames of the simulator's narrow-view maritime scene (swimmers of 8-30
+    px, boats, foam)."""
+    chosen = preset("maritime_train_narrow")
     out = tmp_path_factory.mktemp("sea")
-    generate_sequence(chosen.scenario, chosen.mission, frames=8, size=(1920, 1080), seed=0,
+    generate_sequence(chosen.scenario, chosen.mission, frames=12, size=(960, 540), seed=0,
                       out_dir=out, video=False, progress=False, start_s=5.0)
     return [cv2.imread(str(path)) for path in sorted(out.rglob("*.jpg"))]
 

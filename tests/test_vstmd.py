@@ -16,6 +16,7 @@ from motion_scenes import (
     to_bgr,
 )
 
+from sarmission.perception.pyramid import half_resolution
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.types import MotionMaps
 from sarmission.perception.vstmd import VSTMD, VSTMDParams, direction_at, lobe_radius, map_to_full
@@ -257,8 +258,10 @@ def test_flops_shrink_with_ds() -> None:
     counts = [VSTMD(ds=ds, target_size=8).flops(2160, 3840) for ds in (1, 2, 4, 8)]
     assert all(c > 0 for c in counts)
     assert counts == sorted(counts, reverse=True)
-    # Full-resolution work (gray + retina) is a floor: 15 operations per pixel.
-    assert counts[-1] > 15 * 2160 * 3840
+    # Full-resolution work is a floor: gray + retina (15 per pixel) at ds 1; from ds 2 on the
+    # BGR halving (3 per pixel) and gray + retina on the half-resolution frame.
+    assert counts[0] > 15 * 2160 * 3840
+    assert counts[-1] > (3 + 15 / 4) * 2160 * 3840
 
 
 def drifting(ds_frames: int = 14, camera: tuple[float, float] = (6.0, 1.5),
@@ -362,3 +365,14 @@ def test_target_on_cluttered_sea_needs_the_weaker_surround(ds: int, seed: int) -
     best = rank(VSTMDParams())
     assert best is not None and best < 3
     assert rank(VSTMDParams(dog_e=3.0)) is None
+
+
+@pytest.mark.parametrize("ds", [2, 4, 8])
+def test_a_precomputed_half_frame_gives_the_same_maps(ds: int) -> None:
+    frames, _ = drifting(6)
+    own, shared = VSTMD(ds=ds), VSTMD(ds=ds)
+    for frame in frames:
+        a = own.step(frame)
+        b = shared.step(frame, half=half_resolution(frame))
+        np.testing.assert_array_equal(a.response, b.response)
+        np.testing.assert_array_equal(a.temporal_change, b.temporal_change)

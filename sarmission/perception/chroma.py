@@ -7,8 +7,8 @@ hue from water, while foam, glint and wave shading are nearly achromatic. This m
 difference as a local anomaly in the chroma plane (an isotropic form of the Reed-Xiaoli detector
 used on search-and-rescue imagery), computed on a 1/8-resolution copy of the frame::
 
-    S  = pool_8(I)                           (uint8 BGR; mean of the central 2 x 2 pixels of
-                                             each 4 x 4 block, then 2 x 2 block means)
+    S  = pool_8(I)                           (uint8 BGR 8 x 8 block means: three exact 2x
+                                             INTER_AREA halvings, the first shared with vSTMD)
     c  = (Cr, Cb)(S)                         (OpenCV YCrCb, 8-bit units, computed in float32)
     d  = c - box_w(c)                        (chroma minus its local mean, w x w window)
     A  = |d|^2 / (box_w(|d|^2) + floor)
@@ -17,10 +17,11 @@ used on search-and-rescue imagery), computed on a 1/8-resolution copy of the fra
 differs from its surroundings. Intensity is left out on purpose: brightness anomalies on the sea
 are mostly foam and glint. Pixel ``(i, j)`` of the map covers the frame block
 ``i*8 .. i*8+7, j*8 .. j*8+7``, like a vSTMD map at ds 8 (the last ``H % 8`` rows and ``W % 8``
-columns are ignored), but samples only a quarter of its pixels: a 4K frame is 25 MB, and reading
-all of it to pool by area costs more than the rest of the map (pooling 2.2 vs 1.2 ms, the whole
-map 3.0 vs 2.0 ms per frame on two cores, frames not in cache). A colour patch of 4 px or more
-always covers sampled pixels.
+columns are ignored). Reading a 4K frame (25 MB) costs more than the rest of the map, so the
+first halving is the frame's :func:`~sarmission.perception.pyramid.half_resolution`, which
+:class:`~sarmission.perception.mitenet.MiteNet` computes once for vSTMD and this map (the map
+alone then costs about 1.7 ms per 4K frame on two cores; sampling a quarter of the 4K pixels
+instead, as an earlier version did, cost 2.4 ms next to vSTMD's own full-resolution pass).
 
 Measured on the simulator's maritime_test split (4K, 2 x 150 frames, 2,155 GT boxes sampled every
 third frame; "reached" = a point within half the box's longer side plus 4 px of its centre): the
@@ -35,6 +36,8 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+
+from sarmission.perception.pyramid import half_resolution
 
 #: Pooling factor of the chroma map (full-resolution pixels per map pixel).
 CHROMA_SCALE = 8
@@ -55,28 +58,29 @@ class ChromaParams:
             raise ValueError(f"floor must be positive, got {self.floor}")
 
 
-def pooled_colour(frame_bgr: np.ndarray) -> np.ndarray:
-    """``frame_bgr`` reduced by :data:`CHROMA_SCALE` (8): a bilinear 4x reduction (each output
-    pixel is the mean of the central 2 x 2 pixels of its 4 x 4 block, so only half the frame's
-    rows are read) and an exact 2x ``INTER_AREA`` halving."""
+def pooled_colour(frame_bgr: np.ndarray, half: np.ndarray | None = None) -> np.ndarray:
+    """``frame_bgr`` reduced by :data:`CHROMA_SCALE` (8) to 8 x 8 block means (uint8), from
+    ``half`` = :func:`~sarmission.perception.pyramid.half_resolution` of the frame when given."""
     h, w = frame_bgr.shape[0] // CHROMA_SCALE, frame_bgr.shape[1] // CHROMA_SCALE
     if h < 1 or w < 1:
         raise ValueError(f"frame {frame_bgr.shape[1]}x{frame_bgr.shape[0]} is smaller than the "
                          f"chroma scale {CHROMA_SCALE}")
-    img = frame_bgr[:h * CHROMA_SCALE, :w * CHROMA_SCALE]
-    img = cv2.resize(img, (2 * w, 2 * h), interpolation=cv2.INTER_LINEAR)
+    img = (half if half is not None else half_resolution(frame_bgr))[:4 * h, :4 * w]
+    img = cv2.resize(img, (2 * w, 2 * h), interpolation=cv2.INTER_AREA)
     return cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
 
 
-def chroma_anomaly(frame_bgr: np.ndarray, params: ChromaParams | None = None) -> np.ndarray:
-    """Chromatic anomaly map ``A`` (float32, ``H // 8 x W // 8``) of a BGR uint8 frame."""
+def chroma_anomaly(frame_bgr: np.ndarray, params: ChromaParams | None = None,
+                   half: np.ndarray | None = None) -> np.ndarray:
+    """Chromatic anomaly map ``A`` (float32, ``H // 8 x W // 8``) of a BGR uint8 frame (``half``:
+    its :func:`~sarmission.perception.pyramid.half_resolution`, when already computed)."""
     if not (isinstance(frame_bgr, np.ndarray) and frame_bgr.ndim == 3
             and frame_bgr.shape[2] == 3 and frame_bgr.dtype == np.uint8):
         raise ValueError("frame must be BGR uint8 [H, W, 3]")
     p = params or ChromaParams()
     window = (p.window, p.window)
     border = cv2.BORDER_REFLECT_101
-    ycc = cv2.cvtColor(pooled_colour(frame_bgr), cv2.COLOR_BGR2YCrCb)
+    ycc = cv2.cvtColor(pooled_colour(frame_bgr, half), cv2.COLOR_BGR2YCrCb)
     energy = None
     for channel in (1, 2):
         chroma = cv2.extractChannel(ycc, channel)
@@ -96,17 +100,19 @@ def chroma_applies(height: int, width: int) -> bool:
     return min(height, width) >= CHROMA_SCALE
 
 
-def chroma_if_wanted(frame_bgr: np.ndarray, wanted: bool) -> np.ndarray | None:
+def chroma_if_wanted(frame_bgr: np.ndarray, wanted: bool,
+                     half: np.ndarray | None = None) -> np.ndarray | None:
     """:func:`chroma_anomaly` of the frame when ``wanted`` and :func:`chroma_applies`, else
     ``None`` (no colour proposals)."""
     if not (wanted and chroma_applies(*frame_bgr.shape[:2])):
         return None
-    return chroma_anomaly(frame_bgr)
+    return chroma_anomaly(frame_bgr, half=half)
 
 
 def chroma_flops(height: int, width: int) -> int:
-    """Operations per frame: pooling 3 channels x (4/3) per full-res px (a 2x2 mean per output
-    pixel of each halving), then per map px YCrCb 12, the two running-sum box means 2 x 4,
-    deviations 2, energy 3, local box 4 and the floor and divide 2."""
+    """Operations per frame after the shared half-resolution frame: pooling 3 channels x (4/3)
+    per half-resolution px (a 2x2 mean per output pixel of each halving), then per map px YCrCb
+    12, the two running-sum box means 2 x 4, deviations 2, energy 3, local box 4 and the floor
+    and divide 2."""
     maps = (height // CHROMA_SCALE) * (width // CHROMA_SCALE)
-    return int(height * width * 4 + maps * (12 + 8 + 2 + 3 + 4 + 2))
+    return int(height * width // 4 * 4 + maps * (12 + 8 + 2 + 3 + 4 + 2))

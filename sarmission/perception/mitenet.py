@@ -27,6 +27,7 @@ from sarmission.perception.head import (
     head_flops_per_proposal,
     ltrb_to_boxes,
 )
+from sarmission.perception.pyramid import half_resolution
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.runtime import (
     HeadRuntime,
@@ -210,9 +211,12 @@ class MiteNet:
         self._check_frame(frame_bgr)
         frame = np.ascontiguousarray(frame_bgr)
         t0 = time.perf_counter()
-        motion = self.vstmd.step(frame, shift_px=shift_px)
+        colour = self.rpn.colour_slots > 0
+        # One full-resolution pass shared by vSTMD (ds >= 2) and the chroma map.
+        half = half_resolution(frame) if self.ds >= 2 or colour else None
+        motion = self.vstmd.step(frame, shift_px=shift_px, half=half)
         t1 = time.perf_counter()
-        chroma = chroma_if_wanted(frame, self.rpn.colour_slots > 0)
+        chroma = chroma_if_wanted(frame, colour, half)
         t2 = time.perf_counter()
         proposals = self.rpn.propose(motion, chroma)
         t3 = time.perf_counter()
@@ -284,7 +288,9 @@ class MiteNet:
             "vstmd": int(self.vstmd.flops(height, width)),
             "rpn_other": (int(self.rpn.flops(map_h, map_w, chroma_shape))
                           + crop_flops(self.topn * len(self.crop_scales), CROP_SIZE)
-                          + (chroma_flops(height, width) if colour else 0)),
+                          + (chroma_flops(height, width) if colour else 0)
+                          # the half-resolution frame is vSTMD's at ds >= 2, the map's own at 1
+                          + (height * width * 3 if colour and self.ds == 1 else 0)),
             "head": head_flops_per_proposal(head) * self.topn * len(self.crop_scales),
         }
         flops["total"] = sum(flops.values())
