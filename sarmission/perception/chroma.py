@@ -20,7 +20,7 @@ are mostly foam and glint. Pixel ``(i, j)`` of the map covers the frame block
 columns are ignored). Reading a 4K frame (25 MB) costs more than the rest of the map, so the
 first halving is the frame's :func:`~sarmission.perception.pyramid.half_resolution`, which
 :class:`~sarmission.perception.mitenet.MiteNet` computes once for vSTMD and this map (the map
-alone then costs about 1.7 ms per 4K frame on two cores; sampling a quarter of the 4K pixels
+alone then costs about 1.5 ms per 4K frame on two cores; sampling a quarter of the 4K pixels
 instead, as an earlier version did, cost 2.4 ms next to vSTMD's own full-resolution pass).
 
 Measured on the simulator's maritime_test split (4K, 2 x 150 frames, 2,155 GT boxes sampled every
