@@ -156,10 +156,11 @@ def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
 
 
 def _crop_scores(net: MiteNet, frame: np.ndarray, result, scale: float):
-    """Best-class probability and decoded box of every proposal's crop at ``scale``."""
+    """Best-class probability and decoded box of every proposal's crop at ``scale`` (one
+    bilinear sample per bin, as MiteNet cuts them)."""
     boxes = scaled_boxes(result.proposals.boxes, scale)
-    logits, ltrb = net.head.predict(motion_enhanced_crops(frame, result.motion, boxes,
-                                                          result.proposals.polarity))
+    logits, ltrb = net.head.predict(motion_enhanced_crops(
+        frame, result.motion, boxes, result.proposals.polarity, sampling_ratio=1))
     probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
     return probs.max(axis=1), ltrb_to_boxes(ltrb, boxes, 16)
 
