@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from sarmission.perception.pyramid import half_resolution
+from sarmission.perception.pyramid import half_resolution, halve
 
 #: Pooling factor of the chroma map (full-resolution pixels per map pixel).
 CHROMA_SCALE = 8
@@ -65,9 +65,7 @@ def pooled_colour(frame_bgr: np.ndarray, half: np.ndarray | None = None) -> np.n
     if h < 1 or w < 1:
         raise ValueError(f"frame {frame_bgr.shape[1]}x{frame_bgr.shape[0]} is smaller than the "
                          f"chroma scale {CHROMA_SCALE}")
-    img = (half if half is not None else half_resolution(frame_bgr))[:4 * h, :4 * w]
-    img = cv2.resize(img, (2 * w, 2 * h), interpolation=cv2.INTER_AREA)
-    return cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+    return halve((half if half is not None else half_resolution(frame_bgr))[:4 * h, :4 * w], 2)
 
 
 def chroma_anomaly(frame_bgr: np.ndarray, params: ChromaParams | None = None,

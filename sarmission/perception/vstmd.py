@@ -177,7 +177,7 @@ import cv2
 import numpy as np
 from numba import njit
 
-from sarmission.perception.pyramid import half_resolution
+from sarmission.perception.pyramid import half_resolution, halve
 from sarmission.perception.types import MotionMaps
 
 VALID_DS = (1, 2, 4, 8)
@@ -523,16 +523,6 @@ def _combine_rectify(centre, surround, bump, out):  # pragma: no cover - numba
             o[j] = max(c[j] - s[j] + b[j], zero)
 
 
-def _halve_to(img: np.ndarray, levels: int) -> np.ndarray:
-    """Area-average ``img`` by ``2**levels`` (exact 2x ``INTER_AREA`` halvings; the image must be
-    cropped to a multiple of ``2**levels``).
-    """
-    for _ in range(levels):
-        img = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2),
-                         interpolation=cv2.INTER_AREA)
-    return img
-
-
 class ShiftEstimator:
     """Dominant global translation between consecutive pooled retina images ``P'``.
 
@@ -577,7 +567,7 @@ class ShiftEstimator:
         f = 1 << self._levels
         ch, cw = self._window.shape
         eh, ew = ch * 2, cw * 2
-        est = _halve_to(pooled[:eh * f, :ew * f], self._levels).astype(np.float32) * scale
+        est = halve(pooled[:eh * f, :ew * f], self._levels).astype(np.float32) * scale
         coarse = cv2.resize(est, (cw, ch), interpolation=cv2.INTER_AREA)
         return est, coarse
 
@@ -797,8 +787,7 @@ class VSTMD:
                                    borderType=cv2.BORDER_REFLECT_101)
             # The rest of the pooling as exact halvings (OpenCV's 2x INTER_AREA path is several
             # times faster than its general 4x one; the mean of block means is the block mean).
-            for level in range(int(math.log2(ds)) - 2, -1, -1):
-                img = cv2.resize(img, (w << level, h << level), interpolation=cv2.INTER_AREA)
+            img = halve(img, int(math.log2(ds)) - 1)
         scale = np.float32(1.0 / 255.0) if img.dtype == np.uint8 else np.float32(1.0)
         return img, scale
 
@@ -889,7 +878,7 @@ class VSTMD:
         if hl == 0 or wl == 0:
             out[...] = 0.0
             return
-        self._lobula_filter(_halve_to(corr[:hl * f, :wl * f], int(math.log2(f))), s["coarse"])
+        self._lobula_filter(halve(corr[:hl * f, :wl * f], int(math.log2(f))), s["coarse"])
         size = (wl * f, hl * f)
         if out.shape == size[::-1]:
             cv2.resize(s["coarse"], size, dst=out, interpolation=cv2.INTER_LINEAR)
