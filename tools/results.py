@@ -776,6 +776,24 @@ def evaluate_split(head: Any, dataset: Any, ds: int, settings: Mapping[str, Any]
     }
 
 
+#: The extra ds = 2 runs of every split (section 1b): key -> (log label, settings changed).
+DS2_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "motion_only": ("motion proposals only", {"colour_share": 0.0}),
+    "single_crop": ("single crop", {"crop_scales": [1.0]}),
+    "refine_all": ("every proposal at every crop scale", {"refine_threshold": 0.0}),
+}
+
+
+def evaluate_ds2_variant(head: Any, dataset: Any, settings: Mapping[str, Any],
+                         overrides: Mapping[str, Any], label: str, prefix: str,
+                         progress: bool) -> dict[str, Any]:
+    """One :data:`DS2_VARIANTS` run (without the shared metric definitions)."""
+    print(f"{prefix}, {label}", file=sys.stderr)
+    run = evaluate_split(head, dataset, MAIN_DS, {**settings, **overrides}, progress)
+    run.pop("definitions")
+    return run
+
+
 def _int_list(text: str) -> list[int]:
     return [int(v) for v in text.split(",") if v.strip()]
 
@@ -822,26 +840,15 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
             run = evaluate_split(head, dataset, ds, settings, not args.no_progress)
             results["definitions"] = run.pop("definitions")
             runs[str(ds)] = run
-        motion_only = None
-        if args.colour_share > 0:
-            print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, motion proposals only",
-                  file=sys.stderr)
-            motion_only = evaluate_split(head, dataset, MAIN_DS, {**settings, "colour_share": 0.0},
-                                         not args.no_progress)
-            motion_only.pop("definitions")
-        print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, single crop", file=sys.stderr)
-        single_crop = evaluate_split(head, dataset, MAIN_DS, {**settings, "crop_scales": [1.0]},
-                                     not args.no_progress)
-        single_crop.pop("definitions")
-        print(f"{name}: evaluating ds={MAIN_DS}, N={TOPN}, every proposal at every crop scale",
-              file=sys.stderr)
-        refine_all = evaluate_split(head, dataset, MAIN_DS, {**settings, "refine_threshold": 0.0},
-                                    not args.no_progress)
-        refine_all.pop("definitions")
+        extra = {key: evaluate_ds2_variant(head, dataset, settings, overrides, label,
+                                           f"{name}: evaluating ds={MAIN_DS}, N={TOPN}",
+                                           not args.no_progress)
+                 for key, (label, overrides) in DS2_VARIANTS.items()
+                 if key != "motion_only" or args.colour_share > 0}
         results["splits"][name] = {
             "preset": {"seed": chosen.scenario.seed, "description": _preset_doc(name)},
             "annotations": str(annotations), "category_as_class": dict(aliases), "runs": runs,
-            "motion_only": motion_only, "single_crop": single_crop, "refine_all": refine_all}
+            "motion_only": None, **extra}
     if args.sweep:
         grid = [(ds, n) for ds in args.sweep_ds for n in args.sweep_topn]
         grid += [(1, n) for n in args.sweep_ds1_topn if (1, n) not in grid]
