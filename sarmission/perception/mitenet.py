@@ -249,7 +249,7 @@ class MiteNet:
         if self.nms_iou is not None and refine.size > 1 and len(self.crop_scales) > 1:
             first = ltrb_to_boxes(ltrb[refine], boxes[refine], self.head.config.crop_size)
             refine = refine[nms_xyxy(first, scores[refine], self.nms_iou)]
-        first_side = np.maximum(boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1])
+        first_side = self.crop_scales[0] * self.box_size  # every proposal box is S x S
         for scale in self.crop_scales[1:]:
             if refine.size == 0:
                 break
@@ -260,8 +260,7 @@ class MiteNet:
             wide_scores, wide_ids, wide_ltrb = self._classify(motion_enhanced_crops(
                 frame, motion, wide, proposals.polarity[refine], sampling_ratio=1))
             seen = ltrb_to_boxes(wide_ltrb, wide, self.head.config.crop_size)
-            larger = (np.maximum(seen[:, 2] - seen[:, 0], seen[:, 3] - seen[:, 1])
-                      >= first_side[refine])
+            larger = np.maximum(seen[:, 2] - seen[:, 0], seen[:, 3] - seen[:, 1]) >= first_side
             better = (wide_scores > scores[refine]) & larger
             chosen = refine[better]
             scores[chosen], class_ids[chosen] = wide_scores[better], wide_ids[better]
