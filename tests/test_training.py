@@ -16,12 +16,15 @@ from sarmission.commands import train as train_command
 from sarmission.perception.head import ltrb_to_boxes
 from sarmission.perception.runtime import load_head_checkpoint
 from sarmission.perception.types import MotionMaps
+from sarmission.training import dataset as dataset_module
 from sarmission.training import train as train_module
 from sarmission.training.dataset import (
     CropSettings,
+    cache_key,
     load_crop_set,
     ltrb_targets,
     polarity_near,
+    source_fingerprint,
 )
 from sarmission.training.losses import LossWeights, dfl_loss, head_loss, ltrb_nwd
 from sarmission.training.sampling import assign_by_nwd, hardest_negatives, jitter_boxes
@@ -186,6 +189,23 @@ def data(tmp_path_factory) -> dict[str, Path]:
 
 
 SETTINGS = CropSettings(frame_stride=2, jitters_per_gt=3)
+
+
+def test_crop_cache_key_follows_the_recipe_source(tmp_path, monkeypatch):
+    module = tmp_path / "recipe_probe.py"
+    module.write_text("SIDE = 16\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    before = source_fingerprint(("recipe_probe",))
+    assert source_fingerprint(("recipe_probe",)) == before
+    module.write_text("SIDE = 24\n")
+    assert source_fingerprint(("recipe_probe",)) != before
+    # The key of a cache changes with the recipe's code, not only with the settings.
+    annotations = tmp_path / "a.json"
+    annotations.write_text("{}")
+    key = cache_key(annotations, SETTINGS)
+    assert cache_key(annotations, SETTINGS) == key
+    monkeypatch.setattr(dataset_module, "source_fingerprint", lambda: "edited recipe")
+    assert cache_key(annotations, SETTINGS) != key
 
 
 def test_crop_cache_matches_inference_and_is_reused(data):

@@ -34,13 +34,15 @@ Box targets are ``l, t, r, b``: distances from the crop centre to the GT edges i
 :func:`~sarmission.perception.head.ltrb_to_boxes`.
 
 The cache file is ``<cache_dir>/crops-<key>.pt`` with ``key`` a hash of the annotation file's
-resolved path, size and modification time, :data:`CACHE_VERSION` and the settings; a second run
-with the same inputs loads it instead of decoding the video again. Image files are not hashed.
+resolved path, size and modification time, :data:`CACHE_VERSION`, the source of the modules that
+cut and label the crops (:func:`source_fingerprint`) and the settings; a second run with the same
+inputs and code loads it instead of decoding the video again. Image files are not hashed.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib
 import json
 import logging
 import os
@@ -66,8 +68,11 @@ from sarmission.training.sampling import assign_by_nwd, jitter_boxes
 
 log = logging.getLogger(__name__)
 
-#: Bumped whenever the proposals or crops a setting produces change (2: colour proposals and the
-#: pooled lobula), so that an old cache is never mistaken for the current recipe.
+#: Version of the cache file's layout. The proposals and crops themselves are keyed by the source
+#: of the modules that make them (:data:`RECIPE_MODULES`), so that a cache cut by older code is
+#: never mistaken for the current recipe (a hand-bumped version once missed a change of the
+#: chroma map, and a head trained on the stale crops locked 40 instead of 41 of maritime_test's
+#: 43 trajectories).
 CACHE_VERSION = 2
 CACHE_FORMAT = "sarmission.crop_cache"
 
@@ -323,11 +328,28 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
     )
 
 
+#: Modules whose code decides the cached crops and labels.
+RECIPE_MODULES = ("sarmission.perception.pyramid", "sarmission.perception.vstmd",
+                  "sarmission.perception.chroma", "sarmission.perception.rpn",
+                  "sarmission.perception.crops", "sarmission.training.sampling",
+                  "sarmission.training.dataset")
+
+
+def source_fingerprint(modules: tuple[str, ...] = RECIPE_MODULES) -> str:
+    """Hex digest of the source files of ``modules`` (imported by name), in the given order."""
+    digest = hashlib.sha256()
+    for name in modules:
+        digest.update(name.encode())
+        digest.update(Path(importlib.import_module(name).__file__).read_bytes())
+    return digest.hexdigest()
+
+
 def cache_key(annotations: Path, settings: CropSettings) -> str:
-    """Hex key of (resolved annotation path, its size and mtime, cache version, settings)."""
+    """Hex key of (resolved annotation path, its size and mtime, cache version, the recipe's
+    source fingerprint, settings)."""
     stat = annotations.stat()
     doc = {"path": str(annotations.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns,
-           "version": CACHE_VERSION, "settings": settings.to_dict()}
+           "version": CACHE_VERSION, "code": source_fingerprint(), "settings": settings.to_dict()}
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
 
 
