@@ -168,8 +168,7 @@ def _rpn_limit(run: dict) -> str:
                  f"{k}-frame window. ")
     return (lines + f"The RPN's top-N proposals come within NWD 0.1 of "
             f"{100 * rpn['R@0.1']:.0f} % of the target boxes (section 4); a target it does not "
-            "propose cannot be detected. Large swimmers (30-40 px) are proposed, but the head "
-            "sees a 16-px crop of them and draws their box too small for NWD 0.5. ")
+            "propose cannot be detected. ")
 
 
 class Findings:

@@ -67,8 +67,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "move and the false alerts multiply")
     add_detector_options(parser)
     # Motion proposals only by default: in this narrow 960x540 view the colour proposals find
-    # more people but raise many more false alerts (one 43 s flight, alert action: 12 vs 9 of
-    # 17 people found, 26 vs 5 false alerts); --colour-share 0.4 shows that trade-off.
+    # a few more people but raise far more false alerts (two 43 s flights, alert action: 12 of 17
+    # people found with 30 and 43 false alerts, vs 9-12 with 10-17); --colour-share 0.4 shows it.
     parser.set_defaults(func=run, colour_share=DEMO_COLOUR_SHARE)
 
 
