@@ -331,8 +331,8 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
 #: Modules whose code decides the cached crops and labels.
 RECIPE_MODULES = ("sarmission.perception.pyramid", "sarmission.perception.vstmd",
                   "sarmission.perception.chroma", "sarmission.perception.rpn",
-                  "sarmission.perception.crops", "sarmission.training.sampling",
-                  "sarmission.training.dataset")
+                  "sarmission.perception.crops", "sarmission.boxes",
+                  "sarmission.training.sampling", "sarmission.training.dataset")
 
 
 def source_fingerprint(modules: tuple[str, ...] = RECIPE_MODULES) -> str:
