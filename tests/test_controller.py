@@ -150,6 +150,9 @@ class AnnouncedActions:
     def pending(self) -> int:
         return 0
 
+    def tick(self) -> bool:
+        return False
+
 
 @pytest.mark.parametrize("reborn", [False, True], ids=["same track", "track re-born"])
 def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission, reborn):
@@ -233,6 +236,67 @@ def test_alert_reaches_the_autopilot_and_is_marked_delivered(tmp_path, mission):
         assert distance_m((lat, lon), alert.position) < 0.1
         assert cmd.params[6] == pytest.approx(50.0)
         assert actions.delivered == 2 and store.undelivered("mavlink") == []
+    finally:
+        outbox.close()
+        link.close()
+        vehicle.stop()
+        store.close()
+
+
+def nadir_angle_deg(vehicle: SimVehicle) -> float:
+    """Angle between the simulated camera's optical axis and straight down."""
+    axis = vehicle.camera_pose().optical_axis_ned
+    return math.degrees(math.acos(float(np.clip(axis[2] / np.linalg.norm(axis), -1.0, 1.0))))
+
+
+def test_roi_is_held_then_released_to_the_survey_view(tmp_path, mission):
+    """ROI on the alert, DO_SET_ROI_NONE once ``roi_hold_s`` has passed on the policy's clock
+    (not before), and the simulated gimbal back at nadir."""
+    n = 10
+    mission.actions.policy = ["roi"]
+    mission.actions.roi_hold_s = 10.0
+    now = [100.0]
+    lines: list[str] = []
+    port = free_udp_port()
+    vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", mission).start()
+    link = MavlinkLink(f"udpout:127.0.0.1:{port}")
+    outbox = Outbox(CommandSender(link, retries=2, ack_timeout_s=0.5))
+    store = AlertStore(tmp_path / "alerts.db")
+
+    def released() -> list:
+        return [c for c in vehicle.commands if c.command == M.MAV_CMD_DO_SET_ROI_NONE]
+
+    try:
+        assert link.wait_autopilot(5.0)
+        actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
+                               console=lines.append, clock=lambda: now[0])
+        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
+                                filled_buffer(mission, n / FPS), store, actions=actions,
+                                console=lambda s: None)
+        (alert,) = run_frames(ctl, n)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not store.get(alert.alert_id).delivered:
+            time.sleep(0.05)
+        assert set(store.get(alert.alert_id).delivered) == {"mavlink_roi"}
+        time.sleep(1.5)  # the gimbal slews for 1 s
+        assert nadir_angle_deg(vehicle) > 5.0  # pointed at the target, off nadir
+
+        now[0] += 9.9
+        assert not actions.tick()
+        time.sleep(0.3)
+        assert released() == []
+        now[0] += 0.2
+        assert actions.tick()
+        assert not actions.tick()  # released once
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not released():
+            time.sleep(0.05)
+        (cmd,) = released()
+        assert cmd.result == M.MAV_RESULT_ACCEPTED and not cmd.is_int
+        time.sleep(1.5)
+        assert nadir_angle_deg(vehicle) < 1.0
+        assert "  -> camera back to the survey view (DO_SET_ROI_NONE)" in lines
+        assert actions.delivered == 1  # the release is no alert delivery
     finally:
         outbox.close()
         link.close()

@@ -76,6 +76,8 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[detector]\ncrop_scales = [1.0, -2.0]", "[detector] crop_scales"),
         ("[detector]\nrefine_threshold = 1.5", "[detector] refine_threshold"),
         ('[actions]\npolicy = ["alert", "dance"]', "unknown action 'dance'"),
+        ("[actions]\nroi_hold_s = 0", "[actions] roi_hold_s: expected a positive number"),
+        ("[actions]\nroi_hold_s = nan", "[actions] roi_hold_s"),
         ("[camera]\nmount_pitch_deg = 30", "mount_pitch_deg"),
         ("[area]\nrectangle_m = [10, 0, 0, 10]", "rectangle_m"),
         ("[area]\nrectangle_m = [0, 0, 10, 10]\npolygon_m = [[0,0],[1,0],[1,1]]", "only one"),

@@ -243,6 +243,11 @@ class CommandSender:
             alt,
         )
 
+    def clear_roi(self) -> CommandResult:
+        """MAV_CMD_DO_SET_ROI_NONE as COMMAND_LONG (param1 0 = all gimbals): the camera goes
+        back to its mission or mount orientation."""
+        return self.command_long(M.MAV_CMD_DO_SET_ROI_NONE, 0.0)
+
     def statustext(self, text: str, severity: int = M.MAV_SEVERITY_ALERT) -> CommandResult:
         """STATUSTEXT (chunked above 50 characters, see the module docstring). Not sent when
         the link is down; there is no acknowledgement, so "accepted" means sent."""
@@ -391,6 +396,7 @@ class Outbox:
             "statustext",
             "reposition",
             "set_roi",
+            "clear_roi",
             "upload_mission",
             "command_int",
             "command_long",

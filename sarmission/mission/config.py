@@ -173,12 +173,15 @@ class LockConfig:
 class ActionsConfig:
     """What to do with a confirmed target, in order: ``alert`` (STATUSTEXT), ``loiter``
     (DO_REPOSITION to the target), ``roi`` (DO_SET_ROI_LOCATION), ``mission`` (upload a mission
-    item to the target). Every command waits ``ack_timeout_s`` for its ACK, ``retries`` times."""
+    item to the target). Every command waits ``ack_timeout_s`` for its ACK, ``retries`` times.
+    After ``roi_hold_s`` seconds on the newest target the camera is released (DO_SET_ROI_NONE)
+    so that the search goes on at the survey view (a long hold keeps it on the target)."""
 
     policy: list[str] = field(default_factory=lambda: ["alert"])
     retries: int = 3
     ack_timeout_s: float = 1.5
     loiter_altitude_m: float | None = None
+    roi_hold_s: float = 10.0
 
 
 @dataclass
@@ -395,6 +398,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
             )
     if cfg.actions.retries < 0 or cfg.actions.ack_timeout_s <= 0:
         raise bad("[actions] retries/ack_timeout_s", "expected retries >= 0 and a positive timeout")
+    if not cfg.actions.roi_hold_s > 0:
+        raise bad("[actions] roi_hold_s", "expected a positive number of seconds")
     t = cfg.telemetry
     for key in ("gnss_noise_m", "attitude_noise_deg", "latency_s"):
         if getattr(t, key) < 0:

@@ -177,6 +177,8 @@ class MissionController:
                     log.info("track %d joined target %d", track.track_id, target.target_id)
             if target.position is not None and target.target_id in self._unplaced:
                 self._attach_position(target, track.track_id, frame_index)
+        if self.actions is not None:
+            self.actions.tick()  # camera back to the survey view once an ROI has been held
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:
