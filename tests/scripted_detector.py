@@ -46,6 +46,9 @@ class ScriptedDetector:
         return _result(timestamp, [b for b, _, _ in items], [s for _, s, _ in items],
                        [c for _, _, c in items])
 
+    def reset(self) -> None:
+        """Nothing to forget: the script goes on with the next call."""
+
 
 class BlobDetector:
     """Boxes around connected regions brighter than ``threshold`` (grey level) in the frame."""
@@ -66,3 +69,6 @@ class BlobDetector:
         boxes = [(x, y, x + w, y + h) for x, y, w, h, area in stats[1:n]
                  if area >= self.min_area]
         return _result(timestamp, boxes, [0.9] * len(boxes), [0] * len(boxes))
+
+    def reset(self) -> None:
+        """Stateless: nothing to forget."""

@@ -16,7 +16,7 @@ from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.commands import CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
 from sarmission.mavlink.telemetry import TelemetryBuffer
-from sarmission.mission.actions import ActionPolicy, ascii_statustext
+from sarmission.mission.actions import ROI_SETTLE_S, ActionPolicy, ascii_statustext
 from sarmission.mission.config import load_mission
 from sarmission.mission.controller import MissionController
 from sarmission.mission.targets import distance_m
@@ -72,10 +72,11 @@ def truth_latlon(mission) -> tuple[float, float]:
     return float(lat), float(lon)
 
 
-def run_frames(ctl, n_frames: int, t0: float = 0.0, frames=None) -> list:
+def run_frames(ctl, n_frames: int, t0: float = 0.0, frames=None, start: int = 0) -> list:
+    """Frames ``start .. start + n_frames - 1`` at ``t0 + i / FPS``."""
     alerts = []
-    for i in range(n_frames):
-        frame = np.full((H, W, 3), 90, np.uint8) if frames is None else frames[i]
+    for i in range(start, start + n_frames):
+        frame = np.full((H, W, 3), 90, np.uint8) if frames is None else frames[i - start]
         alerts += ctl.process(i, t0 + i / FPS, frame)
     return alerts
 
@@ -151,6 +152,9 @@ class AnnouncedActions:
         return 0
 
     def tick(self) -> bool:
+        return False
+
+    def search_paused(self) -> bool:
         return False
 
 
@@ -249,9 +253,10 @@ def nadir_angle_deg(vehicle: SimVehicle) -> float:
     return math.degrees(math.acos(float(np.clip(axis[2] / np.linalg.norm(axis), -1.0, 1.0))))
 
 
-def test_roi_is_held_then_released_to_the_survey_view(tmp_path, mission):
+def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mission):
     """ROI on the alert, DO_SET_ROI_NONE once ``roi_hold_s`` has passed on the policy's clock
-    (not before), and the simulated gimbal back at nadir."""
+    (not before), the simulated gimbal back at nadir; no frame is searched from the ROI's
+    delivery until ROI_SETTLE_S after the release."""
     n = 10
     mission.actions.policy = ["roi"]
     mission.actions.roi_hold_s = 10.0
@@ -266,20 +271,28 @@ def test_roi_is_held_then_released_to_the_survey_view(tmp_path, mission):
     def released() -> list:
         return [c for c in vehicle.commands if c.command == M.MAV_CMD_DO_SET_ROI_NONE]
 
+    def wait_for(condition) -> None:
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and not condition():
+            time.sleep(0.05)
+
     try:
         assert link.wait_autopilot(5.0)
         actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
                                console=lines.append, clock=lambda: now[0])
-        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
-                                filled_buffer(mission, n / FPS), store, actions=actions,
-                                console=lambda s: None)
+        detector = ScriptedDetector(script_3_of_5(mission, n))
+        ctl = MissionController(mission, detector, filled_buffer(mission, 4.0), store,
+                                actions=actions, console=lambda s: None)
+        assert not actions.search_paused()
         (alert,) = run_frames(ctl, n)
-        deadline = time.monotonic() + 10.0
-        while time.monotonic() < deadline and not store.get(alert.alert_id).delivered:
-            time.sleep(0.05)
+        wait_for(lambda: store.get(alert.alert_id).delivered)
         assert set(store.get(alert.alert_id).delivered) == {"mavlink_roi"}
         time.sleep(1.5)  # the gimbal slews for 1 s
         assert nadir_angle_deg(vehicle) > 5.0  # pointed at the target, off nadir
+        assert actions.search_paused()
+        calls = detector.calls
+        assert run_frames(ctl, 5, start=n) == [] and ctl.stats.paused == 5
+        assert detector.calls == calls  # paused frames are not searched
 
         now[0] += 9.9
         assert not actions.tick()
@@ -288,14 +301,18 @@ def test_roi_is_held_then_released_to_the_survey_view(tmp_path, mission):
         now[0] += 0.2
         assert actions.tick()
         assert not actions.tick()  # released once
-        deadline = time.monotonic() + 10.0
-        while time.monotonic() < deadline and not released():
-            time.sleep(0.05)
+        wait_for(released)
         (cmd,) = released()
         assert cmd.result == M.MAV_RESULT_ACCEPTED and not cmd.is_int
+        wait_for(lambda: "  -> camera back to the survey view (DO_SET_ROI_NONE)" in lines)
         time.sleep(1.5)
         assert nadir_angle_deg(vehicle) < 1.0
-        assert "  -> camera back to the survey view (DO_SET_ROI_NONE)" in lines
+        assert actions.search_paused()  # the gimbal settles
+        now[0] += ROI_SETTLE_S + 0.1
+        assert not actions.search_paused()
+        run_frames(ctl, 2, start=n + 5)
+        assert detector.calls == calls + 2 and ctl.stats.paused == 5
+        assert "frames not searched while the camera was on a target: 5" in ctl.summary()
         assert actions.delivered == 1  # the release is no alert delivery
     finally:
         outbox.close()

@@ -205,3 +205,14 @@ def test_reporting_history_and_frame_order() -> None:
     np.testing.assert_allclose(state.raw_box, [7, 7, 13, 13])
     with pytest.raises(ValueError):
         tracker.update(Detections(), 29, 3.0)
+
+
+def test_dropped_tracks_are_forgotten_and_new_ones_get_new_ids() -> None:
+    tracker = Tracker()
+    for i in range(4):
+        (state,) = tracker.update(dets((100.0, 100.0)), i, i / 30)
+    assert state.track_id == 1 and state.locked
+    tracker.drop_tracks()
+    assert tracker.update(dets(), 10, 10 / 30) == []
+    (fresh,) = tracker.update(dets((100.0, 100.0)), 11, 11 / 30)
+    assert fresh.track_id == 2 and fresh.hits == 1 and not fresh.locked

@@ -62,9 +62,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--actions", type=parse_actions, default=DEMO_ACTIONS,
                         metavar="A[,A...]",
                         help="what to do with a confirmed target: alert (STATUSTEXT), roi "
-                        "(point the camera at it for [actions] roi_hold_s), loiter, mission "
-                        "(default: alert). Off nadir the motion front-end sees the waves move, "
-                        "the false alerts multiply and each re-points the camera")
+                        "(point the camera at it for [actions] roi_hold_s, the search paused "
+                        "meanwhile), loiter, mission (default: alert)")
     add_detector_options(parser)
     # Motion proposals only by default: in this narrow 960x540 view the colour proposals find
     # a few more people but raise far more false alerts (two 43 s flights, alert action: 12 of 17

@@ -67,6 +67,8 @@ class Detector(Protocol):
     def process(self, frame_bgr: np.ndarray, timestamp: float,
                 shift_px: tuple[float, float] | None = None) -> FrameResult: ...
 
+    def reset(self) -> None: ...
+
 
 @dataclass
 class ControllerStats:
@@ -79,6 +81,7 @@ class ControllerStats:
     alerts: list[Alert] = field(default_factory=list)
     located_later: int = 0
     merged_tracks: int = 0
+    paused: int = 0  # frames not searched: the camera was pointed at a target
     stage_ms: Counter[str] = field(default_factory=Counter)
     busy_s: float = 0.0
 
@@ -136,6 +139,7 @@ class MissionController:
         self._t0: float | None = None
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
+        self._paused = False  # the last frame was not searched (camera on a target)
 
     # -- per frame -------------------------------------------------------------------------------
     def process(self, frame_index: int, timestamp: float, frame: Any) -> list[Alert]:
@@ -144,6 +148,15 @@ class MissionController:
         if reason:
             self._skip(frame_index, reason)
             return []
+        if self.actions is not None and self.actions.search_paused():
+            self.stats.paused += 1
+            self._paused = True
+            self.actions.tick()
+            return []
+        if self._paused:  # the camera is back: motion and tracks start afresh
+            self.detector.reset()
+            self.tracker.drop_tracks()
+            self._paused = False
         started = time.perf_counter()
         result = self.detector.process(frame, timestamp)
         shift = getattr(self.detector.vstmd, "last_shift", None)
@@ -351,6 +364,8 @@ class MissionController:
                      f"new alerts: {len(s.alerts)}"
                      + (f", positions found after the alert: {s.located_later}"
                         if s.located_later else ""))
+        if s.paused:
+            lines.append(f"frames not searched while the camera was on a target: {s.paused}")
         if self.actions is not None:
             lines.append(f"autopilot actions delivered: {self.actions.delivered}, refused: "
                          f"{self.actions.refused}, pending: {self.actions.pending()}")

@@ -203,6 +203,10 @@ class Tracker:
         self._next_id = 1
         self._last_frame: int | None = None
 
+    def drop_tracks(self) -> None:
+        """Forget every track (e.g. after a gap in the frames); new tracks get new ids."""
+        self._tracks = []
+
     def update(self, detections: Detections, frame_index: int, timestamp: float, *,
                camera_shift: tuple[float, float] | None = None) -> list[TrackState]:
         """Take one frame's detections and return the reported tracks' states.
