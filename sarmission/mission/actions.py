@@ -111,7 +111,9 @@ class ActionPolicy:
 
     def search_paused(self) -> bool:
         """Whether the camera is pointed at a target (from the delivery of an ROI until
-        :data:`ROI_SETTLE_S` after its release), so that its frames should not be searched."""
+        :data:`ROI_SETTLE_S` after its release), so that its frames should not be searched. A
+        release waiting for a lost link keeps the pause (the autopilot still points the camera
+        at the target); a refused release ends it (where the camera looks is then unknown)."""
         with self._release_lock:
             return self._paused_until is not None and self.clock() < self._paused_until
 
