@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from sarmission.commands.detector_options import (
+    add_refine_threshold_option,
     check_colour_share,
     check_refine_threshold,
     parse_crop_scales,
@@ -63,9 +64,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         metavar="S[,S...]",
                         help="crop sides as multiples of the proposal box: every proposal at the "
                         "first, would-be detections also at the others (default: 1,2)")
-    parser.add_argument("--refine-threshold", type=float, default=None, metavar="SCORE",
-                        help="first-crop score from which a proposal is cropped again at the "
-                        "further scales; 0 = every proposal (default: 0.3, the detection score)")
+    add_refine_threshold_option(parser)
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.set_defaults(func=run)
 

@@ -20,8 +20,8 @@ DEFAULT_SCORE_THRESHOLD = 0.3
 
 
 def add_detector_options(parser: argparse.ArgumentParser) -> None:
-    """Add ``--model --runtime --ds --topn --colour-share --crop-scales --ego-motion --conf`` to
-    ``parser``."""
+    """Add ``--model --runtime --ds --topn --colour-share --crop-scales --refine-threshold
+    --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument("--model", default=None,
                        help="head weights (.pt or .onnx); default: the shipped model")
@@ -40,10 +40,7 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
                        "first, would-be detections again at the others, keeping the best-scored "
                        "crop; 1,2 lets the head box swimmers of 25-40 px whole, 1 is the paper's "
                        "single crop (default: 1,2)")
-    group.add_argument("--refine-threshold", type=float, default=None, metavar="SCORE",
-                       help="first-crop score from which a proposal is cropped again at the "
-                       "further scales; 0 = every proposal: more found, ~2 ms more per 4K frame "
-                       "(default: the --conf value)")
+    add_refine_threshold_option(group)
     group.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
                        help="compensate the camera's own motion (moving drone) or assume a still "
                        "camera (default: %(default)s)")
@@ -66,6 +63,14 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
     return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
                    ego_motion=args.ego_motion, colour_share=args.colour_share,
                    crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
+
+
+def add_refine_threshold_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--refine-threshold`` (MiteNet's ``refine_threshold``), for every command that runs it."""
+    parser.add_argument("--refine-threshold", type=float, default=None, metavar="SCORE",
+                        help="first-crop score from which a proposal is cropped again at the "
+                        "further scales; 0 = every proposal: more found, ~2 ms more per 4K "
+                        "frame (default: the detection score threshold, 0.3)")
 
 
 def check_refine_threshold(value: float | None) -> None:

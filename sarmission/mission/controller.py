@@ -148,11 +148,12 @@ class MissionController:
         if reason:
             self._skip(frame_index, reason)
             return []
-        if self.actions is not None and self.actions.search_paused():
-            self.stats.paused += 1
-            self._paused = True
-            self.actions.tick()
-            return []
+        if self.actions is not None:
+            self.actions.tick()  # camera back to the survey view once an ROI has been held
+            if self.actions.search_paused():
+                self.stats.paused += 1
+                self._paused = True
+                return []
         if self._paused:  # the camera is back: motion and tracks start afresh
             self.detector.reset()
             self.tracker.drop_tracks()
@@ -190,8 +191,6 @@ class MissionController:
                     log.info("track %d joined target %d", track.track_id, target.target_id)
             if target.position is not None and target.target_id in self._unplaced:
                 self._attach_position(target, track.track_id, frame_index)
-        if self.actions is not None:
-            self.actions.tick()  # camera back to the survey view once an ROI has been held
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:

@@ -773,21 +773,17 @@ class VSTMD:
         ds = self.ds
         k = self.params.retina_size
         if ds == 1:
-            img = frame[:h, :w]
-            if img.ndim == 3:
-                img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-            img = cv2.GaussianBlur(img, (k, k), self.params.retina_sigma,
-                                   borderType=cv2.BORDER_REFLECT_101)
-        else:
-            img = half if half is not None else half_resolution(frame)
-            img = img[:h * ds // 2, :w * ds // 2]
-            if img.ndim == 3:
-                img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-            img = cv2.GaussianBlur(img, (k, k), self.params.retina_sigma / 2,
-                                   borderType=cv2.BORDER_REFLECT_101)
-            # The rest of the pooling as exact halvings (OpenCV's 2x INTER_AREA path is several
-            # times faster than its general 4x one; the mean of block means is the block mean).
-            img = halve(img, int(math.log2(ds)) - 1)
+            img, sigma = frame[:h, :w], self.params.retina_sigma
+        else:  # from the half-resolution frame, where the retina's sigma is half as wide
+            img = (half if half is not None else half_resolution(frame))[:h * ds // 2,
+                                                                          :w * ds // 2]
+            sigma = self.params.retina_sigma / 2
+        if img.ndim == 3:
+            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        img = cv2.GaussianBlur(img, (k, k), sigma, borderType=cv2.BORDER_REFLECT_101)
+        # The rest of the pooling as exact halvings (OpenCV's 2x INTER_AREA path is several times
+        # faster than its general 4x one; the mean of block means is the block mean).
+        img = halve(img, max(int(math.log2(ds)) - 1, 0))
         scale = np.float32(1.0 / 255.0) if img.dtype == np.uint8 else np.float32(1.0)
         return img, scale
 
