@@ -128,6 +128,37 @@ def test_nms_drops_overlapping_lower_scores():
     np.testing.assert_array_equal(keep, [1, 2])
 
 
+def _greedy_nms_reference(boxes: np.ndarray, scores: np.ndarray, threshold: float) -> list[int]:
+    """Textbook greedy NMS, one box at a time in pure Python."""
+    def iou(a, b):
+        iw = max(min(a[2], b[2]) - max(a[0], b[0]), 0.0)
+        ih = max(min(a[3], b[3]) - max(a[1], b[1]), 0.0)
+        union = max(a[2] - a[0], 0.0) * max(a[3] - a[1], 0.0) \
+            + max(b[2] - b[0], 0.0) * max(b[3] - b[1], 0.0) - iw * ih
+        return iw * ih / max(union, 1e-9)
+
+    remaining = sorted(range(len(scores)), key=lambda i: (-scores[i], i))
+    keep = []
+    while remaining:
+        best = remaining.pop(0)
+        keep.append(best)
+        remaining = [i for i in remaining if iou(boxes[best], boxes[i]) <= threshold]
+    return keep
+
+
+def test_nms_matches_textbook_greedy_suppression_with_ties_and_empty_boxes():
+    rng = np.random.default_rng(7)
+    assert nms_xyxy(np.zeros((0, 4)), np.zeros(0), 0.5).size == 0
+    for trial in range(200):
+        n = int(rng.integers(1, 40))
+        corner = rng.uniform(0, 60, (n, 2))
+        boxes = np.concatenate([corner, corner + rng.uniform(-2, 25, (n, 2))], axis=1)
+        scores = rng.choice([0.2, 0.5, 0.9], n) if trial % 2 else rng.random(n)
+        threshold = float(rng.choice([0.0, 0.3, 0.5, 0.7]))
+        assert nms_xyxy(boxes, scores, threshold).tolist() == \
+            _greedy_nms_reference(boxes.tolist(), scores.tolist(), threshold)
+
+
 def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
     """A still orange patch on tinted water next to the moving disc: only the colour proposals
     reach it; with colour_share 0 (the paper's motion-only RPN) none does."""

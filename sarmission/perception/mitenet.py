@@ -83,21 +83,25 @@ def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "
 
 
 def nms_xyxy(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarray:
-    """Greedy IoU non-maximum suppression; indices of the kept boxes, best score first."""
+    """Greedy IoU non-maximum suppression; indices of the kept boxes, best score first.
+
+    The pairwise IoU matrix is computed once; the greedy pass then only reads its rows (a
+    per-box loop of array operations cost about 0.8 ms for 25 boxes).
+    """
     order = np.argsort(-scores, kind="stable")
-    area = np.clip(boxes[:, 2] - boxes[:, 0], 0, None) * np.clip(boxes[:, 3] - boxes[:, 1], 0, None)
+    area = np.maximum(boxes[:, 2] - boxes[:, 0], 0) * np.maximum(boxes[:, 3] - boxes[:, 1], 0)
+    iw = np.maximum(np.minimum(boxes[:, None, 2], boxes[None, :, 2])
+                    - np.maximum(boxes[:, None, 0], boxes[None, :, 0]), 0)
+    ih = np.maximum(np.minimum(boxes[:, None, 3], boxes[None, :, 3])
+                    - np.maximum(boxes[:, None, 1], boxes[None, :, 1]), 0)
+    inter = iw * ih
+    overlaps = inter / np.maximum(area[:, None] + area[None, :] - inter, 1e-9) > iou_threshold
+    suppressed = np.zeros(len(order), dtype=bool)
     keep: list[int] = []
-    while order.size:
-        i = int(order[0])
-        keep.append(i)
-        rest = order[1:]
-        iw = np.clip(np.minimum(boxes[i, 2], boxes[rest, 2])
-                     - np.maximum(boxes[i, 0], boxes[rest, 0]), 0, None)
-        ih = np.clip(np.minimum(boxes[i, 3], boxes[rest, 3])
-                     - np.maximum(boxes[i, 1], boxes[rest, 1]), 0, None)
-        inter = iw * ih
-        iou = inter / np.maximum(area[i] + area[rest] - inter, 1e-9)
-        order = rest[iou <= iou_threshold]
+    for i in order.tolist():
+        if not suppressed[i]:
+            keep.append(i)
+            suppressed |= overlaps[i]
     return np.asarray(keep, dtype=np.int64)
 
 
