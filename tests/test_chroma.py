@@ -54,6 +54,17 @@ def test_a_coloured_patch_is_the_strongest_anomaly() -> None:
     assert anomaly.max() > 20 * np.median(anomaly)
 
 
+def test_a_patch_cut_by_block_edges_scores_as_high_as_one_inside_a_block() -> None:
+    """A 6 px patch straddling the corner of four 8 x 8 blocks fills a window 4 px off the
+    block grid, so it is not diluted to a quarter of its colour."""
+    inside = chroma_anomaly(sea_with_patch(360, 480, cx=307, cy=147, side=6))  # rows 144-149
+    straddling = chroma_anomaly(sea_with_patch(360, 480, cx=307 + 4, cy=147 + 4, side=6))
+    assert inside.max() > 20 * np.median(inside)
+    assert straddling.max() >= 0.7 * inside.max()
+    row, col = np.unravel_index(int(np.argmax(straddling)), straddling.shape)
+    assert (row, col) in {(18, 38), (18, 39), (19, 38), (19, 39)}  # one of the four blocks
+
+
 def test_grey_frames_have_no_anomaly_and_the_helper_skips_small_frames() -> None:
     grey = to_bgr(textured_background(120, 160, seed=5))
     assert np.all(chroma_anomaly(grey) == 0.0)
