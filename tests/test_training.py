@@ -13,7 +13,7 @@ import torch
 from synthetic_video import write_dataset
 
 from sarmission.commands import train as train_command
-from sarmission.perception.head import ltrb_to_boxes
+from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
 from sarmission.perception.runtime import load_head_checkpoint
 from sarmission.perception.types import MotionMaps
 from sarmission.training import dataset as dataset_module
@@ -29,7 +29,13 @@ from sarmission.training.dataset import (
 )
 from sarmission.training.losses import LossWeights, dfl_loss, head_loss, ltrb_nwd
 from sarmission.training.sampling import assign_by_nwd, hardest_negatives, jitter_boxes
-from sarmission.training.train import TrainConfig, dihedral, state_path, train
+from sarmission.training.train import (
+    TrainConfig,
+    WeightAverage,
+    dihedral,
+    state_path,
+    train,
+)
 
 torch.set_num_threads(2)
 
@@ -297,6 +303,43 @@ def test_training_lowers_loss_saves_checkpoint_and_is_deterministic(data, tmp_pa
     assert not torch.equal(_weights(other.state)["stem.0.0.weight"], a["stem.0.0.weight"])
 
 
+def test_weight_average_hand_computed():
+    """Decay min(d, (1 + i) / (10 + i)) at update i: 0.1 first, then d = 0.15 caps it."""
+    model = MiteHead(HeadConfig())
+    weight = next(model.parameters())
+    with torch.no_grad():
+        weight.fill_(1.0)
+    average = WeightAverage(model, decay=0.15)
+    with torch.no_grad():
+        weight.fill_(3.0)
+    average.update(model)  # 0.1 * 1 + 0.9 * 3 = 2.8
+    assert torch.allclose(next(average.model.parameters()), torch.full_like(weight, 2.8))
+    with torch.no_grad():
+        weight.fill_(-1.0)
+    average.update(model)  # min(0.15, 2 / 11) = 0.15: 0.15 * 2.8 + 0.85 * -1 = -0.43
+    assert torch.allclose(next(average.model.parameters()), torch.full_like(weight, -0.43))
+    # Integer buffers (BatchNorm's batch counter) follow the model, the averaged head is frozen.
+    counters = [k for k, v in model.state_dict().items() if not v.is_floating_point()]
+    assert counters and all(torch.equal(average.model.state_dict()[k], model.state_dict()[k])
+                            for k in counters)
+    assert not any(p.requires_grad for p in average.model.parameters())
+    with pytest.raises(ValueError, match="ema_decay"):
+        replace(TrainConfig(train=Path("t"), val=Path("v"), out=Path("o.pt")),
+                ema_decay=1.0).validate()
+
+
+def test_the_checkpoint_is_the_weight_average(data, tmp_path):
+    run = train(_config(data, tmp_path / "head.pt", epochs=1, ema_decay=0.999))
+    saved = load_head_checkpoint(run.checkpoint).state_dict()
+    state = torch.load(run.state, weights_only=True)
+    assert all(torch.equal(saved[k], state["average"]["model"][k]) for k in saved)
+    assert not torch.equal(saved["stem.0.0.weight"], state["model"]["stem.0.0.weight"])
+    raw = train(_config(data, tmp_path / "raw" / "head.pt", epochs=1))
+    saved = load_head_checkpoint(raw.checkpoint).state_dict()
+    assert torch.equal(saved["stem.0.0.weight"],
+                       _weights(raw.state)["stem.0.0.weight"])
+
+
 def test_checkpoint_is_chosen_from_select_from_on(data, tmp_path):
     """Same run, epochs 1-2 barred: the best of epochs 3-4 by validation F2 is kept."""
     late = train(_config(data, tmp_path / "late" / "head.pt", epochs=4, select_from=3))
@@ -311,7 +354,7 @@ def test_checkpoint_is_chosen_from_select_from_on(data, tmp_path):
 
 
 def test_resume_continues_exactly(data, tmp_path, monkeypatch):
-    full = train(_config(data, tmp_path / "full" / "head.pt"))
+    full = train(_config(data, tmp_path / "full" / "head.pt", ema_decay=0.99))
     out = tmp_path / "cut" / "head.pt"
     real_epoch = train_module._train_epoch
     calls = []
@@ -324,16 +367,19 @@ def test_resume_continues_exactly(data, tmp_path, monkeypatch):
 
     monkeypatch.setattr(train_module, "_train_epoch", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        train(_config(data, out))
+        train(_config(data, out, ema_decay=0.99))
     monkeypatch.setattr(train_module, "_train_epoch", real_epoch)
     assert torch.load(state_path(out), weights_only=True)["epoch"] == 2
-    resumed = train(_config(data, out, resume=True))
+    resumed = train(_config(data, out, resume=True, ema_decay=0.99))
     assert resumed.epochs_run == 1 and len(resumed.history) == 3
     a, b = _weights(full.state), _weights(resumed.state)
     assert all(torch.equal(a[k], b[k]) for k in a)
+    a, b = (torch.load(run.state, weights_only=True)["average"] for run in (full, resumed))
+    assert a["updates"] == b["updates"]
+    assert all(torch.equal(a["model"][k], b["model"][k]) for k in a["model"])
     assert [h["f2"] for h in resumed.history] == [h["f2"] for h in full.history]
     with pytest.raises(ValueError, match="lr"):
-        train(_config(data, out, resume=True, lr=0.01))
+        train(_config(data, out, resume=True, lr=0.01, ema_decay=0.99))
 
 
 # --------------------------------------------------------------------------- CLI

@@ -34,6 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--select-from", type=int, default=1,
                         help="first epoch whose head may be kept as the best checkpoint "
                              "(default: %(default)s)")
+    parser.add_argument("--ema-decay", type=float, default=0.0,
+                        help="validate and save a moving average of the weights with this decay "
+                             "per step, e.g. 0.999 (0 = the raw weights)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ds", type=int, default=1, choices=(1, 2, 4, 8),
                         help="vSTMD down-sampling factor for the training crops")
@@ -82,7 +85,7 @@ def config_from_args(args: argparse.Namespace):
                          jitter_shift=args.jitter_shift, seed=args.seed)
     return TrainConfig(train=args.train, val=args.val, out=args.out, epochs=args.epochs,
                        batch_size=args.batch_size, lr=args.lr, optimizer=args.optimizer,
-                       select_from=args.select_from,
+                       select_from=args.select_from, ema_decay=args.ema_decay,
                        seed=args.seed, crops=crops, cache_dir=args.cache_dir,
                        resume=args.resume, num_threads=args.threads,
                        progress=not args.no_progress)
