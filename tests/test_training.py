@@ -21,7 +21,6 @@ from sarmission.training import train as train_module
 from sarmission.training.dataset import (
     CropSettings,
     cache_key,
-    in_jitter_reach,
     load_crop_set,
     ltrb_targets,
     polarity_near,
@@ -184,19 +183,6 @@ def test_polarity_near_takes_the_strongest_response():
     np.testing.assert_array_equal(polarity_near(motion, np.array([[35.0, 5.0]]), 16.0), [1.0])
 
 
-def test_jitter_reach_is_the_square_where_jittered_positives_are_cut():
-    settings = CropSettings(box_size=16.0, jitter_shift=0.5)  # reach: 8 px on both axes
-    gt = np.array([[92.0, 94.0, 120.0, 122.0]])  # a 28 px swimmer centred at (106, 108)
-    centres = np.array([[106, 108], [114, 100], [98, 116], [114.5, 108], [106, 99.5],
-                        [300, 300]], float)
-    boxes = np.concatenate([centres - 8, centres + 8], axis=1)
-    np.testing.assert_array_equal(in_jitter_reach(boxes, gt, settings),
-                                  [True, True, True, False, False, False])
-    # Without jittering, or without targets, nothing is left out.
-    assert not in_jitter_reach(boxes, gt, replace(settings, jitters_per_gt=0)).any()
-    assert not in_jitter_reach(boxes, np.zeros((0, 4)), settings).any()
-
-
 # --------------------------------------------------------------------------- crops and training
 
 
@@ -259,20 +245,9 @@ def test_crop_cache_matches_inference_and_is_reused(data):
             expected = motion_enhanced_crops(item.frame_bgr, result.motion,
                                              result.proposals.boxes, result.proposals.polarity)
             break
-    # ... less the would-be negatives within the jitter's reach of a target.
-    gt = crop_set.gt_boxes[crop_set.gt_image_ids == frame_id].numpy()
-    kept = (assign_by_nwd(result.proposals.boxes, gt, SETTINGS.pos_nwd).positive
-            | ~in_jitter_reach(result.proposals.boxes, gt, SETTINGS))
     rows = (crop_set.image_ids == frame_id) & ~crop_set.jittered
-    np.testing.assert_array_equal(crop_set.boxes[rows].numpy(), result.proposals.boxes[kept])
-    torch.testing.assert_close(crop_set.crops[rows].float(), expected[kept], atol=2e-3,
-                               rtol=1e-3)
-    # No RPN negative of any frame lies where jittered positives are cut.
-    for image_id in crop_set.frame_ids.tolist():
-        negatives = (crop_set.image_ids == image_id) & ~crop_set.jittered & (crop_set.labels < 0)
-        frame_gt = crop_set.gt_boxes[crop_set.gt_image_ids == image_id].numpy()
-        assert not in_jitter_reach(crop_set.boxes[negatives].numpy().astype(np.float64),
-                                   frame_gt, SETTINGS).any()
+    np.testing.assert_array_equal(crop_set.boxes[rows].numpy(), result.proposals.boxes)
+    torch.testing.assert_close(crop_set.crops[rows].float(), expected, atol=2e-3, rtol=1e-3)
     # Positive RPN crops clear the NWD threshold against their box target.
     boxes = ltrb_to_boxes(crop_set.target_ltrb[rpn_pos].numpy(), crop_set.boxes[rpn_pos].numpy())
     nwd = assign_by_nwd(crop_set.boxes[rpn_pos].numpy(), boxes).nwd

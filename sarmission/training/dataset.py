@@ -7,16 +7,7 @@ frames before it responds) the frame yields:
 * **RPN samples**: every proposal (motion and colour, ``colour_share``), labelled by NWD
   assignment to the frame's target GT
   (:func:`~.sampling.assign_by_nwd`): positive (class of its best GT) when ``NWD >= pos_nwd``,
-  otherwise negative, except that with jittering on, a would-be negative whose centre lies
-  within the jitter's reach of a target's centre (:func:`in_jitter_reach`: ``jitter_shift *
-  box_size`` on both axes) is left out: the jittered GT samples below cut positives there, and
-  the same view of a target must not be taught both ways. On a 28 px swimmer, for instance, the
-  motion peak sits on the trailing edge and its 16 px box (NWD 0.27 to the GT) was a negative
-  while jittered 16 px crops 8 px off the centre were positives; heads trained so scored such
-  boxes below the second look's threshold in one run and above it in another. Leaving them out
-  (the default head's training set: 244 of 9,217 RPN negatives) made the retrained head lock
-  both large swimmers of maritime_test (40 x 25 and 28 x 28 px) and raised urban_test SSR from
-  45.5 to 63.6 % (ds 2, N 25; ``python tools/results.py``). Crops come from
+  otherwise negative. Crops come from
   :func:`~sarmission.perception.crops.motion_enhanced_crops` with the proposal boxes and
   polarities exactly as :class:`~sarmission.perception.mitenet.MiteNet` makes them.
 * **Jittered GT samples** (training only, ``jitters_per_gt > 0``): squares of side
@@ -237,18 +228,6 @@ def _target_gt(dataset: VideoDataset, mapping: dict[int, int]) -> dict[int, tupl
     return result
 
 
-def in_jitter_reach(boxes: np.ndarray, gt_boxes: np.ndarray,
-                    settings: CropSettings) -> np.ndarray:
-    """Which ``boxes`` (xyxy) have their centre within ``jitter_shift * box_size`` of a target GT
-    centre on both axes, i.e. where jittered positives are cut; all false without jittering."""
-    if not settings.jitters_per_gt or len(gt_boxes) == 0 or len(boxes) == 0:
-        return np.zeros(len(boxes), bool)
-    reach = settings.jitter_shift * settings.box_size
-    centres = (boxes[:, None, :2] + boxes[:, None, 2:]) / 2
-    gt_centres = (gt_boxes[None, :, :2] + gt_boxes[None, :, 2:]) / 2
-    return (np.abs(centres - gt_centres) <= reach).all(axis=2).any(axis=1)
-
-
 def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple,
                    settings: CropSettings, rng: np.random.Generator) -> dict[str, Tensor]:
     """Crops, labels, targets and boxes of one sampled frame (RPN samples, then jittered GT)."""
@@ -256,19 +235,15 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
     proposals = rpn.propose(motion, chroma_if_wanted(frame, rpn.colour_slots > 0))
     assignment = assign_by_nwd(proposals.boxes, gt_boxes, settings.pos_nwd)
     pos = assignment.positive
-    used = pos | ~in_jitter_reach(proposals.boxes, gt_boxes, settings)
-    pos = pos[used]
-    proposal_boxes, polarity = proposals.boxes[used], proposals.polarity[used]
-    gt_index = assignment.gt_index[used][pos]
-    labels = np.full(len(proposal_boxes), -1, np.int64)
-    labels[pos] = gt_classes[gt_index]
-    rpn_targets = np.zeros((len(proposal_boxes), 4))
-    rpn_targets[pos] = ltrb_targets(proposal_boxes[pos], gt_boxes[gt_index])
-    boxes = [proposal_boxes.astype(np.float64)]
+    labels = np.full(len(proposals), -1, np.int64)
+    labels[pos] = gt_classes[assignment.gt_index[pos]]
+    rpn_targets = np.zeros((len(proposals), 4))
+    rpn_targets[pos] = ltrb_targets(proposals.boxes[pos], gt_boxes[assignment.gt_index[pos]])
+    boxes = [proposals.boxes.astype(np.float64)]
     targets = [rpn_targets]
-    crops = [motion_enhanced_crops(frame, motion, proposal_boxes, polarity)]
+    crops = [motion_enhanced_crops(frame, motion, proposals.boxes, proposals.polarity)]
     all_labels = [labels]
-    jittered = [np.zeros(len(proposal_boxes), bool)]
+    jittered = [np.zeros(len(proposals), bool)]
     if settings.jitters_per_gt and len(gt_classes):
         jboxes, src = jitter_boxes(gt_boxes, rng, settings.jitters_per_gt, settings.jitter_scale,
                                    settings.jitter_shift, side=settings.box_size)
