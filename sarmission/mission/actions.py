@@ -13,8 +13,8 @@ The mission file's ``[actions] policy`` lists, in order, what to do for each new
   the survey strip, and off nadir the motion front-end sees the waves move. Measured with
   ``sarmission demo --actions alert,roi`` (43 s, 17 people in view): without the pause every
   false alert re-pointed the camera (89-91 false alerts, the camera never released); with it
-  2 false alerts in each of three runs, but the camera spent up to 3 x 12 s on targets and 1-3
-  of 17 people were found (alert only: 10 found, 5-7 false alerts). A dense scene costs coverage;
+  1-2 false alerts per run, but the camera spent up to 3 x 12 s on targets and 1-3 people were
+  found (alert only: 8-10 of 17 found, 6-9 false alerts). A dense scene costs coverage;
 - ``mission``: upload a one-item mission, NAV_LOITER_UNLIM at the target.
 
 Positional actions are skipped for an alert without a position (there is nowhere to go); when

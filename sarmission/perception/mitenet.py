@@ -134,11 +134,11 @@ class MiteNet:
         refine_threshold: first-crop score from which a proposal is cropped at the further
             scales; None = ``score_threshold`` (only would-be detections are refined), 0 = every
             proposal. Measured on maritime_test (ds 2, N 25, 2 x 150 frames of 4K, shipped
-            head), single crop -> scales (1, 2): SSR 95.3 -> 97.7 % (41 -> 42 of 43
-            trajectories; the one never locked is annotated in a single frame), FAR 35.0 ->
-            24.6 % per detection, 3.8 -> 2.8 false detections per frame, head R@0.5 0.54 ->
-            0.64; refining every proposal (``refine_threshold=0``): the same 42 of 43 at FAR
-            30.1 %; urban_test (a head that never saw a city) 77.3 -> 63.6 % (with an earlier
+            head), single crop -> scales (1, 2): SSR 93.0 -> 97.7 % (40 -> 42 of 43
+            trajectories; the one never locked is annotated in a single frame), FAR 32.2 ->
+            22.6 % per detection, 3.5 -> 2.5 false detections per frame, head R@0.5 0.56 ->
+            0.66; refining every proposal (``refine_threshold=0``): the same 42 of 43 at FAR
+            25.9 %; urban_test (a head that never saw a city) 68.2 -> 40.9 % (with an earlier
             head the wide crop won on 60 % of the refined urban proposals and boxed pedestrians
             of 8-16 px wider than 16 px). Without the size condition (measured with an earlier
             head): FAR 25.3 % instead of 20.0 % (every proposal: 33.2 %), R@0.5 0.60, same SSR.

@@ -48,9 +48,9 @@ motion maxima fill the list first up to ``N - round(colour_share * N)`` and take
 slot left empty, so a frame without colour anomalies still gets N motion proposals.
 Measured with ``python tools/results.py --frames 150 --sequences 2`` (ds 2, N 25, the shipped
 head, trained with colour proposals, default crop scales), motion only -> motion + colour:
-maritime_test SSR 79.1 -> 97.7 % (34 -> 42 of 43 trajectories), average search time 19.4 -> 5.5
-frames, RPN R@0.1 0.57 -> 0.86, FAR 27.2 -> 24.6 % per detection (1.8 -> 2.8 false detections
-per frame); urban_test SSR 59.1 -> 63.6 %, FAR 89.9 -> 91.1 % per detection.
+maritime_test SSR 81.4 -> 97.7 % (35 -> 42 of 43 trajectories), average search time 20.8 -> 4.9
+frames, RPN R@0.1 0.57 -> 0.86, FAR 24.0 -> 22.6 % per detection (1.6 -> 2.5 false detections
+per frame); urban_test SSR 27.3 -> 40.9 %, FAR 96.5 -> 95.9 % per detection.
 """
 
 from __future__ import annotations
