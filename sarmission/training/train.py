@@ -17,12 +17,12 @@ average, updated after every optimiser step ``i`` (0-based) with the decay
 ``min(ema_decay, (1 + i) / (10 + i))`` (short runs still move it); BatchNorm running statistics
 are averaged the same way. That copy, not the raw weights, is validated and written as the
 checkpoint. It is off by default. With the default model's recipe (``tools/train_default_model.py``)
-the raw head's validation F2 swings by up to 0.1 from one epoch to the next (0.43-0.58 over
-epochs 10-30, best 0.555 at epoch 11), the averaged one moves smoothly (0.455-0.583, rising to
-epoch 14, then falling as the head overfits), and the averaged head boxes better on maritime_test
-(ds 2, N 25: AP 0.238 vs 0.209, head R@0.5 0.65 vs 0.63) but locks 40 instead of 42 of its 43
-trajectories (two short ones at the frame edge, 7 and 8 frames in view), at the same 27 % FAR per
-detection; the search success rate decides, so the default model keeps the raw weights.
+the raw head's validation F2 jumps by up to 0.09 from one epoch to the next (0.48-0.61 over
+epochs 8-30, best 0.614 at epoch 18), the averaged one (decay 0.999) moves smoothly (0.55-0.60,
+best 0.596 at epoch 15); on maritime_test (ds 2, N 25) both lock 42 of 43 trajectories, but the
+averaged head does worse on everything else: FAR 26.4 vs 22.6 % per detection, search time
+7.4 / 134 vs 4.9 / 44 frames (average / max), AP 0.235 vs 0.255. So the default model keeps the
+raw weights; the average is there for recipes whose validation F2 is too noisy to pick from.
 
 Validation (after every epoch): the head runs on the validation crops (the real RPN proposals of
 every validation frame after the warm-up, whatever ``frame_stride`` the training crops use: a
