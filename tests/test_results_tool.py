@@ -132,9 +132,13 @@ def test_ssr_shortfall_counts_the_unlocked_trajectories(tool):
     sar.update(m=3, k=5, unlocked=[{"n_frames": 1, "n_hits": 0}, {"n_frames": 7, "n_hits": 3},
                                    {"n_frames": 150, "n_hits": 1}])
     line = _line(tool.render_results_md(results), "**Worse** — SSR at ds=2")
-    assert ("Of the 3 unlocked trajectories, 1 is annotated in fewer than 3 frames (no detector "
-            "can lock it) and 1 has 3 or more hits that never fall inside one 5-frame "
-            "window.") in line
+    assert ("3 trajectories not locked: 1 annotated in fewer than 3 frames (no detector can "
+            "lock it), 1 with 3 or more hits that never fall inside one 5-frame window, 1 with "
+            "fewer than 3 hits.") in line
+    sar.update(unlocked=[{"n_frames": 1, "n_hits": 0}])
+    line = _line(tool.render_results_md(results), "**Worse** — SSR at ds=2")
+    assert ("1 trajectory not locked: 1 annotated in fewer than 3 frames (no detector can lock "
+            "it). The RPN's") in line
     assert "come within NWD 0.1 of 81 % of the target boxes" in line
 
 

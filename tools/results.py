@@ -160,12 +160,13 @@ def _rpn_limit(run: dict) -> str:
     lines = ""
     if unlocked:
         short = sum(1 for t in unlocked if t["n_frames"] < m)
-        hits = sum(1 for t in unlocked if t["n_hits"] >= m)
-        lines = (f"Of the {len(unlocked)} unlocked trajectories, {short} "
-                 f"{'is' if short == 1 else 'are'} annotated in fewer than {m} frames (no "
-                 f"detector can lock {'it' if short == 1 else 'them'}) and {hits} "
-                 f"{'has' if hits == 1 else 'have'} {m} or more hits that never fall inside one "
-                 f"{k}-frame window. ")
+        hits = sum(1 for t in unlocked if t["n_frames"] >= m and t["n_hits"] >= m)
+        reasons = [(short, f"annotated in fewer than {m} frames (no detector can lock "
+                           f"{'it' if short == 1 else 'them'})"),
+                   (hits, f"with {m} or more hits that never fall inside one {k}-frame window"),
+                   (len(unlocked) - short - hits, f"with fewer than {m} hits")]
+        lines = (f"{len(unlocked)} {'trajectory' if len(unlocked) == 1 else 'trajectories'} not "
+                 f"locked: {', '.join(f'{n} {why}' for n, why in reasons if n)}. ")
     return (lines + f"The RPN's top-N proposals come within NWD 0.1 of "
             f"{100 * rpn['R@0.1']:.0f} % of the target boxes (section 4); a target it does not "
             "propose cannot be detected. ")
