@@ -25,7 +25,7 @@ def unseen_clip(tmp_path_factory: pytest.TempPathFactory) -> Path:
                           progress=False, seed=UNSEEN_SEED)
 
 
-def test_the_shipped_files_load_as_the_same_small_head() -> None:
+def test_the_shipped_files_load_as_a_small_head() -> None:
     head = load_head_checkpoint(DEFAULT_TORCH_MODEL)
     assert sum(p.numel() for p in head.parameters()) < 140_000
     assert head.config.classes == ("swimmer", "swimmer_with_life_jacket")
