@@ -1,0 +1,48 @@
+"""Shared test helpers: free ports from the OS, waiting on a condition, the SITL binary."""
+
+from __future__ import annotations
+
+import os
+import socket
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+#: Environment variable naming ArduPilot's ``arducopter`` SITL binary (tier skipped when unset).
+SITL_ENV = "SARMISSION_SITL"
+
+TESTS_DIR = Path(__file__).resolve().parent
+FIXTURES_DIR = TESTS_DIR / "fixtures"
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that the OS reports free right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until(cond: Callable[[], object], timeout: float, step: float = 0.05) -> bool:
+    """Poll ``cond`` until it is true or ``timeout`` seconds passed; returns its last value.
+
+    Deadlines are generous on purpose: they bound a hung test, they do not measure speed."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(step)
+    return bool(cond())
+
+
+@pytest.fixture
+def sitl_binary() -> Path:
+    """The ``arducopter`` SITL binary named by ``$SARMISSION_SITL``; skips the test when unset."""
+    value = os.environ.get(SITL_ENV, "")
+    if not value:
+        pytest.skip(f"ArduPilot SITL tier: set {SITL_ENV} to the arducopter binary")
+    path = Path(value)
+    if not path.is_file() or not os.access(path, os.X_OK):
+        pytest.fail(f"{SITL_ENV}={value} is not an executable file")
+    return path
