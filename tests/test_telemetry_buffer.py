@@ -28,12 +28,25 @@ def axis_angle(axis, angle):
     return np.eye(3) + s * k + (1 - c) * k @ k
 
 
+def home_buffer(**kwargs) -> TelemetryBuffer:
+    """A buffer whose home is known (a pose needs one), for samples pushed directly."""
+    buf = TelemetryBuffer(**kwargs)
+    buf.set_home(54.0, 7.0, 0.0)
+    return buf
+
+
+def gps_fix(arrival: float, buf: TelemetryBuffer, fix_type: int = 3) -> None:
+    """The autopilot's GPS_RAW_INT with a 3D fix (positions are believed only with one)."""
+    msg = M.MAVLink_gps_raw_int_message(0, fix_type, 0, 0, 0, 120, 200, 0, 0, 10)
+    buf.handle_message(msg, arrival)
+
+
 def camera_rotation(pose):
     return rotation_ned_from_camera(pose.vehicle_rpy, pose.gimbal_rpy, pose.gimbal_frame)
 
 
 def test_midpoint_equals_truth_for_linear_motion_and_constant_rate_rotation():
-    buf = TelemetryBuffer(stale_after_s=1.0)
+    buf = home_buffer(stale_after_s=1.0)
     r0 = euler_to_matrix(0.1, -0.2, 2.9)  # near the +-pi yaw wrap
     axis = (0.3, -0.5, 1.0)
     g0 = euler_to_matrix(0.0, -1.2, 0.3)
@@ -56,7 +69,7 @@ def test_midpoint_equals_truth_for_linear_motion_and_constant_rate_rotation():
 
 
 def test_stale_and_missing_telemetry_give_reasons():
-    buf = TelemetryBuffer(stale_after_s=1.0)
+    buf = home_buffer(stale_after_s=1.0)
     assert buf.lookup(0.0).reason == "no position yet"
     buf.push_position(0.0, 54.0, 7.0, 50.0)
     assert buf.lookup(0.0).reason == "no attitude yet"
@@ -74,7 +87,7 @@ def test_stale_and_missing_telemetry_give_reasons():
 
 
 def test_position_extrapolates_with_velocity_within_the_limit():
-    buf = TelemetryBuffer(stale_after_s=1.0)
+    buf = home_buffer(stale_after_s=1.0)
     buf.push_position(0.0, 54.0, 7.0, 50.0, velocity_ned=(10.0, 0.0, -2.0))
     buf.push_attitude(0.0, 0.0, 0.0, 0.0)
     pose = buf.pose_at(0.5)
@@ -84,7 +97,7 @@ def test_position_extrapolates_with_velocity_within_the_limit():
 
 
 def test_fixed_mount_until_a_gimbal_reports_then_gimbal_required():
-    buf = TelemetryBuffer(stale_after_s=1.0, mount_rpy=(0.0, math.radians(-45), 0.0))
+    buf = home_buffer(stale_after_s=1.0, mount_rpy=(0.0, math.radians(-45), 0.0))
     buf.push_position(0.0, 54.0, 7.0, 50.0)
     buf.push_attitude(0.0, 0.05, 0.02, 1.0)
     pose = buf.pose_at(0.0)
@@ -103,7 +116,8 @@ def test_boot_time_mapping_with_jittery_arrival():
     for k in range(200):
         boot = 5.0 + 0.05 * k
         arrival = boot + offset + min_latency + rng.exponential(0.08)  # jitter up to ~0.5 s
-        msg = M.MAVLink_attitude_message(int(round(boot * 1000)), 0.0, 0.0, 0.1 * k, 0, 0, 0)
+        yaw = (0.1 * k) % (2 * math.pi) - math.pi
+        msg = M.MAVLink_attitude_message(int(round(boot * 1000)), 0.0, 0.0, yaw, 0, 0, 0)
         buf.handle_message(msg, arrival)
     assert buf.clock.offset == pytest.approx(offset + min_latency, abs=0.005)
     newest = buf.newest_time("attitude")
@@ -113,8 +127,12 @@ def test_boot_time_mapping_with_jittery_arrival():
     for k in range(50):
         clock.observe(1.0 + 0.1 * k, 1.0 + 0.1 * k + offset + min_latency + rng.exponential(0.05))
     assert clock.to_local(3.0) == pytest.approx(3.0 + offset, abs=0.01)
-    # autopilot reboot: boot time jumps back, the estimate restarts
-    clock.observe(0.5, 2000.0)
+    # autopilot reboot: boot time jumps back; the old timeline has gone quiet, so once the new
+    # one holds for a second (three samples), the estimate restarts on it
+    assert clock.observe(0.5, 2000.0) is None
+    assert clock.observe(1.0, 2000.5) is None
+    assert clock.observe(1.5, 2001.0) == pytest.approx(2001.0 - min_latency)
+    assert clock.reboots == 1
     assert clock.offset == pytest.approx(1999.5 - min_latency)
 
 
@@ -137,7 +155,8 @@ def gimbal_msg(boot_ms, q, flags, delta_yaw=NAN):
 def test_gimbal_flags_pick_the_frame(flags, delta_yaw, frame):
     vehicle = (0.03, -0.05, 0.7)
     g = (0.01, -0.9, 0.25)
-    buf = TelemetryBuffer(stale_after_s=1.0)
+    buf = home_buffer(stale_after_s=1.0)
+    gps_fix(50.0, buf)
     for k, ms in enumerate((1000, 1100)):
         arrival = 50.0 + 0.1 * k
         buf.handle_message(
@@ -170,6 +189,7 @@ def test_messages_home_gps_accuracy_mount_orientation_and_no_origin():
     assert buf.home == pytest.approx((54.17, 7.89, 12.5))
     gps = M.MAVLink_gps_raw_int_message(0, 3, 0, 0, 0, 120, 200, 0, 0, 10, 0, 1500, 2500, 0, 0, 0)
     buf.handle_message(gps, 10.0)
+    assert buf.rejected["GLOBAL_POSITION_INT: no position yet (0, 0)"] == 1
     buf.handle_message(M.MAVLink_attitude_message(1000, 0.0, 0.0, 1.0, 0, 0, 0), 10.0)
     buf.handle_message(
         M.MAVLink_global_position_int_message(1000, 541700000, 78900000, 0, 1, 0, 0, 0, 0), 10.0

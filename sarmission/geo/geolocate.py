@@ -1,18 +1,19 @@
 """Pixel -> latitude/longitude on a ground plane, with a 1-sigma horizontal error estimate.
 
-Geometry (frames and rotations as in :mod:`sarmission.geo.frames`, camera model as in
-:mod:`sarmission.geo.camera`):
+The drone's own position is the origin: a local NED frame at ``(pose.lat, pose.lon)``, the
+camera ``h`` metres above the ground plane, ``h = rel_alt + ground_below_home`` (``rel_alt``
+is the autopilot's height above its home; the plane sits ``ground_below_home`` metres below home,
+0 = home altitude). Nothing else about home is needed, so a far-away or unknown home position
+cannot move a fix; the caller must still only call this once the autopilot has reported its
+home, since ``rel_alt`` means nothing before. Lever arm neglected.
 
-1. The vehicle position becomes a local NED point relative to home ``(lat0, lon0, h0)``:
-   north/east from ``geodetic_to_ned(lat, lon, h0 + rel_alt)``, down ``= -rel_alt`` (height
-   above home is measured along the local vertical; the camera centre, lever arm neglected).
-2. The pixel ``(u, v)`` becomes a unit ray ``d`` in NED: undistort, ``(x, y, 1)`` in the camera
+1. The pixel ``(u, v)`` becomes a unit ray ``d`` in NED: undistort, ``(x, y, 1)`` in the camera
    frame, then ``d = R_ned_cam @ (x, y, 1) / |.|`` with
    ``R_ned_cam = R_ned_gimbal(vehicle rpy, gimbal rpy, gimbal frame) @ R_GIMBAL_CAM``.
-3. The ray meets the ground plane ``down = g`` (``g = h0 - ground_alt``, 0 = home altitude) at
-   ``p = c + t d`` with slant range ``t = (g - c_down) / d_down``; it needs ``d_down > 0`` (the
-   ray points below the horizon) and ``t > 0`` (the camera is above the plane).
-4. ``p`` (north, east, g) goes back to WGS84 with pymap3d.
+2. The ray meets the plane at ``p = t d`` with slant range ``t = h / d_down``; it needs
+   ``d_down > 0`` (below the horizon) and ``h >= min_height_m`` (a drone on the ground sees
+   nothing it could place).
+3. ``p`` (north, east) goes back to WGS84 around the drone with pymap3d.
 
 Depression angle ``delta = asin(d_down)``: the angle of the ray below the horizon.
 
@@ -21,16 +22,16 @@ Error model (first-order propagation; independent Gaussian sources; horizontal c
 
 - GNSS horizontal position, ``sigma_g`` per axis: ``S_gnss = sigma_g^2 I``.
 - Height of the camera above the ground plane, ``sigma_h^2 = sigma_alt^2 + sigma_ground^2``:
-  ``dp_h / dc_down = -d_h / d_down`` so the point slides along the ray's horizontal direction
-  ``u`` by ``sigma_h / tan(delta)``: ``S_alt = (sigma_h / tan(delta))^2 u u^T``.
+  the point slides along the ray's horizontal direction ``u`` by ``sigma_h / tan(delta)``:
+  ``S_alt = (sigma_h / tan(delta))^2 u u^T``.
 - Pointing (vehicle + gimbal attitude), a small rotation ``dtheta ~ N(0, sigma_a^2 I)`` of the
   ray in NED: ``dd = dtheta x d = -[d]x dtheta``; ``dp = t (I - d e_z^T / d_down) dd``, so with
   ``J`` the north/east rows of ``-t (I - d e_z^T / d_down) [d]x``: ``S_att = sigma_a^2 J J^T``.
   Along the ray this is ``sigma_a t / sin(delta)``, across it ``sigma_a t``.
 
-``error_m = sqrt(trace(S))``, the root-mean-square horizontal error (DRMS): the expected squared
-distance between the fix and the truth is ``error_m^2``. Timing errors (frame vs telemetry
-time) and lens calibration errors are not modelled.
+``error_m = sqrt(trace(S))``, the root-mean-square horizontal error (DRMS). Timing errors
+(frame vs telemetry time) and lens calibration errors are not modelled. Any non-finite input
+or result is no fix.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ import numpy as np
 
 from sarmission.geo.camera import CameraIntrinsics, CameraPose, pixel_rays
 from sarmission.geo.frames import rotation_ned_from_camera
-from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+from sarmission.geo.wgs84 import ned_to_geodetic
 
 __all__ = ["GeoFix", "PlatformPose", "geolocate"]
 
@@ -76,12 +77,16 @@ class PlatformPose:
     def vehicle_rpy(self) -> tuple[float, float, float]:
         return self.roll, self.pitch, self.yaw
 
-    def camera_pose(self, home: tuple[float, float, float]) -> CameraPose:
-        """Camera pose in the NED frame of ``home = (lat, lon, alt)``; down is ``-rel_alt_m``."""
-        lat0, lon0, h0 = home
-        n, e, _ = geodetic_to_ned(self.lat, self.lon, h0 + self.rel_alt_m, lat0, lon0, h0)
+    def finite(self) -> bool:
+        """Every number of the pose is finite (a NaN or inf anywhere is no pose)."""
+        values = (self.lat, self.lon, self.rel_alt_m, self.roll, self.pitch, self.yaw,
+                  *self.gimbal_rpy, self.gnss_sigma_m, self.alt_sigma_m, self.attitude_sigma_rad)
+        return all(math.isfinite(v) for v in values)
+
+    def camera_pose(self, height_m: float) -> CameraPose:
+        """Camera pose in the NED frame at the drone's ground point, ``height_m`` above it."""
         r = rotation_ned_from_camera(self.vehicle_rpy, self.gimbal_rpy, self.gimbal_frame)
-        return CameraPose(np.array([float(n), float(e), -self.rel_alt_m]), r)
+        return CameraPose(np.array([0.0, 0.0, -float(height_m)]), r)
 
 
 @dataclass(frozen=True)
@@ -120,44 +125,47 @@ def _horizontal_covariance(
     return cov
 
 
+def _no_fix(depression: float, note: str) -> GeoFix:
+    return GeoFix(None, None, None, None, depression, note)
+
+
 def geolocate(
     pixel_uv: tuple[float, float] | np.ndarray,
     intrinsics: CameraIntrinsics,
     pose: PlatformPose,
-    home: tuple[float, float, float],
-    ground_alt: float | None = None,
+    ground_below_home_m: float = 0.0,
     ground_sigma_m: float = 0.0,
+    min_height_m: float = 0.0,
 ) -> GeoFix:
-    """Latitude/longitude of the ground seen at pixel ``(u, v)``.
+    """Latitude/longitude of the ground seen at pixel ``(u, v)`` (see the module docstring).
 
-    ``home = (lat, lon, alt)`` is the NED origin and ``pose.rel_alt_m`` is relative to it;
-    ``ground_alt`` (same datum as ``home[2]``) is the ground plane height, None = home altitude.
-    ``ground_sigma_m`` is the 1-sigma uncertainty of that height. Returns a :class:`GeoFix`;
-    without a fix (ray at or above the horizon, camera not above the ground) ``lat``/``lon`` are
-    None and ``note`` explains.
+    ``ground_below_home_m``: how far the ground plane lies below the autopilot's home (0: at
+    home altitude); ``ground_sigma_m`` its 1-sigma uncertainty. ``min_height_m``: no fix when
+    the camera is lower than this above the plane. Without a fix ``lat``/``lon`` are None and
+    ``note`` says why.
     """
-    lat0, lon0, h0 = home
-    cam = pose.camera_pose(home)
-    d = pixel_rays(intrinsics, cam, np.asarray(pixel_uv, dtype=float).reshape(1, 2))[0]
+    uv = np.asarray(pixel_uv, dtype=float).reshape(1, 2)
+    if not (pose.finite() and np.all(np.isfinite(uv)) and math.isfinite(ground_below_home_m)):
+        return _no_fix(math.nan, "pose or pixel not finite")
+    height = pose.rel_alt_m + ground_below_home_m
+    cam = pose.camera_pose(height)
+    d = pixel_rays(intrinsics, cam, uv)[0]
     depression = math.degrees(math.asin(max(-1.0, min(1.0, float(d[2])))))
-    ground_down = 0.0 if ground_alt is None else h0 - ground_alt
-    height = ground_down - float(cam.position_ned[2])
     if d[2] <= 1e-9:
-        return GeoFix(None, None, None, None, depression, "ray at or above the horizon")
+        return _no_fix(depression, "ray at or above the horizon")
     if height <= 0.0:
-        return GeoFix(
-            None, None, None, None, depression, f"camera {-height:.1f} m below the ground plane"
-        )
+        return _no_fix(depression, f"camera {-height:.1f} m below the ground plane")
+    if height < min_height_m:
+        return _no_fix(depression, f"drone {height:.1f} m above the ground "
+                                   f"(a fix needs {min_height_m:g} m)")
     t = height / float(d[2])
-    p = cam.position_ned + t * d
-    lat, lon, _ = ned_to_geodetic(p[0], p[1], ground_down, lat0, lon0, h0)
+    p = t * d
+    lat, lon, _ = ned_to_geodetic(p[0], p[1], 0.0, pose.lat, pose.lon, 0.0)
     cov = _horizontal_covariance(d, t, pose, ground_sigma_m)
-    plane = "home altitude" if ground_alt is None else f"{ground_alt:.1f} m"
-    return GeoFix(
-        float(lat),
-        float(lon),
-        math.sqrt(float(np.trace(cov))),
-        t,
-        depression,
-        f"ground plane at {plane}",
-    )
+    error = math.sqrt(float(np.trace(cov)))
+    lat, lon = float(lat), float(lon)
+    if not all(math.isfinite(v) for v in (lat, lon, error, t)):
+        return _no_fix(depression, "geolocation not finite")
+    plane = ("home altitude" if ground_below_home_m == 0.0
+             else f"{ground_below_home_m:.1f} m below home")
+    return GeoFix(lat, lon, error, t, depression, f"ground plane at {plane}")

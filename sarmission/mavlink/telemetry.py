@@ -14,15 +14,26 @@ Sources, per kind (newest wins when two give the same time):
   when finite, else ``yaw`` relative to the heading). If no gimbal message was ever received the
   fixed mount given to the constructor is used (a hard mount, or an autopilot without a gimbal
   driver). Once a gimbal has reported, it must keep reporting: stale gimbal data is no pose.
-- HOME_POSITION: home ``(lat, lon, alt)``, the ground plane for geolocation.
-- GPS_RAW_INT ``h_acc`` (mm, when non-zero) as the 1-sigma GNSS error per horizontal axis.
+- HOME_POSITION: home ``(lat, lon, alt)``, the ground plane for geolocation. With
+  ``require_home`` (the default) there is no pose until the autopilot has reported it.
+- GPS_RAW_INT: ``fix_type`` (with ``require_gps_fix``, the default, GLOBAL_POSITION_INT is
+  believed only while the newest GPS_RAW_INT, at most :data:`GPS_FIX_MAX_AGE_S` old, reports a
+  3D fix) and ``h_acc`` (mm, when non-zero) as the 1-sigma GNSS error per horizontal axis.
 
-Clock: samples carry the autopilot's ``time_boot_ms``. With ``latency = arrival - capture`` and
-``offset = local - boot``, ``arrival - boot = offset + latency >= offset``; the offset is estimated
-as the minimum of ``arrival - boot`` over a sliding window (the least-delayed message), so a
-sample's local time is ``boot + min(arrival - boot) - transport_latency_s``. Each sample is mapped
-with the estimate current at its arrival. A backwards jump of the boot time (autopilot reboot)
-restarts the estimate. The local clock is ``time.monotonic()`` unless arrival times are given.
+Every message is checked first (:mod:`~sarmission.mavlink.telemetry_checks`: finite, in range,
+unit quaternions); GLOBAL_POSITION_INT must also not jump faster than an aircraft flies. A
+rejected message is counted in :attr:`TelemetryBuffer.rejected` by reason and warned about at
+most once per :data:`WARN_INTERVAL_S` per reason; it never raises.
+
+Clock: samples carry the sender's ``time_boot_ms``, one :class:`BootClock` per sender (system,
+component). With ``latency = arrival - capture`` and ``offset = local - boot``,
+``arrival - boot = offset + latency >= offset``; the offset is estimated as the minimum of
+``arrival - boot`` over a sliding window (the least-delayed message), so a sample's local time
+is ``boot + min(arrival - boot) - transport_latency_s``. A sample off that timeline (boot time
+back by more than a second, or a capture time after its own arrival) is rejected; only when a
+new timeline holds for a while and the old one has gone quiet (an autopilot reboot) does the
+clock start afresh, and every sample that sender gave is dropped with it. The local clock is
+``time.monotonic()`` unless arrival times are given.
 
 Interpolation: position linearly (lat, lon, altitudes), beyond the newest sample extrapolated
 with the reported velocity; attitudes by slerp, held beyond the ends. A pose is refused (a
@@ -33,10 +44,11 @@ newest sample, before the oldest, or inside a gap where both neighbours are furt
 from __future__ import annotations
 
 import bisect
+import logging
 import math
 import threading
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -54,7 +66,11 @@ from sarmission.geo.frames import (
     slerp,
 )
 from sarmission.geo.geolocate import PlatformPose
-from sarmission.geo.wgs84 import ned_to_geodetic
+from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+from sarmission.mavlink.telemetry_checks import GPS_FIX_3D, MAX_SPEED_MPS, message_problem
+from sarmission.ratelimit import RateLimitedLog
+
+log = logging.getLogger(__name__)
 
 __all__ = ["MESSAGE_TYPES", "BootClock", "StaleTelemetry", "TelemetryBuffer"]
 
@@ -70,6 +86,16 @@ MESSAGE_TYPES = (
     "SYSTEM_TIME",
 )
 
+_AUTOPILOT_TYPES = frozenset(("GLOBAL_POSITION_INT", "ATTITUDE", "ATTITUDE_QUATERNION"))
+#: A GPS_RAW_INT older than this says nothing about the current fix (seconds).
+GPS_FIX_MAX_AGE_S = 5.0
+#: Positions closer in time than this are checked against each other for jumps (seconds).
+JUMP_CHECK_S = 2.0
+#: Jump allowance on top of the fastest speed: GNSS noise and EKF resets (metres).
+JUMP_SLACK_M = 10.0
+#: Least seconds between two warnings of the same rejection reason.
+WARN_INTERVAL_S = 5.0
+
 
 @dataclass(frozen=True)
 class StaleTelemetry:
@@ -83,35 +109,73 @@ class StaleTelemetry:
 
 
 class BootClock:
-    """Maps autopilot boot time (s) to the local clock: ``local = boot + min(arrival - boot)``.
+    """Maps a sender's boot time (s) to the local clock: ``local = boot + min(arrival - boot)``.
 
     The minimum runs over the last ``window_s`` seconds of arrivals (monotonic deque, O(1)
     amortised per observation), so slow drift between the clocks is followed and delayed
     messages never pull the estimate. ``transport_latency_s`` (known minimum delay) is
-    subtracted. A boot time more than ``reboot_jump_s`` behind the previous one resets it.
+    subtracted. A sample off the current timeline (boot time more than ``reboot_jump_s`` behind
+    the newest, or a capture more than ``future_tolerance_s`` after its arrival) is rejected
+    (:meth:`observe` returns None); once such samples agree on a new timeline for
+    ``confirm_s`` while the old one is silent, the clock restarts on it (``reboots`` counts it).
     """
 
     def __init__(
-        self, window_s: float = 30.0, transport_latency_s: float = 0.0, reboot_jump_s: float = 1.0
+        self,
+        window_s: float = 30.0,
+        transport_latency_s: float = 0.0,
+        reboot_jump_s: float = 1.0,
+        future_tolerance_s: float = 1.0,
+        confirm_s: float = 1.0,
     ) -> None:
         self.window_s = window_s
         self.transport_latency_s = transport_latency_s
         self.reboot_jump_s = reboot_jump_s
+        self.future_tolerance_s = future_tolerance_s
+        self.confirm_s = confirm_s
+        self.reboots = 0
+        self.rejected = 0
         self._mins: deque[tuple[float, float]] = deque()  # (arrival, arrival - boot), increasing
         self._last_boot: float | None = None
+        self._last_on_timeline: float = -math.inf  # arrival of the newest accepted sample
+        self._candidate: tuple[float, float, int] | None = None  # (delay, first arrival, count)
 
-    def observe(self, boot_s: float, arrival: float) -> float:
-        """Record one message's ``(boot time, arrival time)``; return its local capture time."""
-        if self._last_boot is not None and boot_s < self._last_boot - self.reboot_jump_s:
-            self._mins.clear()
-        self._last_boot = boot_s
+    def observe(self, boot_s: float, arrival: float) -> float | None:
+        """Record one message's ``(boot time, arrival time)``; return its local capture time,
+        or None when it is off the current timeline (rejected)."""
         delay = arrival - boot_s
+        if not self._on_timeline(boot_s, delay):
+            if not self._confirms_new_timeline(delay, arrival):
+                self.rejected += 1
+                return None
+            self._mins.clear()
+            self._last_boot = None
+            self.reboots += 1
+        self._candidate = None
+        self._last_boot = boot_s if self._last_boot is None else max(self._last_boot, boot_s)
+        self._last_on_timeline = arrival
         while self._mins and self._mins[-1][1] >= delay:
             self._mins.pop()
         self._mins.append((arrival, delay))
         while self._mins[0][0] < arrival - self.window_s:
             self._mins.popleft()
         return self.to_local(boot_s)
+
+    def _on_timeline(self, boot_s: float, delay: float) -> bool:
+        if self._last_boot is None or not self._mins:
+            return True
+        if boot_s < self._last_boot - self.reboot_jump_s:
+            return False  # back in time: a reboot, or a forged sample
+        return delay >= self._mins[0][1] - self.future_tolerance_s
+
+    def _confirms_new_timeline(self, delay: float, arrival: float) -> bool:
+        cand = self._candidate
+        if cand is None or abs(delay - cand[0]) > self.future_tolerance_s:
+            self._candidate = (delay, arrival, 1)
+            return False
+        self._candidate = (cand[0], cand[1], cand[2] + 1)
+        return (cand[2] + 1 >= 3 and arrival - cand[1] >= self.confirm_s
+                and arrival - self._last_on_timeline >= self.confirm_s)
 
     @property
     def offset(self) -> float | None:
@@ -135,6 +199,10 @@ class _Series:
         self.name = name
         self.times: list[float] = []
         self.values: list[Any] = []
+
+    def clear(self) -> None:
+        self.times.clear()
+        self.values.clear()
 
     def insert(self, t: float, value: Any, max_age_s: float) -> None:
         i = bisect.bisect_left(self.times, t)
@@ -193,6 +261,8 @@ class TelemetryBuffer:
     (radians) in ``mount_frame`` is the camera mount used while no gimbal has reported.
     ``gnss_sigma_m``, ``alt_sigma_m`` and ``attitude_sigma_rad`` are the default 1-sigma
     accuracies copied into each pose (GPS_RAW_INT ``h_acc`` overrides the GNSS one).
+    ``require_home``: no pose until a home is known (HOME_POSITION or :meth:`set_home`);
+    ``require_gps_fix``: GLOBAL_POSITION_INT only while GPS_RAW_INT reports a 3D fix.
     """
 
     def __init__(
@@ -205,6 +275,8 @@ class TelemetryBuffer:
         alt_sigma_m: float = 1.0,
         attitude_sigma_rad: float = math.radians(0.5),
         clock: BootClock | None = None,
+        require_home: bool = True,
+        require_gps_fix: bool = True,
     ) -> None:
         if mount_frame not in GIMBAL_FRAMES:
             raise ValueError(f"mount_frame must be one of {GIMBAL_FRAMES}, got {mount_frame!r}")
@@ -218,6 +290,16 @@ class TelemetryBuffer:
         self.alt_sigma_m = alt_sigma_m
         self.attitude_sigma_rad = attitude_sigma_rad
         self.clock = clock or BootClock()
+        self.require_home = require_home
+        self.require_gps_fix = require_gps_fix
+        #: Messages not believed, by reason (e.g. "GLOBAL_POSITION_INT: lat 214.7 out of range").
+        self.rejected: Counter[str] = Counter()
+        self.resets = 0
+        self._warn = RateLimitedLog(log, WARN_INTERVAL_S)
+        self._clocks: dict[tuple[int, int], BootClock] = {}
+        self._autopilot_source: tuple[int, int] | None = None
+        self._series_source: dict[str, tuple[int, int]] = {}
+        self._gps: tuple[float, int] | None = None  # (arrival, fix_type) of the newest GPS_RAW_INT
         self._position = _Series("position")
         self._attitude = _Series("attitude")
         self._gimbal = _Series("gimbal attitude")
@@ -226,51 +308,154 @@ class TelemetryBuffer:
 
     # -- MAVLink input -------------------------------------------------------------------------
     def handle_message(self, msg: Any, arrival: float | None = None) -> None:
-        """Take one pymavlink message (other types are ignored); ``arrival`` local time."""
+        """Take one pymavlink message (other types are ignored); ``arrival`` local time.
+
+        The caller decides whom to believe (the adopted autopilot only); this checks what the
+        message says. Never raises on bad content: it is counted and warned about instead."""
         mtype = msg.get_type()
         if mtype not in MESSAGE_TYPES:
             return
         now = time.monotonic() if arrival is None else arrival
+        problem = message_problem(msg)
+        if problem:
+            self._reject(mtype, problem)
+            return
+        source = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         if mtype == "HOME_POSITION":
-            self.set_home(msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
+            self._take_home(msg)
             return
         if mtype == "GPS_RAW_INT":
+            self._gps = (now, int(msg.fix_type))
             h_acc = getattr(msg, "h_acc", 0)
-            if h_acc:
+            if 0 < h_acc < 0xFFFFFFFF:
                 self.gnss_sigma_m = h_acc / 1000.0
             return
+        if mtype == "SYSTEM_TIME":
+            return
         with self._lock:
-            t = self.clock.observe(msg.time_boot_ms / 1000.0, now)
+            clock = self._clock_for(source, mtype)
+            reboots = clock.reboots
+            t = clock.observe(msg.time_boot_ms / 1000.0, now)
+            if clock.reboots != reboots:
+                self._forget_source(source, "its clock restarted (reboot)")
+        if t is None:
+            self._reject(mtype, "time_boot_ms off the sender's timeline")
+            return
         if mtype == "GLOBAL_POSITION_INT":
-            if msg.lat == 0 and msg.lon == 0:
-                return
-            self.push_position(
-                t,
-                msg.lat / 1e7,
-                msg.lon / 1e7,
-                msg.relative_alt / 1000.0,
-                alt_m=msg.alt / 1000.0,
-                velocity_ned=(msg.vx / 100.0, msg.vy / 100.0, msg.vz / 100.0),
-            )
+            self._take_position(msg, t, now)
         elif mtype == "ATTITUDE":
+            self._series_source["attitude"] = source
             self.push_attitude(t, msg.roll, msg.pitch, msg.yaw)
         elif mtype == "ATTITUDE_QUATERNION":
+            self._series_source["attitude"] = source
             self.push_attitude_quaternion(t, (msg.q1, msg.q2, msg.q3, msg.q4))
         elif mtype == "GIMBAL_DEVICE_ATTITUDE_STATUS":
             q = np.asarray(msg.q, dtype=float)
-            if not np.all(np.isfinite(q)) or not np.any(q):
-                return
             frame = gimbal_frame_from_flags(int(msg.flags))
             if frame == "vehicle" and math.isfinite(msg.delta_yaw):
                 q = matrix_to_quaternion(rot_z(msg.delta_yaw) @ quaternion_to_matrix(q))
                 frame = "earth"
+            self._series_source["gimbal"] = source
             self.push_gimbal(t, q, frame)
         elif mtype == "MOUNT_ORIENTATION":
             roll, pitch = math.radians(msg.roll), math.radians(msg.pitch)
+            self._series_source["gimbal"] = source
             if math.isfinite(msg.yaw_absolute):
                 self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw_absolute)), "earth")
             else:
                 self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw)), "vehicle")
+
+    def _reject(self, mtype: str, reason: str) -> None:
+        key = f"{mtype}: {reason}"
+        with self._lock:
+            self.rejected[key] += 1
+        self._warn.event(key, "telemetry rejected: %s", key)
+
+    def _clock_for(self, source: tuple[int, int], mtype: str) -> BootClock:
+        clock = self._clocks.get(source)
+        if clock is None:
+            if self._autopilot_source is None and mtype in _AUTOPILOT_TYPES:
+                self._autopilot_source = source
+                clock = self.clock
+            else:
+                clock = BootClock(transport_latency_s=self.clock.transport_latency_s)
+            self._clocks[source] = clock
+        return clock
+
+    def _forget_source(self, source: tuple[int, int], why: str) -> None:
+        """Drop every sample ``source`` gave (its clock restarted); called under the lock."""
+        dropped = []
+        for name, series in (("position", self._position), ("attitude", self._attitude),
+                             ("gimbal", self._gimbal)):
+            if self._series_source.get(name) == source and series.times:
+                series.clear()
+                dropped.append(name)
+        if source == self._autopilot_source:
+            self._home = None
+            self._gps = None
+            dropped.append("home")
+        self.resets += 1
+        log.warning("telemetry from %d/%d dropped (%s): %s", *source, why,
+                    ", ".join(dropped) or "nothing buffered")
+
+    def _take_home(self, msg: Any) -> None:
+        lat, lon, alt = msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0
+        old = self._home
+        if old is None or abs(old[0] - lat) > 1e-6 or abs(old[1] - lon) > 1e-6 or abs(
+                old[2] - alt) > 0.5:
+            log.info("autopilot home %.7f, %.7f, %.1f m AMSL%s", lat, lon, alt,
+                     "" if old is None else " (changed)")
+        self.set_home(lat, lon, alt)
+
+    def _take_position(self, msg: Any, t: float, arrival: float) -> None:
+        if msg.lat == 0 and msg.lon == 0:
+            self._reject("GLOBAL_POSITION_INT", "no position yet (0, 0)")
+            return
+        if self.require_gps_fix:
+            gps = self._gps
+            if gps is None:
+                self._reject("GLOBAL_POSITION_INT", "no GPS_RAW_INT heard: GPS fix unknown")
+                return
+            if arrival - gps[0] > GPS_FIX_MAX_AGE_S:
+                self._reject("GLOBAL_POSITION_INT",
+                             f"GPS_RAW_INT older than {GPS_FIX_MAX_AGE_S:g} s: GPS fix unknown")
+                return
+            if gps[1] < GPS_FIX_3D:
+                self._reject("GLOBAL_POSITION_INT", f"no 3D GPS fix (fix type {gps[1]})")
+                return
+        lat, lon = msg.lat / 1e7, msg.lon / 1e7
+        jump = self._position_jump(t, lat, lon)
+        if jump:
+            self._reject("GLOBAL_POSITION_INT", jump)
+            return
+        self._series_source["position"] = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
+        self.push_position(
+            t,
+            lat,
+            lon,
+            msg.relative_alt / 1000.0,
+            alt_m=msg.alt / 1000.0,
+            velocity_ned=(msg.vx / 100.0, msg.vy / 100.0, msg.vz / 100.0),
+        )
+
+    def _position_jump(self, t: float, lat: float, lon: float) -> str:
+        """Why a position at ``t`` is implausible next to its nearest buffered neighbour."""
+        with self._lock:
+            times = self._position.times
+            if not times:
+                return ""
+            i = bisect.bisect_left(times, t)
+            nearest = min((k for k in (i - 1, i) if 0 <= k < len(times)),
+                          key=lambda k: abs(times[k] - t))
+            near_t, near = times[nearest], self._position.values[nearest]
+        dt = abs(t - near_t)
+        if dt > JUMP_CHECK_S:
+            return ""
+        n, e, _ = geodetic_to_ned(lat, lon, 0.0, near.lat, near.lon, 0.0)
+        distance = math.hypot(float(n), float(e))
+        if distance > MAX_SPEED_MPS * max(dt, 0.1) + JUMP_SLACK_M:
+            return f"position jump of {distance:.0f} m in {dt:.2f} s"
+        return ""
 
     # -- direct input (replay, simulator) ------------------------------------------------------
     def push_position(
@@ -316,6 +501,27 @@ class TelemetryBuffer:
         """Home from HOME_POSITION or :meth:`set_home`, None until known."""
         return self._home
 
+    @property
+    def gimbal_reported(self) -> bool:
+        """Whether a gimbal attitude is buffered (a gimbal or mount is reporting)."""
+        with self._lock:
+            return bool(self._gimbal.times)
+
+    def reset(self, why: str) -> None:
+        """Forget every sample, the home and the clocks (e.g. another autopilot was adopted)."""
+        with self._lock:
+            for series in (self._position, self._attitude, self._gimbal):
+                series.clear()
+            self._home = None
+            self._gps = None
+            self._clocks.clear()
+            self._autopilot_source = None
+            self._series_source.clear()
+            self.clock = BootClock(window_s=self.clock.window_s,
+                                   transport_latency_s=self.clock.transport_latency_s)
+            self.resets += 1
+        log.warning("telemetry buffer cleared: %s", why)
+
     def newest_time(self, kind: str) -> float | None:
         """Local time of the newest "position", "attitude" or "gimbal" sample (None if none)."""
         series = {"position": self._position, "attitude": self._attitude, "gimbal": self._gimbal}
@@ -331,7 +537,11 @@ class TelemetryBuffer:
 
     def lookup(self, t: float) -> PlatformPose | StaleTelemetry:
         """The interpolated pose at local time ``t`` or a :class:`StaleTelemetry` reason."""
+        if not math.isfinite(t):
+            return StaleTelemetry(t, "frame time not finite")
         with self._lock:
+            if self.require_home and self._home is None:
+                return StaleTelemetry(t, "no home position from the autopilot yet")
             pos = self._interp_position(t)
             if isinstance(pos, StaleTelemetry):
                 return pos

@@ -196,6 +196,14 @@ class TelemetryConfig:
 
 
 @dataclass
+class GeolocationConfig:
+    """When a fix may be computed: only while the drone is at least ``min_height_m`` above the
+    ground plane (on the ground, or landing, everything in view is at the drone's own place)."""
+
+    min_height_m: float = 5.0
+
+
+@dataclass
 class SimConfig:
     """Simulator weather: mean wind (``wind_from_deg`` is where it blows from) and gusts."""
 
@@ -216,6 +224,7 @@ class MissionConfig:
     lock: LockConfig = field(default_factory=LockConfig)
     actions: ActionsConfig = field(default_factory=ActionsConfig)
     telemetry: TelemetryConfig = field(default_factory=TelemetryConfig)
+    geolocation: GeolocationConfig = field(default_factory=GeolocationConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     name: str = "mission"
     source: str | None = None
@@ -406,6 +415,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
             raise bad(f"[telemetry] {key}", "expected a number >= 0")
     if t.stale_after_s <= 0 or t.gnss_noise_tau_s <= 0:
         raise bad("[telemetry] stale_after_s/gnss_noise_tau_s", "expected positive numbers")
+    if cfg.geolocation.min_height_m < 0:
+        raise bad("[geolocation] min_height_m", "expected a number >= 0")
 
 
 def parse_override(text: str) -> tuple[str, Any]:

@@ -9,9 +9,15 @@ Per frame (:meth:`MissionController.process`)::
            telemetry pose at the capture time -> geolocate the box centre -> target registry
            (box in scene pixels: the image shifts since the first frame taken out)
       -> for each new target: Alert -> store.add (durable) -> console line -> action policy
-      -> for a target alerted without a position that now has one:
+      -> for a target alerted without a position that now has one (seen again, or its
+         earlier sightings placed from buffered telemetry once the autopilot's state is known):
            store.attach_position (durable) -> console line -> action policy (now with a place)
       -> recorder (frame, proposals, detections, tracks, telemetry, map)
+
+A fix is computed only from the autopilot's own state (the telemetry buffer's pose, which needs
+its HOME_POSITION, a GPS fix and fresh, plausible samples) with the drone as the origin, and
+only while the drone is at least ``[geolocation] min_height_m`` above the ground; otherwise the
+alert says "position unknown" and why. The mission file's home is never a geolocation origin.
 
 Only locked tracks cost more than tracking; the alert (thumbnail, geolocated history) is built
 once per new target. The same controller runs live (frames stamped with ``time.monotonic()``,
@@ -24,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import time
 from collections import Counter
 from collections.abc import Callable
@@ -80,6 +87,7 @@ class ControllerStats:
     locks: int = 0
     alerts: list[Alert] = field(default_factory=list)
     located_later: int = 0
+    unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
     merged_tracks: int = 0
     paused: int = 0  # frames not searched: the camera was pointed at a target
     stage_ms: Counter[str] = field(default_factory=Counter)
@@ -133,12 +141,16 @@ class MissionController:
         self.console = console
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m
+        self.min_height_m = mission.geolocation.min_height_m
         self._camera = mission.camera.intrinsics()
         self._intrinsics: CameraIntrinsics | None = None
         self._shape: tuple[int, int] | None = None
         self._t0: float | None = None
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
+        # target id -> (capture time, box centre) of its sightings, to place it from buffered
+        # telemetry once the autopilot's state allows a fix
+        self._unplaced_sightings: dict[int, list[tuple[float, float, float]]] = {}
         self._paused = False  # the last frame was not searched (camera on a target)
 
     # -- per frame -------------------------------------------------------------------------------
@@ -189,8 +201,11 @@ class MissionController:
                 else:
                     self.stats.merged_tracks += 1
                     log.info("track %d joined target %d", track.track_id, target.target_id)
+            if target.position is None and target.target_id in self._unplaced:
+                self._remember_sighting(target.target_id, track)
             if target.position is not None and target.target_id in self._unplaced:
                 self._attach_position(target, track.track_id, frame_index)
+        self._place_from_buffer(frame_index)
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:
@@ -229,31 +244,65 @@ class MissionController:
             self.recorder.text("skipped", f"frame {frame_index}: {reason}", level="WARN")
 
     # -- geolocation -----------------------------------------------------------------------------
-    def _home(self) -> tuple[float, float, float]:
-        return self.telemetry.home or self.mission.area.home
+    def _ground_below_home(self) -> float | None:
+        """Metres from the autopilot's home down to the ground plane (None: home unknown)."""
+        home = self.telemetry.home
+        if home is None:
+            return None
+        return 0.0 if self.ground_alt is None else home[2] - self.ground_alt
+
+    def _fix(self, centre: tuple[float, float], pose: PlatformPose) -> GeoFix:
+        ground = self._ground_below_home()
+        if ground is None:
+            return GeoFix(None, None, None, None, math.nan,
+                          "no home position from the autopilot yet")
+        assert self._intrinsics is not None
+        return geolocate(centre, self._intrinsics, pose, ground, min_height_m=self.min_height_m)
 
     def _locate(self, track: TrackState, pose: PlatformPose | StaleTelemetry,
                 ) -> tuple[GeoFix | None, str]:
         if isinstance(pose, StaleTelemetry):
-            return None, f"telemetry stale: {pose.reason}"
+            return None, f"telemetry: {pose.reason}"
         box = track.box
-        centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
-        assert self._intrinsics is not None
-        fix = geolocate(centre, self._intrinsics, pose, self._home(), self.ground_alt)
+        fix = self._fix(((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0), pose)
         return fix, "" if fix.ok else f"no ground fix: {fix.note}"
 
     def _history_fixes(self, track: TrackState) -> list[tuple[float, float, float]]:
         """``(POSIX t, lat, lon)`` of the track's newest centres, where telemetry allows."""
         points = []
-        assert self._intrinsics is not None
         for _, t, cx, cy in track.history[-ALERT_TRACK_POINTS:]:
             pose = self.telemetry.lookup(t)
             if isinstance(pose, StaleTelemetry):
                 continue
-            fix = geolocate((cx, cy), self._intrinsics, pose, self._home(), self.ground_alt)
+            fix = self._fix((cx, cy), pose)
             if fix.ok:
                 points.append((self.to_posix(t), fix.lat, fix.lon))
         return points
+
+    def _remember_sighting(self, target_id: int, track: TrackState) -> None:
+        _, t, cx, cy = track.history[-1]
+        sightings = self._unplaced_sightings.setdefault(target_id, [])
+        if not sightings or sightings[-1][0] != t:
+            sightings.append((t, cx, cy))
+            del sightings[:-ALERT_TRACK_POINTS]
+
+    def _place_from_buffer(self, frame_index: int) -> None:
+        """Targets alerted without a position whose sightings buffered telemetry can now place
+        (e.g. HOME_POSITION arrived after the lock): their position goes out now."""
+        for target_id in list(self._unplaced):
+            target = self.registry.targets.get(target_id)
+            sightings = self._unplaced_sightings.get(target_id, [])
+            if target is None or target.position is not None or not sightings:
+                continue
+            for t, cx, cy in sightings:
+                pose = self.telemetry.lookup(t)
+                if isinstance(pose, PlatformPose):
+                    fix = self._fix((cx, cy), pose)
+                    if fix.ok:
+                        target.add_fix(fix)
+            if target.position is not None:
+                self._unplaced_sightings.pop(target_id, None)
+                self._attach_position(target, None, frame_index)
 
     # -- alerts ----------------------------------------------------------------------------------
     def _alert(self, target: Target, track: TrackState, frame: np.ndarray, frame_index: int,
@@ -273,7 +322,7 @@ class MissionController:
             position=target.position if placed else None,
             position_note=target.note if placed else (target.note or "no position"),
             error_m=target.error_m if placed else None,
-            target_hae_m=self._home()[2] if self.ground_alt is None else self.ground_alt,
+            target_hae_m=self._target_hae(),
             drone_position=(None if isinstance(pose, StaleTelemetry)
                             else (pose.lat, pose.lon, pose.rel_alt_m)),
             track=self._history_fixes(track),
@@ -285,6 +334,8 @@ class MissionController:
         self.stats.alerts.append(alert)
         if alert.position is None:
             self._unplaced[target.target_id] = alert
+            self._remember_sighting(target.target_id, track)
+            self.stats.unplaced[re.sub(r"\d+(\.\d+)?", "N", alert.position_note)] += 1
         self.console(format_alert(alert, track.track_id))
         if self.recorder is not None:
             self.recorder.text("alerts", format_alert(alert, track.track_id), level="WARN")
@@ -292,9 +343,17 @@ class MissionController:
             self.actions.announce(alert)
         return alert
 
-    def _attach_position(self, target: Target, track_id: int, frame_index: int) -> None:
+    def _target_hae(self) -> float | None:
+        """The ground plane's altitude (AMSL), None while the autopilot's home is unknown."""
+        if self.ground_alt is not None:
+            return self.ground_alt
+        home = self.telemetry.home
+        return None if home is None else home[2]
+
+    def _attach_position(self, target: Target, track_id: int | None, frame_index: int) -> None:
         """The first position of a target alerted without one: into its stored alert, then told."""
         alert = self._unplaced.pop(target.target_id)
+        self._unplaced_sightings.pop(target.target_id, None)
         assert target.position is not None
         if not self.store.attach_position(alert.alert_id, target.position, target.error_m,
                                           target.note):  # durable before anyone is told
@@ -363,6 +422,9 @@ class MissionController:
                      f"new alerts: {len(s.alerts)}"
                      + (f", positions found after the alert: {s.located_later}"
                         if s.located_later else ""))
+        if s.unplaced:
+            lines.append("alerted without a position: " + ", ".join(
+                f"{n} ({why})" for why, n in s.unplaced.most_common()))
         if s.paused:
             lines.append(f"frames not searched while the camera was on a target: {s.paused}")
         if self.actions is not None:
@@ -373,15 +435,17 @@ class MissionController:
 
 def format_alert(alert: Alert, track_id: int | None = None) -> str:
     """One console line for a new alert."""
-    where = (f"{alert.format_position(6)} {alert.format_error()}".rstrip()
-             if alert.position is not None else f"position unknown ({alert.position_note})")
+    where = (f"at {alert.format_position(6)} {alert.format_error()}".rstrip()
+             if alert.position is not None else f"- position unknown: {alert.position_note}")
     track = f", track {track_id}" if track_id is not None else ""
-    return (f"ALERT target {alert.target_id}: {alert.class_name} {alert.score:.2f} at {where} "
+    return (f"ALERT target {alert.target_id}: {alert.class_name} {alert.score:.2f} {where} "
             f"(frame {alert.frame_index}{track})")
 
 
-def format_located(alert: Alert, frame_index: int, track_id: int) -> str:
-    """One console line for a position found after its target was alerted without one."""
+def format_located(alert: Alert, frame_index: int, track_id: int | None) -> str:
+    """One console line for a position found after its target was alerted without one
+    (``track_id`` None: placed from its earlier sightings and buffered telemetry)."""
     where = f"{alert.format_position(6)} {alert.format_error()}".rstrip()
+    how = f"track {track_id}" if track_id is not None else "from its earlier sightings"
     return (f"POSITION target {alert.target_id}: {alert.class_name} at {where} "
-            f"(alerted without a position; frame {frame_index}, track {track_id})")
+            f"(alerted without a position; frame {frame_index}, {how})")

@@ -42,6 +42,7 @@ def stream_rates(mission: MissionConfig) -> dict[int, float]:
         M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 10.0,
         M.MAVLINK_MSG_ID_ATTITUDE: 20.0,
         M.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
+        M.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,  # the fix type: no position is believed without one
     }
     if mission.camera.gimbal:
         # as fast as the attitude: a gimbal sample held for 0.2 s while the gimbal slews
