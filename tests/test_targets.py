@@ -191,3 +191,27 @@ def test_track_without_position_joins_a_placed_target_seen_there_just_before():
 def test_negative_or_nan_settings_are_refused(kwargs):
     with pytest.raises(ValueError):
         TargetRegistry(**kwargs)
+
+
+def test_a_restart_matches_known_targets_by_their_stored_error_not_a_fixed_radius():
+    from sarmission.mission.targets import KnownTarget
+
+    reg = TargetRegistry(merge_radius_m=8.0)
+    reg.seed({4: KnownTarget(ll(0, 0), error_m=4.0), 5: KnownTarget(ll(200, 0), error_m=0.5)})
+    # 9 m from a target stored at +-4 m, fix at +-3 m: within 2 * hypot(4, 3) = 10 m
+    same, new = reg.observe(1, 0, 0.8, 0.0, fix_at(9, 0, error=3.0))
+    assert not new and same.target_id == 4
+    # 11 m from it: a different person
+    other, new = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 11, error=3.0))
+    assert new and other.target_id == 6
+    # a precise stored fix keeps the floor: 9 m from +-0.5 m with a +-0.5 m fix is someone else
+    third, new = reg.observe(3, 0, 0.8, 0.0, fix_at(209, 0, error=0.5))
+    assert new and third.target_id == 7
+
+
+def test_a_known_target_without_a_stored_error_counts_as_poorly_placed():
+    reg = TargetRegistry(merge_radius_m=8.0)
+    reg.seed({2: ll(0, 0)})  # a bare position: error unknown
+    assert reg.targets[2].error_m == pytest.approx(10.0)
+    joined, new = reg.observe(1, 0, 0.8, 0.0, fix_at(15, 0, error=2.0))  # 2 * hypot(10, 2)
+    assert not new and joined.target_id == 2

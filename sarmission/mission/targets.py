@@ -6,7 +6,9 @@ space, and in the image where there is no ground position to compare:
 
 - a track keeps the target it first joined (``track_id -> target_id``);
 - a new locked track with a position joins the nearest target whose position lies within
-  ``max(merge_radius_m, hypot(target error, fix error))`` of its fix;
+  ``max(merge_radius_m, GATE_SIGMA * hypot(target error, fix error))`` of its fix: the errors
+  are 1-sigma RMS (DRMS), so two fixes of one person lie within twice their combined error
+  98 % of the time, and a target with poorer fixes gets a wider gate;
 - a new locked track without a position (stale telemetry, ray above the horizon) cannot be
   compared on the ground, so it is compared in the image: it joins the target whose last box
   was seen at most ``merge_window_s`` earlier (or later) with its centre within
@@ -30,8 +32,9 @@ most of their error (GNSS bias, altitude, mounting), so averaging does not shrin
 target's error is the smallest error of any of its fixes.
 
 A restarted controller seeds the registry from the alert store's known targets
-(:meth:`TargetRegistry.seed`): they are already announced, so a person found again joins them
-instead of being announced twice.
+(:meth:`TargetRegistry.seed`), each with the error of its stored position: they are already
+announced, so a person found again joins them (through the same gate) instead of being
+announced twice.
 """
 
 from __future__ import annotations
@@ -46,6 +49,17 @@ from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
 
 #: Weight floor: a fix without an error estimate counts as this error (metres).
 DEFAULT_FIX_ERROR_M = 10.0
+#: Merge gate in combined 1-sigma errors (see the module docstring).
+GATE_SIGMA = 2.0
+
+
+@dataclass(frozen=True)
+class KnownTarget:
+    """A target announced in an earlier run: its stored position and that position's 1-sigma
+    error (None when unknown)."""
+
+    position: tuple[float, float] | None
+    error_m: float | None = None
 
 
 @dataclass
@@ -156,16 +170,20 @@ class TargetRegistry:
     def __len__(self) -> int:
         return len(self.targets)
 
-    def seed(self, known: Mapping[int, tuple[float, float] | None]) -> None:
-        """Add targets already announced (alert store ``known_targets``: id -> position or None).
-
-        Their error is unknown, so a new fix joins one within ``merge_radius_m`` (or within the
-        fix's own error if larger). New targets are numbered after the highest known id.
+    def seed(self, known: Mapping[int, KnownTarget | tuple[float, float] | None]) -> None:
+        """Add targets already announced (alert store ``known_targets``: id -> known target,
+        or a bare position / None when the error is unknown; an unknown error counts as
+        :data:`DEFAULT_FIX_ERROR_M`). New targets are numbered after the highest known id.
         """
-        for target_id, position in known.items():
+        for target_id, entry in known.items():
+            if not isinstance(entry, KnownTarget):
+                entry = KnownTarget(entry, None)
+            position = entry.position
             target = Target(int(target_id), math.nan, math.nan, announced=True)
             if position is not None:
                 target.lat, target.lon = float(position[0]), float(position[1])
+                target.error_m = (entry.error_m if entry.error_m is not None
+                                  and entry.error_m > 0 else DEFAULT_FIX_ERROR_M)
                 target.note = "known from an earlier run"
             else:
                 target.note = "known from an earlier run, without a position"
@@ -223,7 +241,9 @@ class TargetRegistry:
             if target.position is None:
                 continue
             d = distance_m(target.position, (fix.lat, fix.lon))
-            gate = max(self.merge_radius_m, math.hypot(target.error_m or 0.0, fix.error_m or 0.0))
+            combined = math.hypot(target.error_m or DEFAULT_FIX_ERROR_M,
+                                  fix.error_m or DEFAULT_FIX_ERROR_M)
+            gate = max(self.merge_radius_m, GATE_SIGMA * combined)
             if d <= gate and d < best_d:
                 best, best_d = target, d
         return best
