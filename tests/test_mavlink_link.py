@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import free_udp_port, wait_until
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 
@@ -23,21 +24,6 @@ STREAMS = {
     M.MAVLINK_MSG_ID_GIMBAL_DEVICE_ATTITUDE_STATUS: 5.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 1.0,
 }
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_until(cond, timeout: float, step: float = 0.05) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(step)
-    return cond()
 
 
 @pytest.fixture(scope="module")
@@ -189,15 +175,21 @@ def test_command_without_ack_retries_then_fails_within_timeout():
 
 
 def test_outbox_delivers_after_link_loss(ardupilot):
+    """Commands are acknowledged, STATUSTEXTs only sent (``repeats`` times, never called
+    delivered); both wait out a silent autopilot and go once it is back."""
     vehicle, link = ardupilot
-    delivered = []
+    delivered, sent = [], []
     outbox = Outbox(
         CommandSender(link, retries=1, ack_timeout_s=0.5),
         on_delivered=lambda action, result: delivered.append((action.key, result)),
+        on_sent=lambda action, result: sent.append((action.key, action.attempts)),
+        statustext_repeats=2,
+        repeat_interval_s=0.3,
     )
     try:
         outbox.submit("statustext", "before loss", key="a1")
-        assert wait_until(lambda: len(delivered) == 1, 3.0)
+        assert wait_until(lambda: len(sent) == 2, 3.0)
+        assert wait_until(lambda: len(vehicle.statustexts) == 2, 3.0)
         vehicle.stop()  # the autopilot goes silent
         assert wait_until(lambda: not link.link_ok, 3.0)
         outbox.submit("statustext", "ALERT during loss", key="a2")
@@ -207,9 +199,11 @@ def test_outbox_delivers_after_link_loss(ardupilot):
         n_before = len(vehicle.statustexts)
         vehicle.start()  # back on the same port
         assert wait_until(lambda: not outbox.pending(), 8.0), outbox.pending()
-        assert [k for k, _ in delivered] == ["a1", "a2", "r1"]
-        assert [s.text for s in vehicle.statustexts[n_before:]] == ["ALERT during loss"]
-        assert delivered[2][1].accepted and vehicle.commands[-1].command == M.MAV_CMD_DO_REPOSITION
+        assert [k for k, _ in delivered] == ["r1"]  # only the command is acknowledged
+        assert sent == [("a1", 1), ("a1", 2), ("a2", 1), ("a2", 2)]
+        assert wait_until(lambda: len(vehicle.statustexts) == n_before + 2, 3.0)
+        assert [s.text for s in vehicle.statustexts[n_before:]] == ["ALERT during loss"] * 2
+        assert delivered[0][1].accepted and vehicle.commands[-1].command == M.MAV_CMD_DO_REPOSITION
     finally:
         outbox.close()
 

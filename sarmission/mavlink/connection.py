@@ -1,20 +1,23 @@
-"""One MAVLink 2 link to the autopilot: reader thread, heartbeat, streams, link health, signing.
+"""One MAVLink 2 link to the autopilot: reader thread, heartbeat, adoption, streams, signing.
 
 ``MavlinkLink(url)`` opens any pymavlink connection string (``udp:``/``udpin:``, ``udpout:``,
 ``tcp:``, serial devices) and speaks MAVLink 2 with the ardupilotmega dialect (a superset of
 common). It runs two daemon threads:
 
-- reader: parses every byte, counts malformed input (``bad_packets``) and messages refused by
-  signing (``rejected_signatures``) and skips them, detects the autopilot (the first HEARTBEAT
-  whose ``autopilot`` is not MAV_AUTOPILOT_INVALID and whose ``type`` is not a GCS), keeps the
-  time it was last heard, and hands every message to the subscribers
-  (``callback(msg, arrival)``, ``arrival`` = ``time.monotonic()``).
+- reader: parses every byte, counts malformed input (``bad_packets``) and skips it; with signing,
+  drops what fails the signature rules (:mod:`sarmission.mavlink.signing`); adopts one autopilot
+  (:mod:`sarmission.mavlink.adoption`: the first autopilot-type HEARTBEAT, or the pinned
+  ``target_system``/``target_component``; another one only after the adopted one fell silent),
+  keeps the time it was last heard, and hands messages to the subscribers
+  (``callback(msg, arrival)``, ``arrival`` = ``time.monotonic()``): :meth:`MavlinkLink.subscribe`
+  gets every message, :meth:`MavlinkLink.subscribe_autopilot` only the adopted autopilot's (and
+  its system's gimbals' attitude); what that filter drops is counted in ``ignored``.
 - housekeeping (5 Hz): our HEARTBEAT at 1 Hz as MAV_TYPE_ONBOARD_CONTROLLER /
-  MAV_AUTOPILOT_INVALID, and the stream watchdog: every message asked for with
-  :meth:`MavlinkLink.request_streams` that has not arrived for ``max(3 periods, 2 s)`` is asked
-  for again (fire and forget, at most every 2 s), unless the autopilot refused it. This covers
-  ArduPilot, which sends only HEARTBEAT until asked with MAV_CMD_SET_MESSAGE_INTERVAL, lost
-  requests, and an autopilot reboot.
+  MAV_AUTOPILOT_INVALID, and, while the autopilot is heard, the stream watchdog
+  (:mod:`sarmission.mavlink.streams`): a message asked for with
+  :meth:`MavlinkLink.request_streams` that stays missing is asked for again with backoff, and
+  given up when it never came after a few requests. This covers ArduPilot, which sends only
+  HEARTBEAT until asked with MAV_CMD_SET_MESSAGE_INTERVAL, lost requests, and a reboot.
 
 Sends from several threads are serialised by a lock (the MAVLink sequence number and signing
 timestamp are per connection). With ``signing_key`` (32 bytes) outgoing messages are signed and
@@ -29,21 +32,38 @@ import math
 import queue
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from sarmission.mavlink.adoption import (
+    GIMBAL_TYPES,
+    Adoption,
+    AdoptionChange,
+    Source,
+    is_autopilot_heartbeat,
+    source_kind,
+)
+from sarmission.mavlink.signing import SignatureGate, enable_signing
+from sarmission.mavlink.streams import StreamWatchdog
 
 log = logging.getLogger(__name__)
 
 M = mavlink2
 MAV_COMP_ID_ONBOARD_COMPUTER = M.MAV_COMP_ID_ONBOARD_COMPUTER
 Callback = Callable[[Any, float], None]
+#: ``callback(new, old)``: autopilot ``new`` adopted, replacing ``old`` (None the first time).
+AdoptedCallback = Callable[[Source, Source | None], None]
 
 STREAM_RETRY_S = 2.0
+STREAM_MAX_TRIES = 3
 HOUSEKEEPING_PERIOD_S = 0.2
-_REFUSED = (M.MAV_RESULT_DENIED, M.MAV_RESULT_UNSUPPORTED)
+#: Seconds between two warnings about messages ignored from one sender.
+IGNORED_WARN_S = 5.0
 
 
 def signing_key_from_passphrase(passphrase: str) -> bytes:
@@ -107,13 +127,24 @@ def mavlink2_connection(url: str, source_system: int, source_component: int) -> 
     return conn
 
 
+@dataclass(frozen=True, eq=False)
+class _Subscription:
+    callback: Callback
+    types: frozenset[str] | None  # None: all
+    gimbal_types: frozenset[str]  # also from the adopted system's gimbals (autopilot_only)
+    autopilot_only: bool
+
+
 class MavlinkLink:
     """A MAVLink 2 connection of a companion component to one autopilot.
 
     ``url``: pymavlink connection string. ``source_system``/``source_component``: our ids (the
     vehicle's system id and MAV_COMP_ID_ONBOARD_COMPUTER by default). ``signing_key``: 32-byte
     MAVLink 2 key or None. ``link_timeout_s``: the link is down when the autopilot has not been
-    heard for longer. The link starts on construction; :meth:`close` stops it.
+    heard for longer (and only then may another autopilot be adopted). ``target_system`` /
+    ``target_component``: pin the autopilot (None: any). ``stream_retry_s`` /
+    ``stream_max_tries``: the stream watchdog's first retry wait and the requests made for a
+    stream that never comes. The link starts on construction; :meth:`close` stops it.
     """
 
     def __init__(
@@ -125,34 +156,38 @@ class MavlinkLink:
         *,
         link_timeout_s: float = 3.0,
         allow_unsigned: bool = False,
+        target_system: int | None = None,
+        target_component: int | None = None,
+        stream_retry_s: float = STREAM_RETRY_S,
+        stream_max_tries: int = STREAM_MAX_TRIES,
     ) -> None:
         self.url = url
         self.source_system = source_system
         self.source_component = source_component
         self.link_timeout_s = link_timeout_s
         self.bad_packets = 0
-        self.rejected_signatures = 0
         self.received = 0
-        self.autopilot: tuple[int, int] | None = None
+        #: Messages dropped by the autopilot source filter, by (system, component, type); the
+        #: reader thread adds to it: copy it (``dict(link.ignored)``) before iterating.
+        self.ignored: Counter[tuple[int, int, str]] = Counter()
+        self._adoption = Adoption(link_timeout_s, target_system, target_component, f" on {url}")
         self._autopilot_seen = threading.Event()
-        self._last_heard: float | None = None
-        self._last_by_type: dict[int, float] = {}
-        self._streams: dict[int, float] = {}  # msg id -> rate Hz (<= 0: off)
-        self._stream_sent: dict[int, float] = {}
-        self._stream_result: dict[int, int] = {}
-        self._subscribers: list[tuple[Callback, frozenset[str] | None]] = []
+        self._streams = StreamWatchdog(stream_retry_s, stream_max_tries)
+        self._subscribers: list[_Subscription] = []
+        self._adopted_callbacks: list[AdoptedCallback] = []
+        self._ignored_warned: dict[Source, float] = {}
         self._sub_lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._stop = threading.Event()
         self._conn = mavlink2_connection(url, source_system, source_component)
+        self._gate: SignatureGate | None = None
         if signing_key is not None:
-            if len(signing_key) != 32:
-                raise ValueError(f"signing key must be 32 bytes, got {len(signing_key)}")
-            self._conn.setup_signing(
-                bytes(signing_key),
-                sign_outgoing=True,
-                allow_unsigned_callback=(lambda mav, msg_id: True) if allow_unsigned else None,
-            )
+            try:
+                check = enable_signing(self._conn, signing_key)
+            except ValueError:
+                self._conn.close()
+                raise
+            self._gate = SignatureGate(check, allow_unsigned)
         self._next_heartbeat = 0.0
         self._reader = threading.Thread(target=self._read_loop, name="mavlink-reader", daemon=True)
         self._keeper = threading.Thread(
@@ -168,24 +203,40 @@ class MavlinkLink:
         return self._conn.mav
 
     @property
+    def autopilot(self) -> Source | None:
+        """The adopted autopilot's (system, component), None before one was heard."""
+        return self._adoption.adopted
+
+    @property
+    def adoptions(self) -> int:
+        """How many times an autopilot was adopted (1 after the first; each re-adoption adds
+        one): a generation number for data that belongs to one autopilot."""
+        return self._adoption.adoptions
+
+    @property
     def target_system(self) -> int:
-        """The autopilot's system id (the vehicle's; 1 before detection)."""
-        return self.autopilot[0] if self.autopilot else 1
+        """The adopted autopilot's system id (before: the pinned one, else 1)."""
+        if self.autopilot is not None:
+            return self.autopilot[0]
+        pinned = self._adoption.target_system
+        return 1 if pinned is None else pinned
 
     @property
     def target_component(self) -> int:
-        """The autopilot's component id (1 before detection)."""
-        return self.autopilot[1] if self.autopilot else 1
+        """The adopted autopilot's component id (before: the pinned one, else 1)."""
+        if self.autopilot is not None:
+            return self.autopilot[1]
+        pinned = self._adoption.target_component
+        return 1 if pinned is None else pinned
 
     @property
     def last_heard(self) -> float | None:
         """``time.monotonic()`` of the last message from the autopilot (None: never)."""
-        return self._last_heard
+        return self._adoption.last_heard
 
     def silence_s(self) -> float:
         """Seconds since the autopilot was last heard (inf if never)."""
-        last = self._last_heard
-        return math.inf if last is None else time.monotonic() - last
+        return self._adoption.silence_s(time.monotonic())
 
     @property
     def link_ok(self) -> bool:
@@ -193,27 +244,107 @@ class MavlinkLink:
         return self.autopilot is not None and self.silence_s() <= self.link_timeout_s
 
     def wait_autopilot(self, timeout: float) -> bool:
-        """Block until the autopilot's HEARTBEAT was seen (True) or ``timeout`` passed."""
+        """Block until an autopilot was adopted (True) or ``timeout`` passed."""
         return self._autopilot_seen.wait(timeout)
+
+    def other_autopilots(self) -> list[Source]:
+        """Autopilot-type senders besides the adopted one heard within ``link_timeout_s``."""
+        return self._adoption.rivals(time.monotonic())
+
+    @property
+    def streams_given_up(self) -> list[int]:
+        """Message ids asked for that the autopilot never sent; no longer asked for."""
+        return self._streams.given_up
+
+    @property
+    def bad_signatures(self) -> int:
+        """Signed messages refused: signature wrong (another key, forged) or replayed."""
+        return self._gate.bad_signatures if self._gate is not None else 0
+
+    @property
+    def unsigned_rejected(self) -> int:
+        """Unsigned messages refused because signing is on."""
+        return self._gate.unsigned_rejected if self._gate is not None else 0
+
+    @property
+    def rejected_signatures(self) -> int:
+        """Messages refused by signing (bad signature or unsigned)."""
+        return self.bad_signatures + self.unsigned_rejected
 
     @property
     def signing_stats(self) -> dict[str, int]:
-        """pymavlink signing counters (good/bad signatures, unsigned accepted, rejected)."""
-        s = self._conn.mav.signing
+        """Signing counters: good signatures, bad ones, unsigned accepted, messages rejected."""
+        gate = self._gate
+        if gate is None:
+            return {"goodsig": 0, "badsig": 0, "unsigned": 0, "reject": 0}
         return {
-            "goodsig": s.goodsig_count,
-            "badsig": s.badsig_count,
-            "unsigned": s.unsigned_count,
-            "reject": s.reject_count,
+            "goodsig": gate.accepted_signed,
+            "badsig": gate.bad_signatures,
+            "unsigned": gate.accepted_unsigned,
+            "reject": gate.bad_signatures + gate.unsigned_rejected,
         }
+
+    def diagnosis(self) -> str | None:
+        """Why no autopilot is usable on this link, in one line; None while the link is ok.
+
+        Signing problems come first ("autopilot 1/1 sends unsigned messages: signing is not
+        enabled on the autopilot"), then an autopilot left out by the pin, then silence."""
+        if self.link_ok:
+            return None
+        if self._gate is not None:
+            since = -math.inf if self.last_heard is None else self.last_heard
+            why = self._gate.diagnosis(since)
+            if why:
+                return why
+        now = time.monotonic()
+        pinned_out = [s for s in self._adoption.rivals(now) if not self._adoption.eligible(s)]
+        if self.autopilot is None and pinned_out:
+            others = ", ".join(f"{s[0]}/{s[1]}" for s in pinned_out)
+            return (
+                f"autopilot {others} heard, but the link is pinned to {self._adoption.pin_text()}"
+            )
+        if self.autopilot is not None:
+            return (
+                f"autopilot {self.autopilot[0]}/{self.autopilot[1]} silent for "
+                f"{self.silence_s():.1f} s"
+            )
+        return f"no autopilot heard on {self.url}"
 
     # -- subscribe / send --------------------------------------------------------------------
     def subscribe(
         self, callback: Callback, types: Iterable[str] | None = None
     ) -> Callable[[], None]:
         """Call ``callback(msg, arrival)`` from the reader thread for every message of ``types``
-        (message type names; None = all). Returns a function that unsubscribes."""
-        entry = (callback, None if types is None else frozenset(types))
+        (message type names; None = all) from any sender. Returns a function that unsubscribes."""
+        return self._add(_Subscription(callback, _types(types), frozenset(), False))
+
+    def subscribe_autopilot(
+        self,
+        callback: Callback,
+        types: Iterable[str] | None = None,
+        gimbal_types: Iterable[str] = GIMBAL_TYPES,
+    ) -> Callable[[], None]:
+        """Like :meth:`subscribe`, but only messages from the adopted autopilot; those of
+        ``gimbal_types`` (default GIMBAL_DEVICE_ATTITUDE_STATUS, MOUNT_ORIENTATION) also from
+        a gimbal component of its system. Others of these types are dropped and counted in
+        ``ignored``. Returns a function that unsubscribes."""
+        return self._add(_Subscription(callback, _types(types), frozenset(gimbal_types), True))
+
+    def on_adopted(self, callback: AdoptedCallback) -> Callable[[], None]:
+        """Call ``callback(new, old)`` from the reader thread when an autopilot is adopted
+        (``old`` None the first time), before its HEARTBEAT reaches the subscribers: data from
+        ``old`` should be dropped. Returns a function that unsubscribes."""
+        with self._sub_lock:
+            self._adopted_callbacks.append(callback)
+
+        def unsubscribe() -> None:
+            with self._sub_lock:
+                if callback in self._adopted_callbacks:
+                    self._adopted_callbacks.remove(callback)
+
+        return unsubscribe
+
+    def _add(self, entry: _Subscription) -> Callable[[], None]:
         with self._sub_lock:
             self._subscribers.append(entry)
 
@@ -231,7 +362,7 @@ class MavlinkLink:
         return MessageQueue(self, types, predicate)
 
     def from_autopilot(self, msg: Any) -> bool:
-        """True when ``msg`` was sent by the detected autopilot."""
+        """True when ``msg`` was sent by the adopted autopilot."""
         return self.autopilot == (msg.get_srcSystem(), msg.get_srcComponent())
 
     def send(self, msg: Any) -> bool:
@@ -253,12 +384,10 @@ class MavlinkLink:
 
         Waits up to ``timeout_s`` for the autopilot, then sends the requests one by one and
         waits up to ``timeout_s`` for each COMMAND_ACK. Returns id -> MAV_RESULT (None: no ACK
-        yet). The rates are remembered and re-requested by the watchdog while missing.
+        yet). The rates are remembered and the watchdog asks again while one is missing.
         """
-        self._streams.update({int(k): float(v) for k, v in rates_hz.items()})
         results: dict[int, int | None] = {int(k): None for k in rates_hz}
-        now = time.monotonic()
-        self._stream_sent.update({k: now for k in results})  # keep the watchdog off them for now
+        self._streams.want({int(k): float(v) for k, v in rates_hz.items()}, time.monotonic())
         if not self.wait_autopilot(timeout_s):
             return results
         for msg_id in results:
@@ -266,17 +395,17 @@ class MavlinkLink:
                 ["COMMAND_ACK"],
                 lambda m: m.command == M.MAV_CMD_SET_MESSAGE_INTERVAL and self.from_autopilot(m),
             ) as acks:
+                self._streams.sent(msg_id, time.monotonic())
                 self._send_stream_request(msg_id)
                 ack = acks.get(timeout_s)
             if ack is not None:
                 results[msg_id] = int(ack.result)
-                self._stream_result[msg_id] = int(ack.result)
+                self._streams.acknowledged(msg_id, int(ack.result))
         return results
 
     def _send_stream_request(self, msg_id: int) -> None:
-        rate = self._streams[msg_id]
+        rate = self._streams.rate(msg_id)
         interval_us = 1e6 / rate if rate > 0 else -1.0
-        self._stream_sent[msg_id] = time.monotonic()
         self.send(
             self.mav.command_long_encode(
                 self.target_system,
@@ -292,18 +421,6 @@ class MavlinkLink:
                 0.0,
             )
         )
-
-    def _stream_watchdog(self, now: float) -> None:
-        if self.autopilot is None:
-            return
-        for msg_id, rate in list(self._streams.items()):
-            if rate <= 0 or self._stream_result.get(msg_id) in _REFUSED:
-                continue
-            if now - self._stream_sent.get(msg_id, -math.inf) < STREAM_RETRY_S:
-                continue
-            last = self._last_by_type.get(msg_id, -math.inf)
-            if now - last > max(3.0 / rate, 2.0):
-                self._send_stream_request(msg_id)
 
     # -- threads -----------------------------------------------------------------------------
     def _read_loop(self) -> None:
@@ -321,38 +438,90 @@ class MavlinkLink:
                 log.debug("undecodable input", exc_info=True)
                 continue
             if msg is not None:
-                self._on_message(msg, time.monotonic())
+                try:
+                    self._on_message(msg, time.monotonic())
+                except Exception:  # a message our bookkeeping chokes on must not stop the link
+                    self.bad_packets += 1
+                    log.debug("message not handled", exc_info=True)
 
     def _on_message(self, msg: Any, arrival: float) -> None:
         mtype = msg.get_type()
         if mtype == "BAD_DATA":
-            if "signature" in str(getattr(msg, "reason", "")).lower():
-                self.rejected_signatures += 1
-            else:
-                self.bad_packets += 1
+            self.bad_packets += 1
+            return
+        if self._gate is not None and not self._gate.admit(msg, arrival):
             return
         self.received += 1
         src = (msg.get_srcSystem(), msg.get_srcComponent())
-        if (
-            self.autopilot is None
-            and mtype == "HEARTBEAT"
-            and msg.autopilot != M.MAV_AUTOPILOT_INVALID
-            and msg.type != M.MAV_TYPE_GCS
-        ):
-            self.autopilot = src
-            self._autopilot_seen.set()
-            log.info("autopilot %d/%d (type %d) on %s", src[0], src[1], msg.type, self.url)
+        if mtype == "HEARTBEAT" and is_autopilot_heartbeat(msg):
+            change = self._adoption.heartbeat(src, arrival)
+            if change is not None:
+                self._adopted(change)
         if src == self.autopilot:
-            self._last_heard = arrival
-            self._last_by_type[msg.get_msgId()] = arrival
+            self._adoption.heard(src, arrival)
+            self._streams.arrived(msg.get_msgId(), arrival)
+        self._dispatch(msg, mtype, src, arrival)
+
+    def _adopted(self, change: AdoptionChange) -> None:
+        if change.old is not None:
+            self._streams.reset()  # the new one knows nothing of our requests
+        self._autopilot_seen.set()
+        with self._sub_lock:
+            callbacks = list(self._adopted_callbacks)
+        for callback in callbacks:
+            try:
+                callback(change.new, change.old)
+            except Exception:
+                log.exception("adoption callback failed")
+
+    def _dispatch(self, msg: Any, mtype: str, src: Source, arrival: float) -> None:
         with self._sub_lock:
             subscribers = list(self._subscribers)
-        for callback, types in subscribers:
-            if types is None or mtype in types:
-                try:
-                    callback(msg, arrival)
-                except Exception:
-                    log.exception("subscriber failed on %s", mtype)
+        kind = source_kind(src, self.autopilot)
+        ignored = False
+        for sub in subscribers:
+            if sub.autopilot_only:
+                if mtype in sub.gimbal_types:
+                    wanted = kind != "foreign"
+                elif sub.types is None or mtype in sub.types:
+                    wanted = kind == "autopilot"
+                else:
+                    continue
+                if not wanted:
+                    ignored = True
+                    continue
+            elif sub.types is not None and mtype not in sub.types:
+                continue
+            try:
+                sub.callback(msg, arrival)
+            except Exception:
+                log.exception("subscriber failed on %s", mtype)
+        if ignored:
+            self._ignore(mtype, src, arrival)
+
+    def _ignore(self, mtype: str, src: Source, arrival: float) -> None:
+        self.ignored[(src[0], src[1], mtype)] += 1
+        last = self._ignored_warned.get(src)
+        if last is not None and arrival - last < IGNORED_WARN_S:
+            return
+        self._ignored_warned[src] = arrival
+        count = sum(n for (s, c, _), n in self.ignored.items() if (s, c) == src)
+        adopted = self.autopilot
+        if adopted is None:
+            log.info(
+                "ignoring %s from %d/%d: no autopilot adopted yet (%d ignored from it)",
+                mtype,
+                *src,
+                count,
+            )
+        else:
+            log.warning(
+                "ignoring %s from %d/%d: not autopilot %d/%d (%d ignored from it)",
+                mtype,
+                *src,
+                *adopted,
+                count,
+            )
 
     def _housekeeping_loop(self) -> None:
         while not self._stop.wait(HOUSEKEEPING_PERIOD_S):
@@ -368,7 +537,9 @@ class MavlinkLink:
                         M.MAV_STATE_ACTIVE,
                     )
                 )
-            self._stream_watchdog(now)
+            if self.link_ok:
+                for msg_id in self._streams.due(now):
+                    self._send_stream_request(msg_id)
 
     # -- lifecycle ---------------------------------------------------------------------------
     def close(self) -> None:
@@ -389,3 +560,7 @@ class MavlinkLink:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _types(types: Iterable[str] | None) -> frozenset[str] | None:
+    return None if types is None else frozenset(types)

@@ -1,0 +1,200 @@
+"""One adopted autopilot per link, over real UDP on 127.0.0.1, with hostile senders beside it.
+
+A spoofer (system 77) claiming to be an autopilot, a component of the vehicle's own system that is
+not its autopilot, and foreign telemetry (lat 214.7, NaN gimbal angles) must neither take the link
+nor reach the autopilot's subscribers; the real vehicle is :class:`sim.vehicle.SimVehicle`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import pytest
+from conftest import free_udp_port, wait_until
+from link_peers import RawPeer
+from pymavlink.dialects.v20 import ardupilotmega as M
+
+from sarmission.mavlink.commands import CommandSender
+from sarmission.mavlink.connection import MavlinkLink
+from sarmission.mission.config import load_mission
+from sim.vehicle import SimVehicle
+
+TELEMETRY = ("GLOBAL_POSITION_INT", "ATTITUDE", "HOME_POSITION", "MOUNT_ORIENTATION")
+
+
+@pytest.fixture(scope="module")
+def mission():
+    return load_mission(overrides={"flight.takeoff": False})
+
+
+def _bogus_position(peer: RawPeer) -> None:
+    peer.send(
+        peer.conn.mav.global_position_int_encode(1000, 2147000000, 70000000, 0, 0, 0, 0, 0, 0)
+    )
+
+
+def _bogus_mount(peer: RawPeer) -> None:
+    peer.send(peer.conn.mav.mount_orientation_encode(1000, math.nan, math.nan, math.nan, math.nan))
+
+
+def test_spoofer_heard_first_then_silent_hands_the_link_to_the_vehicle(mission, caplog):
+    caplog.set_level(logging.INFO, logger="sarmission.mavlink")
+    port = free_udp_port()
+    with MavlinkLink(f"udpin:127.0.0.1:{port}", link_timeout_s=2.0) as link:
+        adopted: list[tuple] = []
+        link.on_adopted(lambda new, old: adopted.append((new, old)))
+        attitudes: list[tuple[int, int]] = []
+        link.subscribe_autopilot(
+            lambda m, t: attitudes.append((m.get_srcSystem(), m.get_srcComponent())), ["ATTITUDE"]
+        )
+        spoofer = RawPeer(port, 77)
+        vehicle = None
+        try:
+            assert wait_until(lambda: link.autopilot == (77, 1), 10.0)
+            # asked of the spoofer: never answered, and the vehicle ignores what targets 77
+            assert link.request_streams({M.MAVLINK_MSG_ID_ATTITUDE: 10.0}, timeout_s=0.5) == {
+                M.MAVLINK_MSG_ID_ATTITUDE: None
+            }
+            vehicle = SimVehicle(
+                f"udpout:127.0.0.1:{port}", mission, stream_on_request=True
+            ).start()
+            assert wait_until(lambda: link.other_autopilots() == [(1, 1)], 10.0)
+            assert link.autopilot == (77, 1) and link.adoptions == 1  # the adopted one is alive
+            assert wait_until(
+                lambda: (
+                    "two autopilots on the link: 77/1 (adopted) and 1/1; pin one with "
+                    "--target-system" in caplog.text
+                ),
+                10.0,
+            )
+
+            spoofer.close()  # the spoofer falls silent; the vehicle keeps beating
+            assert wait_until(lambda: link.autopilot == (1, 1), 15.0), link.autopilot
+            assert adopted == [((77, 1), None), ((1, 1), (77, 1))]
+            assert link.adoptions == 2 and link.target_system == 1
+            readoption = [
+                r
+                for r in caplog.records
+                if r.levelno == logging.WARNING and "adopting" in r.message
+            ]
+            assert len(readoption) == 1 and "77/1" in readoption[0].message
+            assert "1/1" in readoption[0].message
+
+            # the stream asked of the spoofer is asked of the vehicle now, and arrives
+            assert wait_until(lambda: (1, 1) in attitudes, 15.0)
+            assert set(attitudes) == {(1, 1)}
+            sender = CommandSender(link, retries=2, ack_timeout_s=1.0)
+            assert sender.statustext("SWIMMER 54.170412 7.890231 +-4m").accepted
+            result = sender.reposition(54.1705, 7.8905, 40.0)
+            assert result.accepted, result.error
+            assert vehicle.commands[-1].command == M.MAV_CMD_DO_REPOSITION
+            assert wait_until(
+                lambda: (
+                    [s.text for s in vehicle.statustexts] == ["SWIMMER 54.170412 7.890231 +-4m"]
+                ),
+                5.0,
+            )
+        finally:
+            spoofer.close()
+            if vehicle is not None:
+                vehicle.stop()
+
+
+def test_pinned_target_system_ignores_a_spoofer_entirely(mission, caplog):
+    caplog.set_level(logging.INFO, logger="sarmission.mavlink")
+    port = free_udp_port()
+    with MavlinkLink(f"udpin:127.0.0.1:{port}", link_timeout_s=2.0, target_system=1) as link:
+        adopted: list[tuple] = []
+        link.on_adopted(lambda new, old: adopted.append((new, old)))
+        got: list[tuple[int, int, str]] = []
+        link.subscribe_autopilot(
+            lambda m, t: got.append((m.get_srcSystem(), m.get_srcComponent(), m.get_type())),
+            TELEMETRY,
+        )
+        spoofer = RawPeer(port, 77)
+        vehicle = None
+        try:
+            assert wait_until(lambda: link.other_autopilots() == [(77, 1)], 10.0)
+            _bogus_position(spoofer)
+            assert wait_until(lambda: link.ignored[(77, 1, "GLOBAL_POSITION_INT")] >= 1, 10.0)
+            assert link.autopilot is None and not link.wait_autopilot(0.0)
+            assert link.target_system == 1
+            assert link.diagnosis() == "autopilot 77/1 heard, but the link is pinned to system 1"
+            assert "ignoring autopilot 77/1: the link is pinned to system 1" in caplog.text
+
+            vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission).start()
+            assert wait_until(lambda: link.autopilot == (1, 1), 10.0)
+            assert (
+                CommandSender(link, retries=2, ack_timeout_s=1.0).set_roi(54.17, 7.89, 0).accepted
+            )
+            assert vehicle.commands[-1].command == M.MAV_CMD_DO_SET_ROI_LOCATION
+
+            vehicle.stop()  # the vehicle falls silent, the spoofer goes on: still not adopted
+            assert wait_until(lambda: not link.link_ok, 10.0)
+            beats = spoofer.heartbeats_sent
+            assert wait_until(lambda: spoofer.heartbeats_sent >= beats + 15, 10.0)
+            _bogus_position(spoofer)
+            assert wait_until(lambda: link.ignored[(77, 1, "GLOBAL_POSITION_INT")] >= 2, 10.0)
+            assert link.autopilot == (1, 1) and adopted == [((1, 1), None)]
+            assert link.adoptions == 1
+            assert got and {(s, c) for s, c, _ in got} == {(1, 1)}
+        finally:
+            spoofer.close()
+            if vehicle is not None:
+                vehicle.stop()
+
+
+def test_foreign_telemetry_is_ignored_and_counted(mission, caplog):
+    caplog.set_level(logging.INFO, logger="sarmission.mavlink")
+    port = free_udp_port()
+    got: list[tuple[int, int, str]] = []
+    everything: list[tuple[int, int, str]] = []
+    with MavlinkLink(f"udpin:127.0.0.1:{port}") as link:
+        link.subscribe_autopilot(
+            lambda m, t: got.append((m.get_srcSystem(), m.get_srcComponent(), m.get_type())),
+            TELEMETRY,
+        )
+        link.subscribe(
+            lambda m, t: everything.append((m.get_srcSystem(), m.get_srcComponent(), m.get_type()))
+        )
+        # streams by default: positions, attitude, gimbal, home; a gimbal of the vehicle's own
+        # system, a ground station, a non-autopilot component of system 1
+        vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission).start()
+        gimbal = RawPeer(
+            port,
+            1,
+            M.MAV_COMP_ID_GIMBAL,
+            mav_type=M.MAV_TYPE_GIMBAL,
+            autopilot=M.MAV_AUTOPILOT_INVALID,
+        )
+        hostile = RawPeer(port, 77, mav_type=M.MAV_TYPE_GCS, autopilot=M.MAV_AUTOPILOT_INVALID)
+        stranger = RawPeer(port, 1, 99, heartbeat=False)
+        try:
+            assert link.wait_autopilot(10.0) and link.autopilot == (1, 1)
+
+            def inject() -> bool:
+                _bogus_position(hostile)
+                _bogus_mount(hostile)
+                _bogus_position(stranger)
+                _bogus_position(gimbal)  # a gimbal may report its attitude, not a position
+                gimbal.send(gimbal.conn.mav.mount_orientation_encode(1000, 0.0, -90.0, 0.0, 0.0))
+                return (
+                    link.ignored[(77, 1, "GLOBAL_POSITION_INT")] > 0
+                    and link.ignored[(77, 1, "MOUNT_ORIENTATION")] > 0
+                    and link.ignored[(1, 99, "GLOBAL_POSITION_INT")] > 0
+                    and link.ignored[(1, M.MAV_COMP_ID_GIMBAL, "GLOBAL_POSITION_INT")] > 0
+                    and (1, M.MAV_COMP_ID_GIMBAL, "MOUNT_ORIENTATION") in got
+                )
+
+            assert wait_until(inject, 10.0, step=0.2)
+            assert link.autopilot == (1, 1) and link.adoptions == 1  # a GCS heartbeat: no rival
+            assert (1, 1, "GLOBAL_POSITION_INT") in got and (1, 1, "HOME_POSITION") in got
+            assert {(s, c) for s, c, _ in got} == {(1, 1), (1, M.MAV_COMP_ID_GIMBAL)}
+            assert (77, 1, "GLOBAL_POSITION_INT") in everything  # subscribe() is unfiltered
+            assert "ignoring GLOBAL_POSITION_INT from 77/1: not autopilot 1/1" in caplog.text
+            assert not [k for k in dict(link.ignored) if k[:2] == (1, 1)]
+        finally:
+            for peer in (gimbal, hostile, stranger):
+                peer.close()
+            vehicle.stop()
