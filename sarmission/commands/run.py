@@ -62,7 +62,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def add_session_options(parser: argparse.ArgumentParser) -> None:
-    """``--alerts-db --feed --signing-key-file --connect-timeout`` of a live session."""
+    """``--alerts-db --feed --signing-key-file --connect-timeout --target-system
+    --target-component`` of a live session."""
     parser.add_argument("--alerts-db", default="alerts.db",
                         help="durable alert store (default: %(default)s)")
     parser.add_argument("--feed", metavar="HOST:PORT", default=None,
@@ -73,6 +74,24 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--connect-timeout", type=float, default=30.0,
                         help="seconds to wait for the autopilot's HEARTBEAT (default: "
                         "%(default)s)")
+    parser.add_argument("--target-system", type=_mavlink_id, default=None, metavar="ID",
+                        help="only adopt the autopilot with this MAVLink system id (default: "
+                        "the first autopilot heard; pin it where anyone else could be on the "
+                        "link)")
+    parser.add_argument("--target-component", type=_mavlink_id, default=None, metavar="ID",
+                        help="only adopt this component of it (default: any; ArduPilot and "
+                        "PX4 flight controllers are 1)")
+
+
+def _mavlink_id(text: str) -> int:
+    """A MAVLink system or component id, 1-255."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an id 1-255, got {text!r}") from None
+    if not 1 <= value <= 255:
+        raise argparse.ArgumentTypeError(f"expected an id 1-255, got {value}")
+    return value
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -198,7 +217,9 @@ def run_live(args: argparse.Namespace, mission: MissionConfig,
                               mission_id=args.mission_id,
                               transport_latency_s=(mission.telemetry.latency_s
                                                    if vehicle is not None else 0),
-                              connect_timeout_s=args.connect_timeout, console=say)
+                              connect_timeout_s=args.connect_timeout,
+                              target_system=args.target_system,
+                              target_component=args.target_component, console=say)
         say(f"mission '{mission.name}': policy {', '.join(mission.actions.policy)}; "
             f"alerts in {args.alerts_db}")
         with stop_on_signals() as stop:

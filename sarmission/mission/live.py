@@ -5,8 +5,10 @@
 1. the alert store (opened first: a bad file fails before anything else starts); the target
    registry is seeded from it and undelivered autopilot actions are queued again;
 2. the MAVLink link (our HEARTBEAT as an onboard controller), the wait for the autopilot and the
-   stream requests (an ArduPilot autopilot sends nothing else until asked); every telemetry
-   message goes into the :class:`~sarmission.mavlink.telemetry.TelemetryBuffer`;
+   stream requests (an ArduPilot autopilot sends nothing else until asked); the telemetry of
+   the adopted autopilot only (and its gimbal) goes into the
+   :class:`~sarmission.mavlink.telemetry.TelemetryBuffer`, which is emptied when another
+   autopilot is adopted (what the old one said is no pose for the new one);
 3. the outbox and action policy, the operator feed (optional), the recorder (optional);
 4. :meth:`LiveSession.run` reads frames until the source ends, a frame or time limit is reached
    or ``stop`` is set; link loss and recovery are reported on the console as they happen;
@@ -80,6 +82,8 @@ class LiveSession:
         mission_id: alerts are stored under this id (default: the mission's name).
         transport_latency_s: known minimum telemetry delay (see ``BootClock``).
         connect_timeout_s: how long to wait for the autopilot's HEARTBEAT before going on.
+        target_system: the autopilot's system id, pinned (None: the first autopilot heard).
+        target_component: the autopilot's component id, pinned (None: any).
         console: receives the operator's console lines.
     """
 
@@ -87,7 +91,8 @@ class LiveSession:
                  alerts_db: str, *, signing_key: bytes | None = None,
                  recorder: Recorder | None = None, feed_address: tuple[str, int] | None = None,
                  mission_id: str | None = None, transport_latency_s: float = 0.0,
-                 connect_timeout_s: float = 30.0,
+                 connect_timeout_s: float = 30.0, target_system: int | None = None,
+                 target_component: int | None = None,
                  console: Callable[[str], None] = print) -> None:
         self.mission = mission
         self.source = source
@@ -99,7 +104,7 @@ class LiveSession:
         self.store = AlertStore(alerts_db)
         try:
             self._open(detector, url, signing_key, feed_address, mission_id,
-                       transport_latency_s, connect_timeout_s)
+                       transport_latency_s, connect_timeout_s, (target_system, target_component))
         except BaseException:
             self._close_resources()
             raise
@@ -108,18 +113,22 @@ class LiveSession:
 
     def _open(self, detector: Detector, url: str, signing_key: bytes | None,
               feed_address: tuple[str, int] | None, mission_id: str | None,
-              transport_latency_s: float, connect_timeout_s: float) -> None:
+              transport_latency_s: float, connect_timeout_s: float,
+              pin: tuple[int | None, int | None]) -> None:
         mission = self.mission
         self.telemetry = telemetry_buffer(mission, transport_latency_s)
-        self.link = MavlinkLink(url, signing_key=signing_key)
-        self.link.subscribe(self.telemetry.handle_message, MESSAGE_TYPES)
+        self.link = MavlinkLink(url, signing_key=signing_key, target_system=pin[0],
+                                target_component=pin[1])
+        self.link.subscribe_autopilot(self.telemetry.handle_message, MESSAGE_TYPES)
+        self.link.on_adopted(self._on_adopted)
         self.console(f"waiting for the autopilot on {url} ...")
         if self.link.wait_autopilot(connect_timeout_s):
             system, component = self.link.autopilot or (0, 0)
-            self.console(f"autopilot {system}/{component} found")
+            self.console(f"autopilot {system}/{component} adopted")
         else:
-            self.console(f"no autopilot heard within {connect_timeout_s:.0f} s; going on "
-                         "(targets are alerted without a position until telemetry arrives)")
+            why = self.link.diagnosis() or f"no autopilot heard on {url}"
+            self.console(f"{why} (waited {connect_timeout_s:.0f} s); going on: targets are "
+                         "alerted without a position until the autopilot's telemetry arrives")
         results = self.link.request_streams(stream_rates(mission))
         refused = [M.enums["MAV_RESULT"][r].name for r in results.values() if r]
         if refused:
@@ -143,6 +152,15 @@ class LiveSession:
         if self.controller.known_at_start:
             self.console(f"{self.controller.known_at_start} target(s) already alerted in "
                          f"mission '{self.controller.mission_id}'; they will not be re-announced")
+
+    def _on_adopted(self, new: tuple[int, int], old: tuple[int, int] | None) -> None:
+        """Another autopilot took over (the old one fell silent): nothing the old one said
+        may place a target for the new one."""
+        if old is None:
+            return
+        self.telemetry.reset(f"autopilot {old[0]}/{old[1]} replaced by {new[0]}/{new[1]}")
+        self.console(f"autopilot {old[0]}/{old[1]} silent; now following {new[0]}/{new[1]} "
+                     "(telemetry buffer emptied)")
 
     def run(self, stop: threading.Event | None = None, max_frames: int | None = None,
             duration_s: float | None = None) -> None:
@@ -174,8 +192,8 @@ class LiveSession:
         if ok:
             self.console(f"link back; {self.actions.pending()} queued action(s) going out")
         else:
-            self.console(f"link lost: autopilot silent for {self.link.silence_s():.1f} s; "
-                         "alerts are kept and queued")
+            why = self.link.diagnosis() or (f"autopilot silent for {self.link.silence_s():.1f} s")
+            self.console(f"link lost: {why}; alerts are kept and queued")
 
     def close(self, drain_s: float = 3.0) -> str:
         """Let queued actions go out for up to ``drain_s`` seconds (while the link is up), close
@@ -190,6 +208,7 @@ class LiveSession:
                      f"{self.link.bad_packets} malformed skipped"
                      + (f", {self.link.rejected_signatures} bad signatures"
                         if self.link.rejected_signatures else ""))
+        lines.extend(self._trust_lines())
         if self.source.skipped:
             lines.append(f"frame source: {self.source.skipped} frame(s) could not be read")
         pending = self.actions.pending()
@@ -198,6 +217,31 @@ class LiveSession:
                          f"{self.store.path} for the next run")
         self._close_resources()
         return "\n".join(lines)
+
+    def _trust_lines(self) -> list[str]:
+        """What was not believed: telemetry rejected by reason, other senders ignored,
+        autopilots adopted, streams given up."""
+        assert self.link is not None
+        lines = []
+        rejected = dict(self.telemetry.rejected)
+        if rejected:
+            lines.append(f"telemetry rejected: {sum(rejected.values())} ("
+                         + "; ".join(f"{why}: {n}" for why, n in sorted(
+                             rejected.items(), key=lambda kv: -kv[1])[:5]) + ")")
+        ignored = dict(self.link.ignored)
+        if ignored:
+            by_source: dict[tuple[int, int], int] = {}
+            for (system, component, _), n in ignored.items():
+                by_source[(system, component)] = by_source.get((system, component), 0) + n
+            lines.append("ignored (not the adopted autopilot): " + ", ".join(
+                f"{n} from {s}/{c}" for (s, c), n in sorted(by_source.items())))
+        if self.link.adoptions > 1:
+            lines.append(f"autopilots adopted: {self.link.adoptions} (re-adopted after silence)")
+        given_up = self.link.streams_given_up
+        if given_up:
+            lines.append("streams accepted but never sent: " + ", ".join(
+                M.mavlink_map[i].msgname if i in M.mavlink_map else str(i) for i in given_up))
+        return lines
 
     def _close_resources(self) -> None:
         if self.outbox is not None:
