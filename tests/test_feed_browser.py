@@ -12,6 +12,7 @@ import base64
 import json
 import os
 import select
+import socket
 import subprocess
 import time
 from collections.abc import Iterator
@@ -25,6 +26,7 @@ from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.store import AlertStore
 
 CHROMIUM = Path("/usr/bin/chromium")
+TOKEN = "browser-test-token-0123456789abcdef"
 SCREENSHOT = Path("/tmp/sarmission_feed.png")
 
 pytestmark = pytest.mark.skipif(
@@ -148,17 +150,22 @@ def browser(tmp_path: Path) -> Iterator[Chromium]:
         chromium.close()
 
 
+@pytest.mark.parametrize("token", [None, TOKEN], ids=["no-token", "token"])
 def test_new_alert_shows_within_a_second_and_ack_button_works(
-    tmp_path: Path, browser: Chromium
+    tmp_path: Path, browser: Chromium, token: str | None
 ) -> None:
-    with AlertStore(tmp_path / "alerts.db") as store, FeedServer(store, port=0) as feed:
+    with AlertStore(tmp_path / "alerts.db") as store, \
+            FeedServer(store, port=0, token=token) as feed:
         earlier = make_alert(1, lock_time=time.time() - 300, delivered={"mavlink": 1.0})
         store.add(earlier)
         store.acknowledge(earlier.alert_id, "jo")
         store.add(make_alert(2, positioned=False, lock_time=time.time() - 120))
 
-        browser.open_page(feed.url + "/")
+        browser.open_page(feed.page_url)
         browser.wait_for("document.body?.dataset.live === '1'", timeout=15.0)
+        # the token left the address bar at once; the cookie that replaced it is HttpOnly
+        assert browser.js("location.href") == feed.url + "/"
+        assert browser.js("document.cookie") == ""
         assert browser.js("document.querySelectorAll('article.alert').length") == 2
         browser.js("document.getElementById('operator').value = 'sam'")
 
@@ -187,3 +194,29 @@ def test_new_alert_shows_within_a_second_and_ack_button_works(
         browser.wait_for(f"{card}.dataset.acknowledged === '1'", timeout=2.0)
         assert "Acknowledged\nby sam" in browser.js(f"{card}.innerText")
         assert browser.js("document.getElementById('unacked').textContent") == "1"
+
+
+def test_page_without_the_token_is_refused_and_a_refused_stream_is_retried(
+    tmp_path: Path, browser: Chromium
+) -> None:
+    with AlertStore(tmp_path / "alerts.db") as store, \
+            FeedServer(store, port=0, token=TOKEN, max_streams=1) as feed:
+        store.add(make_alert(1))
+        browser.open_page(feed.url + "/")
+        browser.wait_for("document.body?.innerText.includes('access token required')", 15.0)
+        assert "swimmer" not in browser.js("document.body.innerText")
+
+        # the only stream slot is taken: the page says so and retries until it gets one
+        blocker = socket.create_connection(("127.0.0.1", feed.port), timeout=10)
+        blocker.sendall(f"GET /events HTTP/1.0\r\nAuthorization: Bearer {TOKEN}\r\n"
+                        f"Host: 127.0.0.1:{feed.port}\r\n\r\n".encode())
+        try:
+            assert blocker.recv(4096).startswith(b"HTTP/1.0 200")
+            browser.call("Page.navigate", url=feed.page_url)
+            browser.wait_for("document.getElementById('status')?.textContent"
+                             ".includes('refused; retrying')", timeout=15.0)
+            assert browser.js("document.body.dataset.live") == "0"
+        finally:
+            blocker.close()
+        browser.wait_for("document.body.dataset.live === '1'", timeout=30.0)
+        assert browser.js("document.querySelectorAll('article.alert').length") == 1

@@ -1,27 +1,45 @@
 """Operator feed: a small HTTP server over an :class:`~sarmission.alerts.store.AlertStore`.
 
-Routes (all JSON errors are ``{"error": ...}``):
+Routes (every error is one line of JSON, ``{"error": ..., "status": ...}``):
 
 - ``GET /``: the operator page (self-contained HTML, live over ``/events``).
 - ``GET /events``: Server-Sent Events. On connect, every stored alert as an ``alert`` event,
   then ``hello``; afterwards ``alert`` for each new alert and ``update`` for acknowledgements,
   deliveries and positions attached later. Data is the alert's JSON document; ``id`` is the
-  store's event sequence number, so a reconnecting browser (``Last-Event-ID``) gets only what it
-  missed.
+  store's event sequence number, so a reconnecting browser (``Last-Event-ID``, digits only)
+  gets only what it missed.
 - ``GET /api/alerts[?since=T]``: JSON list of alerts (``since``: lock time, POSIX seconds).
 - ``GET /api/alerts/<id>``: one alert.
-- ``POST /api/alerts/<id>/ack``: acknowledge; body ``{"by": "name"}``, ``Content-Type:
-  application/json`` required (a cross-site form cannot send it). Returns the alert.
+- ``POST /api/alerts/<id>/ack``: acknowledge; body ``{"by": "name"}`` (1-64 printable
+  characters), ``Content-Type: application/json`` required (a cross-site form cannot send it).
+  Returns the alert.
 - ``GET /alerts.jsonl[?since=T][&follow=1]``: one alert per line; with ``follow=1`` the
   response stays open and each new alert is written as it is stored, and again when a position
   is attached to an alert stored without one (same ``alert_id``: the later line supersedes).
 - ``GET /alerts.geojson``, ``GET /alerts.kml``: exports (see :mod:`sarmission.alerts.export`).
 - ``GET /thumb/<id>.jpg``: the alert's thumbnail.
-- ``GET /healthz``: ``{"ok": true, "alerts": n, "last_event": seq}``.
+- ``GET /healthz``: ``{"ok": true, "alerts": n, "last_event": seq, ...}``.
+
+Access (:mod:`sarmission.alerts.feed_guard`): bound beyond loopback, every route needs the
+access token (generated when none is given); a loopback feed needs one only when given. Tools
+send ``Authorization: Bearer <token>``. A browser opens ``/?token=<token>`` once: the page is
+served with an HttpOnly ``SameSite=Strict`` cookie derived from the token, which its own
+requests (events, acknowledgements, thumbnails, exports) then carry, and it drops the token from
+the address bar; the query token is accepted on ``/`` only, so it never rides along in other
+URLs. The ``Host`` header must name the feed (its bind address, ``localhost`` on loopback or
+wildcard binds, any IP literal on a wildcard bind, or a name in ``allowed_hosts``): 421
+otherwise. An acknowledgement with an ``Origin`` must come from the feed's own origin, one
+without must carry the token header: 403 otherwise. Unknown query parameters are refused.
+
+Bounds (:mod:`sarmission.alerts.feed_limits`): at most ``max_connections`` connections (503
+beyond, answered without a thread) and ``max_streams`` open streams (``/events`` and followed
+JSON lines; 503 beyond); a request must arrive whole within ``request_timeout`` seconds, a write
+may block ``send_timeout`` seconds; streams end when their client leaves.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import re
@@ -29,12 +47,25 @@ import select
 import socket
 import threading
 import time
+from collections.abc import Iterable
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import quote, urlsplit
 
+from sarmission.alerts import feed_input as checked
 from sarmission.alerts.export import alerts_geojson_bytes, alerts_kml
+from sarmission.alerts.feed_guard import (
+    Credential,
+    Guard,
+    Refusal,
+    WarnLimiter,
+    check_token,
+    is_loopback,
+    new_token,
+)
+from sarmission.alerts.feed_input import BadRequest
+from sarmission.alerts.feed_limits import BusyRejecter, DeadlineReader, Slots, tune_socket
 from sarmission.alerts.model import Alert
 from sarmission.alerts.page import PAGE_HTML
 from sarmission.alerts.store import AlertEvent, AlertStore
@@ -46,14 +77,21 @@ _ID = r"([0-9A-Za-z_.-]{1,64})"
 _ALERT = re.compile(rf"^/api/alerts/{_ID}$")
 _ACK = re.compile(rf"^/api/alerts/{_ID}/ack$")
 _THUMB = re.compile(rf"^/thumb/{_ID}\.jpg$")
+_TOKEN_IN_TARGET = re.compile(r"([?&]token=)[^&#]*")
 _PAGE_CSP = (
     "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
-    "img-src 'self'; connect-src 'self'; base-uri 'none'; form-action 'none'"
+    "img-src 'self'; connect-src 'self'; base-uri 'none'; form-action 'none'; "
+    "frame-ancestors 'none'"
 )
+#: Query parameters each GET route takes (routes not named take none).
+_PARAMS: dict[str, frozenset[str]] = {
+    "/": frozenset(("token",)),
+    "/api/alerts": frozenset(("since",)),
+    "/alerts.jsonl": frozenset(("since", "follow")),
+}
 _GET_PATHS = frozenset(
     ("/", "/events", "/api/alerts", "/alerts.jsonl", "/alerts.geojson", "/alerts.kml", "/healthz")
 )
-_MAX_BODY = 4096
 #: How often a waiting stream checks for shutdown and client disconnects (seconds).
 _TICK_S = 0.5
 #: SSE comment sent when idle, so proxies keep the stream open.
@@ -61,13 +99,42 @@ _KEEPALIVE_S = 15.0
 
 
 class _Server(ThreadingHTTPServer):
+    """One thread per connection, at most ``feed.max_connections`` of them."""
+
     daemon_threads = True
     allow_reuse_address = True
 
     def __init__(self, address: tuple[str, int], feed: FeedServer) -> None:
         self.feed = feed
         self.address_family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+        self.busy = BusyRejecter(f"the feed is at its limit of {feed.max_connections} "
+                                 "connections; retry shortly")
         super().__init__(address, _Handler)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self.feed.connections.take():
+            self.feed.refusals.warn("feed: %d connections open, refusing more",
+                                    self.feed.max_connections)
+            self.busy.reject(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self.feed.connections.give()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.feed.connections.give()
+
+    def service_actions(self) -> None:
+        self.busy.reap()
+
+    def server_close(self) -> None:
+        super().server_close()
+        self.busy.close()
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         log.exception("feed: error serving %s", client_address)
@@ -75,11 +142,39 @@ class _Server(ThreadingHTTPServer):
 
 class FeedServer:
     """Serves ``store`` over HTTP on ``host:port`` (localhost by default; ``port=0`` picks a
-    free port) from a background thread between :meth:`start` and :meth:`stop`."""
+    free port) from a background thread between :meth:`start` and :meth:`stop`.
 
-    def __init__(self, store: AlertStore, host: str = "127.0.0.1", port: int = 8765) -> None:
+    Args:
+        token: access token required on every request; None: none on a loopback bind, a
+            generated one (see :attr:`token`, :attr:`page_url`) on any other.
+        allowed_hosts: names, besides the bind address, that clients may use in ``Host``.
+        max_connections: connections served at once (503 beyond).
+        max_streams: ``/events`` and followed JSON-lines streams open at once (503 beyond).
+        request_timeout: seconds for a request line, headers and body to arrive.
+        send_timeout: seconds a write to a client may block.
+    """
+
+    def __init__(self, store: AlertStore, host: str = "127.0.0.1", port: int = 8765, *,
+                 token: str | None = None, allowed_hosts: Iterable[str] = (),
+                 max_connections: int = 64, max_streams: int = 16,
+                 request_timeout: float = 10.0, send_timeout: float = 30.0) -> None:
+        if not 1 <= max_streams <= max_connections:
+            raise ValueError("need 1 <= max_streams <= max_connections")
+        if not (request_timeout > 0 and send_timeout > 0):
+            raise ValueError("timeouts must be positive")
         self.store = store
         self.host = host
+        self.token = check_token(token) if token is not None else None
+        #: True when :meth:`start` generated the token (it is shown once, by the caller).
+        self.token_generated = False
+        self.allowed_hosts = tuple(allowed_hosts)
+        self.max_connections = max_connections
+        self.request_timeout = request_timeout
+        self.send_timeout = send_timeout
+        self.connections = Slots(max_connections)
+        self.streams = Slots(max_streams)
+        self.refusals = WarnLimiter()
+        self.guard: Guard | None = None
         self._requested_port = port
         self._server: _Server | None = None
         self._thread: threading.Thread | None = None
@@ -98,9 +193,22 @@ class FeedServer:
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}"
 
+    @property
+    def page_url(self) -> str:
+        """The operator page's URL, with ``?token=`` when a token is needed (a secret)."""
+        return self.url + "/" + (f"?token={quote(self.token, safe='')}" if self.token else "")
+
+    @property
+    def loopback(self) -> bool:
+        """Whether the bound address only reaches this machine (after :meth:`start`)."""
+        if self._server is None:
+            raise RuntimeError("feed server not started")
+        return is_loopback(self._server.server_address[0])
+
     def start(self) -> FeedServer:
-        """Bind and serve in a daemon thread; returns self. Raises SarmissionError if the
-        address cannot be bound."""
+        """Bind and serve in a daemon thread; returns self. Beyond loopback, a token is generated
+        when none was given and a warning is logged. Raises SarmissionError if the address
+        cannot be bound."""
         if self._server is not None:
             raise RuntimeError("feed server already started")
         self.stopping.clear()
@@ -110,6 +218,13 @@ class FeedServer:
             raise SarmissionError(
                 f"cannot serve the alert feed on {self.host}:{self._requested_port}: {exc}"
             ) from exc
+        if not self.loopback:
+            if self.token is None:
+                self.token, self.token_generated = new_token(), True
+            log.warning("alert feed on %s is reachable from the network: every request needs "
+                        "the access token", self.url)
+        self.guard = Guard(self.token, self.host, self._server.server_address[0], self.port,
+                           self.allowed_hosts)
         self._thread = threading.Thread(
             target=self._server.serve_forever,
             kwargs={"poll_interval": 0.2},
@@ -142,17 +257,53 @@ class FeedServer:
 class _Handler(BaseHTTPRequestHandler):
     server: _Server
     server_version = "sarmission-feed"
+    _reader: DeadlineReader
+    _responded = False
+    # set by parse_request; a request that times out before it still gets a 408
+    command = ""
+    path = ""
+    requestline = ""
+    request_version = "HTTP/1.0"
+    default_request_version = "HTTP/1.0"  # answer even a malformed request line with headers
 
     # ------------------------------------------------------------------ plumbing
+
+    def setup(self) -> None:
+        super().setup()
+        feed = self.server.feed
+        tune_socket(self.connection, feed.send_timeout)
+        self._reader = DeadlineReader(self.connection, feed.request_timeout, feed.send_timeout)
+        self.rfile.close()  # the plain socket reader; requests are read against the deadline
+        self.rfile = io.BufferedReader(self._reader)
 
     def handle(self) -> None:
         try:
             super().handle()
+            if self._reader.expired and not self._responded:
+                self.connection.settimeout(1.0)
+                self._error(HTTPStatus.REQUEST_TIMEOUT, "the request did not arrive in time")
+                self.wfile.flush()
         except (ConnectionError, TimeoutError):
             log.debug("feed: client %s went away", self.client_address)
 
     def log_message(self, format: str, *args: Any) -> None:
-        log.debug("feed %s: " + format, self.client_address[0], *args)
+        text = format % args if args else format
+        log.debug("feed %s: %s", self.client_address[0], _redact(text))
+
+    def send_response(self, code: int, message: str | None = None) -> None:
+        self._responded = True
+        super().send_response(code, message)
+
+    def send_error(self, code: int, message: str | None = None, explain: str | None = None) -> None:
+        """Errors found by the HTTP parser (bad request line, headers too large, unknown
+        method) as one-line JSON like every other error."""
+        self.close_connection = True
+        status = HTTPStatus(code)
+        self._error(status, message or status.phrase)
+
+    @property
+    def feed(self) -> FeedServer:
+        return self.server.feed
 
     @property
     def store(self) -> AlertStore:
@@ -170,16 +321,27 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
         self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Referrer-Policy", "no-referrer")
         for key, value in (headers or {}).items():
             self.send_header(key, value)
         self.end_headers()
-        self.wfile.write(body)
+        if self.command != "HEAD":
+            self.wfile.write(body)
 
-    def _json(self, status: int, value: Any) -> None:
-        self._send(status, json.dumps(value).encode(), "application/json")
+    def _json(self, status: int, value: Any, headers: dict[str, str] | None = None) -> None:
+        self._send(status, json.dumps(value).encode(), "application/json", headers)
 
-    def _error(self, status: HTTPStatus, message: str) -> None:
-        self._json(status, {"error": message, "status": int(status), "path": self.path})
+    def _error(self, status: HTTPStatus, message: str,
+               headers: dict[str, str] | None = None) -> None:
+        path = _redact(getattr(self, "path", "") or "")[:200]
+        self._json(status, {"error": message, "status": int(status), "path": path}, headers)
+
+    def _refuse(self, refusal: Refusal) -> None:
+        self.feed.refusals.warn("feed: refused a request from %s: %s", self.client_address[0],
+                                refusal.message)
+        headers = {"WWW-Authenticate": 'Bearer realm="sarmission feed"'} if (
+            refusal.status == HTTPStatus.UNAUTHORIZED) else None
+        self._error(HTTPStatus(refusal.status), refusal.message, headers)
 
     def _start_stream(self, content_type: str) -> None:
         self.send_response(HTTPStatus.OK)
@@ -201,29 +363,63 @@ class _Handler(BaseHTTPRequestHandler):
     def _streaming(self) -> bool:
         return not (self.server.feed.stopping.is_set() or self.store.closed or self._client_gone())
 
+    # ------------------------------------------------------------------ admission
+
+    def _admit(self, query: str, query_token: bool) -> tuple[Credential, dict[str, str]] | None:
+        """Host, query and token checks shared by every route: the credential used and the
+        query parameters, or None once the refusal is sent."""
+        guard = self.feed.guard
+        assert guard is not None
+        if len(self.path) > checked.MAX_TARGET:
+            self._error(HTTPStatus.REQUEST_URI_TOO_LONG, "request target too long")
+            return None
+        hosts = self.headers.get_all("Host") or []
+        refusal = guard.check_host(hosts[0] if len(hosts) == 1 else None)
+        if refusal is not None:
+            self._refuse(refusal)
+            return None
+        path = urlsplit(self.path).path
+        allowed = _PARAMS.get(path, frozenset()) if self.command == "GET" else frozenset()
+        try:
+            params = checked.parse_query(query, allowed | {"token"} if query_token else allowed)
+        except BadRequest as exc:
+            message = str(exc)
+            if "token" in query and not query_token:
+                message = "a token in the query is accepted on / only: send Authorization: Bearer"
+            self._error(HTTPStatus(exc.status), message)
+            return None
+        credential = guard.credential(
+            self.headers.get("Authorization"), self.headers.get("Cookie"), params.pop("token", None)
+        )
+        if credential is None:
+            self._refuse(Refusal(401, "access token required: open the feed's /?token= address "
+                                      "once, or send Authorization: Bearer <token>"))
+            return None
+        return credential, params
+
     # ------------------------------------------------------------------ routing
 
     def do_GET(self) -> None:
-        try:
-            self._route_get()
-        except _BadRequest as exc:
-            self._error(HTTPStatus.BAD_REQUEST, str(exc))
-
-    def _route_get(self) -> None:
         url = urlsplit(self.path)
-        query = parse_qs(url.query)
-        path = url.path
+        admitted = self._admit(url.query, query_token=url.path == "/")
+        if admitted is None:
+            return
+        credential, params = admitted
+        try:
+            self._route_get(url.path, params, credential)
+        except BadRequest as exc:
+            self._error(HTTPStatus(exc.status), str(exc))
+
+    def _route_get(self, path: str, params: dict[str, str], credential: Credential) -> None:
         if path == "/":
-            self._send(
-                HTTPStatus.OK,
-                PAGE_HTML.encode(),
-                "text/html; charset=utf-8",
-                {"Content-Security-Policy": _PAGE_CSP},
-            )
+            headers = {"Content-Security-Policy": _PAGE_CSP}
+            if credential is Credential.QUERY and self.feed.guard is not None:
+                headers["Set-Cookie"] = self.feed.guard.set_cookie()
+            self._send(HTTPStatus.OK, PAGE_HTML.encode(), "text/html; charset=utf-8", headers)
         elif path == "/events":
-            self._events()
+            self._stream(self._events, checked.last_event_id(self.headers))
         elif path == "/api/alerts":
-            alerts = self.store.list(_since(query))
+            alerts = self.store.list(checked.since(params))
             self._json(HTTPStatus.OK, [a.to_json_dict() for a in alerts])
         elif m := _ALERT.match(path):
             alert = self.store.get(m.group(1))
@@ -232,8 +428,11 @@ class _Handler(BaseHTTPRequestHandler):
             else:
                 self._json(HTTPStatus.OK, alert.to_json_dict())
         elif path == "/alerts.jsonl":
-            follow = query.get("follow", ["0"])[-1].lower() in ("1", "true", "yes")
-            self._jsonl(_since(query), follow)
+            since, follow = checked.since(params), checked.follow(params)
+            if follow:
+                self._stream(self._jsonl, since, True)
+            else:
+                self._jsonl(since, False)
         elif path == "/alerts.geojson":
             self._send(
                 HTTPStatus.OK,
@@ -262,6 +461,8 @@ class _Handler(BaseHTTPRequestHandler):
                     "alerts": self.store.count(),
                     "last_event": self.store.last_event_seq(),
                     "time": time.time(),
+                    "connections": self.feed.connections.held,
+                    "streams": self.feed.streams.held,
                 },
             )
         elif _ACK.match(path):
@@ -270,29 +471,32 @@ class _Handler(BaseHTTPRequestHandler):
             self._error(HTTPStatus.NOT_FOUND, "not found")
 
     def do_POST(self) -> None:
-        path = urlsplit(self.path).path
-        m = _ACK.match(path)
+        url = urlsplit(self.path)
+        admitted = self._admit(url.query, query_token=False)
+        if admitted is None:
+            return
+        credential, _ = admitted
+        m = _ACK.match(url.path)
         if m is None:
-            if _is_get_route(path):
+            if _is_get_route(url.path):
                 self._error(HTTPStatus.METHOD_NOT_ALLOWED, "use GET")
             else:
                 self._error(HTTPStatus.NOT_FOUND, "not found")
+            return
+        assert self.feed.guard is not None
+        refusal = self.feed.guard.check_change(
+            credential, self.headers.get("Origin"), self.headers.get("Host", "")
+        )
+        if refusal is not None:
+            self._refuse(refusal)
             return
         if self.headers.get_content_type() != "application/json":
             self._error(HTTPStatus.UNSUPPORTED_MEDIA_TYPE, "send Content-Type: application/json")
             return
         try:
-            length = int(self.headers.get("Content-Length") or 0)
-        except ValueError:
-            length = -1
-        if not 0 <= length <= _MAX_BODY:
-            self._error(HTTPStatus.BAD_REQUEST, f"body must be 0..{_MAX_BODY} bytes")
-            return
-        try:
-            body = json.loads(self.rfile.read(length) or b"{}")
-            by = str(body.get("by") or "operator").strip()[:64] or "operator"
-        except (ValueError, AttributeError):
-            self._error(HTTPStatus.BAD_REQUEST, 'body must be a JSON object like {"by": "name"}')
+            by = checked.ack_by(self.rfile.read(checked.content_length(self.headers)))
+        except BadRequest as exc:
+            self._error(HTTPStatus(exc.status), str(exc))
             return
         try:
             alert = self.store.acknowledge(m.group(1), by)
@@ -304,9 +508,21 @@ class _Handler(BaseHTTPRequestHandler):
 
     # ------------------------------------------------------------------ streams
 
-    def _events(self) -> None:
-        last = self.headers.get("Last-Event-ID", "")
-        resume = int(last) if last.isdigit() and int(last) <= self.store.last_event_seq() else None
+    def _stream(self, serve: Any, *args: Any) -> None:
+        """Run a stream if a stream slot is free, else answer 503."""
+        streams = self.feed.streams
+        if not streams.take():
+            self._error(HTTPStatus.SERVICE_UNAVAILABLE,
+                        f"the feed is at its limit of {streams.cap} open streams; retry shortly",
+                        {"Retry-After": "5"})
+            return
+        try:
+            serve(*args)
+        finally:
+            streams.give()
+
+    def _events(self, last: int | None) -> None:
+        resume = last if last is not None and last <= self.store.last_event_seq() else None
         with self.store.subscribe(after=resume) as sub:
             self._start_stream("text/event-stream; charset=utf-8")
             self.wfile.write(b"retry: 1000\n\n")
@@ -360,18 +576,9 @@ def _is_line(event: AlertEvent, sent: set[str], since: float | None) -> bool:
     )
 
 
-class _BadRequest(Exception):
-    """A malformed query; answered with 400 and the message."""
-
-
-def _since(query: dict[str, list[str]]) -> float | None:
-    """The ``since`` query parameter (POSIX seconds), None when absent."""
-    if "since" not in query:
-        return None
-    try:
-        return float(query["since"][-1])
-    except ValueError:
-        raise _BadRequest("since must be POSIX seconds") from None
+def _redact(text: str) -> str:
+    """``text`` with any ``token=`` query value masked (request lines are logged)."""
+    return _TOKEN_IN_TARGET.sub(r"\1***", text)
 
 
 def _is_get_route(path: str) -> bool:

@@ -4,6 +4,10 @@ No external assets (the ground station may be offline). Alerts arrive over Serve
 from ``/events`` (``hello`` once connected, ``alert`` for each stored or new alert, ``update``
 for acknowledgements, deliveries and positions found later); the Acknowledge button POSTs to
 ``/api/alerts/<id>/ack``. Light, high-contrast theme for use in daylight.
+
+Opened as ``/?token=...`` the page removes the token from the address bar at once: the feed set
+a cookie with the page, and the page's own requests carry that. When the feed refuses the event
+stream (a new token after a restart, too many open streams) the page says why and retries.
 """
 
 PAGE_HTML = """<!doctype html>
@@ -89,6 +93,7 @@ PAGE_HTML = """<!doctype html>
 </main>
 <script>
 "use strict";
+if (location.search) history.replaceState(null, "", location.pathname);
 const alerts = new Map();
 const list = document.getElementById("alerts");
 const operator = document.getElementById("operator");
@@ -127,12 +132,17 @@ async function acknowledge(a, button, side) {
     const r = await fetch("/api/alerts/" + encodeURIComponent(a.alert_id) + "/ack", {
       method: "POST", headers: {"Content-Type": "application/json"},
       body: JSON.stringify({by: operator.value.trim() || "operator"})});
-    if (!r.ok) throw new Error("HTTP " + r.status);
+    if (!r.ok) throw new Error(await refusal(r));
     upsert(await r.json(), false);
   } catch (e) {
     button.disabled = false;
     side.appendChild(el("div", "ackerr", "not acknowledged: " + e.message));
   }
+}
+async function refusal(r) {
+  let why = "";
+  try { why = (await r.json()).error || ""; } catch (e) { /* not JSON */ }
+  return "HTTP " + r.status + (why ? ": " + why : "");
 }
 function render(a) {
   const card = el("article", "alert");
@@ -214,12 +224,26 @@ function live(on, text) {
   document.body.dataset.live = on ? "1" : "0";
   document.getElementById("status").textContent = text;
 }
-const source = new EventSource("/events");
 let snapshotDone = false;
-source.addEventListener("hello", () => { snapshotDone = true; live(true, "live"); });
-source.addEventListener("alert", (e) => upsert(JSON.parse(e.data), snapshotDone));
-source.addEventListener("update", (e) => upsert(JSON.parse(e.data), false));
-source.addEventListener("error", () => live(false, "reconnecting\\u2026"));
+function connect() {
+  const source = new EventSource("/events");
+  source.addEventListener("hello", () => { snapshotDone = true; live(true, "live"); });
+  source.addEventListener("alert", (e) => upsert(JSON.parse(e.data), snapshotDone));
+  source.addEventListener("update", (e) => upsert(JSON.parse(e.data), false));
+  source.addEventListener("error", async () => {
+    if (source.readyState !== EventSource.CLOSED) { live(false, "reconnecting\\u2026"); return; }
+    // the feed answered with an error, which EventSource does not retry: find out and retry
+    let why = "feed unreachable";
+    try {
+      const r = await fetch("/healthz", {cache: "no-store"});
+      why = r.status === 401 ? "access refused: open the feed address with ?token= again"
+                             : (r.ok ? "event stream refused" : await refusal(r));
+    } catch (e) { /* network down: keep the default */ }
+    live(false, why + "; retrying\\u2026");
+    setTimeout(connect, 5000);
+  });
+}
+connect();
 setInterval(() => {
   for (const w of document.querySelectorAll(".when")) {
     const t = Number(w.dataset.t);
