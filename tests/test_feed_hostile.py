@@ -16,7 +16,9 @@ from alert_samples import make_alert
 from conftest import wait_until
 
 from sarmission.alerts.feed import FeedServer
+from sarmission.alerts.feed_guard import read_token_file
 from sarmission.alerts.store import AlertStore
+from sarmission.errors import SarmissionError
 
 TOKEN = "feed-test-token-0123456789abcdef"
 
@@ -163,6 +165,7 @@ def test_network_bind_generates_a_token_and_warns(
     with FeedServer(store, "0.0.0.0", 0, allowed_hosts=["drone.local"]) as feed:
         assert feed.token_generated and feed.token and len(feed.token) >= 32
         assert feed.page_url.endswith(f"/?token={feed.token}")
+        assert feed.page_url in feed.announcement()  # shown once, on the console
         warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
         assert any("reachable from the network" in w for w in warnings)
         assert not any(feed.token in r.getMessage() for r in caplog.records)
@@ -180,6 +183,25 @@ def test_bad_token_values_are_refused(store: AlertStore) -> None:
     for token in ("short", "has a space in it 0123456789", "\u00e9" * 20):
         with pytest.raises(ValueError):
             FeedServer(store, port=0, token=token)
+
+
+def test_token_file(tmp_path: Path, secured: FeedServer,
+                    caplog: pytest.LogCaptureFixture) -> None:
+    path = tmp_path / "feed.token"
+    path.write_text(f"  {TOKEN}\n")
+    path.chmod(0o600)
+    assert read_token_file(path) == TOKEN
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]
+    path.chmod(0o644)
+    assert read_token_file(path) == TOKEN
+    assert any("readable by other users" in r.getMessage() for r in caplog.records)
+    for text in ("", "too-short", "two words 0123456789abcdef"):
+        path.write_text(text)
+        with pytest.raises(SarmissionError, match="feed.token"):
+            read_token_file(path)
+    with pytest.raises(SarmissionError, match="cannot read"):
+        read_token_file(tmp_path / "missing.token")
+    assert TOKEN not in secured.announcement() and "token file" in secured.announcement()
 
 
 # ---------------------------------------------------------------------------- Host, Origin

@@ -62,6 +62,7 @@ from sarmission.alerts.feed_guard import (
     WarnLimiter,
     check_token,
     is_loopback,
+    is_wildcard,
     new_token,
 )
 from sarmission.alerts.feed_input import BadRequest
@@ -204,6 +205,18 @@ class FeedServer:
         if self._server is None:
             raise RuntimeError("feed server not started")
         return is_loopback(self._server.server_address[0])
+
+    def announcement(self) -> str:
+        """The console line that tells the operator where the feed is: the one place a
+        generated token is shown (it is never logged)."""
+        where = " (all interfaces: use this computer's address)" if is_wildcard(self.host) else ""
+        if self.token is None:
+            return f"operator feed on {self.url}/{where}"
+        if self.token_generated:
+            return (f"operator feed on {self.page_url}{where}; reachable from the network: open "
+                    "this address once in the browser, tools send Authorization: Bearer <token>")
+        return (f"operator feed on {self.url}/{where}; access token from the token file: open "
+                "/?token=<token> once in the browser, tools send Authorization: Bearer <token>")
 
     def start(self) -> FeedServer:
         """Bind and serve in a daemon thread; returns self. Beyond loopback, a token is generated

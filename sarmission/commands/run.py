@@ -62,12 +62,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def add_session_options(parser: argparse.ArgumentParser) -> None:
-    """``--alerts-db --feed --signing-key-file --connect-timeout --target-system
-    --target-component`` of a live session."""
+    """``--alerts-db --feed --feed-token-file --signing-key-file --connect-timeout
+    --target-system --target-component`` of a live session."""
     parser.add_argument("--alerts-db", default="alerts.db",
                         help="durable alert store (default: %(default)s)")
     parser.add_argument("--feed", metavar="HOST:PORT", default=None,
-                        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765")
+                        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765; beyond "
+                        "loopback (e.g. 0.0.0.0:8765) every request needs an access token")
+    parser.add_argument("--feed-token-file", metavar="PATH", default=None,
+                        help="the feed's access token (16-256 printable characters; chmod 600). "
+                        "Default: none on loopback, else one is generated and printed once")
     parser.add_argument("--signing-key-file", default=None,
                         help="MAVLink 2 signing key: 32 raw bytes, 64 hex digits, or a "
                         "passphrase (sha256, as MAVProxy)")
@@ -201,11 +205,13 @@ def run_live(args: argparse.Namespace, mission: MissionConfig,
     for a real one); it is called once the detector and recorder are ready, and the vehicle is
     stopped at the end. Returns the closed session (its controller's statistics stay readable).
     """
+    from sarmission.alerts.feed_guard import read_token_file
     from sarmission.mission.live import LiveSession
 
     say = console or (lambda line: print(line, flush=True))
     key = read_signing_key(args.signing_key_file) if args.signing_key_file else None
     feed = parse_address(args.feed) if args.feed else None
+    feed_token = read_token_file(args.feed_token_file) if args.feed_token_file else None
     if detector is None:
         detector, note = build_detector(args, mission)
         say(note)
@@ -214,6 +220,7 @@ def run_live(args: argparse.Namespace, mission: MissionConfig,
     try:
         session = LiveSession(mission, detector, source, args.connect, args.alerts_db,
                               signing_key=key, recorder=recorder, feed_address=feed,
+                              feed_token=feed_token,
                               mission_id=args.mission_id,
                               transport_latency_s=(mission.telemetry.latency_s
                                                    if vehicle is not None else 0),

@@ -79,6 +79,7 @@ class LiveSession:
         signing_key: MAVLink 2 signing key (32 bytes) or None.
         recorder: rerun recorder or None.
         feed_address: ``(host, port)`` to serve the operator feed on, or None.
+        feed_token: the feed's access token (None: none on loopback, else one generated).
         mission_id: alerts are stored under this id (default: the mission's name).
         transport_latency_s: known minimum telemetry delay (see ``BootClock``).
         connect_timeout_s: how long to wait for the autopilot's HEARTBEAT before going on.
@@ -90,6 +91,7 @@ class LiveSession:
     def __init__(self, mission: MissionConfig, detector: Detector, source: LiveSource, url: str,
                  alerts_db: str, *, signing_key: bytes | None = None,
                  recorder: Recorder | None = None, feed_address: tuple[str, int] | None = None,
+                 feed_token: str | None = None,
                  mission_id: str | None = None, transport_latency_s: float = 0.0,
                  connect_timeout_s: float = 30.0, target_system: int | None = None,
                  target_component: int | None = None,
@@ -99,6 +101,7 @@ class LiveSession:
         self.console = console
         self.recorder = recorder
         self.feed: FeedServer | None = None
+        self._feed_token = feed_token
         self.link: MavlinkLink | None = None
         self.outbox: Outbox | None = None
         self.store = AlertStore(alerts_db)
@@ -144,8 +147,8 @@ class LiveSession:
         if resumed:
             self.console(f"re-sending {resumed} undelivered autopilot action(s) from the store")
         if feed_address is not None:
-            self.feed = FeedServer(self.store, *feed_address).start()
-            self.console(f"operator feed on {self.feed.url}")
+            self.feed = FeedServer(self.store, *feed_address, token=self._feed_token).start()
+            self.console(self.feed.announcement())
         self.controller = MissionController(mission, detector, self.telemetry, self.store,
                                             actions=self.actions, recorder=self.recorder,
                                             mission_id=mission_id, console=self.console)
