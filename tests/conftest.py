@@ -36,9 +36,10 @@ def wait_until(cond: Callable[[], object], timeout: float, step: float = 0.05) -
     return bool(cond())
 
 
-@pytest.fixture
+@pytest.fixture(scope="session")
 def sitl_binary() -> Path:
-    """The ``arducopter`` SITL binary named by ``$SARMISSION_SITL``; skips the test when unset."""
+    """The ``arducopter`` SITL binary named by ``$SARMISSION_SITL``; skips the test when unset.
+    Session-wide, so that module fixtures sharing one SITL process can use it too."""
     value = os.environ.get(SITL_ENV, "")
     if not value:
         pytest.skip(f"ArduPilot SITL tier: set {SITL_ENV} to the arducopter binary")
