@@ -3,15 +3,25 @@
 It behaves like an ArduPilot Copter autopilot (system 1, component 1, MAV_TYPE_QUADROTOR,
 MAV_AUTOPILOT_ARDUPILOTMEGA) as seen from a companion computer:
 
-- Streams HEARTBEAT (1 Hz wall clock), GLOBAL_POSITION_INT (10 Hz), ATTITUDE (20 Hz),
+- Streams HEARTBEAT (1 Hz wall clock), GLOBAL_POSITION_INT (10 Hz), GPS_RAW_INT (5 Hz: 3D fix,
+  10 satellites, ``h_acc`` the simulated GNSS noise), ATTITUDE (20 Hz),
   GIMBAL_DEVICE_ATTITUDE_STATUS (5 Hz, only with a gimbal), SYSTEM_TIME (1 Hz) and
   HOME_POSITION (0.5 Hz); rates in simulated time. ``stream_on_request=True`` sends only
   HEARTBEAT until MAV_CMD_SET_MESSAGE_INTERVAL asks for a message (ArduPilot behaviour).
+- ArduPilot's start, optionally (both off by default): until ``gps_fix_after_s`` (sim time)
+  GLOBAL_POSITION_INT reads lat/lon 0 and GPS_RAW_INT fix_type 0 with no satellites; until
+  ``home_after_s`` no HOME_POSITION is sent, GET_HOME_POSITION fails, DO_REPOSITION fails (no
+  EKF origin) and arming is refused with a reason. Copter 4.7 SITL (observed): GPS fix ~9 s after
+  boot, EKF origin and HOME_POSITION ~10 s later.
 - COMMAND_LONG / COMMAND_INT get a COMMAND_ACK: SET_MESSAGE_INTERVAL, REQUEST_MESSAGE,
   GET_HOME_POSITION, REQUEST_AUTOPILOT_CAPABILITIES, DO_REPOSITION (flies there and holds),
   DO_SET_ROI_LOCATION / DO_SET_ROI_NONE (points the gimbal; these three are MAV_RESULT_DENIED for
   a flight that cannot be steered, such as replayed footage), COMPONENT_ARM_DISARM; anything else
-  is MAV_RESULT_UNSUPPORTED.
+  is MAV_RESULT_UNSUPPORTED. Like ArduPilot, a refused arming is followed by STATUSTEXTs of
+  severity CRITICAL giving the reason ("Arm: ..."); other refusals come without one.
+- A packet whose MAVLink sequence number equals the previous one from the same system and
+  component is a duplicate (a radio or router sending it twice): dropped and counted in
+  :attr:`SimVehicle.duplicates_dropped`.
 - Mission protocol as server: upload (MISSION_COUNT -> MISSION_REQUEST_INT, or MISSION_REQUEST
   with ``legacy_mission_request=True`` like ArduPilot -> MISSION_ITEM_INT -> MISSION_ACK) with
   re-requests on timeout, download (MISSION_REQUEST_LIST -> MISSION_COUNT -> MISSION_REQUEST_INT
@@ -54,6 +64,7 @@ COPTER_MODE_GUIDED = 4
 #: Message id -> (stream name, default rate Hz in sim time).
 STREAMS: dict[int, tuple[str, float]] = {
     M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: ("position", 10.0),
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: ("gps", 5.0),
     M.MAVLINK_MSG_ID_ATTITUDE: ("attitude", 20.0),
     M.MAVLINK_MSG_ID_GIMBAL_DEVICE_ATTITUDE_STATUS: ("gimbal", 5.0),
     M.MAVLINK_MSG_ID_SYSTEM_TIME: ("system_time", 1.0),
@@ -62,6 +73,11 @@ STREAMS: dict[int, tuple[str, float]] = {
 
 UPLOAD_RETRY_S = 0.5
 UPLOAD_MAX_RETRIES = 6
+GPS_FIX_3D = 3
+GPS_SATELLITES = 10
+GPS_HDOP = 121  # eph (HDOP x 100) as Copter SITL reports it
+#: ArduPilot's arming refusal while it has no home (Copter 4.7 SITL, observed).
+ARM_NO_HOME = "Arm: AHRS: waiting for home"
 
 
 @dataclass
@@ -132,7 +148,8 @@ class SimVehicle:
     :class:`Flight`'s ``mission``, ``state_at``, ``camera_pose_at``, ``reposition``, ``set_roi``
     and ``survey_duration``, e.g. :class:`sim.meta_flight.MetaFlight`); ``mission`` defaults to
     its mission. A flight whose ``steerable`` is False gets DO_REPOSITION and DO_SET_ROI_*
-    answered with MAV_RESULT_DENIED.
+    answered with MAV_RESULT_DENIED. ``gps_fix_after_s`` / ``home_after_s``: ArduPilot's start
+    (see the module docstring); None: a fix and a home from the first message.
     """
 
     def __init__(
@@ -146,6 +163,8 @@ class SimVehicle:
         system_id: int = 1,
         component_id: int = 1,
         flight: Any = None,
+        gps_fix_after_s: float | None = None,
+        home_after_s: float | None = None,
     ) -> None:
         if speedup <= 0:
             raise ValueError("speedup must be positive")
@@ -161,6 +180,8 @@ class SimVehicle:
         self.legacy_mission_request = legacy_mission_request
         self.system_id = system_id
         self.component_id = component_id
+        self.gps_fix_after_s = gps_fix_after_s
+        self.home_after_s = home_after_s
         self.flight = Flight(mission, seed=seed) if flight is None else flight
         self.telemetry = TelemetryModel(self.flight, mission, seed=seed)
         self.home = mission.area.home
@@ -171,6 +192,9 @@ class SimVehicle:
         self.custom_mode = COPTER_MODE_AUTO
         self.sent_counts: dict[str, int] = {}
         self.bad_packets = 0
+        self.duplicates_dropped = 0
+        self._last_seq: dict[tuple[int, int], int] = {}
+        self._reasons: list[str] = []  # STATUSTEXTs to send after the ACK being prepared
         self._chunks: dict[tuple[int, int, int], list[str]] = {}
         self._upload: _Upload | None = None
         self._streams: dict[int, _Stream] = {}
@@ -207,6 +231,7 @@ class SimVehicle:
         if self._thread is not None:
             return self
         self._conn = mavlink2_connection(self.url, self.system_id, self.component_id)
+        self._last_seq.clear()
         self._mono0 = time.monotonic()
         self._unix0 = time.time()
         self._started.set()
@@ -273,12 +298,37 @@ class SimVehicle:
                     continue
                 if msg is None:
                     break
+                if self._duplicate(msg):
+                    continue
                 try:
                     self._handle(msg)
                 except Exception:
                     log.exception("error handling %s", msg.get_type())
         self._send_due()
         self._check_upload_timeout()
+
+    def _duplicate(self, msg: Any) -> bool:
+        """Whether ``msg`` repeats the previous packet's sequence number from its source (a
+        duplicate, as MAVLink receivers treat it); counted in ``duplicates_dropped``."""
+        if msg.get_type() == "BAD_DATA":
+            return False
+        src = (msg.get_srcSystem(), msg.get_srcComponent())
+        seq = msg.get_seq()
+        if self._last_seq.get(src) == seq:
+            self.duplicates_dropped += 1
+            return True
+        self._last_seq[src] = seq
+        return False
+
+    def has_gps_fix(self, t: float | None = None) -> bool:
+        """Whether the simulated GPS has its fix at sim time ``t`` (default: now)."""
+        t = self.sim_time() if t is None else t
+        return self.gps_fix_after_s is None or t >= self.gps_fix_after_s
+
+    def has_home(self, t: float | None = None) -> bool:
+        """Whether the autopilot has set home (and its EKF origin) at sim time ``t``."""
+        t = self.sim_time() if t is None else t
+        return self.home_after_s is None or t >= self.home_after_s
 
     def _send(self, kind: str, fn: Any, *args: Any, **kwargs: Any) -> None:
         if self._conn is None:
@@ -327,20 +377,23 @@ class SimVehicle:
         ms = int(round(t * 1000.0))
         if msg_id == M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT:
             p: PositionSample = self.telemetry.position(t)
-            v = p.velocity_ned
+            v = p.velocity_ned if self.has_gps_fix(t) else (0.0, 0.0, 0.0)
+            fix = self.has_gps_fix(t)
             self._send(
                 "GLOBAL_POSITION_INT",
                 mav.global_position_int_send,
                 ms,
-                int(round(p.lat_deg * 1e7)),
-                int(round(p.lon_deg * 1e7)),
-                int(round(p.alt_m * 1000)),
-                int(round(p.relative_alt_m * 1000)),
+                int(round(p.lat_deg * 1e7)) if fix else 0,
+                int(round(p.lon_deg * 1e7)) if fix else 0,
+                int(round(p.alt_m * 1000)) if fix else 0,
+                int(round(p.relative_alt_m * 1000)) if fix else 0,
                 _i16(v[0] * 100),
                 _i16(v[1] * 100),
                 _i16(v[2] * 100),
                 int(round(p.heading_deg * 100)) % 36000,
             )
+        elif msg_id == M.MAVLINK_MSG_ID_GPS_RAW_INT:
+            self._send_gps_raw(t)
         elif msg_id == M.MAVLINK_MSG_ID_ATTITUDE:
             a: AttitudeSample = self.telemetry.attitude(t)
             self._send(
@@ -380,7 +433,44 @@ class SimVehicle:
         elif msg_id == M.MAVLINK_MSG_ID_HOME_POSITION:
             self._send_home()
 
+    def _send_gps_raw(self, t: float) -> None:
+        """GPS_RAW_INT at sim time ``t``: the GNSS position with a 3D fix, or, before
+        ``gps_fix_after_s``, no fix at all (fix_type 0, lat/lon 0, no satellites), as ArduPilot
+        reports its GPS while it searches."""
+        unknown = 0xFFFF
+        if not self.has_gps_fix(t):
+            self._send("GPS_RAW_INT", self._conn.mav.gps_raw_int_send, int(t * 1e6), 0, 0, 0,
+                       0, unknown, unknown, 0, unknown, 0, 0, 0, 0, 0, 0, 0)
+            return
+        p: PositionSample = self.telemetry.position(t)
+        v = p.velocity_ned
+        speed = math.hypot(v[0], v[1])
+        cog = int(round(math.degrees(math.atan2(v[1], v[0])) * 100)) % 36000
+        h_acc_mm = max(1, int(round(self.mission.telemetry.gnss_noise_m * 1000)))
+        self._send(
+            "GPS_RAW_INT",
+            self._conn.mav.gps_raw_int_send,
+            int(t * 1e6),
+            GPS_FIX_3D,
+            int(round(p.lat_deg * 1e7)),
+            int(round(p.lon_deg * 1e7)),
+            int(round(p.alt_m * 1000)),
+            GPS_HDOP,
+            GPS_HDOP + 80,
+            min(int(round(speed * 100)), 0xFFFE),
+            cog,
+            GPS_SATELLITES,
+            int(round(p.alt_m * 1000)),
+            h_acc_mm,
+            int(round(1.5 * h_acc_mm)),
+            max(1, int(round(0.1 * h_acc_mm))),
+            0,
+            0,
+        )
+
     def _send_home(self) -> None:
+        if not self.has_home():  # ArduPilot sends nothing until its home is set
+            return
         lat, lon, alt = self.home
         self._send(
             "HOME_POSITION",
@@ -483,11 +573,16 @@ class SimVehicle:
     def _command(
         self, msg: Any, command: int, p: tuple[float, ...], frame: int | None, is_int: bool
     ) -> None:
+        self._reasons = []
         result = self._execute(command, p, frame, is_int)
         with self._lock:
             self.commands.append(CommandRecord(self.sim_time(), command, is_int, p, result))
         log.info("command %d (%s) -> result %d", command, "INT" if is_int else "LONG", result)
         self._ack(msg, command, result)
+        for text in self._reasons:  # ArduPilot's reasons follow its ACK
+            self._send("STATUSTEXT", self._conn.mav.statustext_send, M.MAV_SEVERITY_CRITICAL,
+                       text.encode("ascii", "replace")[:50])
+        self._reasons = []
 
     def _location_ned(self, p: tuple[float, ...], frame: int | None, is_int: bool) -> np.ndarray:
         """Target location of a COMMAND_INT (x, y degE7) or COMMAND_LONG (param5/6 deg) in NED."""
@@ -542,9 +637,14 @@ class SimVehicle:
             self._send_autopilot_version()
             return M.MAV_RESULT_ACCEPTED
         if command == M.MAV_CMD_GET_HOME_POSITION:
+            if not self.has_home(now):
+                return M.MAV_RESULT_FAILED
             self._send_home()
             return M.MAV_RESULT_ACCEPTED
         if command == M.MAV_CMD_COMPONENT_ARM_DISARM:
+            if p[0] == 1 and not self.has_home(now):
+                self._reasons.append(ARM_NO_HOME)
+                return M.MAV_RESULT_FAILED
             return M.MAV_RESULT_ACCEPTED if p[0] == 1 else M.MAV_RESULT_DENIED
         if command in (M.MAV_CMD_DO_REPOSITION, M.MAV_CMD_DO_SET_ROI_LOCATION,
                        M.MAV_CMD_DO_SET_ROI_NONE) and not getattr(self.flight, "steerable", True):
@@ -552,6 +652,8 @@ class SimVehicle:
                      command)
             return M.MAV_RESULT_DENIED
         if command == M.MAV_CMD_DO_REPOSITION:
+            if not self.has_home(now):  # ArduPilot: no EKF origin yet, FAILED and no text
+                return M.MAV_RESULT_FAILED
             target = self._location_ned(p, frame, is_int)
             speed = p[0] if p[0] is not None and math.isfinite(p[0]) and p[0] > 0 else None
             eta = self.flight.reposition(now, target, speed)

@@ -6,12 +6,13 @@ import socket
 import time
 
 import pytest
+from conftest import wait_until
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
 from sarmission.mavlink.connection import mavlink2_connection
 from sarmission.mission.config import load_mission
-from sim.vehicle import SimVehicle
+from sim.vehicle import ARM_NO_HOME, SimVehicle
 
 
 def free_udp_port() -> int:
@@ -328,3 +329,68 @@ def test_stream_on_request_sends_only_heartbeat_until_asked(mission):
         assert counts["GLOBAL_POSITION_INT"] == 0
     finally:
         link.close()
+
+
+def test_gps_raw_int_reports_a_3d_fix_and_its_accuracy(link, mission):
+    gps = link.recv("GPS_RAW_INT")
+    pos = link.recv("GLOBAL_POSITION_INT")
+    assert gps.fix_type >= M.GPS_FIX_TYPE_3D_FIX and gps.satellites_visible >= 6
+    assert gps.h_acc == round(mission.telemetry.gnss_noise_m * 1000)
+    n, e, _ = geodetic_to_ned(gps.lat / 1e7, gps.lon / 1e7, 0.0, pos.lat / 1e7, pos.lon / 1e7, 0.0)
+    assert math.hypot(float(n), float(e)) < 50.0  # the same aircraft (0.2 s apart at most)
+
+
+def test_arducopter_like_start_no_fix_then_fix_then_home(mission):
+    """Until ``gps_fix_after_s`` no fix and position 0,0; until ``home_after_s`` no home, and
+    arming is refused with the reason in a STATUSTEXT after the ACK (ArduPilot's order)."""
+    link = Link(mission, gps_fix_after_s=1.5, home_after_s=3.0)
+    try:
+        v = link.vehicle
+        gps = link.recv("GPS_RAW_INT")
+        pos = link.recv("GLOBAL_POSITION_INT")
+        assert v.sim_time() < 1.5, "too slow to see the start"
+        assert (gps.fix_type, gps.lat, gps.lon, gps.satellites_visible) == (0, 0, 0, 0)
+        assert (pos.lat, pos.lon) == (0, 0)
+        assert link.command_long(M.MAV_CMD_GET_HOME_POSITION) == M.MAV_RESULT_FAILED
+        link.conn.mav.command_long_send(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0,
+                                        0, 0)
+        first = link.recv(["COMMAND_ACK", "STATUSTEXT"], cond=lambda m: m.get_type() ==
+                          "STATUSTEXT" or m.command == M.MAV_CMD_COMPONENT_ARM_DISARM)
+        assert first.get_type() == "COMMAND_ACK" and first.result == M.MAV_RESULT_FAILED
+        text = link.recv("STATUSTEXT")
+        assert (text.severity, text.text) == (M.MAV_SEVERITY_CRITICAL, ARM_NO_HOME)
+        homes_before = v.sent_counts.get("HOME_POSITION", 0)
+        gps = link.recv("GPS_RAW_INT", timeout=10.0, cond=lambda m: m.fix_type >= 3)
+        assert gps.lat != 0 and link.recv("GLOBAL_POSITION_INT").lat != 0
+        home = link.recv("HOME_POSITION", timeout=10.0)
+        assert homes_before == 0 and v.sim_time() >= 3.0
+        assert home.latitude == round(mission.area.home_lat * 1e7)
+        assert link.command_long(M.MAV_CMD_GET_HOME_POSITION) == M.MAV_RESULT_ACCEPTED
+        assert link.command_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+    finally:
+        link.close()
+
+
+def test_duplicate_packets_are_dropped_by_sequence_number(link):
+    link.recv("HEARTBEAT")
+    mav = link.conn.mav
+
+    def packet(mav, seq: int, text: bytes) -> bytes:
+        mav.seq = seq
+        return mav.statustext_encode(M.MAV_SEVERITY_ALERT, text).pack(mav)
+
+    first, again = packet(mav, 100, b"T1-ab SAR swimmer"), packet(mav, 101, b"T1-ab SAR swimmer")
+    other = mavlink2_connection(f"udpout:127.0.0.1:{link.port}", 255, 191)  # another source
+    try:
+        foreign = packet(other.mav, 100, b"T2-cd SAR diver")
+        assert (first[4], again[4], foreign[4]) == (100, 101, 100)  # sequence numbers
+        for packet in (first, first, again, again, again):  # a radio repeating packets
+            link.conn.write(packet)
+        other.write(foreign)  # same sequence number, other component: not a duplicate
+        assert wait_until(lambda: len(link.vehicle.statustexts) >= 3, 3.0)
+        time.sleep(0.2)  # let any duplicate that slipped through arrive
+        texts = sorted(s.text for s in link.vehicle.statustexts)
+        assert texts == ["T1-ab SAR swimmer", "T1-ab SAR swimmer", "T2-cd SAR diver"]
+        assert link.vehicle.duplicates_dropped == 3
+    finally:
+        other.close()
