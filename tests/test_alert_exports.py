@@ -120,9 +120,12 @@ def test_cot_sender_rejects_bad_urls(url: str) -> None:
 
 
 def test_statustext_format_and_limit() -> None:
-    alert = make_alert(1, position=(-35.362912, 149.165234), score=0.912, error_m=4.4)
-    assert alert.statustext() == "SAR swimmer 0.91 -35.36291,149.16523 ±4m"
-    assert make_alert(1, positioned=False).statustext() == "SAR swimmer 0.91 pos unknown"
+    alert = make_alert(1, position=(-35.362912, 149.165234), score=0.912, error_m=4.4,
+                       alert_id="0" * 32)
+    assert alert.short_id == "T1-qx"  # a hash of the stored alert id: the same after restarts
+    assert alert.statustext() == "T1-qx SAR swimmer 0.91 -35.36291,149.16523 ±4m"
+    blind = make_alert(1, positioned=False, alert_id="0" * 32)
+    assert blind.statustext() == "T1-qx SAR swimmer 0.91 pos unknown"
     worst = make_alert(
         1,
         class_name="person_in_water_with_lifejacket_and_more",
@@ -132,7 +135,23 @@ def test_statustext_format_and_limit() -> None:
     )
     text = worst.statustext()
     assert len(text.encode()) <= STATUSTEXT_MAX_BYTES
-    assert text.startswith("SAR person") and text.endswith("-89.12346,-179.12346 ±123456m")
+    assert text.startswith(f"{worst.short_id} SAR pers ")
+    assert text.endswith("-89.12346,-179.12346 ±123456m")
+    # the name goes first; with no room even without it, the error radius: never a cut number
+    def extreme(target_id: int) -> str:
+        alert = make_alert(target_id, class_name="person", position=(-89.123456, -179.123456),
+                           error_m=123456.0, score=1.0)
+        return alert.statustext().removeprefix(alert.short_id)
+
+    assert extreme(123456) == " SAR 1.00 -89.12346,-179.12346 ±123456m"
+    assert extreme(1234567) == " SAR person 1.00 -89.12346,-179.12346"
+
+
+def test_short_ids_tell_alerts_of_one_target_apart() -> None:
+    ids = {make_alert(7).short_id for _ in range(40)}  # 40 alerts of target 7, fresh ids
+    assert all(i.startswith("T7-") and len(i) == 5 and i.isascii() for i in ids)
+    assert len(ids) >= 35  # 961 suffixes: a few collisions at most
+    assert make_alert(7).to_json_dict()["short_id"].startswith("T7-")
 
 
 def test_alert_rejects_impossible_positions() -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from alert_samples import make_alert
 
-from sarmission.alerts.model import CHANNEL_MAVLINK
+from sarmission.alerts.model import CHANNEL_MAVLINK, Refusal, Sends
 from sarmission.alerts.store import SCHEMA_VERSION, AlertStore
 from sarmission.errors import SarmissionError
 
@@ -110,22 +110,75 @@ def test_acknowledge(tmp_path: Path) -> None:
             store.acknowledge(alert.alert_id, "  ")
 
 
-def test_undelivered_and_mark_delivered(tmp_path: Path) -> None:
+def test_statustext_is_recorded_as_sent_never_as_delivered(tmp_path: Path) -> None:
     db = tmp_path / "a.db"
     alerts = [make_alert(i) for i in range(3)]
     with AlertStore(db) as store:
         for a in alerts:
             store.add(a)
-        store.mark_delivered(alerts[1].alert_id, CHANNEL_MAVLINK, when=50.0)
-        store.mark_delivered(alerts[1].alert_id, CHANNEL_MAVLINK, when=60.0)  # first time kept
+        sub = store.subscribe()
+        for t in (50.0, 51.0, 52.0):
+            sends = store.record_sent(alerts[1].alert_id, CHANNEL_MAVLINK, when=t)
+        assert sends == Sends(3, 50.0, 52.0)
+        store.record_sent(alerts[2].alert_id, CHANNEL_MAVLINK, when=53.0)
+        assert [e.kind for e in sub.get(timeout=1.0)] == ["sent"] * 4
+        with pytest.raises(ValueError, match="no acknowledgement"):
+            store.mark_delivered(alerts[1].alert_id, CHANNEL_MAVLINK)
+        with pytest.raises(ValueError, match="no acknowledgement"):
+            store.record_ack(alerts[1].alert_id, CHANNEL_MAVLINK, 0)
         with pytest.raises(KeyError):
-            store.mark_delivered("missing", CHANNEL_MAVLINK)
-    with AlertStore(db) as store:  # after a restart, resend what is missing
-        pending = store.undelivered(CHANNEL_MAVLINK)
-        assert [a.alert_id for a in pending] == [alerts[0].alert_id, alerts[2].alert_id]
-        assert len(store.undelivered("cot")) == 3
+            store.record_sent("missing", CHANNEL_MAVLINK)
+    with AlertStore(db) as store:  # after a restart, send again what was sent too few times
+        assert [a.alert_id for a in store.undelivered(CHANNEL_MAVLINK, repeats=3)] == [
+            alerts[0].alert_id, alerts[2].alert_id]
+        assert [a.alert_id for a in store.undelivered(CHANNEL_MAVLINK)] == [alerts[0].alert_id]
         sent = store.get(alerts[1].alert_id)
-        assert sent.mavlink_sent and sent.delivered == {CHANNEL_MAVLINK: 50.0}
+        assert sent.mavlink_sent and sent.delivered == {} and sent.refused == {}
+        assert sent.sent == {CHANNEL_MAVLINK: Sends(3, 50.0, 52.0)}
+        doc = sent.to_json_dict()
+        assert doc["delivered"] == {} and doc["sent"] == {
+            CHANNEL_MAVLINK: {"count": 3, "first": 50.0, "last": 52.0}}
+        assert not store.get(alerts[0].alert_id).mavlink_sent
+
+
+def test_command_answers_accepted_and_refused(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    alerts = [make_alert(i) for i in range(3)]
+    reason = "MAV_CMD_DO_REPOSITION refused: MAV_RESULT_FAILED (no reason given)"
+    with AlertStore(db) as store:
+        for a in alerts:
+            store.add(a)
+        assert store.record_ack(alerts[1].alert_id, "mavlink_loiter", 0, when=50.0)
+        assert not store.record_ack(alerts[1].alert_id, "mavlink_loiter", 0, when=60.0)
+        assert not store.record_ack(alerts[1].alert_id, "mavlink_loiter", 4, "late", when=70.0)
+        assert store.record_ack(alerts[2].alert_id, "mavlink_loiter", 4, reason, when=55.0)
+        with pytest.raises(KeyError):
+            store.record_ack("missing", "mavlink_loiter", 0)
+        assert [e.kind for e in store.events()] == ["new"] * 3 + ["delivered", "refused"]
+    with AlertStore(db) as store:
+        # a refusal is an answer: only the unanswered one is to be sent again
+        assert [a.alert_id for a in store.undelivered("mavlink_loiter")] == [alerts[0].alert_id]
+        assert len(store.undelivered("cot")) == 3
+        assert store.get(alerts[1].alert_id).delivered == {"mavlink_loiter": 50.0}
+        refused = store.get(alerts[2].alert_id)
+        assert refused.delivered == {}
+        assert refused.refused == {"mavlink_loiter": Refusal(55.0, 4, reason)}
+        assert refused.to_json_dict()["refused"] == {
+            "mavlink_loiter": {"time": 55.0, "result": 4, "reason": reason}}
+        # a later acceptance replaces a refusal, and then stands
+        assert store.record_ack(alerts[2].alert_id, "mavlink_loiter", 0, when=80.0)
+        assert store.get(alerts[2].alert_id).delivered == {"mavlink_loiter": 80.0}
+        assert store.get(alerts[2].alert_id).refused == {}
+
+
+def test_alert_with_sends_and_answers_round_trips(tmp_path: Path) -> None:
+    alert = make_alert(4, delivered={"mavlink_roi": 12.5},
+                       refused={"mavlink_loiter": Refusal(13.25, 4, "refused (no reason given)")},
+                       sent={CHANNEL_MAVLINK: Sends(2, 11.0, 12.0)})
+    with AlertStore(tmp_path / "a.db") as store:
+        store.add(alert)
+        assert store.get(alert.alert_id) == alert
+        assert store.list() == [alert]
 
 
 def test_position_found_later_is_attached_once_and_logged(tmp_path: Path) -> None:
@@ -161,6 +214,9 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
         store.acknowledge(blind.alert_id, "alice")
     with sqlite3.connect(db) as conn:  # back to schema 1: events without 'position'
         conn.executescript(
+            "DROP TABLE acks; DROP TABLE sends; CREATE TABLE deliveries (alert_id TEXT NOT NULL "
+            "REFERENCES alerts (alert_id), channel TEXT NOT NULL, time REAL NOT NULL, "
+            "PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;"
             "CREATE TABLE events_1 (seq INTEGER PRIMARY KEY AUTOINCREMENT, kind TEXT NOT NULL "
             "CHECK (kind IN ('new', 'ack', 'delivered')), alert_id TEXT NOT NULL REFERENCES "
             "alerts (alert_id), time REAL NOT NULL);"
@@ -171,11 +227,80 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
                          (blind.alert_id,))
     conn.close()
     with AlertStore(db) as store:
-        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
         assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
         assert store.attach_position(blind.alert_id, (-35.36, 149.17), 3.5, "ground plane")
         assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
         assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+
+
+#: The alert store as schema 2 wrote it (STATUSTEXT "delivered" once sent).
+_SCHEMA_2 = """
+CREATE TABLE alerts (
+    seq INTEGER PRIMARY KEY AUTOINCREMENT, alert_id TEXT NOT NULL UNIQUE,
+    mission_id TEXT NOT NULL, target_id INTEGER NOT NULL, class_name TEXT NOT NULL,
+    score REAL NOT NULL, lock_time REAL NOT NULL, frame_index INTEGER NOT NULL, lat REAL,
+    lon REAL, position_note TEXT NOT NULL, error_m REAL, target_hae_m REAL, drone_lat REAL,
+    drone_lon REAL, drone_alt_m REAL, track TEXT NOT NULL, pixel_track TEXT NOT NULL,
+    thumbnail BLOB, ack_time REAL, ack_by TEXT, added_time REAL NOT NULL);
+CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
+CREATE TABLE deliveries (
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
+    time REAL NOT NULL, PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;
+CREATE TABLE events (
+    seq INTEGER PRIMARY KEY AUTOINCREMENT,
+    kind TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id), time REAL NOT NULL);
+PRAGMA application_id = 1396789825;
+PRAGMA user_version = 2;
+"""
+
+
+def test_schema_2_store_keeps_its_data_and_statustext_delivered_becomes_sent_once(
+        tmp_path: Path) -> None:
+    db = tmp_path / "old.db"
+    with sqlite3.connect(db) as conn:
+        conn.executescript(_SCHEMA_2)
+        for i, (tid, ack_by) in enumerate([(5, "alice"), (6, None)]):
+            conn.execute(
+                "INSERT INTO alerts (alert_id, mission_id, target_id, class_name, score, "
+                "lock_time, frame_index, lat, lon, position_note, error_m, target_hae_m, "
+                "drone_lat, drone_lon, drone_alt_m, track, pixel_track, thumbnail, ack_time, "
+                "ack_by, added_time) VALUES (?, 'm', ?, 'swimmer', 0.9, ?, ?, -35.36, 149.16, "
+                "'', 3.5, NULL, -35.363, 149.165, 60.0, '[[1.0, -35.36, 149.16]]', "
+                "'[[7, 10.5, 20.5]]', X'FFD8', ?, ?, ?)",
+                (f"old{i}", tid, 1000.0 + i, 7 + i, 1100.0 if ack_by else None, ack_by,
+                 1001.0 + i))
+        conn.executemany("INSERT INTO deliveries VALUES (?, ?, ?)", [
+            ("old0", "mavlink", 1002.0), ("old0", "mavlink_loiter", 1003.0)])
+        conn.executemany("INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)", [
+            ("new", "old0", 1001.0), ("delivered", "old0", 1002.0),
+            ("delivered", "old0", 1003.0), ("ack", "old0", 1100.0), ("new", "old1", 1002.0)])
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+        assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        old0, old1 = store.list()
+        assert (old0.alert_id, old0.target_id, old0.position, old0.error_m, old0.ack_by,
+                old0.thumbnail, old0.track, old0.pixel_track) == (
+            "old0", 5, (-35.36, 149.16), 3.5, "alice", b"\xff\xd8", [(1.0, -35.36, 149.16)],
+            [(7, 10.5, 20.5)])
+        # the STATUSTEXT was sent once, as far as anyone knew; the loiter was acknowledged
+        assert old0.sent == {CHANNEL_MAVLINK: Sends(1, 1002.0, 1002.0)}
+        assert old0.delivered == {"mavlink_loiter": 1003.0}
+        assert CHANNEL_MAVLINK not in old0.to_json_dict()["delivered"]
+        assert old1.sent == {} and old1.delivered == {} and not old1.acknowledged
+        assert [a.alert_id for a in store.undelivered(CHANNEL_MAVLINK, repeats=5)] == [
+            "old0", "old1"]
+        assert [a.alert_id for a in store.undelivered("mavlink_loiter")] == ["old1"]
+        assert [e.kind for e in store.events()] == ["new", "delivered", "delivered", "ack",
+                                                    "new"]
+        store.record_sent("old0", CHANNEL_MAVLINK, when=1200.0)  # the new event kinds work
+        store.record_ack("old1", "mavlink_loiter", 4, "refused", when=1201.0)
+        assert store.get("old0").sent[CHANNEL_MAVLINK] == Sends(2, 1002.0, 1200.0)
+        assert [e.kind for e in store.events(after=5)] == ["sent", "refused"]
+    with AlertStore(db) as store:  # opening the upgraded file again changes nothing
+        assert store.get("old0").sent[CHANNEL_MAVLINK].count == 2
 
 
 def test_known_targets_per_mission(tmp_path: Path) -> None:

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+from conftest import wait_until
 from scripted_detector import ScriptedDetector
 
 from sarmission.alerts.store import AlertStore
@@ -209,27 +210,35 @@ def free_udp_port() -> int:
         return s.getsockname()[1]
 
 
-def test_alert_reaches_the_autopilot_and_is_marked_delivered(tmp_path, mission):
+def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp_path, mission):
+    """The STATUSTEXT (no acknowledgement exists) is recorded as sent n times, never as
+    delivered; the DO_REPOSITION as acknowledged."""
     n = 10
     mission.actions.policy = ["alert", "loiter"]
+    mission.actions.statustext_repeats = 3
+    mission.actions.statustext_repeat_interval_s = 0.2
     port = free_udp_port()
     vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", mission).start()
     link = MavlinkLink(f"udpout:127.0.0.1:{port}")
     outbox = Outbox(CommandSender(link, retries=2, ack_timeout_s=0.5))
     store = AlertStore(tmp_path / "alerts.db")
+    lines: list[str] = []
     try:
         assert link.wait_autopilot(5.0)
         actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lambda s: None)
+                               console=lines.append)
         ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
                                 filled_buffer(mission, n / FPS), store, actions=actions,
                                 console=lambda s: None)
         (alert,) = run_frames(ctl, n)
-        deadline = time.monotonic() + 10.0
-        while time.monotonic() < deadline and len(store.get(alert.alert_id).delivered) < 2:
-            time.sleep(0.05)
-        assert set(store.get(alert.alert_id).delivered) == {"mavlink", "mavlink_loiter"}
-        assert [s.text for s in vehicle.statustexts] == [ascii_statustext(alert)]
+        assert wait_until(lambda: not actions.pending() and store.get(alert.alert_id).delivered,
+                          10.0)
+        stored = store.get(alert.alert_id)
+        assert stored.delivered.keys() == {"mavlink_loiter"}
+        assert stored.sent.keys() == {"mavlink"} and stored.sent["mavlink"].count == 3
+        assert wait_until(lambda: len(vehicle.statustexts) == 3, 5.0)
+        assert [s.text for s in vehicle.statustexts] == [ascii_statustext(alert)] * 3
+        assert vehicle.statustexts[0].text.startswith(f"{alert.short_id} SAR ")
         assert vehicle.statustexts[0].text.endswith("+-2m")
         assert vehicle.statustexts[0].severity == M.MAV_SEVERITY_ALERT
         (cmd,) = [c for c in vehicle.commands if c.command == M.MAV_CMD_DO_REPOSITION]
@@ -237,7 +246,13 @@ def test_alert_reaches_the_autopilot_and_is_marked_delivered(tmp_path, mission):
         lat, lon = cmd.params[4] / 1e7, cmd.params[5] / 1e7
         assert distance_m((lat, lon), alert.position) < 0.1
         assert cmd.params[6] == pytest.approx(50.0)
-        assert actions.delivered == 2 and store.undelivered("mavlink") == []
+        assert actions.acknowledged == 1 and actions.sent == 1
+        assert store.undelivered("mavlink", repeats=3) == []
+        assert [a.alert_id for a in store.undelivered("mavlink", repeats=4)] == [alert.alert_id]
+        assert (f"  -> target 1 ({alert.short_id}): STATUSTEXT sent 3x (no acknowledgement "
+                "exists for STATUSTEXT)") in lines
+        assert "  -> target 1: MAV_CMD_DO_REPOSITION acknowledged (1 attempt)" in lines
+        assert not any("delivered" in line for line in lines)
     finally:
         outbox.close()
         link.close()
@@ -313,7 +328,7 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
         assert detector.calls == calls + 2 and ctl.stats.paused == paused + 5
         assert (f"frames not searched while the camera was on a target: {paused + 5}"
                 in ctl.summary())
-        assert actions.delivered == 1  # the release is no alert delivery
+        assert actions.acknowledged == 1  # the release is no alert delivery
     finally:
         outbox.close()
         link.close()

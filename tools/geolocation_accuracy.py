@@ -321,9 +321,11 @@ def measure(duration_s: float = 40.0, size: tuple[int, int] = (960, 540), hfov: 
             vehicle.stop()
         with sqlite3.connect(db) as conn:
             added = dict(conn.execute("SELECT alert_id, added_time FROM alerts"))
+            # commands: acknowledged (accepted); STATUSTEXT: first sent (nothing acknowledges it)
             delivered: dict[tuple[str, str], float] = {
                 (a, ch): t for a, ch, t in conn.execute(
-                    "SELECT alert_id, channel, time FROM deliveries")}
+                    "SELECT alert_id, channel, time FROM acks WHERE result = 0 UNION ALL "
+                    "SELECT alert_id, channel, first FROM sends")}
     to_posix = controller.to_posix
     return _report(mission, telemetry, camera, vehicle, alerts, added, delivered,
                    lambda sim_t: to_posix(sim_t + sim_to_mono), wall, process_clock,
@@ -382,9 +384,9 @@ def _report(mission: MissionConfig, telemetry: str, camera: Any, vehicle: Any, a
                 row["statustext_at_vehicle_s"] = sim_to_posix(sim_t) - t_lock
                 del texts[i]
                 break
-        for channel in ("mavlink", "mavlink_roi"):
+        for channel, key in (("mavlink", "mavlink_sent_s"), ("mavlink_roi", "mavlink_roi_acked_s")):
             if (alert.alert_id, channel) in delivered:
-                row[f"{channel}_delivered_s"] = delivered[(alert.alert_id, channel)] - t_lock
+                row[key] = delivered[(alert.alert_id, channel)] - t_lock
         rows.append(row)
 
     def col(key: str) -> list[float]:
@@ -396,7 +398,8 @@ def _report(mission: MissionConfig, telemetry: str, camera: Any, vehicle: Any, a
     within = sum(1 for r in rows if r.get("error_m") is not None and r["estimated_m"] is not None
                  and r["error_m"] <= r["estimated_m"])
     frames = process_clock.calls
-    mavlink_threads = ("mavlink-reader", "mavlink-housekeeping", "mavlink-outbox")
+    mavlink_threads = ("mavlink-reader", "mavlink-housekeeping", "mavlink-outbox",
+                       "mavlink-outbox-text")
     link_cpu = sum(cpu.get(n, 0.0) for n in mavlink_threads)
     return {
         "telemetry": telemetry,
@@ -424,8 +427,8 @@ def _report(mission: MissionConfig, telemetry: str, camera: Any, vehicle: Any, a
         "actual_error_mean_m": statistics.fmean(errors) if errors else None,
         "actual_within_estimate": within,
         "latency_s": {k: _stats(col(k)) for k in ("stored_s", "statustext_at_vehicle_s",
-                                                   "mavlink_delivered_s",
-                                                   "mavlink_roi_delivered_s")},
+                                                   "mavlink_sent_s",
+                                                   "mavlink_roi_acked_s")},
         "cpu": {
             "wall_s": wall,
             "controller_process_share": process_clock.cpu_s / wall,
@@ -498,8 +501,8 @@ def markdown(results: list[dict[str, Any]]) -> str:
         f"{r['error_m']['n']}")
     for key, label in (("stored_s", "lock -> stored"),
                        ("statustext_at_vehicle_s", "lock -> STATUSTEXT at vehicle"),
-                       ("mavlink_delivered_s", "lock -> STATUSTEXT delivered (store)"),
-                       ("mavlink_roi_delivered_s", "lock -> ROI acknowledged (store)")):
+                       ("mavlink_sent_s", "lock -> STATUSTEXT first sent (store)"),
+                       ("mavlink_roi_acked_s", "lock -> ROI acknowledged (store)")):
         add(f"{label}, median / max (ms)",
             lambda r, k=key: "-" if r["latency_s"][k]["n"] == 0 else
             f"{1000 * r['latency_s'][k]['median']:.0f} / {1000 * r['latency_s'][k]['max']:.0f}")

@@ -1,14 +1,20 @@
 """The alert: one confirmed target, as the operator and the autopilot are told about it.
 
 An :class:`Alert` is created once per confirmed (locked) target and never changes afterwards except
-for its acknowledgement, the channels it has been delivered on, and - for a target that could not
-be geolocated when it was confirmed - the position attached once it is; the store keeps these.
+for its acknowledgement, what is known of its way to the autopilot, and - for a target that could
+not be geolocated when it was confirmed - the position attached once it is; the store keeps these.
+
+What is known differs by channel. A command (DO_REPOSITION, ROI, mission upload) is answered by
+the autopilot: it is *delivered* when accepted, *refused* (with the autopilot's result and reason)
+otherwise. A STATUSTEXT has no acknowledgement in MAVLink: all that is known is that it was *sent*
+n times, so it is sent several times and never called delivered (:data:`UNACKNOWLEDGED_CHANNELS`).
 Positions are WGS84 degrees; times are UTC POSIX seconds.
 """
 
 from __future__ import annotations
 
 import base64
+import hashlib
 import math
 import uuid
 from dataclasses import dataclass, field
@@ -20,6 +26,13 @@ STATUSTEXT_MAX_BYTES = 50
 
 #: Delivery channel name for the MAVLink STATUSTEXT alert.
 CHANNEL_MAVLINK = "mavlink"
+
+#: Channels without an acknowledgement: only how often the alert was sent is known.
+UNACKNOWLEDGED_CHANNELS = frozenset({CHANNEL_MAVLINK})
+
+#: Alphabet of the short id's suffix: lower-case letters and digits that are not mistaken for
+#: one another on a ground station's screen (no 0/o, 1/l/i).
+_SHORT_ALPHABET = "23456789abcdefghjkmnpqrstuvwxyz"
 
 ThumbnailMode = Literal["url", "base64", "omit"]
 
@@ -55,6 +68,36 @@ def utc_iso(t: float) -> str:
     return datetime.fromtimestamp(t, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
+def make_short_id(target_id: int, alert_id: str) -> str:
+    """``T<target id>-<2 characters of a hash of alert_id>``, e.g. ``T12-k3``.
+
+    Target ids are unique within a mission; the suffix tells apart two alerts of one target (or
+    of two runs), and is the same after a restart because the alert id is stored."""
+    digest = int.from_bytes(hashlib.sha256(alert_id.encode()).digest()[:4], "big")
+    n = len(_SHORT_ALPHABET)
+    return f"T{int(target_id)}-{_SHORT_ALPHABET[digest % n]}{_SHORT_ALPHABET[digest // n % n]}"
+
+
+@dataclass(frozen=True)
+class Sends:
+    """How often an alert went out on a channel without acknowledgement, and when (POSIX s)."""
+
+    count: int
+    first: float
+    last: float
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """The autopilot's answer refusing a command: when, its result code (MAV_RESULT or
+    MAV_MISSION_RESULT) and the readable reason (with the autopilot's own text when it gave
+    one)."""
+
+    time: float
+    result: int
+    reason: str
+
+
 @dataclass
 class Alert:
     """A confirmed target.
@@ -65,8 +108,10 @@ class Alert:
     the aircraft at the frame's capture time, altitude above home. ``track`` holds the target's
     geolocated history ``(t, lat, lon)``; ``pixel_track`` its image history
     ``(frame_index, cx, cy)`` in full-resolution pixels. ``thumbnail`` is a JPEG crop of the raw
-    frame around the target. ``delivered`` maps a channel name (e.g. ``"mavlink"``, ``"cot"``)
-    to the POSIX time it was delivered.
+    frame around the target. ``delivered`` maps an acknowledged channel (e.g.
+    ``"mavlink_loiter"``) to the POSIX time the autopilot accepted the command; ``refused``
+    maps one to the autopilot's :class:`Refusal`; ``sent`` maps an unacknowledged channel
+    (``"mavlink"``: STATUSTEXT) to its :class:`Sends`.
     """
 
     mission_id: str
@@ -87,6 +132,8 @@ class Alert:
     ack_time: float | None = None
     ack_by: str | None = None
     delivered: dict[str, float] = field(default_factory=dict)
+    refused: dict[str, Refusal] = field(default_factory=dict)
+    sent: dict[str, Sends] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.position is not None:
@@ -99,8 +146,15 @@ class Alert:
 
     @property
     def mavlink_sent(self) -> bool:
-        """True once the STATUSTEXT alert has been delivered to the autopilot."""
-        return CHANNEL_MAVLINK in self.delivered
+        """True once the STATUSTEXT alert has been sent at least once (whether it arrived is
+        not known: STATUSTEXT has no acknowledgement)."""
+        return CHANNEL_MAVLINK in self.sent
+
+    @property
+    def short_id(self) -> str:
+        """Short id that starts the STATUSTEXT (e.g. ``T12-k3``): repeats and duplicates of
+        one alert are recognisable on the ground station. See :func:`make_short_id`."""
+        return make_short_id(self.target_id, self.alert_id)
 
     @property
     def cot_uid(self) -> str:
@@ -121,14 +175,20 @@ class Alert:
         return f"±{max(1, round(self.error_m))}m"
 
     def statustext(self) -> str:
-        """One-line alert for MAVLink STATUSTEXT, at most 50 bytes in UTF-8, e.g.
-        ``SAR swimmer 0.91 -35.36291,149.16523 ±4m``. The class name is shortened if needed."""
+        """One-line alert for MAVLink STATUSTEXT, at most 50 bytes in UTF-8, starting with the
+        short id, e.g. ``T1-k3 SAR swimmer 0.91 -35.36291,149.16523 ±4m``. The class name is
+        shortened if needed, and left out, then the error radius, if even that does not fit."""
+        head = f"{self.short_id} SAR"
         tail = f" {self.score:.2f} {self.format_position()}"
-        if self.position is not None and self.format_error():
-            tail += f" {self.format_error()}"
-        room = STATUSTEXT_MAX_BYTES - len("SAR ") - len(tail.encode())
-        name = self.class_name.encode()[: max(room, 0)].decode(errors="ignore")
-        text = f"SAR {name}{tail}"
+        error = f" {self.format_error()}" if self.position is not None else ""
+        if not error.strip():
+            error = ""
+        if len(head.encode()) + len((tail + error).encode()) > STATUSTEXT_MAX_BYTES:
+            error = ""
+        tail += error
+        room = STATUSTEXT_MAX_BYTES - len(head.encode()) - 1 - len(tail.encode())
+        name = self.class_name.encode()[: max(room, 0)].decode(errors="ignore").strip()
+        text = f"{head} {name}{tail}" if name else f"{head}{tail}"
         return text.encode()[:STATUSTEXT_MAX_BYTES].decode(errors="ignore")
 
     def to_json_dict(self, thumbnail: ThumbnailMode = "url") -> dict[str, Any]:
@@ -163,6 +223,15 @@ class Alert:
             "ack_time": self.ack_time,
             "ack_by": self.ack_by,
             "delivered": dict(self.delivered),
+            "refused": {
+                ch: {"time": r.time, "result": r.result, "reason": r.reason}
+                for ch, r in self.refused.items()
+            },
+            "sent": {
+                ch: {"count": s.count, "first": s.first, "last": s.last}
+                for ch, s in self.sent.items()
+            },
+            "short_id": self.short_id,
             "statustext": self.statustext(),
         }
         if thumbnail == "url":

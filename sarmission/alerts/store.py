@@ -2,14 +2,22 @@
 
 A confirmed alert must survive a crash: the database runs in WAL mode with ``synchronous=FULL``,
 so :meth:`AlertStore.add` returns only once the alert is on disk. Every change (new alert,
-acknowledgement, delivery, a position found after the alert) also appends a row to an ``events``
-log; :meth:`AlertStore.subscribe` follows that log, which is how the operator feed learns of
-changes, including ones written by another process on the same file.
+operator acknowledgement, a command accepted or refused by the autopilot, an alert sent on a
+channel without acknowledgement, a position found after the alert) also appends a row to an
+``events`` log; :meth:`AlertStore.subscribe` follows that log, which is how the operator feed
+learns of changes, including ones written by another process on the same file.
+
+What the store says of the autopilot is what is known, per alert and channel: a command's answer
+(``acks``: time, MAV_RESULT and reason; result 0 is acceptance, i.e. delivered) or, for a
+STATUSTEXT, which MAVLink never acknowledges, how often it was sent (``sends``: count, first and
+last time). It never calls a STATUSTEXT delivered.
 
 The file is marked with an SQLite ``application_id`` and a schema version (``user_version``).
 A file that is not an SQLite database, belongs to another application, or is damaged raises
 :class:`~sarmission.errors.SarmissionError` and is left untouched. A store of an older schema is
-upgraded in place when opened (schema 2 added the ``position`` event).
+upgraded in place when opened (schema 2 added the ``position`` event; schema 3 replaced
+``deliveries`` by ``acks`` and ``sends``: an old "delivered" STATUSTEXT became "sent 1 time",
+since that was all that was known).
 """
 
 from __future__ import annotations
@@ -24,24 +32,59 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from sarmission.alerts.model import Alert, check_position
+from sarmission.alerts.model import (
+    UNACKNOWLEDGED_CHANNELS,
+    Alert,
+    Refusal,
+    Sends,
+    check_position,
+)
 from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
-EventKind = Literal["new", "ack", "delivered", "position"]
+#: ``ack``: an operator acknowledged the alert; ``delivered`` / ``refused``: the autopilot
+#: accepted / refused a command for it; ``sent``: it went out once more on a channel without
+#: acknowledgement.
+EventKind = Literal["new", "ack", "delivered", "refused", "sent", "position"]
+_EVENT_KINDS = {
+    2: ("new", "ack", "delivered", "position"),
+    3: ("new", "ack", "delivered", "refused", "sent", "position"),
+}
 
-def _events_table(name: str) -> str:
-    """The event log's table definition (schema 2), under ``name``."""
+
+def _events_table(name: str, schema: int = SCHEMA_VERSION) -> str:
+    """The event log's table definition (of ``schema``), under ``name``."""
+    kinds = ", ".join(f"'{k}'" for k in _EVENT_KINDS[schema])
     return f"""
 CREATE TABLE {name} (
     seq      INTEGER PRIMARY KEY AUTOINCREMENT,
-    kind     TEXT NOT NULL CHECK (kind IN ('new', 'ack', 'delivered', 'position')),
+    kind     TEXT NOT NULL CHECK (kind IN ({kinds})),
     alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
     time     REAL NOT NULL
 )"""
+
+
+_ACKS_AND_SENDS = """
+CREATE TABLE acks (
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
+    channel  TEXT NOT NULL,
+    time     REAL NOT NULL,
+    result   INTEGER NOT NULL,
+    reason   TEXT NOT NULL DEFAULT '',
+    PRIMARY KEY (alert_id, channel)
+) WITHOUT ROWID;
+CREATE TABLE sends (
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
+    channel  TEXT NOT NULL,
+    count    INTEGER NOT NULL CHECK (count > 0),
+    first    REAL NOT NULL,
+    last     REAL NOT NULL,
+    PRIMARY KEY (alert_id, channel)
+) WITHOUT ROWID
+"""
 
 
 _SCHEMA = """
@@ -70,20 +113,28 @@ CREATE TABLE alerts (
     added_time    REAL NOT NULL
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
-CREATE TABLE deliveries (
-    alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
-    channel  TEXT NOT NULL,
-    time     REAL NOT NULL,
-    PRIMARY KEY (alert_id, channel)
-) WITHOUT ROWID;
-""" + _events_table("events")
+""" + _ACKS_AND_SENDS + ";" + _events_table("events")
+
+_UNACKED_SQL = ", ".join(f"'{c}'" for c in sorted(UNACKNOWLEDGED_CHANNELS))
 
 #: Statements taking a store from schema ``n`` to ``n + 1``.
 _UPGRADES: dict[int, str] = {
-    1: _events_table("events_2") + """;
+    1: _events_table("events_2", 2) + """;
 INSERT INTO events_2 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
 DROP TABLE events;
 ALTER TABLE events_2 RENAME TO events
+""",
+    # Schema 2 recorded a STATUSTEXT as "delivered" once sent: all that was known is one send.
+    2: _ACKS_AND_SENDS + f""";
+INSERT INTO acks (alert_id, channel, time, result)
+    SELECT alert_id, channel, time, 0 FROM deliveries WHERE channel NOT IN ({_UNACKED_SQL});
+INSERT INTO sends (alert_id, channel, count, first, last)
+    SELECT alert_id, channel, 1, time, time FROM deliveries WHERE channel IN ({_UNACKED_SQL});
+DROP TABLE deliveries;
+""" + _events_table("events_3", 3) + """;
+INSERT INTO events_3 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
+DROP TABLE events;
+ALTER TABLE events_3 RENAME TO events
 """,
 }
 
@@ -99,18 +150,20 @@ _SELECT = """
 SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time,
        a.frame_index, a.lat, a.lon, a.position_note, a.error_m, a.target_hae_m,
        a.drone_lat, a.drone_lon, a.drone_alt_m, a.track, a.pixel_track, a.thumbnail,
-       a.ack_time, a.ack_by,
-       (SELECT json_group_object(d.channel, d.time) FROM deliveries d
-         WHERE d.alert_id = a.alert_id) AS delivered
+       a.ack_time, a.ack_by
 FROM alerts a
 """
+#: Alert ids per query of acks and sends (below SQLite's limit on bound parameters).
+_ID_BATCH = 500
 
 
 @dataclass(frozen=True)
 class AlertEvent:
-    """One change in the store: ``kind`` is ``"new"``, ``"ack"``, ``"delivered"`` or
-    ``"position"`` (a position attached to an alert that had none); ``seq`` is its position in
-    the store's event log; ``alert`` is the alert as it is now."""
+    """One change in the store: ``kind`` is ``"new"``, ``"ack"`` (operator), ``"delivered"`` /
+    ``"refused"`` (a command accepted / refused by the autopilot), ``"sent"`` (sent once more on
+    a channel without acknowledgement) or ``"position"`` (a position attached to an alert that
+    had none); ``seq`` is its position in the store's event log; ``alert`` is the alert as it
+    is now."""
 
     seq: int
     kind: EventKind
@@ -247,8 +300,16 @@ class AlertStore:
             if cur.rowcount == 0:
                 return False
             conn.executemany(
-                "INSERT INTO deliveries (alert_id, channel, time) VALUES (?, ?, ?)",
-                [(alert.alert_id, ch, t) for ch, t in alert.delivered.items()],
+                "INSERT INTO acks (alert_id, channel, time, result, reason) "
+                "VALUES (?, ?, ?, ?, ?)",
+                [(alert.alert_id, ch, t, 0, "") for ch, t in alert.delivered.items()]
+                + [(alert.alert_id, ch, r.time, r.result, r.reason)
+                   for ch, r in alert.refused.items() if ch not in alert.delivered],
+            )
+            conn.executemany(
+                "INSERT INTO sends (alert_id, channel, count, first, last) VALUES (?, ?, ?, ?, ?)",
+                [(alert.alert_id, ch, n.count, n.first, n.last)
+                 for ch, n in alert.sent.items() if n.count > 0],
             )
             self._log(conn, "new", alert.alert_id)
         self._notify()
@@ -274,19 +335,60 @@ class AlertStore:
         assert alert is not None
         return alert
 
-    def mark_delivered(self, alert_id: str, channel: str, when: float | None = None) -> None:
-        """Record that the alert went out on ``channel`` (e.g. ``"mavlink"``, ``"cot"``).
-        Repeating it keeps the first time. Unknown id: KeyError."""
+    def record_ack(self, alert_id: str, channel: str, result: int, reason: str = "",
+                   when: float | None = None) -> bool:
+        """Record the autopilot's answer to the command sent for the alert on ``channel``:
+        ``result`` is its MAV_RESULT (or MAV_MISSION_RESULT; 0, accepted, means delivered),
+        ``reason`` the readable refusal. An acceptance is final (its first time is kept); a
+        refusal is replaced by a later answer. Returns whether anything changed.
+
+        A channel without acknowledgement (STATUSTEXT) has none to record: ValueError.
+        Unknown id: KeyError."""
+        if channel in UNACKNOWLEDGED_CHANNELS:
+            raise ValueError(f"channel {channel!r} has no acknowledgement; use record_sent")
+        result = int(result)
         with self._transaction() as conn:
             self._require(conn, alert_id)
             cur = conn.execute(
-                "INSERT OR IGNORE INTO deliveries (alert_id, channel, time) VALUES (?, ?, ?)",
-                (alert_id, channel, time.time() if when is None else when),
+                "INSERT INTO acks (alert_id, channel, time, result, reason) "
+                "VALUES (?, ?, ?, ?, ?) ON CONFLICT (alert_id, channel) DO UPDATE SET "
+                "time = excluded.time, result = excluded.result, reason = excluded.reason "
+                "WHERE acks.result != 0",
+                (alert_id, channel, time.time() if when is None else when, result,
+                 "" if result == 0 else reason),
             )
             if cur.rowcount:
-                self._log(conn, "delivered", alert_id)
+                self._log(conn, "delivered" if result == 0 else "refused", alert_id)
         if cur.rowcount:
             self._notify()
+        return bool(cur.rowcount)
+
+    def mark_delivered(self, alert_id: str, channel: str, when: float | None = None) -> None:
+        """Record that the autopilot accepted the command of ``channel`` (see
+        :meth:`record_ack`); the first time is kept. Unknown id: KeyError; a channel without
+        acknowledgement: ValueError."""
+        self.record_ack(alert_id, channel, 0, "", when)
+
+    def record_sent(self, alert_id: str, channel: str, when: float | None = None) -> Sends:
+        """Record one more send of the alert on ``channel`` (e.g. a STATUSTEXT, which has no
+        acknowledgement) at ``when`` (default now); returns the channel's sends so far.
+        Unknown id: KeyError."""
+        t = time.time() if when is None else when
+        with self._transaction() as conn:
+            self._require(conn, alert_id)
+            conn.execute(
+                "INSERT INTO sends (alert_id, channel, count, first, last) "
+                "VALUES (?, ?, 1, ?, ?) ON CONFLICT (alert_id, channel) DO UPDATE SET "
+                "count = count + 1, last = max(last, excluded.last)",
+                (alert_id, channel, t, t),
+            )
+            count, first, last = conn.execute(
+                "SELECT count, first, last FROM sends WHERE alert_id = ? AND channel = ?",
+                (alert_id, channel),
+            ).fetchone()
+            self._log(conn, "sent", alert_id)
+        self._notify()
+        return Sends(count, first, last)
 
     def attach_position(self, alert_id: str, position: tuple[float, float],
                         error_m: float | None, note: str) -> bool:
@@ -340,12 +442,20 @@ class AlertStore:
         with self._lock:
             return self._conn.execute("SELECT count(*) FROM alerts").fetchone()[0]
 
-    def undelivered(self, channel: str) -> list[Alert]:
-        """Alerts not yet delivered on ``channel``, oldest first (to resend after a link loss
-        or a restart)."""
+    def undelivered(self, channel: str, repeats: int = 1) -> list[Alert]:
+        """Alerts still to go out on ``channel``, oldest first (to resend after a link loss or a
+        restart): on a channel without acknowledgement (STATUSTEXT) those sent fewer than
+        ``repeats`` times; on any other, those the autopilot has not answered (a refusal is an
+        answer, and is not sent again)."""
+        if channel in UNACKNOWLEDGED_CHANNELS:
+            return self._query(
+                _SELECT + "WHERE coalesce((SELECT s.count FROM sends s WHERE s.alert_id = "
+                "a.alert_id AND s.channel = ?), 0) < ? ORDER BY a.seq",
+                (channel, int(repeats)),
+            )
         return self._query(
-            _SELECT + "WHERE NOT EXISTS (SELECT 1 FROM deliveries d "
-            "WHERE d.alert_id = a.alert_id AND d.channel = ?) ORDER BY a.seq",
+            _SELECT + "WHERE NOT EXISTS (SELECT 1 FROM acks k "
+            "WHERE k.alert_id = a.alert_id AND k.channel = ?) ORDER BY a.seq",
             (channel,),
         )
 
@@ -389,7 +499,23 @@ class AlertStore:
     def _query(self, sql: str, params: tuple) -> list[Alert]:
         with self._lock:
             rows = self._conn.execute(sql, params).fetchall()
-        return [_row_to_alert(r) for r in rows]
+            ids = [r[0] for r in rows]
+            acks: dict[str, list[tuple]] = {}
+            sends: dict[str, list[tuple]] = {}
+            for i in range(0, len(ids), _ID_BATCH):
+                batch = ids[i : i + _ID_BATCH]
+                marks = ",".join("?" * len(batch))
+                for row in self._conn.execute(
+                    "SELECT alert_id, channel, time, result, reason FROM acks "
+                    f"WHERE alert_id IN ({marks})", batch,
+                ):
+                    acks.setdefault(row[0], []).append(row[1:])
+                for row in self._conn.execute(
+                    "SELECT alert_id, channel, count, first, last FROM sends "
+                    f"WHERE alert_id IN ({marks})", batch,
+                ):
+                    sends.setdefault(row[0], []).append(row[1:])
+        return [_row_to_alert(r, acks.get(r[0], []), sends.get(r[0], [])) for r in rows]
 
     # ------------------------------------------------------------------ following
 
@@ -472,10 +598,10 @@ class Subscription:
         self.close()
 
 
-def _row_to_alert(row: tuple) -> Alert:
+def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
     (alert_id, mission_id, target_id, class_name, score, lock_time, frame_index, lat, lon,
      position_note, error_m, target_hae_m, d_lat, d_lon, d_alt, track, pixel_track, thumbnail,
-     ack_time, ack_by, delivered) = row  # fmt: skip
+     ack_time, ack_by) = row  # fmt: skip
     return Alert(
         alert_id=alert_id,
         mission_id=mission_id,
@@ -494,5 +620,7 @@ def _row_to_alert(row: tuple) -> Alert:
         thumbnail=thumbnail,
         ack_time=ack_time,
         ack_by=ack_by,
-        delivered=json.loads(delivered) if delivered else {},
+        delivered={ch: t for ch, t, result, _ in acks if result == 0},
+        refused={ch: Refusal(t, result, reason) for ch, t, result, reason in acks if result != 0},
+        sent={ch: Sends(count, first, last) for ch, count, first, last in sends},
     )

@@ -1,28 +1,40 @@
 """Commands to the autopilot with ACK, retries and timeout; mission upload; an outbox.
 
-:class:`CommandSender` sends one thing at a time (a lock serialises callers, so an ACK always
+:class:`CommandSender` sends one command at a time (a lock serialises callers, so an ACK always
 belongs to the command waiting for it):
 
 - COMMAND_INT / COMMAND_LONG: send, wait ``ack_timeout_s`` for a COMMAND_ACK from the autopilot
   with the same ``command``, re-send up to ``retries`` times (COMMAND_LONG with ``confirmation``
   0, 1, 2, ...). MAV_RESULT_IN_PROGRESS extends the wait without re-sending. So a command gets
   an answer or fails within ``(retries + 1) * ack_timeout_s``.
+- A refusal carries the autopilot's reason when it gives one: ArduPilot (Copter 4.7 SITL,
+  observed) answers a refused arming with MAV_RESULT_FAILED and, a millisecond later, STATUSTEXTs
+  of severity CRITICAL ("Arm: Need Position Estimate"); a refused DO_REPOSITION (no EKF origin
+  yet, or not in GUIDED without the change-mode flag) gets FAILED / DENIED and no text at all.
+  So the autopilot's STATUSTEXTs of severity WARNING or worse that arrive from the command's
+  send, at most :data:`REASON_WINDOW_S` before the refusing ACK, until :data:`REASON_WINDOW_S`
+  after it, are quoted in the error: "... refused: MAV_RESULT_FAILED (autopilot: 'Arm: ...')",
+  else "(no reason given)". A text in that window need not be about the command (ArduPilot
+  repeats its "PreArm:" complaints every 30 s); it is quoted as what the autopilot said.
 - STATUSTEXT has no acknowledgement. Text is sanitised to ASCII; up to 50 characters go in one
   message; longer text is split in 50-character chunks sharing a non-zero MAVLink 2 ``id`` with
   ``chunk_seq`` 0, 1, ...; a text whose length is a multiple of 50 ends with an empty chunk (the
   end marker); more than ``MAX_STATUSTEXT_CHUNKS`` chunks are truncated (the text ends in "~").
+  It does not wait for the command lock: a text goes out while a command waits for its ACK.
 - Mission upload (ArduPilot behaviour): item 0 is home and is overwritten by the autopilot, so
   a placeholder goes first; MISSION_COUNT, then answer every MISSION_REQUEST_INT *and*
   MISSION_REQUEST (ArduPilot asks with the latter) with MISSION_ITEM_INT, until MISSION_ACK.
   A silent autopilot gets MISSION_COUNT (before any request) or the last item again, ``retries``
   times.
 
-:class:`Outbox` delivers actions whatever the link does: an action is tried when the link is up;
-if the link is down, or no ACK came, it stays pending and is tried again (in order) once the
-autopilot is heard again. A STATUSTEXT counts as delivered when the autopilot is heard at least
-``STATUSTEXT_CONFIRM_S`` after it was sent; if the link is lost first, it is sent again. An
-explicit refusal (e.g. MAV_RESULT_DENIED) ends the action. The caller persists actions (alert
-store) and learns the outcome from the ``on_delivered`` / ``on_refused`` callbacks.
+:class:`Outbox` delivers actions whatever the link does. Commands are tried in order while the
+link is up; with no ACK, or the link down, one stays pending and is tried again once the
+autopilot is heard again; an explicit refusal (e.g. MAV_RESULT_DENIED) ends it. A STATUSTEXT,
+which nothing acknowledges, is instead *sent* ``repeats`` times ``interval_s`` apart (sends wait
+while the link is down), on a thread of its own so that repeats never hold up commands, and
+never counted as delivered: with independent loss p, n sends reach the autopilot with
+probability 1 - p^n (99.2 % for p = 0.3, n = 4). The caller persists actions (alert store) and
+learns outcomes from ``on_delivered`` (accepted), ``on_refused`` and ``on_sent`` (one per send).
 """
 
 from __future__ import annotations
@@ -42,7 +54,15 @@ log = logging.getLogger(__name__)
 
 STATUSTEXT_LEN = 50
 MAX_STATUSTEXT_CHUNKS = 4
-STATUSTEXT_CONFIRM_S = 0.3
+#: Seconds around a refusing ACK in which the autopilot's STATUSTEXTs are taken as its reason.
+REASON_WINDOW_S = 1.0
+#: Once a reason has arrived, seconds to wait for more (ArduPilot sends several at once).
+REASON_SETTLE_S = 0.2
+#: Most autopilot texts quoted in one refusal.
+MAX_REASONS = 3
+#: Least seconds between two STATUSTEXT sends of the outbox (at most 20 a second: a burst of
+#: alerts must not crowd telemetry off a 57600-baud radio).
+STATUSTEXT_MIN_GAP_S = 0.05
 
 
 @dataclass(frozen=True)
@@ -50,8 +70,9 @@ class CommandResult:
     """Outcome of one command or upload.
 
     ``result``: MAV_RESULT (commands) or MAV_MISSION_RESULT (uploads); None when nothing
-    answered (or STATUSTEXT, which has no answer). ``attempts``: messages sent for it.
-    ``error``: "" when accepted, else a readable reason.
+    answered (or STATUSTEXT, which has no answer: there ``accepted`` means sent).
+    ``attempts``: messages sent for it. ``error``: "" when accepted, else a readable reason.
+    ``reason``: for a refusal, what the autopilot said about it ("" when it said nothing).
     """
 
     name: str
@@ -59,6 +80,7 @@ class CommandResult:
     result: int | None
     attempts: int
     error: str = ""
+    reason: str = ""
 
     @property
     def no_answer(self) -> bool:
@@ -90,6 +112,64 @@ def _result_name(enum: str, value: int) -> str:
     return entry.name if entry is not None else str(value)
 
 
+def _printable(text: str | bytes) -> str:
+    """An untrusted STATUSTEXT as printable ASCII: NULs end it, anything else odd becomes
+    "?", at most :data:`STATUSTEXT_LEN` characters."""
+    if isinstance(text, bytes):
+        text = text.decode("ascii", "replace")
+    text = text.split("\x00", 1)[0]
+    return "".join(c if " " <= c <= "~" else "?" for c in text[:STATUSTEXT_LEN]).strip()
+
+
+class _AutopilotTexts:
+    """The autopilot's STATUSTEXTs of severity WARNING or worse, with their arrival times,
+    collected while a command is out: what it says about a refusal."""
+
+    def __init__(self, link: MavlinkLink) -> None:
+        self._link = link
+        self._items: list[tuple[float, str]] = []
+        self._cond = threading.Condition()
+        self._unsubscribe = link.subscribe(self._on_text, ["STATUSTEXT"])
+
+    def _on_text(self, msg: Any, arrival: float) -> None:
+        if not self._link.from_autopilot(msg):
+            return
+        if not 0 <= int(getattr(msg, "severity", 255)) <= M.MAV_SEVERITY_WARNING:
+            return
+        text = _printable(getattr(msg, "text", ""))
+        if text:
+            with self._cond:
+                self._items.append((arrival, text))
+                self._cond.notify_all()
+
+    def around(self, ack_time: float) -> str:
+        """The texts from :data:`REASON_WINDOW_S` before ``ack_time`` until as long after it
+        (waiting for them; :data:`REASON_SETTLE_S` after the last one is enough), quoted:
+        ``'Arm: Need Position Estimate', 'Arm: Mode requires mission'``; "" for none."""
+        deadline = ack_time + REASON_WINDOW_S
+        with self._cond:
+            while True:
+                near = [x for x in self._items if x[0] >= ack_time - REASON_WINDOW_S]
+                end = deadline
+                if near:
+                    end = min(deadline, max(near[-1][0], ack_time) + REASON_SETTLE_S)
+                wait = end - time.monotonic()
+                if wait <= 0:
+                    break
+                self._cond.wait(wait)
+        texts = list(dict.fromkeys(x[1] for x in near if x[0] <= deadline))
+        return ", ".join(f"'{t}'" for t in texts[:MAX_REASONS])
+
+    def close(self) -> None:
+        self._unsubscribe()
+
+
+def _refusal(name: str, what: str, reason: str) -> str:
+    """"NAME refused: WHAT (autopilot: 'reason')" or "... (no reason given)"."""
+    said = f"autopilot: {reason}" if reason else "no reason given"
+    return f"{name} refused: {what} ({said})"
+
+
 def _statustext_chunks(text: str) -> list[bytes]:
     data = text.encode("ascii", "replace")
     if len(data) <= STATUSTEXT_LEN:
@@ -117,6 +197,7 @@ class CommandSender:
         self.retries = retries
         self.ack_timeout_s = ack_timeout_s
         self._lock = threading.Lock()
+        self._text_lock = threading.Lock()
         self._text_ids = itertools.cycle(range(1, 65536))
 
     # -- generic commands --------------------------------------------------------------------
@@ -173,23 +254,24 @@ class CommandSender:
                 ["COMMAND_ACK"], lambda m: m.command == command and self._for_us(m)
             ) as acks,
         ):
-            attempts = 0
-            for attempt in range(self.retries + 1):
-                attempts += 1
-                self.link.send(encode(attempt))
-                ack = self._wait_ack(acks)
-                if ack is None:
-                    continue
-                result = int(ack.result)
-                if result == M.MAV_RESULT_ACCEPTED:
-                    return CommandResult(name, True, result, attempts)
-                return CommandResult(
-                    name,
-                    False,
-                    result,
-                    attempts,
-                    f"{name} refused: {_result_name('MAV_RESULT', result)}",
-                )
+            texts = _AutopilotTexts(self.link)
+            try:
+                attempts = 0
+                for attempt in range(self.retries + 1):
+                    attempts += 1
+                    self.link.send(encode(attempt))
+                    ack = self._wait_ack(acks)
+                    if ack is None:
+                        continue
+                    result = int(ack.result)
+                    if result == M.MAV_RESULT_ACCEPTED:
+                        return CommandResult(name, True, result, attempts)
+                    reason = texts.around(time.monotonic())
+                    what = _result_name("MAV_RESULT", result)
+                    return CommandResult(name, False, result, attempts,
+                                         _refusal(name, what, reason), reason)
+            finally:
+                texts.close()
         total = attempts * self.ack_timeout_s
         return CommandResult(
             name,
@@ -260,7 +342,7 @@ class CommandSender:
                 f"link down: autopilot silent for {self.link.silence_s():.1f} s",
             )
         chunks = _statustext_chunks(text)
-        with self._lock:
+        with self._text_lock:
             text_id = next(self._text_ids) if len(chunks) > 1 else 0
             ok = True
             for seq, chunk in enumerate(chunks):
@@ -308,49 +390,60 @@ class CommandSender:
                 lambda m: self._for_us(m) and getattr(m, "mission_type", 0) == mtype,
             ) as replies,
         ):
-            sent = 1
-            last: Any = count_msg()
-            self.link.send(last)
-            silent = 0
-            while True:
-                reply = replies.get(self.ack_timeout_s)
-                if reply is None:
-                    silent += 1
-                    if silent > self.retries:
-                        return CommandResult(
-                            name,
-                            False,
-                            None,
-                            sent,
-                            f"{name}: autopilot silent after "
-                            f"{silent} timeouts of {self.ack_timeout_s:.1f} s",
-                        )
-                    self.link.send(last)
-                    sent += 1
-                    continue
-                silent = 0
-                if reply.get_type() == "MISSION_ACK":
-                    if reply.type == M.MAV_MISSION_ACCEPTED:
-                        return CommandResult(name, True, int(reply.type), sent)
+            texts = _AutopilotTexts(self.link)
+            try:
+                return self._upload(name, replies, texts, count_msg, item_msg, len(all_items))
+            finally:
+                texts.close()
+
+    def _upload(self, name: str, replies: Any, texts: _AutopilotTexts,
+                count_msg: Callable[[], Any], item_msg: Callable[[int], Any],
+                n_items: int) -> CommandResult:
+        """The upload's exchange, once MISSION_COUNT may go (see :meth:`upload_mission`)."""
+        sent = 1
+        last: Any = count_msg()
+        self.link.send(last)
+        silent = 0
+        while True:
+            reply = replies.get(self.ack_timeout_s)
+            if reply is None:
+                silent += 1
+                if silent > self.retries:
                     return CommandResult(
                         name,
                         False,
-                        int(reply.type),
+                        None,
                         sent,
-                        f"{name} refused: {_result_name('MAV_MISSION_RESULT', reply.type)}",
+                        f"{name}: autopilot silent after "
+                        f"{silent} timeouts of {self.ack_timeout_s:.1f} s",
                     )
-                if not 0 <= reply.seq < len(all_items):
-                    continue
-                last = item_msg(reply.seq)
                 self.link.send(last)
                 sent += 1
+                continue
+            silent = 0
+            if reply.get_type() == "MISSION_ACK":
+                if reply.type == M.MAV_MISSION_ACCEPTED:
+                    return CommandResult(name, True, int(reply.type), sent)
+                reason = texts.around(time.monotonic())
+                what = _result_name("MAV_MISSION_RESULT", reply.type)
+                return CommandResult(name, False, int(reply.type), sent,
+                                     _refusal(name, what, reason), reason)
+            if not 0 <= reply.seq < n_items:
+                continue
+            last = item_msg(reply.seq)
+            self.link.send(last)
+            sent += 1
 
 
 @dataclass(eq=False)
 class Action:
     """Something for the outbox: ``kind`` is a :class:`CommandSender` method name
     ("statustext", "reposition", "set_roi", "upload_mission", "command_int", "command_long")
-    called with ``args``. ``key`` is the caller's id (e.g. its alert store row)."""
+    called with ``args``. ``key`` is the caller's id (e.g. its alert store row).
+
+    ``attempts`` counts tries of a command, and sends of a STATUSTEXT; a STATUSTEXT is sent
+    ``repeats`` times, ``interval_s`` apart (``next_at``: ``time.monotonic()`` of its next send).
+    """
 
     kind: str
     args: tuple[Any, ...]
@@ -358,18 +451,32 @@ class Action:
     created: float = field(default_factory=time.monotonic)
     attempts: int = 0
     last_result: CommandResult | None = None
-    sent_at: float | None = None  # STATUSTEXT sent, waiting to hear the autopilot after it
+    repeats: int = 1
+    interval_s: float = 1.0
+    next_at: float = 0.0
+
+    @property
+    def done(self) -> bool:
+        """A STATUSTEXT sent all its repeats (commands: never; they leave by a callback)."""
+        return self.kind == "statustext" and self.attempts >= self.repeats
 
 
 ActionCallback = Callable[[Action, CommandResult], None]
 
+_KINDS = ("statustext", "reposition", "set_roi", "clear_roi", "upload_mission", "command_int",
+          "command_long")
+
 
 class Outbox:
-    """Delivers :class:`Action` s in order through a :class:`CommandSender`, surviving link loss.
+    """Delivers :class:`Action` s through a :class:`CommandSender`, surviving link loss.
 
-    A worker thread tries the oldest pending action whenever the link is up (checked every
-    ``poll_s``). Outcomes: accepted -> ``on_delivered(action, result)``; refused by the
-    autopilot -> ``on_refused(action, result)``; no answer or link down -> stays pending.
+    Commands: a worker thread tries the oldest pending one whenever the link is up (checked
+    every ``poll_s``). Accepted -> ``on_delivered(action, result)``; refused by the autopilot ->
+    ``on_refused(action, result)``; no answer or link down -> stays pending.
+    STATUSTEXT: a second thread sends each ``statustext_repeats`` times (unless ``submit`` says
+    otherwise), ``repeat_interval_s`` apart, the earliest due first, at most one every
+    :data:`STATUSTEXT_MIN_GAP_S`, only while the link is up; ``on_sent(action, result)`` after
+    each send (``action.attempts`` sends so far; ``action.done`` after the last).
     """
 
     def __init__(
@@ -378,41 +485,60 @@ class Outbox:
         on_delivered: ActionCallback | None = None,
         on_refused: ActionCallback | None = None,
         poll_s: float = 0.2,
+        *,
+        on_sent: ActionCallback | None = None,
+        statustext_repeats: int = 1,
+        repeat_interval_s: float = 1.0,
     ) -> None:
+        if statustext_repeats < 1 or not repeat_interval_s > 0:
+            raise ValueError("statustext_repeats must be >= 1 and repeat_interval_s > 0")
         self.sender = sender
         self.on_delivered = on_delivered
         self.on_refused = on_refused
+        self.on_sent = on_sent
         self.poll_s = poll_s
-        self._pending: list[Action] = []
+        self.statustext_repeats = statustext_repeats
+        self.repeat_interval_s = repeat_interval_s
+        self._pending: list[Action] = []  # commands, in order
+        self._texts: list[Action] = []  # STATUSTEXTs with sends to go
+        self._last_text_send = -math.inf
         self._lock = threading.Lock()
         self._wake = threading.Event()
+        self._text_wake = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="mavlink-outbox", daemon=True)
+        self._text_thread = threading.Thread(
+            target=self._text_loop, name="mavlink-outbox-text", daemon=True
+        )
         self._thread.start()
+        self._text_thread.start()
 
-    def submit(self, kind: str, *args: Any, key: Any = None) -> Action:
-        """Queue ``sender.<kind>(*args)``; returns the :class:`Action` (delivered later)."""
-        if kind not in (
-            "statustext",
-            "reposition",
-            "set_roi",
-            "clear_roi",
-            "upload_mission",
-            "command_int",
-            "command_long",
-        ):
+    def submit(self, kind: str, *args: Any, key: Any = None, repeats: int | None = None,
+               interval_s: float | None = None) -> Action:
+        """Queue ``sender.<kind>(*args)``; returns the :class:`Action` (delivered later). A
+        STATUSTEXT goes out ``repeats`` times ``interval_s`` apart (default: the outbox's)."""
+        if kind not in _KINDS:
             raise ValueError(f"unknown action kind {kind!r}")
         action = Action(kind, tuple(args), key)
-        with self._lock:
-            self._pending.append(action)
-        self._wake.set()
+        if kind == "statustext":
+            action.repeats = max(1, int(self.statustext_repeats if repeats is None else repeats))
+            action.interval_s = self.repeat_interval_s if interval_s is None else interval_s
+            with self._lock:
+                self._texts.append(action)
+            self._text_wake.set()
+        else:
+            with self._lock:
+                self._pending.append(action)
+            self._wake.set()
         return action
 
     def pending(self) -> list[Action]:
-        """Actions not yet delivered or refused, oldest first."""
+        """Actions not yet answered (commands) or not yet sent all their repeats
+        (STATUSTEXT), oldest first."""
         with self._lock:
-            return list(self._pending)
+            return sorted(self._pending + self._texts, key=lambda a: a.created)
 
+    # -- commands ----------------------------------------------------------------------------
     def _loop(self) -> None:
         while not self._stop.is_set():
             self._wake.wait(self.poll_s)
@@ -429,23 +555,11 @@ class Outbox:
                 if not self._pending:
                     return
                 action = self._pending[0]
-            if action.sent_at is not None:  # a STATUSTEXT waiting for proof the link was up
-                heard = link.last_heard
-                if heard is not None and heard >= action.sent_at + STATUSTEXT_CONFIRM_S:
-                    assert action.last_result is not None
-                    self._finish(action, action.last_result, self.on_delivered)
-                    continue
-                if link.link_ok:
-                    return  # wait a little longer
-                action.sent_at = None  # link lost right after sending: send again
             if not link.link_ok:
                 return
             result: CommandResult = getattr(self.sender, action.kind)(*action.args)
             action.attempts += 1
             action.last_result = result
-            if result.accepted and action.kind == "statustext":
-                action.sent_at = time.monotonic()
-                return
             if result.accepted:
                 self._finish(action, result, self.on_delivered)
             elif result.no_answer:
@@ -458,6 +572,50 @@ class Outbox:
         with self._lock:
             if action in self._pending:
                 self._pending.remove(action)
+        self._call(cb, action, result)
+
+    # -- STATUSTEXT --------------------------------------------------------------------------
+    def _text_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                wait = self._send_due_text()
+            except Exception:
+                log.exception("outbox text step failed")
+                wait = self.poll_s
+            if self._text_wake.wait(wait):
+                self._text_wake.clear()
+
+    def _send_due_text(self) -> float:
+        """Send the STATUSTEXT due first, if any and the link is up; returns how long to wait
+        before looking again."""
+        now = time.monotonic()
+        with self._lock:
+            due = min(self._texts, key=lambda a: (a.next_at, a.created), default=None)
+        if due is None:
+            return self.poll_s
+        if due.next_at > now:
+            return min(due.next_at - now, self.poll_s)
+        if now < self._last_text_send + STATUSTEXT_MIN_GAP_S:
+            return self._last_text_send + STATUSTEXT_MIN_GAP_S - now
+        if not self.sender.link.link_ok:
+            return self.poll_s
+        result = self.sender.statustext(*due.args)
+        if not result.accepted:  # link lost or transport refused: try again later
+            log.info("outbox: STATUSTEXT not sent (%s)", result.error)
+            return self.poll_s
+        due.attempts += 1
+        due.last_result = result
+        self._last_text_send = time.monotonic()
+        due.next_at = self._last_text_send + due.interval_s
+        if due.done:
+            with self._lock:
+                if due in self._texts:
+                    self._texts.remove(due)
+        self._call(self.on_sent, due, result)
+        return STATUSTEXT_MIN_GAP_S
+
+    @staticmethod
+    def _call(cb: ActionCallback | None, action: Action, result: CommandResult) -> None:
         if cb is not None:
             try:
                 cb(action, result)
@@ -465,8 +623,10 @@ class Outbox:
                 log.exception("outbox callback failed")
 
     def close(self) -> None:
-        """Stop the worker (pending actions stay in :meth:`pending`)."""
+        """Stop the workers (pending actions stay in :meth:`pending`)."""
         self._stop.set()
         self._wake.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
+        self._text_wake.set()
+        for thread in (self._thread, self._text_thread):
+            if thread is not threading.current_thread():
+                thread.join(timeout=5.0)

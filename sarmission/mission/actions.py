@@ -20,11 +20,14 @@ The mission file's ``[actions] policy`` lists, in order, what to do for each new
 Positional actions are skipped for an alert without a position (there is nowhere to go); when
 its position is found later, the alert is announced again with it.
 Everything goes through the :class:`~sarmission.mavlink.commands.Outbox`, which waits for each
-COMMAND_ACK with retries and keeps actions queued while the link is down. Each delivery is
-recorded in the alert store on its own channel (:data:`CHANNELS`), so a restarted controller
-re-submits what never got through (:meth:`ActionPolicy.resume`). Of the positional actions
-only the newest undelivered one per channel is re-submitted: flying to an older target first
-would only delay the newest order.
+COMMAND_ACK with retries and keeps actions queued while the link is down. The store records what
+is known on each action's own channel (:data:`CHANNELS`): a command's answer (accepted, i.e.
+delivered, or refused with the autopilot's reason), and for the STATUSTEXT, which MAVLink never
+acknowledges, each of its ``statustext_repeats`` sends (it is never called delivered). A
+restarted controller re-submits what never got through (:meth:`ActionPolicy.resume`): commands
+nobody answered, and the sends a STATUSTEXT still lacks. Of the positional actions only the
+newest unanswered one per channel is re-submitted: flying to an older target first would only
+delay the newest order.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import NamedTuple
 
 from sarmission.alerts.model import CHANNEL_MAVLINK, Alert
 from sarmission.alerts.store import AlertStore
@@ -59,13 +62,25 @@ ROI_RELEASE = "roi_release"
 ROI_SETTLE_S = 2.0
 
 
+class _Key(NamedTuple):
+    """An outbox action's key: the alert and store channel it is for (the camera release has
+    neither), the target and the alert's short id for the console."""
+
+    alert_id: str
+    channel: str
+    target_id: int
+    short_id: str = ""
+
+
 class ActionPolicy:
-    """Turns alerts into outbox actions per ``config.policy`` and records their delivery.
+    """Turns alerts into outbox actions per ``config.policy`` and records what became of them.
 
     ``survey_altitude_m`` is the loiter altitude when the mission gives none;
     ``target_altitude_m`` is the target's height above home (ROI and mission item altitude).
-    ``console`` receives one line per delivery or refusal; ``clock`` gives the seconds that
-    ``roi_hold_s`` is counted in.
+    ``console`` receives one line per command answered and per STATUSTEXT sent all its
+    repeats; ``clock`` gives the seconds that ``roi_hold_s`` is counted in. Counters:
+    ``acknowledged`` (commands accepted), ``refused``, ``sent`` (STATUSTEXT alerts sent all
+    their repeats; nothing acknowledges them).
     """
 
     def __init__(self, config: ActionsConfig, outbox: Outbox, store: AlertStore,
@@ -80,14 +95,30 @@ class ActionPolicy:
         self.target_altitude_m = target_altitude_m
         self.console = console
         self.roi_hold_s = config.roi_hold_s
+        self.repeats = config.statustext_repeats
+        self.repeat_interval_s = config.statustext_repeat_interval_s
         self.clock = clock
-        self.delivered = 0
+        self.acknowledged = 0
         self.refused = 0
+        self.sent = 0
         self._release_lock = threading.Lock()
         self._release_at: float | None = None  # when the camera goes back to the survey view
         self._paused_until: float | None = None  # the search pauses while the camera is away
         outbox.on_delivered = self._on_delivered
         outbox.on_refused = self._on_refused
+        outbox.on_sent = self._on_sent
+
+    @property
+    def delivered(self) -> int:
+        """Commands the autopilot accepted (a STATUSTEXT is never counted: nothing
+        acknowledges it; see :attr:`sent`)."""
+        return self.acknowledged
+
+    def summary(self) -> str:
+        """One line on what the autopilot was told, for the run's summary."""
+        return (f"autopilot commands acknowledged: {self.acknowledged}, refused: {self.refused}; "
+                f"STATUSTEXT alerts sent {self.repeats}x (no acknowledgement exists for "
+                f"STATUSTEXT): {self.sent}; pending: {self.pending()}")
 
     def announce(self, alert: Alert) -> int:
         """Queue every action of the policy for a new alert, or again for an alert whose position
@@ -96,13 +127,19 @@ class ActionPolicy:
         return sum(self._submit(entry, alert) for entry in self.policy)
 
     def resume(self) -> int:
-        """Re-queue what earlier runs stored but never delivered; returns the count queued."""
+        """Re-queue what earlier runs stored but never got through (commands not answered,
+        STATUSTEXTs sent fewer than ``statustext_repeats`` times: the sends they lack);
+        returns the count queued."""
         queued = 0
         for entry in self.policy:
-            pending = self.store.undelivered(CHANNELS[entry])
+            channel = CHANNELS[entry]
+            pending = self.store.undelivered(channel, self.repeats)
             if entry in _POSITIONAL:
                 pending = [a for a in pending if a.position is not None][-1:]
-            queued += sum(self._submit(entry, alert) for alert in pending)
+            for alert in pending:
+                sends = alert.sent.get(channel)
+                left = self.repeats - (sends.count if sends is not None else 0)
+                queued += self._submit(entry, alert, repeats=max(1, left))
         return queued
 
     def pending(self) -> int:
@@ -128,14 +165,15 @@ class ActionPolicy:
             if any(a.kind == "set_roi" for a in self.outbox.pending()):
                 return False
             self._release_at = None
-        self.outbox.submit("clear_roi", key=("", ROI_RELEASE, 0))
+        self.outbox.submit("clear_roi", key=_Key("", ROI_RELEASE, 0))
         return True
 
-    def _submit(self, entry: str, alert: Alert) -> bool:
-        key = (alert.alert_id, CHANNELS[entry], alert.target_id)
+    def _submit(self, entry: str, alert: Alert, repeats: int | None = None) -> bool:
+        key = _Key(alert.alert_id, CHANNELS[entry], alert.target_id, alert.short_id)
         if entry == "alert":
             self.outbox.submit("statustext", ascii_statustext(alert), M.MAV_SEVERITY_ALERT,
-                               key=key)
+                               key=key, repeats=self.repeats if repeats is None else repeats,
+                               interval_s=self.repeat_interval_s)
             return True
         if alert.position is None:
             log.info("target %d has no position: %s skipped", alert.target_id, entry)
@@ -150,30 +188,41 @@ class ActionPolicy:
             self.outbox.submit("upload_mission", [item], key=key)
         return True
 
+    def _on_sent(self, action: Action, result: CommandResult) -> None:
+        key = _key(action)
+        sends = self.store.record_sent(key.alert_id, key.channel)
+        if action.done:
+            self.sent += 1
+            self.console(f"  -> target {key.target_id} ({key.short_id}): STATUSTEXT sent "
+                         f"{sends.count}x (no acknowledgement exists for STATUSTEXT)")
+
     def _on_delivered(self, action: Action, result: CommandResult) -> None:
-        alert_id, channel, target_id = _key(action)
-        if channel == ROI_RELEASE:
+        key = _key(action)
+        if key.channel == ROI_RELEASE:
             with self._release_lock:
                 self._paused_until = self.clock() + ROI_SETTLE_S
             self.console("  -> camera back to the survey view (DO_SET_ROI_NONE)")
             return
-        if channel == CHANNELS["roi"]:
+        if key.channel == CHANNELS["roi"]:
             with self._release_lock:
                 self._release_at = self.clock() + self.roi_hold_s
                 self._paused_until = math.inf
-        self.store.mark_delivered(alert_id, channel)
-        self.delivered += 1
-        self.console(f"  -> target {target_id}: {result.name} delivered "
+        self.store.record_ack(key.alert_id, key.channel, result.result or 0)
+        self.acknowledged += 1
+        self.console(f"  -> target {key.target_id}: {result.name} acknowledged "
                      f"({action.attempts} attempt{'s' if action.attempts != 1 else ''})")
 
     def _on_refused(self, action: Action, result: CommandResult) -> None:
-        _, channel, target_id = _key(action)
+        key = _key(action)
         self.refused += 1
-        if channel == ROI_RELEASE:  # where the camera looks is unknown: search on regardless
+        if key.channel == ROI_RELEASE:  # where the camera looks is unknown: search on regardless
             with self._release_lock:
                 self._paused_until = None
-        what = "camera release" if channel == ROI_RELEASE else f"target {target_id}"
-        self.console(f"  -> {what}: {result.error}")
+            self.console(f"  -> camera release: {result.error}")
+            return
+        if result.result is not None:
+            self.store.record_ack(key.alert_id, key.channel, result.result, result.error)
+        self.console(f"  -> target {key.target_id}: {result.error}")
 
 
 def ascii_statustext(alert: Alert) -> str:
@@ -182,6 +231,6 @@ def ascii_statustext(alert: Alert) -> str:
     return alert.statustext().replace("±", "+-")
 
 
-def _key(action: Action) -> tuple[str, str, int]:
-    key: Any = action.key
-    return key[0], key[1], key[2]
+def _key(action: Action) -> _Key:
+    key = action.key
+    return key if isinstance(key, _Key) else _Key(*key)
