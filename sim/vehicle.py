@@ -190,6 +190,9 @@ class SimVehicle:
         self.commands: list[CommandRecord] = []
         self.missions: dict[int, list[MissionItem]] = {0: [], 1: [], 2: []}
         self.custom_mode = COPTER_MODE_AUTO
+        #: The mission item "flown to" (MISSION_CURRENT); the simulated flight does not follow
+        #: the stored mission, this only answers the protocol as ArduPilot does.
+        self.mission_current = 0
         self.sent_counts: dict[str, int] = {}
         self.bad_packets = 0
         self.duplicates_dropped = 0
@@ -628,6 +631,9 @@ class SimVehicle:
                 self._send_autopilot_version()
             elif msg_id == M.MAVLINK_MSG_ID_HOME_POSITION:
                 self._send_home()
+            elif msg_id == M.MAVLINK_MSG_ID_MISSION_CURRENT:
+                self._send("MISSION_CURRENT", self._conn.mav.mission_current_send,
+                           self.mission_current, len(self.missions[0]))
             elif msg_id in STREAMS and not (STREAMS[msg_id][0] == "gimbal" and not self.has_gimbal):
                 self._send_stream(msg_id, now)
             else:
@@ -668,6 +674,12 @@ class SimVehicle:
             return M.MAV_RESULT_ACCEPTED
         if command == M.MAV_CMD_DO_SET_ROI_NONE:
             self.flight.set_roi(now, None)
+            return M.MAV_RESULT_ACCEPTED
+        if command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
+            seq = int(p[0])
+            if not 0 <= seq < len(self.missions[0]):
+                return M.MAV_RESULT_DENIED
+            self.mission_current = seq
             return M.MAV_RESULT_ACCEPTED
         return M.MAV_RESULT_UNSUPPORTED
 

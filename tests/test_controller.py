@@ -20,6 +20,7 @@ from sarmission.mission.actions import ROI_SETTLE_S, ActionPolicy, ascii_statust
 from sarmission.mission.config import load_mission
 from sarmission.mission.controller import MissionController
 from sarmission.mission.targets import distance_m
+from sarmission.mission.visits import MoveGate
 from sim.vehicle import SimVehicle
 
 W, H = 960, 540
@@ -226,7 +227,7 @@ def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp
     try:
         assert link.wait_autopilot(5.0)
         actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append)
+                               console=lines.append, move_gate=MoveGate.from_mission(mission))
         ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
                                 filled_buffer(mission, n / FPS), store, actions=actions,
                                 console=lambda s: None)
@@ -293,7 +294,9 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
     try:
         assert link.wait_autopilot(5.0)
         actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append, clock=lambda: now[0])
+                               console=lines.append, clock=lambda: now[0],
+                               move_gate=MoveGate.from_mission(mission),
+                               gimbal_present=lambda: True)
         detector = ScriptedDetector(script_3_of_5(mission, n))
         ctl = MissionController(mission, detector, filled_buffer(mission, 4.0), store,
                                 actions=actions, console=lambda s: None)

@@ -19,13 +19,16 @@ from sarmission.mavlink.commands import REASON_WINDOW_S, CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.config import load_mission
+from sarmission.mission.visits import MoveGate
 from sim.vehicle import ARM_NO_HOME, SimVehicle
 
 NO_ORIGIN = "MAV_CMD_DO_REPOSITION refused: MAV_RESULT_FAILED (no reason given)"
 
 
 def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp_path):
+    # the mission area around the sample alerts (near Canberra): the reposition may go there
     mission = load_mission(overrides={"flight.takeoff": False,
+                                      "area.home_lat": -35.3640, "area.home_lon": 149.1652,
                                       "actions.policy": ["alert", "loiter"],
                                       "actions.statustext_repeats": 1})
     port = free_udp_port()
@@ -44,11 +47,13 @@ def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp
                              f"(autopilot: '{ARM_NO_HOME}')")
 
         actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append)
+                               console=lines.append, move_gate=MoveGate.from_mission(mission))
         alert = make_alert(1)
         store.add(alert)
         actions.announce(alert)
-        assert wait_until(lambda: not actions.pending(), 10.0), actions.pending()
+        # the controller ticks the policy every frame: the visit plan sends the reposition
+        assert wait_until(lambda: actions.tick() or (not actions.pending()
+                                                     and not actions.planner.pending), 10.0)
         stored = store.get(alert.alert_id)
     finally:
         outbox.close()

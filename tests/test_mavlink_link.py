@@ -23,6 +23,7 @@ STREAMS = {
     M.MAVLINK_MSG_ID_ATTITUDE: 20.0,
     M.MAVLINK_MSG_ID_GIMBAL_DEVICE_ATTITUDE_STATUS: 5.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 1.0,
+    M.MAVLINK_MSG_ID_GPS_RAW_INT: 2.0,  # the fix type: positions are believed only with a fix
 }
 
 

@@ -45,6 +45,7 @@ from sarmission.mavlink.telemetry import StaleTelemetry
 from sarmission.mission.actions import ActionPolicy, ascii_statustext
 from sarmission.mission.config import ActionsConfig, MissionConfig, load_mission
 from sarmission.mission.live import LiveSession
+from sarmission.mission.visits import MoveGate
 
 #: Simulation speed-up: ArduPilot's boot, GPS fix, arming and flight go this much faster. The
 #: autopilot's clock (``time_boot_ms``) then runs this much faster than ours, which no real
@@ -260,7 +261,9 @@ def boot(vehicle: Vehicle) -> BootRecord:
         alert = alert_at(*target)
         session.store.add(alert)
         session.actions.announce(alert)
-        wait_for(lambda: session.actions.pending() == 0, 30.0)
+        actions = session.actions  # ticked as the controller does each frame: the visit leaves
+        wait_for(lambda: actions.tick() or (actions.pending() == 0
+                                            and not actions.planner.pending), 30.0)
         rec.policy_refused = session.actions.refused
         rec.policy_delivered = session.actions.delivered
         rec.policy_pending = session.actions.pending()
@@ -518,34 +521,46 @@ def test_reposition_keeps_the_pilots_mission(sitl_binary: Path, airborne: Vehicl
     assert mission_items(pilot) == before
 
 
-@pytest.mark.xfail(strict=True, reason="mission policy keeps the pilot's mission: the action "
-                   "policy 'mission' replaces the pilot's survey with a one-item loiter mission")
 def test_mission_policy_keeps_the_pilots_mission(sitl_binary: Path, airborne: Vehicle,
                                                  link: MavlinkLink, tmp_path: Path) -> None:
     """Action policy ``mission`` for a target: the autopilot's mission afterwards holds a loiter
-    at the target and still the pilot's survey, in order, its loop closing on the same item."""
+    at the target and still the pilot's survey, in order, its loop closing on the same item, and
+    the loiter is the item the vehicle flies to now."""
     pilot = airborne.pilot
     assert mission_items(pilot)[1:] == survey_items(airborne.survey)
     lat, lon, _ = airborne.position()
     target = offset(lat, lon, 60.0, 60.0)
     outbox = Outbox(CommandSender(link))
     lines: list[str] = []
+    home = airborne.home_latlon()
+    area = [(-500.0, -500.0), (-500.0, 800.0), (800.0, 800.0), (800.0, -500.0)]
+    gate = MoveGate(area, home, max_error_m=25.0, margin_m=100.0)
     with AlertStore(tmp_path / "alerts.db") as store:
         policy = ActionPolicy(ActionsConfig(policy=["mission"]), outbox, store,
-                              survey_altitude_m=ALT, console=lines.append)
+                              survey_altitude_m=ALT, console=lines.append, move_gate=gate,
+                              aircraft_position=lambda: airborne.position()[:2])
         alert = alert_at(*target)
         store.add(alert)
         try:
             assert policy.announce(alert) == 1
-            assert wait_for(lambda: policy.pending() == 0, 30.0), "mission action still queued"
+            assert wait_for(lambda: policy.tick() or (policy.pending() == 0
+                                                      and not policy.planner.pending), 60.0), (
+                "mission action still queued")
         finally:
             outbox.close()
     assert (policy.delivered, policy.refused) == (1, 0), lines
     after = mission_items(pilot)
-    loiters = [it for it in after if it[0] == M.MAV_CMD_NAV_LOITER_UNLIM]
-    assert loiters and distance_m(loiters[-1][1] / 1e7, loiters[-1][2] / 1e7, *target) < 1.0
+    loiters = [k for k, it in enumerate(after) if it[0] == M.MAV_CMD_NAV_LOITER_TIME]
+    assert loiters and distance_m(after[loiters[0]][1] / 1e7, after[loiters[0]][2] / 1e7,
+                                  *target) < 1.0
     lost = survey_lost(after, airborne.survey)
     assert not lost, f"{lost}; read back {after}"
+    current = pilot.wait_message(
+        ["MISSION_CURRENT"], lambda m: m.seq == loiters[0], 10.0,
+        send=lambda: pilot.send(pilot.conn.mav.command_long_encode(
+            *pilot.target, M.MAV_CMD_REQUEST_MESSAGE, 0,
+            float(M.MAVLINK_MSG_ID_MISSION_CURRENT), 0, 0, 0, 0, 0, 0)))
+    assert current is not None, f"the vehicle does not fly to the loiter at {loiters[0]}"
 
 
 def test_live_session_alert_reaches_the_pilot_with_the_position_below(

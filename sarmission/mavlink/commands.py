@@ -49,6 +49,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from sarmission.mavlink.connection import M, MavlinkLink
+from sarmission.mavlink.mission_transfer import (
+    MissionTransferError,
+    WireItem,
+    download_mission,
+    insert_visits,
+)
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +106,12 @@ class MissionItem:
     frame: int = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
     params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     autocontinue: int = 1
+
+
+def _wire(item: MissionItem) -> WireItem:
+    return WireItem(item.frame, item.command, tuple(float(p) for p in item.params),
+                    round(item.lat * 1e7), round(item.lon * 1e7), float(item.alt),
+                    item.autocontinue)
 
 
 def _cmd_name(command: int) -> str:
@@ -354,34 +366,26 @@ class CommandSender:
     # -- mission upload ------------------------------------------------------------------------
     def upload_mission(self, items: Sequence[MissionItem]) -> CommandResult:
         """Replace the autopilot's mission with a placeholder home (item 0) and ``items``."""
-        name = "MISSION_UPLOAD"
+        home = WireItem(M.MAV_FRAME_GLOBAL_INT, M.MAV_CMD_NAV_WAYPOINT)
+        return self.upload_items([home, *(_wire(it) for it in items)])
+
+    def upload_items(self, items: Sequence[WireItem],
+                     name: str = "MISSION_UPLOAD") -> CommandResult:
+        """Upload ``items`` exactly as given, item 0 (home) included."""
         if self.link.autopilot is None:
             return CommandResult(name, False, None, 0, "no autopilot detected on the link")
-        home = MissionItem(M.MAV_CMD_NAV_WAYPOINT, 0.0, 0.0, 0.0, frame=M.MAV_FRAME_GLOBAL_INT)
-        all_items = [home, *items]
         mav = self.link.mav
         ts, tc = self.link.target_system, self.link.target_component
         mtype = M.MAV_MISSION_TYPE_MISSION
 
         def item_msg(seq: int) -> Any:
-            it = all_items[seq]
-            return mav.mission_item_int_encode(
-                ts,
-                tc,
-                seq,
-                it.frame,
-                it.command,
-                0,
-                it.autocontinue,
-                *it.params,
-                round(it.lat * 1e7),
-                round(it.lon * 1e7),
-                float(it.alt),
-                mtype,
-            )
+            it = items[seq]
+            return mav.mission_item_int_encode(ts, tc, seq, it.frame, it.command, 0,
+                                               it.autocontinue, *it.params, it.x, it.y,
+                                               float(it.z), mtype)
 
         def count_msg() -> Any:
-            return mav.mission_count_encode(ts, tc, len(all_items), mtype)
+            return mav.mission_count_encode(ts, tc, len(items), mtype)
 
         with (
             self._lock,
@@ -392,9 +396,51 @@ class CommandSender:
         ):
             texts = _AutopilotTexts(self.link)
             try:
-                return self._upload(name, replies, texts, count_msg, item_msg, len(all_items))
+                return self._upload(name, replies, texts, count_msg, item_msg, len(items))
             finally:
                 texts.close()
+
+    def mission_current(self) -> int | None:
+        """The mission item the vehicle is flying to (MISSION_CURRENT, asked for with
+        MAV_CMD_REQUEST_MESSAGE), None when the autopilot does not say."""
+        with self.link.expect(["MISSION_CURRENT"], self.link.from_autopilot) as replies:
+            ack = self.command_long(M.MAV_CMD_REQUEST_MESSAGE,
+                                    float(M.MAVLINK_MSG_ID_MISSION_CURRENT))
+            if not ack.accepted:
+                return None
+            msg = replies.get(self.ack_timeout_s)
+        return None if msg is None else int(msg.seq)
+
+    def insert_visits(self, visits: Sequence[WireItem]) -> CommandResult:
+        """Put ``visits`` into the pilot's mission before the item the vehicle flies to, and
+        make the first visit current: download, insert (DO_JUMPs renumbered), upload the whole
+        mission, MAV_CMD_DO_SET_MISSION_CURRENT. The pilot's items all stay; after the visits
+        the vehicle resumes the survey where it was (in AUTO; in another mode the visits wait
+        for AUTO)."""
+        name = "MISSION_INSERT"
+        if self.link.autopilot is None:
+            return CommandResult(name, False, None, 0, "no autopilot detected on the link")
+        try:
+            with self._lock:
+                items = download_mission(self.link, self.ack_timeout_s, self.retries)
+        except MissionTransferError as exc:
+            return CommandResult(name, False, None, 1, f"{name}: {exc}")
+        current = self.mission_current()
+        if current is None:
+            return CommandResult(name, False, None, 1,
+                                 f"{name}: the autopilot did not say its current mission item")
+        at = min(max(1, current), len(items))
+        uploaded = self.upload_items(insert_visits(items, at, visits), name)
+        if not uploaded.accepted:
+            return uploaded
+        made_current = self.command_long(M.MAV_CMD_DO_SET_MISSION_CURRENT, float(at))
+        if not made_current.accepted:
+            return CommandResult(name, False, made_current.result, uploaded.attempts + 1,
+                                 f"{name}: visits inserted at item {at}, but "
+                                 f"{made_current.error}", made_current.reason)
+        log.info("%d visit(s) inserted before item %d of the pilot's %d", len(visits), at,
+                 len(items) - 1)
+        return CommandResult(name, True, M.MAV_RESULT_ACCEPTED, uploaded.attempts + 1)
 
     def _upload(self, name: str, replies: Any, texts: _AutopilotTexts,
                 count_msg: Callable[[], Any], item_msg: Callable[[int], Any],
@@ -463,8 +509,8 @@ class Action:
 
 ActionCallback = Callable[[Action, CommandResult], None]
 
-_KINDS = ("statustext", "reposition", "set_roi", "clear_roi", "upload_mission", "command_int",
-          "command_long")
+_KINDS = ("statustext", "reposition", "set_roi", "clear_roi", "upload_mission", "insert_visits",
+          "command_int", "command_long")
 
 
 class Outbox:

@@ -501,6 +501,14 @@ class TelemetryBuffer:
         """Home from HOME_POSITION or :meth:`set_home`, None until known."""
         return self._home
 
+    def latest_position(self) -> tuple[float, float] | None:
+        """The newest buffered ``(lat, lon)`` of the vehicle, None when there is none."""
+        with self._lock:
+            if not self._position.values:
+                return None
+            newest = self._position.values[-1]
+            return newest.lat, newest.lon
+
     @property
     def gimbal_reported(self) -> bool:
         """Whether a gimbal attitude is buffered (a gimbal or mount is reporting)."""

@@ -4,21 +4,30 @@ The mission file's ``[actions] policy`` lists, in order, what to do for each new
 
 - ``alert``: STATUSTEXT with severity ALERT (``Alert.statustext()`` in ASCII, at most 50 bytes);
 - ``loiter``: MAV_CMD_DO_REPOSITION as COMMAND_INT to the target at the loiter altitude
-  (``loiter_altitude_m``, else the survey altitude), switching to guided;
+  (``loiter_altitude_m``, else the survey altitude), switching to guided; one visit at a time
+  from the visit plan (:class:`~sarmission.mission.visits.VisitPlanner`: at most one every
+  ``visit_interval_s``, nearest first, close neighbours covered), not one per alert;
 - ``roi``: MAV_CMD_DO_SET_ROI_LOCATION as COMMAND_INT at the target (camera points at it), and
   ``roi_hold_s`` after the newest ROI was delivered, MAV_CMD_DO_SET_ROI_NONE (:meth:`ActionPolicy.
   tick`): the camera goes back to the survey view. A new target's ROI re-points the camera and
-  restarts the hold. While the camera is on a target, and for :data:`ROI_SETTLE_S` after the
-  release, the search pauses (:meth:`ActionPolicy.search_paused`): the camera does not look at
-  the survey strip, and off nadir the motion front-end sees the waves move. Measured with
+  restarts the hold. With a gimbal reporting its attitude, while the camera is on a target and
+  for :data:`ROI_SETTLE_S` after the release, the search pauses (:meth:`ActionPolicy.
+  search_paused`): the camera does not look at the survey strip, and off nadir the motion
+  front-end sees the waves move. Without a gimbal the ROI only turns the vehicle (the fixed
+  camera keeps its view), so the search goes on. Measured with
   ``sarmission demo --actions alert,roi`` (43 s, 17 people in view): without the pause every
   false alert re-pointed the camera (89-91 false alerts, the camera never released); with it
   1-2 false alerts per run, but the camera spent up to 3 x 12 s on targets and 1-3 people were
   found (alert only: 8-10 of 17 found, 6-9 false alerts). A dense scene costs coverage;
-- ``mission``: upload a one-item mission, NAV_LOITER_UNLIM at the target.
+- ``mission``: the pilot's mission is kept: downloaded, the visit plan's targets inserted as
+  NAV_LOITER_TIME items (``visit_loiter_s``) before the item the vehicle flies to, uploaded
+  whole, and the first visit made current; after the visits the survey resumes where it was.
+  At most one insertion every ``visit_interval_s``.
 
 Positional actions are skipped for an alert without a position (there is nowhere to go); when
-its position is found later, the alert is announced again with it.
+its position is found later, the alert is announced again with it. They are withheld, with the
+reason on the console, for a position whose error exceeds ``max_error_m`` or that lies more
+than ``area_margin_m`` outside the mission area (:class:`~sarmission.mission.visits.MoveGate`).
 Everything goes through the :class:`~sarmission.mavlink.commands.Outbox`, which waits for each
 COMMAND_ACK with retries and keeps actions queued while the link is down. The store records what
 is known on each action's own channel (:data:`CHANNELS`): a command's answer (accepted, i.e.
@@ -41,9 +50,11 @@ from typing import NamedTuple
 
 from sarmission.alerts.model import CHANNEL_MAVLINK, Alert
 from sarmission.alerts.store import AlertStore
-from sarmission.mavlink.commands import Action, CommandResult, MissionItem, Outbox
+from sarmission.mavlink.commands import Action, CommandResult, Outbox
 from sarmission.mavlink.connection import M
+from sarmission.mavlink.mission_transfer import loiter_item
 from sarmission.mission.config import ActionsConfig
+from sarmission.mission.visits import MoveGate, VisitPlanner
 
 log = logging.getLogger(__name__)
 
@@ -55,6 +66,7 @@ CHANNELS: dict[str, str] = {
     "mission": "mavlink_mission",
 }
 _POSITIONAL = ("loiter", "roi", "mission")
+_VISITS = ("loiter", "mission")
 #: Outbox key channel of the camera release (not an alert delivery: nothing is stored).
 ROI_RELEASE = "roi_release"
 #: Seconds after the release is delivered until the camera is back on the survey view (the
@@ -70,13 +82,17 @@ class _Key(NamedTuple):
     channel: str
     target_id: int
     short_id: str = ""
+    covered: tuple[str, ...] = ()  # a visit's other alerts (same answer recorded for them)
 
 
 class ActionPolicy:
     """Turns alerts into outbox actions per ``config.policy`` and records what became of them.
 
     ``survey_altitude_m`` is the loiter altitude when the mission gives none;
-    ``target_altitude_m`` is the target's height above home (ROI and mission item altitude).
+    ``target_altitude_m`` is the target's height above home (ROI altitude). ``move_gate``
+    decides where the aircraft may be sent (None: nowhere: positional actions are withheld);
+    ``aircraft_position`` gives its latest ``(lat, lon)`` (nearest visit first);
+    ``gimbal_present`` says whether a gimbal reports its attitude (the ROI pause needs one).
     ``console`` receives one line per command answered and per STATUSTEXT sent all its
     repeats; ``clock`` gives the seconds that ``roi_hold_s`` is counted in. Counters:
     ``acknowledged`` (commands accepted), ``refused``, ``sent`` (STATUSTEXT alerts sent all
@@ -86,7 +102,12 @@ class ActionPolicy:
     def __init__(self, config: ActionsConfig, outbox: Outbox, store: AlertStore,
                  survey_altitude_m: float, target_altitude_m: float = 0.0,
                  console: Callable[[str], None] = print,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, *,
+                 move_gate: MoveGate | None = None,
+                 aircraft_position: Callable[[], tuple[float, float] | None] = lambda: None,
+                 gimbal_present: Callable[[], bool] = lambda: False) -> None:
+        if "loiter" in config.policy and "mission" in config.policy:
+            raise ValueError("policy can hold loiter or mission, not both (one visit plan)")
         self.policy = list(config.policy)
         self.outbox = outbox
         self.store = store
@@ -98,6 +119,14 @@ class ActionPolicy:
         self.repeats = config.statustext_repeats
         self.repeat_interval_s = config.statustext_repeat_interval_s
         self.clock = clock
+        self.move_gate = move_gate
+        self.aircraft_position = aircraft_position
+        self.gimbal_present = gimbal_present
+        self.planner = VisitPlanner(config.visit_interval_s, config.visit_group_radius_m,
+                                    clock=clock)
+        self.visit_loiter_s = config.visit_loiter_s
+        self._visit_alerts: dict[int, Alert] = {}  # target id -> its newest placed alert
+        self.withheld = 0
         self.acknowledged = 0
         self.refused = 0
         self.sent = 0
@@ -116,8 +145,12 @@ class ActionPolicy:
 
     def summary(self) -> str:
         """One line on what the autopilot was told, for the run's summary."""
-        return (f"autopilot commands acknowledged: {self.acknowledged}, refused: {self.refused}; "
-                f"STATUSTEXT alerts sent {self.repeats}x (no acknowledgement exists for "
+        return (f"autopilot commands acknowledged: {self.acknowledged}, refused: {self.refused}"
+                + (f", withheld (no bounded position in the area): {self.withheld}"
+                   if self.withheld else "")
+                + (f", targets waiting for a visit: {len(self.planner.pending)}"
+                   if self.planner.pending else "")
+                + f"; STATUSTEXT alerts sent {self.repeats}x (no acknowledgement exists for "
                 f"STATUSTEXT): {self.sent}; pending: {self.pending()}")
 
     def announce(self, alert: Alert) -> int:
@@ -134,7 +167,7 @@ class ActionPolicy:
         for entry in self.policy:
             channel = CHANNELS[entry]
             pending = self.store.undelivered(channel, self.repeats)
-            if entry in _POSITIONAL:
+            if entry == "roi":  # pointing the camera at an older target would only delay
                 pending = [a for a in pending if a.position is not None][-1:]
             for alert in pending:
                 sends = alert.sent.get(channel)
@@ -155,9 +188,11 @@ class ActionPolicy:
             return self._paused_until is not None and self.clock() < self._paused_until
 
     def tick(self) -> bool:
-        """Release the camera (DO_SET_ROI_NONE) once the newest delivered ROI has been held
-        ``roi_hold_s``, unless another ROI is still on its way (its delivery restarts the hold);
-        call it once per frame. Returns whether a release was queued."""
+        """Call once per frame: sends the next visit when the plan allows one, and releases
+        the camera (DO_SET_ROI_NONE) once the newest delivered ROI has been held ``roi_hold_s``,
+        unless another ROI is still on its way (its delivery restarts the hold). Returns
+        whether a release was queued."""
+        self._dispatch_visits()
         with self._release_lock:
             due = self._release_at
             if due is None or self.clock() < due:
@@ -178,15 +213,49 @@ class ActionPolicy:
         if alert.position is None:
             log.info("target %d has no position: %s skipped", alert.target_id, entry)
             return False
-        lat, lon = alert.position
-        if entry == "loiter":
-            self.outbox.submit("reposition", lat, lon, self.loiter_altitude_m, key=key)
-        elif entry == "roi":
+        refusal = ("no mission area to check it against" if self.move_gate is None
+                   else self.move_gate.refusal(alert.position, alert.error_m))
+        if refusal:
+            self.withheld += 1
+            self.console(f"  -> target {alert.target_id} ({alert.short_id}): {entry} withheld: "
+                         f"{refusal}")
+            return False
+        if entry == "roi":
+            lat, lon = alert.position
             self.outbox.submit("set_roi", lat, lon, self.target_altitude_m, key=key)
-        else:
-            item = MissionItem(M.MAV_CMD_NAV_LOITER_UNLIM, lat, lon, self.loiter_altitude_m)
-            self.outbox.submit("upload_mission", [item], key=key)
+            return True
+        if not self.planner.add(alert.target_id, alert.position):
+            return False  # visited already
+        self._visit_alerts[alert.target_id] = alert
         return True
+
+    def _dispatch_visits(self) -> None:
+        """The next visit (``loiter``) or the whole pending plan (``mission``), when due."""
+        entry = next((e for e in self.policy if e in _VISITS), None)
+        if entry is None or not self.planner.pending or self.planner.seconds_to_next() > 0:
+            return
+        here = self.aircraft_position()
+        visits = ([v for v in [self.planner.next_visit(here)] if v is not None]
+                  if entry == "loiter" else self.planner.tour(here))
+        if not visits:
+            return
+        alerts = [self._visit_alerts.pop(t) for v in visits for t in v.covered
+                  if t in self._visit_alerts]
+        if not alerts:
+            return
+        first = next((a for a in alerts if a.target_id == visits[0].target_id), alerts[0])
+        key = _Key(first.alert_id, CHANNELS[entry], first.target_id, first.short_id,
+                   tuple(a.alert_id for a in alerts if a is not first))
+        if entry == "loiter":
+            lat, lon = visits[0].position
+            self.outbox.submit("reposition", lat, lon, self.loiter_altitude_m, key=key)
+        else:
+            items = [loiter_item(*v.position, self.loiter_altitude_m, self.visit_loiter_s)
+                     for v in visits]
+            self.outbox.submit("insert_visits", items, key=key)
+        covered = ", ".join(str(t) for v in visits for t in v.covered)
+        self.console(f"  -> visit plan: {entry} to target{'s' if len(alerts) > 1 else ''} "
+                     f"{covered}")
 
     def _on_sent(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
@@ -204,10 +273,15 @@ class ActionPolicy:
             self.console("  -> camera back to the survey view (DO_SET_ROI_NONE)")
             return
         if key.channel == CHANNELS["roi"]:
+            gimbal = self.gimbal_present()
             with self._release_lock:
                 self._release_at = self.clock() + self.roi_hold_s
-                self._paused_until = math.inf
-        self.store.record_ack(key.alert_id, key.channel, result.result or 0)
+                self._paused_until = math.inf if gimbal else None
+            if not gimbal:
+                log.info("ROI without a gimbal reporting: it turns the vehicle, the fixed "
+                         "camera keeps its view, the search goes on")
+        for alert_id in (key.alert_id, *key.covered):
+            self.store.record_ack(alert_id, key.channel, result.result or 0)
         self.acknowledged += 1
         self.console(f"  -> target {key.target_id}: {result.name} acknowledged "
                      f"({action.attempts} attempt{'s' if action.attempts != 1 else ''})")
@@ -221,7 +295,8 @@ class ActionPolicy:
             self.console(f"  -> camera release: {result.error}")
             return
         if result.result is not None:
-            self.store.record_ack(key.alert_id, key.channel, result.result, result.error)
+            for alert_id in (key.alert_id, *key.covered):
+                self.store.record_ack(alert_id, key.channel, result.result, result.error)
         self.console(f"  -> target {key.target_id}: {result.error}")
 
 

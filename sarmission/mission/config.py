@@ -178,7 +178,12 @@ class ActionsConfig:
     so that the search goes on at the survey view (a long hold keeps it on the target).
     STATUSTEXT has no acknowledgement, so the alert is sent ``statustext_repeats`` times,
     ``statustext_repeat_interval_s`` apart: with 30 % independent loss 5 sends reach the
-    autopilot 99.8 % of the time (1 - 0.3^5; 4 would give 99.2 %, little margin for bursts)."""
+    autopilot 99.8 % of the time (1 - 0.3^5; 4 would give 99.2 %, little margin for bursts).
+    Commands that move the aircraft (``loiter``, ``mission``; also ``roi``) go only to targets
+    whose position error is at most ``max_error_m`` and that lie inside the area or within
+    ``area_margin_m`` of it; ``loiter`` and ``mission`` follow one visit plan, at most one move
+    every ``visit_interval_s``, nearest target first, targets within ``visit_group_radius_m``
+    of it covered by the same visit; ``mission`` loiters ``visit_loiter_s`` at each."""
 
     policy: list[str] = field(default_factory=lambda: ["alert"])
     retries: int = 3
@@ -187,6 +192,11 @@ class ActionsConfig:
     roi_hold_s: float = 10.0
     statustext_repeats: int = 5
     statustext_repeat_interval_s: float = 1.0
+    max_error_m: float = 25.0
+    area_margin_m: float = 200.0
+    visit_interval_s: float = 60.0
+    visit_group_radius_m: float = 30.0
+    visit_loiter_s: float = 30.0
 
 
 @dataclass
@@ -410,6 +420,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
                 "[actions] policy",
                 f"unknown action '{p}' (expected any of {', '.join(ACTION_POLICIES)})",
             )
+    if "loiter" in cfg.actions.policy and "mission" in cfg.actions.policy:
+        raise bad("[actions] policy", "loiter and mission both move the aircraft: choose one")
     if cfg.actions.retries < 0 or cfg.actions.ack_timeout_s <= 0:
         raise bad("[actions] retries/ack_timeout_s", "expected retries >= 0 and a positive timeout")
     if not cfg.actions.roi_hold_s > 0:
@@ -425,6 +437,12 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
             raise bad(f"[telemetry] {key}", "expected a number >= 0")
     if t.stale_after_s <= 0 or t.gnss_noise_tau_s <= 0:
         raise bad("[telemetry] stale_after_s/gnss_noise_tau_s", "expected positive numbers")
+    for key in ("max_error_m", "visit_loiter_s"):
+        if not getattr(cfg.actions, key) > 0:
+            raise bad(f"[actions] {key}", "expected a positive number")
+    for key in ("area_margin_m", "visit_interval_s", "visit_group_radius_m"):
+        if getattr(cfg.actions, key) < 0:
+            raise bad(f"[actions] {key}", "expected a number >= 0")
     if cfg.geolocation.min_height_m < 0:
         raise bad("[geolocation] min_height_m", "expected a number >= 0")
 

@@ -428,8 +428,7 @@ class MissionController:
         if s.paused:
             lines.append(f"frames not searched while the camera was on a target: {s.paused}")
         if self.actions is not None:
-            lines.append(f"autopilot actions delivered: {self.actions.delivered}, refused: "
-                         f"{self.actions.refused}, pending: {self.actions.pending()}")
+            lines.append(self.actions.summary())
         return "\n".join(lines)
 
 

@@ -33,6 +33,7 @@ from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.controller import Detector, MissionController
 from sarmission.mission.live_sources import LiveSource
+from sarmission.mission.visits import MoveGate
 from sarmission.viz.recorder import Recorder
 
 log = logging.getLogger(__name__)
@@ -140,9 +141,13 @@ class LiveSession:
                                            mission.actions.ack_timeout_s))
         ground = mission.area.ground_alt_m
         target_alt = 0.0 if ground is None else ground - mission.area.home_alt_m
+        telemetry = self.telemetry
         self.actions = ActionPolicy(mission.actions, self.outbox, self.store,
                                     survey_altitude_m=mission.flight.altitude_m,
-                                    target_altitude_m=target_alt, console=self.console)
+                                    target_altitude_m=target_alt, console=self.console,
+                                    move_gate=MoveGate.from_mission(mission),
+                                    aircraft_position=telemetry.latest_position,
+                                    gimbal_present=lambda: telemetry.gimbal_reported)
         resumed = self.actions.resume()
         if resumed:
             self.console(f"re-sending {resumed} undelivered autopilot action(s) from the store")
@@ -198,9 +203,13 @@ class LiveSession:
             why = self.link.diagnosis() or (f"autopilot silent for {self.link.silence_s():.1f} s")
             self.console(f"link lost: {why}; alerts are kept and queued")
 
-    def close(self, drain_s: float = 3.0) -> str:
-        """Let queued actions go out for up to ``drain_s`` seconds (while the link is up), close
-        everything and return the run's summary."""
+    def close(self, drain_s: float | None = None) -> str:
+        """Let queued actions go out for up to ``drain_s`` seconds (while the link is up; by
+        default long enough for a STATUSTEXT's repeats), close everything and return the run's
+        summary."""
+        if drain_s is None:
+            a = self.mission.actions
+            drain_s = max(3.0, (a.statustext_repeats - 1) * a.statustext_repeat_interval_s + 1.0)
         deadline = time.monotonic() + drain_s
         while (self.link is not None and self.link.link_ok and self.actions.pending()
                and time.monotonic() < deadline):
@@ -216,7 +225,7 @@ class LiveSession:
             lines.append(f"frame source: {self.source.skipped} frame(s) could not be read")
         pending = self.actions.pending()
         if pending:
-            lines.append(f"{pending} autopilot action(s) not delivered; they stay queued in "
+            lines.append(f"{pending} autopilot action(s) not finished; they stay queued in "
                          f"{self.store.path} for the next run")
         self._close_resources()
         return "\n".join(lines)

@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from sarmission.geo.wgs84 import geodetic_to_ned
+from sarmission.mission.config import MissionConfig
 
 
 def _distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -46,6 +47,13 @@ class MoveGate:
         self.origin = area_origin
         self.max_error_m = max_error_m
         self.margin_m = margin_m
+
+    @classmethod
+    def from_mission(cls, mission: MissionConfig) -> MoveGate:
+        """The gate of a mission: its area (around the mission's planned home, where the area
+        is defined) and its ``[actions] max_error_m`` / ``area_margin_m``."""
+        return cls(mission.area.polygon_ne(), mission.area.home[:2],
+                   mission.actions.max_error_m, mission.actions.area_margin_m)
 
     def refusal(self, position: tuple[float, float] | None, error_m: float | None) -> str:
         """"" when ``position`` (with 1-sigma ``error_m``) may be flown to, else why not."""

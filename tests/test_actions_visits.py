@@ -1,0 +1,181 @@
+"""Actions a pilot can live with, over real UDP against the simulated vehicle: one visit plan
+instead of a reposition per alert, the pilot's mission kept when visits go into it, moving
+commands only to bounded positions inside the area, the ROI pause only with a gimbal."""
+
+import pymap3d
+import pytest
+from alert_samples import make_alert
+from conftest import free_udp_port, wait_until
+
+from sarmission.alerts.store import AlertStore
+from sarmission.mavlink.commands import CommandSender, Outbox
+from sarmission.mavlink.connection import M, MavlinkLink
+from sarmission.mavlink.mission_transfer import WireItem
+from sarmission.mission.actions import ActionPolicy
+from sarmission.mission.config import load_mission
+from sarmission.mission.visits import MoveGate
+from sim.vehicle import MissionItem, SimVehicle
+
+HOME = (-35.3640, 149.1652)  # the mission area's origin; the area: 40-200 m N, +-100 m E
+REL = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+
+
+def at(north: float, east: float) -> tuple[float, float]:
+    lat, lon, _ = pymap3d.ned2geodetic(north, east, 0.0, *HOME, 0.0)
+    return float(lat), float(lon)
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Rig:
+    """The simulated vehicle, our link, outbox, store and an action policy with a fake clock."""
+
+    def __init__(self, tmp_path, policy: list[str], aircraft=None, gimbal=False, **actions):
+        overrides = {"flight.takeoff": False, "area.home_lat": HOME[0],
+                     "area.home_lon": HOME[1], "actions.policy": policy,
+                     "actions.statustext_repeats": 1}
+        overrides.update({f"actions.{k}": v for k, v in actions.items()})
+        self.mission = load_mission(overrides=overrides)
+        port = free_udp_port()
+        self.vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", self.mission).start()
+        self.link = MavlinkLink(f"udpout:127.0.0.1:{port}")
+        self.outbox = Outbox(CommandSender(self.link, retries=2, ack_timeout_s=1.0))
+        self.store = AlertStore(tmp_path / "alerts.db")
+        self.lines: list[str] = []
+        self.clock = Clock()
+        assert self.link.wait_autopilot(5.0)
+        self.policy = ActionPolicy(self.mission.actions, self.outbox, self.store,
+                                   survey_altitude_m=50.0, console=self.lines.append,
+                                   clock=self.clock,
+                                   move_gate=MoveGate.from_mission(self.mission),
+                                   aircraft_position=lambda: aircraft,
+                                   gimbal_present=lambda: gimbal)
+
+    def alert(self, target_id: int, north: float, east: float, error_m: float = 3.0):
+        alert = make_alert(target_id, position=at(north, east), error_m=error_m)
+        self.store.add(alert)
+        self.policy.announce(alert)
+        return alert
+
+    def settle(self) -> None:
+        """Tick like the controller does until nothing is queued."""
+        assert wait_until(lambda: self.policy.tick() or not self.policy.pending(), 15.0), (
+            self.policy.pending(), self.lines)
+
+    def commands(self, command: int) -> list:
+        return [c for c in self.vehicle.commands if c.command == command]
+
+    def close(self) -> None:
+        self.outbox.close()
+        self.link.close()
+        self.vehicle.stop()
+        self.store.close()
+
+
+@pytest.fixture
+def rig_factory(tmp_path):
+    rigs = []
+
+    def make(*args, **kwargs) -> Rig:
+        rigs.append(Rig(tmp_path, *args, **kwargs))
+        return rigs[-1]
+
+    yield make
+    for rig in rigs:
+        rig.close()
+
+
+def test_sixteen_alerts_in_ten_seconds_make_one_reposition_then_the_nearest(rig_factory):
+    rig = rig_factory(["loiter"], aircraft=at(40.0, 0.0))
+    first_visit_at = rig.clock.t + 10.0 / 16  # the first tick, after the first alert
+    for k in range(16):  # 16 people 8 m apart in a line northwards, within 10 s
+        rig.alert(k + 1, 60.0 + 8.0 * k, 0.0)
+        rig.clock.t += 10.0 / 16
+        rig.policy.tick()
+    rig.settle()
+    (first,) = rig.commands(M.MAV_CMD_DO_REPOSITION)  # the first alert leaves at once
+    assert first.params[4:6] == pytest.approx([round(v * 1e7) for v in at(60.0, 0.0)], abs=1)
+    assert sorted(rig.policy.planner.visited) == [1]
+    rig.clock.t = first_visit_at + 59.0
+    rig.settle()
+    assert len(rig.commands(M.MAV_CMD_DO_REPOSITION)) == 1  # the interval is not over
+    rig.clock.t = first_visit_at + 60.0
+    rig.settle()
+    first, second = rig.commands(M.MAV_CMD_DO_REPOSITION)
+    # nearest to the aircraft: target 2 at 68 m N, covering 3-5 within 30 m of it
+    assert second.params[4:6] == pytest.approx([round(v * 1e7) for v in at(68.0, 0.0)], abs=1)
+    assert sorted(rig.policy.planner.visited) == [1, 2, 3, 4, 5]
+    delivered = [a for a in rig.store.list() if "mavlink_loiter" in a.delivered]
+    assert sorted(a.target_id for a in delivered) == [1, 2, 3, 4, 5]
+    assert any("visit plan: loiter to target" in line for line in rig.lines)
+
+
+def survey_items() -> list[MissionItem]:
+    """The pilot's mission on the vehicle: home, speed, a 4-corner box, DO_JUMP back to 2."""
+    wire = [WireItem(M.MAV_FRAME_GLOBAL, M.MAV_CMD_NAV_WAYPOINT, x=round(HOME[0] * 1e7),
+                     y=round(HOME[1] * 1e7)),
+            WireItem(2, M.MAV_CMD_DO_CHANGE_SPEED, (1.0, 5.0, -1.0, 0.0))]
+    for n, e in ((200, -100), (200, 100), (40, 100), (40, -100)):
+        lat, lon = at(n, e)
+        wire.append(WireItem(REL, M.MAV_CMD_NAV_WAYPOINT, x=round(lat * 1e7),
+                             y=round(lon * 1e7), z=60.0))
+    wire.append(WireItem(2, M.MAV_CMD_DO_JUMP, (2.0, -1.0, 0.0, 0.0)))
+    return [MissionItem(seq, w.frame, w.command, 0, w.autocontinue, *w.params, w.x, w.y, w.z)
+            for seq, w in enumerate(wire)]
+
+
+def test_mission_policy_keeps_the_pilots_mission_and_inserts_the_visits(rig_factory):
+    rig = rig_factory(["alert", "mission"], aircraft=at(40.0, 0.0), visit_loiter_s=20.0)
+    pilot = survey_items()
+    rig.vehicle.missions[0] = list(pilot)
+    rig.vehicle.mission_current = 4  # flying to the third corner
+    rig.alert(1, 150.0, 50.0)
+    rig.alert(2, 100.0, -50.0)
+    rig.settle()
+    after = rig.vehicle.missions[0]
+    loiters = [it for it in after if it.command == M.MAV_CMD_NAV_LOITER_TIME]
+    assert [(it.seq, it.param1) for it in loiters] == [(4, 20.0), (5, 20.0)]
+    # nearest first from the aircraft at 40 m N: target 2 (100 N, -50 E), then target 1
+    assert [(it.x, it.y) for it in loiters] == [
+        tuple(round(v * 1e7) for v in at(100.0, -50.0)),
+        tuple(round(v * 1e7) for v in at(150.0, 50.0))]
+    kept = [it for it in after if it.command != M.MAV_CMD_NAV_LOITER_TIME]
+    assert [(it.command, it.x, it.y, it.z) for it in kept[1:-1]] == [
+        (it.command, it.x, it.y, it.z) for it in pilot[1:-1]]
+    assert kept[-1].command == M.MAV_CMD_DO_JUMP and kept[-1].param1 == 2.0  # loop unchanged
+    assert rig.vehicle.mission_current == 4  # the first visit is what the vehicle flies now
+    assert rig.policy.acknowledged == 1
+    assert all("mavlink_mission" in a.delivered for a in rig.store.list())
+
+
+@pytest.mark.parametrize(
+    ("north", "east", "error_m", "why"),
+    [(100.0, 0.0, 40.0, "position error 40 m exceeds 25 m"),
+     (100.0, 400.0, 3.0, "300 m outside the mission area (allowed: 200 m)")],
+)
+def test_moving_commands_only_to_bounded_positions_in_the_area(rig_factory, north, east,
+                                                                error_m, why):
+    rig = rig_factory(["alert", "loiter", "roi"])
+    rig.alert(1, north, east, error_m=error_m)
+    rig.clock.t += 120.0
+    rig.settle()
+    assert rig.commands(M.MAV_CMD_DO_REPOSITION) == []
+    assert rig.commands(M.MAV_CMD_DO_SET_ROI_LOCATION) == []
+    assert f"  -> target 1 (T1-{rig.store.list()[0].short_id[-2:]}): loiter withheld: {why}" \
+        in rig.lines
+    assert rig.policy.withheld == 2  # loiter and roi
+
+
+@pytest.mark.parametrize("gimbal", [False, True])
+def test_the_roi_pauses_the_search_only_with_a_gimbal(rig_factory, gimbal):
+    rig = rig_factory(["roi"], gimbal=gimbal)
+    rig.alert(1, 100.0, 0.0)
+    rig.settle()
+    assert len(rig.commands(M.MAV_CMD_DO_SET_ROI_LOCATION)) == 1
+    assert rig.policy.search_paused() is gimbal
