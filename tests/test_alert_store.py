@@ -407,3 +407,14 @@ def test_newer_schema_is_refused(tmp_path: Path) -> None:
 def test_directory_is_refused(tmp_path: Path) -> None:
     with pytest.raises(SarmissionError, match="directory"):
         AlertStore(tmp_path)
+
+
+def test_known_fixes_carry_the_error_of_each_latest_position(tmp_path: Path) -> None:
+    with AlertStore(tmp_path / "a.db") as store:
+        store.add(make_alert(1, error_m=6.5))
+        store.add(make_alert(2, positioned=False))
+        store.add(make_alert(3, error_m=None))
+        known = store.known_fixes("test-mission")
+    assert known[1][2] == pytest.approx(6.5) and known[1][:2] == make_alert(1).position
+    assert known[2] is None
+    assert known[3][2] is None

@@ -157,6 +157,9 @@ class AnnouncedActions:
     def search_paused(self) -> bool:
         return False
 
+    def summary(self) -> str:
+        return f"announced: {len(self.announced)}"
+
 
 @pytest.mark.parametrize("reborn", [False, True], ids=["same track", "track re-born"])
 def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission, reborn):

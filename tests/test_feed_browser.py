@@ -182,6 +182,15 @@ def test_new_alert_shows_within_a_second_and_ack_button_works(
         assert f"{lat:.6f}, {lon:.6f}" in text
         assert browser.js(f"{card}.dataset.acknowledged") == "0"
         browser.wait_for(f"{card}.querySelector('img.thumb').naturalWidth > 0", timeout=3.0)
+        # what the autopilot was told, as the store knows it: sends, never "delivered"
+        store.record_sent(alert.alert_id, "mavlink")
+        store.record_sent(alert.alert_id, "mavlink")
+        store.record_ack(alert.alert_id, "mavlink_loiter", 4, "refused: MAV_RESULT_FAILED")
+        browser.wait_for(f"{card}.innerText.includes('STATUSTEXT sent 2\u00d7 (no "
+                         f"acknowledgement)')", timeout=5.0)
+        browser.wait_for(f"{card}.innerText.includes('loiter refused: refused: "
+                         f"MAV_RESULT_FAILED')", timeout=5.0)
+        assert alert.short_id in browser.js(f"{card}.innerText")
         assert browser.js("document.getElementById('unacked').textContent") == "2"
         browser.screenshot(SCREENSHOT)
 

@@ -71,6 +71,8 @@ def test_spoofer_heard_first_then_silent_hands_the_link_to_the_vehicle(mission, 
 
             spoofer.close()  # the spoofer falls silent; the vehicle keeps beating
             assert wait_until(lambda: link.autopilot == (1, 1), 15.0), link.autopilot
+            # the callbacks run on the reader thread right after the switch
+            assert wait_until(lambda: len(adopted) == 2, 5.0), adopted
             assert adopted == [((77, 1), None), ((1, 1), (77, 1))]
             assert link.adoptions == 2 and link.target_system == 1
             readoption = [
@@ -185,6 +187,7 @@ def test_foreign_telemetry_is_ignored_and_counted(mission, caplog):
                     and link.ignored[(1, 99, "GLOBAL_POSITION_INT")] > 0
                     and link.ignored[(1, M.MAV_COMP_ID_GIMBAL, "GLOBAL_POSITION_INT")] > 0
                     and (1, M.MAV_COMP_ID_GIMBAL, "MOUNT_ORIENTATION") in got
+                    and (1, 1, "HOME_POSITION") in got  # streamed every 2 s
                 )
 
             assert wait_until(inject, 10.0, step=0.2)

@@ -74,7 +74,11 @@ def session_for(mission, vehicle, port, db, targets, lines, **camera_kwargs):
 
 
 def test_targets_alerted_once_loiter_acknowledged_despite_garbage(tmp_path):
-    mission = mission_with(**{"actions.policy": ["alert", "loiter"]})
+    # one visit every 2 s (60 s by default), a group radius below their spacing: each person
+    # gets a reposition of their own within the run
+    mission = mission_with(**{"actions.policy": ["alert", "loiter"],
+                              "actions.visit_interval_s": 2.0,
+                              "actions.visit_group_radius_m": 5.0})
     targets = [(20.0, 5.0), (30.0, 15.0)]  # 14 m apart: two people
     port = free_udp_port()
     vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission, stream_on_request=True).start()

@@ -65,6 +65,7 @@ PAGE_HTML = """<!doctype html>
   .meta { color: var(--muted); font-size: 14px; }
   .chip { display: inline-block; font-size: 12px; font-weight: 600; padding: 1px 7px;
           border-radius: 10px; background: #e8eaf6; color: #283593; margin-right: 6px; }
+  .chip.refused { background: #fde7e7; color: #8b1a1a; }
   .ack { font: 700 16px system-ui, sans-serif; color: #fff; background: var(--red); border: 0;
          border-radius: 6px; padding: 12px 20px; cursor: pointer; min-width: 150px; }
   .ack:hover { filter: brightness(1.1); }
@@ -158,7 +159,8 @@ function render(a) {
   }
   const title = el("div", "title", a.class_name);
   title.appendChild(el("span", "score", a.score.toFixed(2)));
-  title.appendChild(el("span", "target", "target " + a.target_id));
+  title.appendChild(el("span", "target", "target " + a.target_id
+    + (a.short_id ? " \u00b7 " + a.short_id : "")));
   card.appendChild(title);
   const where = el("div", "where");
   if (a.position) {
@@ -185,7 +187,21 @@ function render(a) {
   when.textContent = utc(a.lock_time) + " \\u00b7 " + age(a.lock_time);
   meta.appendChild(when);
   meta.appendChild(document.createTextNode(" \\u00b7 frame " + a.frame_index + " "));
-  if (a.delivered.mavlink !== undefined) meta.appendChild(el("span", "chip", "autopilot told"));
+  const names = {mavlink_loiter: "loiter", mavlink_roi: "camera ROI",
+                 mavlink_mission: "mission visit"};
+  const sent = a.sent || {};
+  if (sent.mavlink) {
+    meta.appendChild(el("span", "chip", "STATUSTEXT sent " + sent.mavlink.count
+      + "\u00d7 (no acknowledgement)"));
+  }
+  for (const ch of Object.keys(a.delivered)) {
+    if (names[ch]) meta.appendChild(el("span", "chip", names[ch] + " acknowledged"));
+  }
+  for (const [ch, r] of Object.entries(a.refused || {})) {
+    if (names[ch]) {
+      meta.appendChild(el("span", "chip refused", names[ch] + " refused: " + r.reason));
+    }
+  }
   if (a.delivered.cot !== undefined) meta.appendChild(el("span", "chip", "TAK sent"));
   card.appendChild(meta);
   const side = el("div", "side");

@@ -476,6 +476,24 @@ class AlertStore:
                 known.setdefault(target_id, None)
         return known
 
+    def known_fixes(self, mission_id: str
+                    ) -> dict[int, tuple[float, float, float | None] | None]:
+        """Like :meth:`known_targets`, with the 1-sigma error of each latest position:
+        target id -> ``(lat, lon, error_m)`` (error None when unknown), or None without a
+        position. The restarted registry matches new fixes against each by its own error."""
+        with self._lock:
+            rows = self._conn.execute(
+                "SELECT target_id, lat, lon, error_m FROM alerts WHERE mission_id = ? "
+                "ORDER BY seq", (mission_id,),
+            ).fetchall()
+        known: dict[int, tuple[float, float, float | None] | None] = {}
+        for target_id, lat, lon, error_m in rows:
+            if lat is not None and lon is not None:
+                known[target_id] = (lat, lon, error_m)
+            else:
+                known.setdefault(target_id, None)
+        return known
+
     def events(self, after: int = 0) -> list[AlertEvent]:
         """Events with ``seq > after``, oldest first."""
         with self._lock:

@@ -47,7 +47,7 @@ from sarmission.geo.geolocate import GeoFix, PlatformPose, geolocate
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.config import MissionConfig
-from sarmission.mission.targets import Target, TargetRegistry
+from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
@@ -136,7 +136,10 @@ class MissionController:
         self.tracker = Tracker(lock_m=mission.lock.m, lock_k=mission.lock.k,
                                lock_min_score=mission.lock.min_score)
         self.registry = TargetRegistry(merge_radius_m)
-        self.registry.seed(store.known_targets(self.mission_id))
+        self.registry.seed({
+            target_id: KnownTarget(None if fix is None else (fix[0], fix[1]),
+                                   None if fix is None else fix[2])
+            for target_id, fix in store.known_fixes(self.mission_id).items()})
         self.known_at_start = len(self.registry)
         self.console = console
         self.stats = ControllerStats()
