@@ -189,7 +189,7 @@ def test_messages_home_gps_accuracy_mount_orientation_and_no_origin():
     assert buf.home == pytest.approx((54.17, 7.89, 12.5))
     gps = M.MAVLink_gps_raw_int_message(0, 3, 0, 0, 0, 120, 200, 0, 0, 10, 0, 1500, 2500, 0, 0, 0)
     buf.handle_message(gps, 10.0)
-    assert buf.rejected["GLOBAL_POSITION_INT: no position yet (0, 0)"] == 1
+    assert buf.rejected["GLOBAL_POSITION_INT: no position yet (N, N)"] == 1
     buf.handle_message(M.MAVLink_attitude_message(1000, 0.0, 0.0, 1.0, 0, 0, 0), 10.0)
     buf.handle_message(
         M.MAVLink_global_position_int_message(1000, 541700000, 78900000, 0, 1, 0, 0, 0, 0), 10.0

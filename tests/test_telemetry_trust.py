@@ -70,7 +70,7 @@ def test_a_pose_needs_home_and_a_3d_gps_fix():
         buf.handle_message(wire(gps(fix_type=1)), 100.0 + 0.1 * k)
         buf.handle_message(wire(position(1000 + 100 * k)), 100.0 + 0.1 * k)
         buf.handle_message(wire(attitude(1000 + 100 * k)), 100.0 + 0.1 * k)
-    assert buf.rejected["GLOBAL_POSITION_INT: no 3D GPS fix (fix type 1)"] == 5
+    assert buf.rejected["GLOBAL_POSITION_INT: no 3D GPS fix (fix type N)"] == 5
     assert buf.lookup(100.2).reason == "no home position from the autopilot yet"
     buf.handle_message(wire(home()), 100.5)
     assert buf.lookup(100.2).reason == "no position yet"
@@ -79,7 +79,7 @@ def test_a_pose_needs_home_and_a_3d_gps_fix():
     assert pose is not None and pose.lat == pytest.approx(HOME_LAT)
     # the GPS_RAW_INT stream stops: positions are no longer believed
     buf.handle_message(wire(position(3000)), last + 6.0)
-    assert buf.rejected["GLOBAL_POSITION_INT: GPS_RAW_INT older than 5 s: GPS fix unknown"] == 1
+    assert buf.rejected["GLOBAL_POSITION_INT: GPS_RAW_INT older than N s: GPS fix unknown"] == 1
 
 
 def test_no_gps_raw_int_at_all_means_no_position():
@@ -99,16 +99,16 @@ def test_no_gps_raw_int_at_all_means_no_position():
          "MOUNT_ORIENTATION: mount angles not finite"),
         (M.MAVLink_mount_orientation_message(10_500, 0.0, -60.0, 10.0, INF),
          "MOUNT_ORIENTATION: mount yaw_absolute out of range"),
-        (position(10_500, lat=214.7), "GLOBAL_POSITION_INT: lat 214.7 out of range"),
+        (position(10_500, lat=214.7), "GLOBAL_POSITION_INT: lat N out of range"),
         (M.MAVLink_attitude_message(10_500, NAN, 0.0, 0.0, 0, 0, 0),
          "ATTITUDE: attitude not finite"),
         (M.MAVLink_attitude_quaternion_message(10_500, 0.0, 0.0, 0.0, 0.0, 0, 0, 0),
-         "ATTITUDE_QUATERNION: quaternion norm 0"),
+         "ATTITUDE_QUATERNION: quaternion norm N"),
         (M.MAVLink_gimbal_device_attitude_status_message(
             0, 0, 10_500, 0, [NAN, 0, 0, 0], NAN, NAN, NAN, 0, NAN, NAN, 1),
          "GIMBAL_DEVICE_ATTITUDE_STATUS: gimbal quaternion not finite"),
         (M.MAVLink_home_position_message(0, 2_000_000_000, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0),
-         "HOME_POSITION: lon 200 out of range"),
+         "HOME_POSITION: lon N out of range"),
     ],
 )
 def test_absurd_fields_are_rejected_and_counted_never_believed(bad, reason):
@@ -137,7 +137,7 @@ def test_a_position_jump_faster_than_an_aircraft_is_rejected():
     buf = TelemetryBuffer()
     last = feed(buf, 10.0, 5)
     buf.handle_message(wire(position(10_500, lat=HOME_LAT + 0.05)), last + 0.1)  # 5.6 km in 0.1 s
-    assert any(k.startswith("GLOBAL_POSITION_INT: position jump of 55") for k in buf.rejected)
+    assert buf.rejected["GLOBAL_POSITION_INT: position jump of N m in N s"] == 1
     assert buf.pose_at(last + 0.1).lat == pytest.approx(HOME_LAT)
 
 

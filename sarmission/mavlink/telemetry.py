@@ -46,6 +46,7 @@ from __future__ import annotations
 import bisect
 import logging
 import math
+import re
 import threading
 import time
 from collections import Counter, deque
@@ -95,6 +96,7 @@ JUMP_CHECK_S = 2.0
 JUMP_SLACK_M = 10.0
 #: Least seconds between two warnings of the same rejection reason.
 WARN_INTERVAL_S = 5.0
+_NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
 
 @dataclass(frozen=True)
@@ -366,10 +368,12 @@ class TelemetryBuffer:
                 self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw)), "vehicle")
 
     def _reject(self, mtype: str, reason: str) -> None:
-        key = f"{mtype}: {reason}"
+        """Count a rejected message under its reason with the numbers left out (so a sender
+        varying them cannot grow the counter or dodge the warning limit); warn with them."""
+        key = f"{mtype}: {_NUMBER.sub('N', reason)}"
         with self._lock:
             self.rejected[key] += 1
-        self._warn.event(key, "telemetry rejected: %s", key)
+        self._warn.event(key, "telemetry rejected: %s: %s", mtype, reason)
 
     def _clock_for(self, source: tuple[int, int], mtype: str) -> BootClock:
         clock = self._clocks.get(source)
