@@ -9,7 +9,8 @@ clip.mp4`` with the default mission, in two phases:
 - ``survey``: started while the vehicle flies a 300 m box survey at 60 m in AUTO.
 
 A pilot on SITL's ground-station port flies the vehicle and records its position. Every alert
-in the run's store is compared with where the vehicle was when the target was locked: a correct
+in the run's store is compared with where the vehicle was when its position was computed (the
+lock, or when a position was attached to an alert locked without one): a correct
 fix lies inside the camera's footprint (well under 600 m at 60 m), so "over 600 m" counts
 positions that are certainly wrong, and so is any position computed while the vehicle stood on
 the ground (below 2 m), where the camera sees nothing it could place. The video shows a
@@ -97,12 +98,15 @@ def start_run(checkout: Path, url: str, video: Path, db: Path, duration_s: float
 def score(db: Path, track: Track, log: Path) -> dict[str, object]:
     """Alerts in ``db`` against the vehicle's track; the run's exit and tracebacks."""
     with sqlite3.connect(db) as conn:
-        rows = conn.execute("SELECT lock_time, lat, lon, error_m FROM alerts").fetchall()
+        # a position attached after the lock was computed when it was attached (event time)
+        rows = conn.execute(
+            "SELECT a.lock_time, a.lat, a.lon, a.error_m, (SELECT MIN(e.time) FROM events e "
+            "WHERE e.alert_id = a.alert_id AND e.kind = 'position') FROM alerts a").fetchall()
     distances, errors, grounded = [], [], 0
-    for lock_time, lat, lon, error_m in rows:
+    for lock_time, lat, lon, error_m, attached in rows:
         if lat is None or lon is None:
             continue
-        where = track.at(lock_time)
+        where = track.at(lock_time if attached is None else attached)
         if where is None:
             distances.append(math.inf)
             continue
@@ -156,30 +160,56 @@ def run_phase(phase: str, sitl_binary: Path, checkout: Path, video: Path, work: 
         sitl.stop()
 
 
+def revision(checkout: Path) -> str:
+    """The checkout's commit (short hash), as the table names it."""
+    done = subprocess.run(["git", "-C", str(checkout), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True)
+    return done.stdout.strip() or str(checkout)
+
+
+def table(rows: list[tuple[str, str, dict[str, object]]]) -> str:
+    def fmt(v: object) -> str:
+        return "-" if v is None else f"{v:.1f}" if isinstance(v, float) else str(v)
+
+    lines = ["| sarmission | phase | alerts | with a position | placed with the vehicle on the "
+             "ground | > 600 m from the vehicle | median m | max m | tracebacks | exit |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for rev, phase, r in rows:
+        lines.append(f"| {rev} | {phase} | {r['alerts']} | {r['placed']} | {r['grounded']} | "
+                     f"{r['wrong']} | {fmt(r['median_m'])} | {fmt(r['max_m'])} | "
+                     f"{r['tracebacks']} | {r['exit']} |")
+    return "\n".join(lines)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sitl", required=True, type=Path, help="the arducopter binary")
-    parser.add_argument("--checkout", type=Path, default=ROOT,
-                        help="source tree whose sarmission runs (default: this one)")
+    parser.add_argument("--checkout", type=Path, action="append", default=None,
+                        help="source tree whose sarmission runs; repeat to compare several "
+                        "(default: this one)")
     parser.add_argument("--duration", type=float, default=40.0, help="seconds per run")
     parser.add_argument("--speedup", type=float, default=4.0, help="SITL speed-up")
     parser.add_argument("--seed", type=int, default=4321, help="clip seed")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="runs of each phase per checkout (whether an alert falls in the "
+                        "seconds before HOME_POSITION arrives varies from run to run)")
     args = parser.parse_args()
+    checkouts = [c.resolve() for c in (args.checkout or [ROOT])]
+    rows = []
     with tempfile.TemporaryDirectory(prefix="sitl-integrity-") as tmp:
         work = Path(tmp)
         video = render_clip(work, frames=450, seed=args.seed)
-        rows = {phase: run_phase(phase, args.sitl, args.checkout.resolve(), video, work,
-                                 args.duration, args.speedup) for phase in ("boot", "survey")}
-    print(f"sarmission from {args.checkout}, SITL speed-up {args.speedup:g}, "
-          f"{args.duration:g} s per run")
-    print("| phase | alerts | with a position | placed with the vehicle on the ground "
-          "| > 600 m from the vehicle | median m | max m | tracebacks | exit |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for phase, r in rows.items():
-        def fmt(v: object) -> str:
-            return "-" if v is None else f"{v:.1f}" if isinstance(v, float) else str(v)
-        print(f"| {phase} | {r['alerts']} | {r['placed']} | {r['grounded']} | {r['wrong']} | "
-              f"{fmt(r['median_m'])} | {fmt(r['max_m'])} | {r['tracebacks']} | {r['exit']} |")
+        for k, checkout in enumerate(checkouts):
+            for phase in ("boot", "survey"):
+                for r in range(args.repeats):
+                    run_dir = work / f"{k}-{phase}-{r}"
+                    run_dir.mkdir()
+                    result = run_phase(phase, args.sitl, checkout, video, run_dir,
+                                       args.duration, args.speedup)
+                    rows.append((revision(checkout), phase, result))
+    print(f"ArduPilot SITL speed-up {args.speedup:g}, {args.duration:g} s per run, clip seed "
+          f"{args.seed}")
+    print(table(rows))
     return 0
 
 
