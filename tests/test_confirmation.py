@@ -1,0 +1,80 @@
+"""Confirmation over seconds in the world frame: a person (still or drifting) is confirmed, sun
+glint moving with the aircraft, a boat, a speck and a faint blob are discarded, short evidence
+waits. Positions are built with pymap3d and seeded noise of each fix's stated error."""
+
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+
+from sarmission.mission.confirmation import (
+    ConfirmRule,
+    Sighting,
+    TargetEvidence,
+    assess,
+    drift_speed,
+)
+
+ORIGIN = (54.17, 7.89)
+RULE = ConfirmRule()
+
+
+def sightings(velocity=(0.0, 0.0), seconds=1.5, fps=30.0, error=1.5, size=0.6, score=0.85,
+              seed=0, bias=(0.8, -0.5)):
+    """Fixes of an object moving at ``velocity`` (m/s north, east): each fix off by a shared
+    bias (GNSS) plus independent noise, together about ``error`` DRMS."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(int(seconds * fps) + 1):
+        t = 100.0 + k / fps
+        n = velocity[0] * (t - 100.0) + bias[0] + rng.normal(0, 0.5)
+        e = velocity[1] * (t - 100.0) + bias[1] + rng.normal(0, 0.5)
+        lat, lon, _ = pymap3d.ned2geodetic(n, e, 0.0, *ORIGIN, 0.0)
+        out.append(Sighting(t, float(lat), float(lon), error, size, score))
+    return out
+
+
+def evidence_of(items):
+    ev = TargetEvidence()
+    for s in items:
+        ev.add(s)
+    return ev
+
+
+@pytest.mark.parametrize("velocity", [(0.0, 0.0), (0.3, -0.4), (0.0, 1.0)])
+def test_a_still_or_drifting_person_is_confirmed(velocity):
+    found = assess(evidence_of(sightings(velocity)), 101.5, RULE)
+    assert found.verdict == "confirm", found
+    assert found.speed_m_s == pytest.approx(math.hypot(*velocity), abs=0.5)
+    assert "46 sightings" in found.summary()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "why"),
+    [({"velocity": (10.0, 0.0)}, "moves 10"),  # glint under a 10 m/s aircraft
+     ({"velocity": (0.0, -6.0)}, "moves 5.9"),  # a bird
+     ({"size": 6.0}, "6.00 m on the ground is no person"),  # a boat
+     ({"size": 0.05}, "0.05 m on the ground is no person"),  # a speck
+     ({"score": 0.45}, "score 0.45 below 0.6")],
+)
+def test_clutter_is_discarded_with_the_reason(kwargs, why):
+    found = assess(evidence_of(sightings(**kwargs)), 101.5, RULE)
+    assert found.verdict == "discard" and why in found.reason, found
+
+
+def test_short_evidence_waits_then_gives_up():
+    short = evidence_of(sightings(seconds=0.5))
+    assert assess(short, 100.5, RULE).verdict == "wait"
+    assert assess(short, 100.0 + RULE.give_up_s + 0.1, RULE).verdict == "discard"
+    unplaced = TargetEvidence()
+    unplaced.note_unplaced(100.0)
+    assert assess(unplaced, 110.0, RULE).reason == "no position yet"
+    assert "never placed" in assess(unplaced, 121.0, RULE).reason
+
+
+def test_drift_speed_of_a_straight_line_and_its_error():
+    speed, sigma = drift_speed(sightings((0.6, 0.8), seconds=3.0, error=0.1, bias=(0, 0)))
+    assert speed == pytest.approx(1.0, abs=0.1) and sigma < 0.2
+    _, wide = drift_speed(sightings((0.6, 0.8), seconds=3.0, error=5.0, bias=(0, 0)))
+    assert wide > sigma  # a poor fix error widens the speed's uncertainty
