@@ -8,16 +8,11 @@ import numpy as np
 import pymap3d
 import pytest
 
-from sarmission.mission.confirmation import (
-    ConfirmRule,
-    Sighting,
-    TargetEvidence,
-    assess,
-    drift_speed,
-)
+from sarmission.mission.config import ConfirmConfig
+from sarmission.mission.confirmation import Sighting, TargetEvidence, assess, drift_speed
 
 ORIGIN = (54.17, 7.89)
-RULE = ConfirmRule()
+RULE = ConfirmConfig()
 
 
 def sightings(velocity=(0.0, 0.0), seconds=1.5, fps=30.0, error=1.5, size=0.6, score=0.85,

@@ -211,6 +211,22 @@ class TelemetryConfig:
 
 
 @dataclass
+class ConfirmConfig:
+    """When a locked candidate becomes a confirmed alert (:mod:`sarmission.mission.confirmation`):
+    seen for ``min_seen_s`` in ``min_sightings`` geolocated frames, drifting no faster than
+    ``max_speed_m_s``, ``min_size_m``-``max_size_m`` across on the ground, the better half of
+    its scores at least ``min_score``; discarded if not confirmed within ``give_up_s``."""
+
+    min_seen_s: float = 1.0
+    min_sightings: int = 6
+    max_speed_m_s: float = 1.5
+    min_size_m: float = 0.15
+    max_size_m: float = 2.5
+    min_score: float = 0.6
+    give_up_s: float = 20.0
+
+
+@dataclass
 class GeolocationConfig:
     """When a fix may be computed: only while the drone is at least ``min_height_m`` above the
     ground plane (on the ground, or landing, everything in view is at the drone's own place)."""
@@ -240,6 +256,7 @@ class MissionConfig:
     actions: ActionsConfig = field(default_factory=ActionsConfig)
     telemetry: TelemetryConfig = field(default_factory=TelemetryConfig)
     geolocation: GeolocationConfig = field(default_factory=GeolocationConfig)
+    confirm: ConfirmConfig = field(default_factory=ConfirmConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     name: str = "mission"
     source: str | None = None
@@ -443,6 +460,13 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
     for key in ("area_margin_m", "visit_interval_s", "visit_group_radius_m"):
         if getattr(cfg.actions, key) < 0:
             raise bad(f"[actions] {key}", "expected a number >= 0")
+    c = cfg.confirm
+    if c.min_sightings < 1 or not c.min_seen_s >= 0 or not c.give_up_s > c.min_seen_s:
+        raise bad("[confirm] min_sightings/min_seen_s/give_up_s",
+                  "expected min_sightings >= 1, min_seen_s >= 0 and give_up_s > min_seen_s")
+    if not 0 < c.min_size_m < c.max_size_m or c.max_speed_m_s < 0 or not 0 <= c.min_score <= 1:
+        raise bad("[confirm] sizes/speed/score",
+                  "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1")
     if cfg.geolocation.min_height_m < 0:
         raise bad("[geolocation] min_height_m", "expected a number >= 0")
 

@@ -30,22 +30,9 @@ from typing import Literal
 import numpy as np
 
 from sarmission.geo.wgs84 import geodetic_to_ned
+from sarmission.mission.config import ConfirmConfig
 
 Verdict = Literal["confirm", "wait", "discard"]
-
-
-@dataclass(frozen=True)
-class ConfirmRule:
-    """The thresholds of the confirmation (see the module docstring); the mission file's
-    ``[confirm]`` section."""
-
-    min_seen_s: float = 1.0
-    min_sightings: int = 6
-    max_speed_m_s: float = 1.5
-    min_size_m: float = 0.15
-    max_size_m: float = 2.5
-    min_score: float = 0.6
-    give_up_s: float = 20.0
 
 
 @dataclass(frozen=True)
@@ -126,7 +113,7 @@ def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
     return speed, sigma_v * math.sqrt(2)
 
 
-def assess(evidence: TargetEvidence, now: float, rule: ConfirmRule) -> Assessment:
+def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessment:
     """The verdict on one candidate at time ``now`` (see the module docstring)."""
     sightings = evidence.sightings
     age = now - evidence.first_seen if not math.isnan(evidence.first_seen) else 0.0

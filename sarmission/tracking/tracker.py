@@ -49,8 +49,9 @@ class TrackState:
     """Snapshot of one track after a frame.
 
     ``box`` is the filtered box ``[x1, y1, x2, y2]`` (the prediction when the track missed this
-    frame), ``raw_box`` the last detection it took. ``score`` is the exponentially smoothed
-    detection score, ``class_id`` the majority class over its hits (ties go to the latest).
+    frame), ``raw_box`` the last detection it took and ``last_score`` that detection's score.
+    ``score`` is the exponentially smoothed detection score, ``class_id`` the majority class
+    over its hits (ties go to the latest).
     ``hits`` counts detections taken, ``age`` frames lived (1 on its birth frame), ``misses``
     frames since its last hit. ``lock_frame`` is the frame index at which it locked and
     ``just_locked`` is true on that frame only. ``velocity`` is ``(vx, vy)`` in px/frame.
@@ -70,6 +71,7 @@ class TrackState:
     just_locked: bool
     velocity: tuple[float, float]
     history: tuple[HistoryEntry, ...]
+    last_score: float = 0.0
 
 
 def associate(track_boxes: np.ndarray, detection_boxes: np.ndarray, match_nwd: float,
@@ -110,6 +112,7 @@ class _Track:
         self.lock = lock
         self.raw_box = np.asarray(box, dtype=np.float64).copy()
         self.score = float(score)
+        self.last_score = float(score)
         self.class_votes: Counter[int] = Counter()
         self.last_class = int(class_id)
         self.hits = self.misses = 0
@@ -126,6 +129,7 @@ class _Track:
     def hit(self, box: np.ndarray, score: float, class_id: int) -> None:
         self.kalman.update(box)
         self.raw_box = np.asarray(box, dtype=np.float64).copy()
+        self.last_score = float(score)
         self.score = (1 - SCORE_SMOOTHING) * self.score + SCORE_SMOOTHING * float(score)
         self._record_hit(score, class_id)
 
@@ -162,7 +166,7 @@ class _Track:
             score=self.score, class_id=self.class_id, hits=self.hits, age=self.age,
             misses=self.misses, locked=self.lock.locked, lock_frame=self.lock_frame,
             just_locked=self.just_locked, velocity=self.kalman.velocity,
-            history=tuple(self.history))
+            history=tuple(self.history), last_score=self.last_score)
 
 
 class Tracker:
