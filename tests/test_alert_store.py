@@ -206,34 +206,6 @@ def test_position_found_later_is_attached_once_and_logged(tmp_path: Path) -> Non
         assert [e.kind for e in store.events()] == ["new", "new", "position"]
 
 
-def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
-    db = tmp_path / "a.db"
-    blind = make_alert(1, positioned=False)
-    with AlertStore(db) as store:
-        store.add(blind)
-        store.acknowledge(blind.alert_id, "alice")
-    with sqlite3.connect(db) as conn:  # back to schema 1: events without 'position'
-        conn.executescript(
-            "DROP TABLE acks; DROP TABLE sends; CREATE TABLE deliveries (alert_id TEXT NOT NULL "
-            "REFERENCES alerts (alert_id), channel TEXT NOT NULL, time REAL NOT NULL, "
-            "PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;"
-            "CREATE TABLE events_1 (seq INTEGER PRIMARY KEY AUTOINCREMENT, kind TEXT NOT NULL "
-            "CHECK (kind IN ('new', 'ack', 'delivered')), alert_id TEXT NOT NULL REFERENCES "
-            "alerts (alert_id), time REAL NOT NULL);"
-            "INSERT INTO events_1 SELECT * FROM events; DROP TABLE events;"
-            "ALTER TABLE events_1 RENAME TO events; PRAGMA user_version=1;")
-        with pytest.raises(sqlite3.IntegrityError):
-            conn.execute("INSERT INTO events (kind, alert_id, time) VALUES ('position', ?, 0)",
-                         (blind.alert_id,))
-    conn.close()
-    with AlertStore(db) as store:
-        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
-        assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
-        assert store.attach_position(blind.alert_id, (-35.36, 149.17), 3.5, "ground plane")
-        assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
-        assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
-
-
 #: The alert store as schema 2 wrote it (STATUSTEXT "delivered" once sent).
 _SCHEMA_2 = """
 CREATE TABLE alerts (
@@ -254,6 +226,99 @@ CREATE TABLE events (
 PRAGMA application_id = 1396789825;
 PRAGMA user_version = 2;
 """
+
+#: Schema 1: schema 2 without the ``position`` event.
+_SCHEMA_1 = _SCHEMA_2.replace("'delivered', 'position'", "'delivered'").replace(
+    "user_version = 2", "user_version = 1")
+
+
+def _insert_old_alert(conn: sqlite3.Connection, alert_id: str, target_id: int,
+                      positioned: bool = True, ack_by: str | None = None) -> None:
+    """One alert row as schemas 1-3 wrote it."""
+    conn.execute(
+        "INSERT INTO alerts (alert_id, mission_id, target_id, class_name, score, lock_time, "
+        "frame_index, lat, lon, position_note, error_m, target_hae_m, drone_lat, drone_lon, "
+        "drone_alt_m, track, pixel_track, thumbnail, ack_time, ack_by, added_time) VALUES "
+        "(?, 'm', ?, 'swimmer', 0.9, 1000.0, 7, ?, ?, ?, ?, NULL, -35.363, 149.165, 60.0, "
+        "'[[1.0, -35.36, 149.16]]', '[[7, 10.5, 20.5]]', X'FFD8', ?, ?, 1001.0)",
+        (alert_id, target_id, -35.36 if positioned else None, 149.16 if positioned else None,
+         "" if positioned else "telemetry stale (2.4 s)", 3.5 if positioned else None,
+         1100.0 if ack_by else None, ack_by),
+    )
+
+
+def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
+    db = tmp_path / "a.db"
+    with sqlite3.connect(db) as conn:
+        conn.executescript(_SCHEMA_1)
+        _insert_old_alert(conn, "blind", 1, positioned=False, ack_by="alice")
+        conn.executemany("INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)",
+                         [("new", "blind", 1001.0), ("ack", "blind", 1100.0)])
+        with pytest.raises(sqlite3.IntegrityError):
+            conn.execute("INSERT INTO events (kind, alert_id, time) VALUES ('position', ?, 0)",
+                         ("blind",))
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
+        assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
+        assert store.attach_position("blind", (-35.36, 149.17), 3.5, "ground plane")
+        assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
+        assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        assert store.get("blind").tier == "confirmed"
+
+
+#: The alert store as schema 3 wrote it: acks and sends, no tiers or decisions.
+_SCHEMA_3 = _SCHEMA_2.replace(
+    """CREATE TABLE deliveries (
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
+    time REAL NOT NULL, PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;""",
+    """CREATE TABLE acks (
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
+    time REAL NOT NULL, result INTEGER NOT NULL, reason TEXT NOT NULL DEFAULT '',
+    PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;
+CREATE TABLE sends (
+    alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
+    count INTEGER NOT NULL CHECK (count > 0), first REAL NOT NULL, last REAL NOT NULL,
+    PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;""").replace(
+    "'delivered', 'position'", "'delivered', 'refused', 'sent', 'position'").replace(
+    "user_version = 2", "user_version = 3")
+
+
+def test_schema_3_store_keeps_its_alerts_as_confirmed_without_decisions(tmp_path: Path) -> None:
+    db = tmp_path / "old.db"
+    with sqlite3.connect(db) as conn:
+        conn.executescript(_SCHEMA_3)
+        _insert_old_alert(conn, "old0", 5, ack_by="alice")
+        _insert_old_alert(conn, "old1", 6)
+        conn.execute("INSERT INTO acks VALUES ('old0', 'mavlink_loiter', 1003.0, 0, '')")
+        conn.execute("INSERT INTO sends VALUES ('old0', 'mavlink', 2, 1002.0, 1004.0)")
+        conn.executemany("INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)", [
+            ("new", "old0", 1001.0), ("sent", "old0", 1002.0), ("delivered", "old0", 1003.0),
+            ("sent", "old0", 1004.0), ("new", "old1", 1005.0)])
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+        assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        old0, old1 = store.list()
+        assert (old0.tier, old0.evidence, old0.decision, old0.discarded, old0.ack_by) == (
+            "confirmed", "", None, None, "alice")
+        assert old0.sent[CHANNEL_MAVLINK] == Sends(2, 1002.0, 1004.0)
+        assert old0.delivered == {"mavlink_loiter": 1003.0}
+        assert [(e.kind, e.by, e.detail) for e in store.events()] == [
+            ("new", None, ""), ("sent", None, ""), ("delivered", None, ""), ("sent", None, ""),
+            ("new", None, "")]
+        assert [a.alert_id for a in store.undelivered("mavlink_loiter")] == ["old1"]
+        # what schema 4 added works on the upgraded file
+        assert store.decide("old1", "dismissed", "bo").dismissed
+        assert store.dismissed_zones("m") == [(-35.36, 149.16, 10.0)]
+        assert store.undelivered("mavlink_loiter") == []
+        store.record_drone("m", 1010.0, -35.361, 149.161, 50.0)
+        store.set_mission_area("m", [(-35.0, 149.0), (-35.0, 149.1), (-35.1, 149.1)])
+        assert [e.kind for e in store.events(after=5)] == ["decided"]
+    with AlertStore(db) as store:  # opening the upgraded file again changes nothing
+        assert store.get("old1").decided_by == "bo"
+        assert store.drone_track("m") == [(1010.0, -35.361, 149.161, 50.0)]
+        assert store.mission_area("m") == [(-35.0, 149.0), (-35.0, 149.1), (-35.1, 149.1)]
 
 
 def test_schema_2_store_keeps_its_data_and_statustext_delivered_becomes_sent_once(

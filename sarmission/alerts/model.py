@@ -1,8 +1,16 @@
-"""The alert: one confirmed target, as the operator and the autopilot are told about it.
+"""The alert: one target, as the operator and the autopilot are told about it.
 
-An :class:`Alert` is created once per confirmed (locked) target and never changes afterwards except
-for its acknowledgement, what is known of its way to the autopilot, and - for a target that could
-not be geolocated when it was confirmed - the position attached once it is; the store keeps these.
+An alert has a *tier*. A frame-level lock makes a ``candidate``: shown to the operator
+("unconfirmed") but never sent to the autopilot or the team. Evidence over seconds in the world
+frame makes it ``confirmed`` (:attr:`Alert.evidence` says why); the system may instead give up on
+a candidate (:attr:`Alert.discarded` says why). Independently, an operator may confirm or dismiss
+any alert (:attr:`Alert.decision`, with who and when); an operator's confirmation also confirms a
+candidate, and a dismissed position suppresses new alerts around it (:func:`dismiss_radius_m`).
+
+An :class:`Alert` is created once per locked target and never changes afterwards except for its
+tier and decision, its acknowledgement, what is known of its way to the autopilot, and - for a
+target that could not be geolocated when it was locked - the position attached once it is; the
+store keeps these.
 
 What is known differs by channel. A command (DO_REPOSITION, ROI, mission upload) is answered by
 the autopilot: it is *delivered* when accepted, *refused* (with the autopilot's result and reason)
@@ -36,6 +44,19 @@ _SHORT_ALPHABET = "23456789abcdefghjkmnpqrstuvwxyz"
 
 ThumbnailMode = Literal["url", "base64", "omit"]
 
+#: ``candidate``: a frame-level lock, for the operator only; ``confirmed``: evidence over
+#: seconds in the world frame (or an operator's confirmation), for the autopilot and the team.
+Tier = Literal["candidate", "confirmed"]
+TIERS: tuple[Tier, ...] = ("candidate", "confirmed")
+#: What an operator decided about an alert.
+Decision = Literal["confirmed", "dismissed"]
+DECISIONS: tuple[Decision, ...] = ("confirmed", "dismissed")
+
+#: Smallest radius (m) a dismissed position suppresses, and the radius used when the dismissed
+#: alert's error is unknown.
+DISMISS_MIN_RADIUS_M = 10.0
+DISMISS_UNKNOWN_RADIUS_M = 25.0
+
 
 def new_alert_id() -> str:
     """A fresh, globally unique alert id (uuid4 hex, 32 characters)."""
@@ -61,6 +82,15 @@ def check_position(position: tuple[float, float]) -> tuple[float, float]:
     if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
         raise ValueError(f"alert position out of range: {position}")
     return lat, lon
+
+
+def dismiss_radius_m(error_m: float | None) -> float:
+    """Radius (m) around a dismissed alert's position in which new alerts are suppressed:
+    twice its error radius (about 2 sigma: the same thing seen again lands inside), at least
+    :data:`DISMISS_MIN_RADIUS_M`; :data:`DISMISS_UNKNOWN_RADIUS_M` when the error is unknown."""
+    if error_m is None or not math.isfinite(error_m) or error_m < 0:
+        return DISMISS_UNKNOWN_RADIUS_M
+    return max(2.0 * float(error_m), DISMISS_MIN_RADIUS_M)
 
 
 def utc_iso(t: float) -> str:
@@ -100,7 +130,7 @@ class Refusal:
 
 @dataclass
 class Alert:
-    """A confirmed target.
+    """A located (or locked but not yet located) target.
 
     ``position`` is ``(lat, lon)`` of the target, or None when it could not be geolocated;
     ``position_note`` then says why (e.g. ``"telemetry stale (2.3 s)"``). ``error_m`` is the
@@ -112,6 +142,14 @@ class Alert:
     ``"mavlink_loiter"``) to the POSIX time the autopilot accepted the command; ``refused``
     maps one to the autopilot's :class:`Refusal`; ``sent`` maps an unacknowledged channel
     (``"mavlink"``: STATUSTEXT) to its :class:`Sends`.
+
+    ``tier`` is ``"candidate"`` or ``"confirmed"`` (the default, which is what every alert was
+    before there were tiers); ``evidence`` is the controller's short line on why it was confirmed
+    or discarded; ``confirmed_at`` when a candidate became confirmed (None for an alert stored
+    confirmed: its ``lock_time`` is then the time); ``discarded`` the reason the system gave up
+    on a candidate, at ``discarded_at``. ``decision`` is the operator's (``"confirmed"`` or
+    ``"dismissed"``, the newest one counts), made by ``decided_by`` at ``decided_at`` (the
+    store's clock).
     """
 
     mission_id: str
@@ -134,10 +172,38 @@ class Alert:
     delivered: dict[str, float] = field(default_factory=dict)
     refused: dict[str, Refusal] = field(default_factory=dict)
     sent: dict[str, Sends] = field(default_factory=dict)
+    tier: Tier = "confirmed"
+    evidence: str = ""
+    confirmed_at: float | None = None
+    discarded: str | None = None
+    discarded_at: float | None = None
+    decision: Decision | None = None
+    decided_by: str | None = None
+    decided_at: float | None = None
 
     def __post_init__(self) -> None:
         if self.position is not None:
             self.position = check_position(self.position)
+        if self.tier not in TIERS:
+            raise ValueError(f"alert tier must be one of {TIERS}, got {self.tier!r}")
+        if self.decision is not None and self.decision not in DECISIONS:
+            raise ValueError(f"operator decision must be one of {DECISIONS}, got "
+                             f"{self.decision!r}")
+
+    @property
+    def dismissed(self) -> bool:
+        """True when an operator's newest decision is that this is no person."""
+        return self.decision == "dismissed"
+
+    @property
+    def awaiting_review(self) -> bool:
+        """A candidate nobody has decided on yet and the system has not given up on."""
+        return self.tier == "candidate" and self.discarded is None and self.decision is None
+
+    @property
+    def dismiss_radius_m(self) -> float:
+        """Radius (m) this alert's position suppresses once dismissed (:func:`dismiss_radius_m`)."""
+        return dismiss_radius_m(self.error_m)
 
     @property
     def acknowledged(self) -> bool:
@@ -233,6 +299,15 @@ class Alert:
             },
             "short_id": self.short_id,
             "statustext": self.statustext(),
+            "tier": self.tier,
+            "evidence": self.evidence,
+            "confirmed_at": self.confirmed_at,
+            "discarded": self.discarded,
+            "discarded_at": self.discarded_at,
+            "decision": self.decision,
+            "decided_by": self.decided_by,
+            "decided_at": self.decided_at,
+            "dismiss_radius_m": self.dismiss_radius_m,
         }
         if thumbnail == "url":
             doc["thumbnail"] = f"/thumb/{self.alert_id}.jpg" if self.thumbnail else None

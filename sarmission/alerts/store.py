@@ -1,11 +1,25 @@
 """Durable alert store on SQLite.
 
-A confirmed alert must survive a crash: the database runs in WAL mode with ``synchronous=FULL``,
+An alert must survive a crash: the database runs in WAL mode with ``synchronous=FULL``,
 so :meth:`AlertStore.add` returns only once the alert is on disk. Every change (new alert,
 operator acknowledgement, a command accepted or refused by the autopilot, an alert sent on a
-channel without acknowledgement, a position found after the alert) also appends a row to an
-``events`` log; :meth:`AlertStore.subscribe` follows that log, which is how the operator feed
-learns of changes, including ones written by another process on the same file.
+channel without acknowledgement, a position found after the alert, a candidate confirmed or
+discarded by the system, an operator's decision) also appends a row to an ``events`` log;
+:meth:`AlertStore.subscribe` follows that log, which is how the operator feed learns of changes,
+including ones written by another process on the same file.
+
+Tiers and decisions (see :mod:`sarmission.alerts.model`): the controller stores a *candidate*,
+then :meth:`~AlertStore.promote` s or :meth:`~AlertStore.discard` s it; an operator
+:meth:`~AlertStore.decide` s to confirm or dismiss any alert. Each is one transaction, so of
+two racing changes the one committed first is applied first and both are in the log; which
+decision is newer is their order in the log, never a comparison of clocks (the feed, the
+controller and the operator's device may disagree on the time). An operator's dismissal is never
+undone by the system: :meth:`~AlertStore.promote` after it changes nothing. Only confirmed alerts
+not dismissed are still to go to the autopilot (:meth:`~AlertStore.undelivered`).
+:meth:`~AlertStore.dismissed_zones` gives the places dismissed alerts suppress.
+
+For the operator's map the store also keeps the drone's track (the newest
+:data:`DRONE_POINTS_KEPT` points per mission, about 5.5 hours at 1 Hz) and each mission's area.
 
 What the store says of the autopilot is what is known, per alert and channel: a command's answer
 (``acks``: time, MAV_RESULT and reason; result 0 is acceptance, i.e. delivered) or, for a
@@ -17,12 +31,15 @@ A file that is not an SQLite database, belongs to another application, or is dam
 :class:`~sarmission.errors.SarmissionError` and is left untouched. A store of an older schema is
 upgraded in place when opened (schema 2 added the ``position`` event; schema 3 replaced
 ``deliveries`` by ``acks`` and ``sends``: an old "delivered" STATUSTEXT became "sent 1 time",
-since that was all that was known).
+since that was all that was known; schema 4 added tiers, operator decisions, the ``confirmed``,
+``discarded`` and ``decided`` events with who and why, the drone's track and mission areas: an
+older alert is a confirmed one without a decision, as it was).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import sqlite3
 import threading
 import time
@@ -30,40 +47,57 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, NamedTuple
 
 from sarmission.alerts.model import (
+    DECISIONS,
     UNACKNOWLEDGED_CHANNELS,
     Alert,
+    Decision,
     Refusal,
     Sends,
     check_position,
+    dismiss_radius_m,
 )
 from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
+
+#: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
+DRONE_POINTS_KEPT = 20_000
+#: The track is trimmed every this many points, so it holds at most KEPT + this many.
+_TRIM_EVERY = 100
+#: Most vertices a mission area may have.
+MAX_AREA_VERTICES = 10_000
 
 #: ``ack``: an operator acknowledged the alert; ``delivered`` / ``refused``: the autopilot
 #: accepted / refused a command for it; ``sent``: it went out once more on a channel without
-#: acknowledgement.
-EventKind = Literal["new", "ack", "delivered", "refused", "sent", "position"]
+#: acknowledgement; ``confirmed``: a candidate became confirmed (by the system, or by the
+#: operator named in ``by``); ``discarded``: the system gave up on a candidate; ``decided``: an
+#: operator confirmed or dismissed it (``detail``).
+EventKind = Literal["new", "ack", "delivered", "refused", "sent", "position", "confirmed",
+                    "discarded", "decided"]
 _EVENT_KINDS = {
     2: ("new", "ack", "delivered", "position"),
     3: ("new", "ack", "delivered", "refused", "sent", "position"),
+    4: ("new", "ack", "delivered", "refused", "sent", "position", "confirmed", "discarded",
+        "decided"),
 }
 
 
 def _events_table(name: str, schema: int = SCHEMA_VERSION) -> str:
-    """The event log's table definition (of ``schema``), under ``name``."""
+    """The event log's table definition (of ``schema``), under ``name``. From schema 4 an event
+    says who made it (``by``: an operator's name, NULL for the system) and why (``detail``)."""
     kinds = ", ".join(f"'{k}'" for k in _EVENT_KINDS[schema])
+    extra = ",\n    by       TEXT,\n    detail   TEXT NOT NULL DEFAULT ''" if schema >= 4 else ""
     return f"""
 CREATE TABLE {name} (
     seq      INTEGER PRIMARY KEY AUTOINCREMENT,
     kind     TEXT NOT NULL CHECK (kind IN ({kinds})),
     alert_id TEXT NOT NULL REFERENCES alerts (alert_id),
-    time     REAL NOT NULL
+    time     REAL NOT NULL{extra}
 )"""
 
 
@@ -86,6 +120,25 @@ CREATE TABLE sends (
 ) WITHOUT ROWID
 """
 
+#: The drone's track (``t``: the controller's time; ``recorded``: the store's) and mission areas
+#: (``polygon``: JSON ``[[lat, lon], ...]``), for the operator's map.
+_MAP_TABLES = """
+CREATE TABLE drone (
+    seq        INTEGER PRIMARY KEY AUTOINCREMENT,
+    mission_id TEXT NOT NULL,
+    t          REAL NOT NULL,
+    lat        REAL NOT NULL,
+    lon        REAL NOT NULL,
+    alt_m      REAL,
+    recorded   REAL NOT NULL
+);
+CREATE INDEX drone_by_mission ON drone (mission_id, seq);
+CREATE TABLE areas (
+    mission_id TEXT PRIMARY KEY,
+    polygon    TEXT NOT NULL,
+    set_time   REAL NOT NULL
+) WITHOUT ROWID
+"""
 
 _SCHEMA = """
 CREATE TABLE alerts (
@@ -110,10 +163,18 @@ CREATE TABLE alerts (
     thumbnail     BLOB,
     ack_time      REAL,
     ack_by        TEXT,
-    added_time    REAL NOT NULL
+    added_time    REAL NOT NULL,
+    tier          TEXT NOT NULL DEFAULT 'confirmed' CHECK (tier IN ('candidate', 'confirmed')),
+    evidence      TEXT NOT NULL DEFAULT '',
+    confirmed_at  REAL,
+    discarded     TEXT,
+    discarded_at  REAL,
+    decision      TEXT CHECK (decision IN ('confirmed', 'dismissed')),
+    decided_by    TEXT,
+    decided_at    REAL
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
-""" + _ACKS_AND_SENDS + ";" + _events_table("events")
+""" + _ACKS_AND_SENDS + ";" + _events_table("events") + ";" + _MAP_TABLES
 
 _UNACKED_SQL = ", ".join(f"'{c}'" for c in sorted(UNACKNOWLEDGED_CHANNELS))
 
@@ -136,6 +197,22 @@ INSERT INTO events_3 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, tim
 DROP TABLE events;
 ALTER TABLE events_3 RENAME TO events
 """,
+    # Schema 3 knew only confirmed alerts and no operator decisions: that is what they stay.
+    3: """
+ALTER TABLE alerts ADD COLUMN tier TEXT NOT NULL DEFAULT 'confirmed'
+    CHECK (tier IN ('candidate', 'confirmed'));
+ALTER TABLE alerts ADD COLUMN evidence TEXT NOT NULL DEFAULT '';
+ALTER TABLE alerts ADD COLUMN confirmed_at REAL;
+ALTER TABLE alerts ADD COLUMN discarded TEXT;
+ALTER TABLE alerts ADD COLUMN discarded_at REAL;
+ALTER TABLE alerts ADD COLUMN decision TEXT CHECK (decision IN ('confirmed', 'dismissed'));
+ALTER TABLE alerts ADD COLUMN decided_by TEXT;
+ALTER TABLE alerts ADD COLUMN decided_at REAL;
+""" + _events_table("events_4", 4) + """;
+INSERT INTO events_4 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
+DROP TABLE events;
+ALTER TABLE events_4 RENAME TO events;
+""" + _MAP_TABLES,
 }
 
 def _execute_script(conn: sqlite3.Connection, script: str) -> None:
@@ -150,9 +227,12 @@ _SELECT = """
 SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time,
        a.frame_index, a.lat, a.lon, a.position_note, a.error_m, a.target_hae_m,
        a.drone_lat, a.drone_lon, a.drone_alt_m, a.track, a.pixel_track, a.thumbnail,
-       a.ack_time, a.ack_by
+       a.ack_time, a.ack_by, a.tier, a.evidence, a.confirmed_at, a.discarded, a.discarded_at,
+       a.decision, a.decided_by, a.decided_at
 FROM alerts a
 """
+#: Alerts still to go to the autopilot: confirmed and not dismissed by an operator.
+_FOR_AUTOPILOT = "a.tier = 'confirmed' AND a.decision IS NOT 'dismissed'"
 #: Alert ids per query of acks and sends (below SQLite's limit on bound parameters).
 _ID_BATCH = 500
 
@@ -161,13 +241,43 @@ _ID_BATCH = 500
 class AlertEvent:
     """One change in the store: ``kind`` is ``"new"``, ``"ack"`` (operator), ``"delivered"`` /
     ``"refused"`` (a command accepted / refused by the autopilot), ``"sent"`` (sent once more on
-    a channel without acknowledgement) or ``"position"`` (a position attached to an alert that
-    had none); ``seq`` is its position in the store's event log; ``alert`` is the alert as it
-    is now."""
+    a channel without acknowledgement), ``"position"`` (a position attached to an alert that
+    had none), ``"confirmed"`` / ``"discarded"`` (a candidate's tier settled) or ``"decided"``
+    (an operator's decision); ``seq`` is its position in the store's event log; ``alert`` is the
+    alert as it is now; ``by`` the operator who made the change (None: the system or unknown);
+    ``detail`` the evidence, reason or decision of that change."""
 
     seq: int
     kind: EventKind
     alert: Alert
+    by: str | None = None
+    detail: str = ""
+
+
+class OperatorDecision(NamedTuple):
+    """One decision from an alert's history: ``time`` (the store's clock), ``decision``, ``by``."""
+
+    time: float
+    decision: Decision
+    by: str
+
+
+class Decided(NamedTuple):
+    """What :meth:`AlertStore.record_decision` did: the alert as it is now, and whether the
+    decision changed anything (False: the alert already had this decision)."""
+
+    alert: Alert
+    changed: bool
+
+
+class DronePoint(NamedTuple):
+    """One point of the drone's track: the controller's time ``t`` (POSIX s), WGS84 degrees and
+    altitude above home (None when unknown)."""
+
+    t: float
+    lat: float
+    lon: float
+    alt_m: float | None
 
 
 class AlertStore:
@@ -267,15 +377,17 @@ class AlertStore:
     # ------------------------------------------------------------------ writing
 
     def add(self, alert: Alert) -> bool:
-        """Store ``alert``; durable on disk when this returns. Idempotent on ``alert_id``:
-        adding an id already stored changes nothing and returns False (True when stored now)."""
+        """Store ``alert`` (a candidate or a confirmed alert, by its ``tier``); durable on disk
+        when this returns. Idempotent on ``alert_id``: adding an id already stored changes
+        nothing and returns False (True when stored now)."""
         with self._transaction() as conn:
             cur = conn.execute(
                 "INSERT OR IGNORE INTO alerts (alert_id, mission_id, target_id, class_name, "
                 "score, lock_time, frame_index, lat, lon, position_note, error_m, target_hae_m, "
                 "drone_lat, drone_lon, drone_alt_m, track, pixel_track, thumbnail, ack_time, "
-                "ack_by, added_time) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                "?, ?, ?, ?)",
+                "ack_by, added_time, tier, evidence, confirmed_at, discarded, discarded_at, "
+                "decision, decided_by, decided_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     alert.alert_id,
                     alert.mission_id,
@@ -295,6 +407,14 @@ class AlertStore:
                     alert.ack_time,
                     alert.ack_by,
                     time.time(),
+                    alert.tier,
+                    alert.evidence,
+                    alert.confirmed_at,
+                    alert.discarded,
+                    alert.discarded_at,
+                    alert.decision,
+                    alert.decided_by,
+                    alert.decided_at,
                 ),
             )
             if cur.rowcount == 0:
@@ -411,16 +531,205 @@ class AlertStore:
             self._notify()
         return bool(cur.rowcount)
 
+    # ------------------------------------------------------------------ tiers and decisions
+
+    def promote(self, alert_id: str, evidence: str, when: float | None = None) -> Alert | None:
+        """The system confirms a candidate: tier ``confirmed``, ``evidence`` (why), confirmed at
+        ``when`` (the controller's time, default now); event ``confirmed``. Returns the alert,
+        or None, changing nothing, when an operator has dismissed it: a dismissal always wins
+        over a later promotion. Already confirmed (by the system or an operator): returns it
+        unchanged. A candidate the system had discarded is confirmed (its discard reason stays
+        in the log). Unknown id: KeyError."""
+        t = _finite_time(when)
+        with self._transaction() as conn:
+            state = self._state(conn, alert_id)
+            if state.decision == "dismissed":
+                return None
+            changed = state.tier != "confirmed"
+            if changed:
+                conn.execute(
+                    "UPDATE alerts SET tier = 'confirmed', evidence = ?, confirmed_at = ?, "
+                    "discarded = NULL, discarded_at = NULL WHERE alert_id = ?",
+                    (evidence, t, alert_id),
+                )
+                self._log(conn, "confirmed", alert_id, detail=evidence)
+        if changed:
+            self._notify()
+        return self.get(alert_id)
+
+    def discard(self, alert_id: str, reason: str, when: float | None = None) -> Alert | None:
+        """The system gives up on a candidate: ``discarded`` = ``reason`` (also its
+        ``evidence``), at ``when`` (the controller's time, default now); event ``discarded``.
+        Returns the alert; None, changing nothing, for a confirmed alert or one an operator
+        decided on (the operator's word stands). Already discarded: returns it unchanged.
+        Unknown id: KeyError."""
+        t = _finite_time(when)
+        if not reason.strip():
+            raise ValueError("discard needs a reason")
+        with self._transaction() as conn:
+            state = self._state(conn, alert_id)
+            if state.tier == "confirmed" or state.decision is not None:
+                return None
+            changed = state.discarded is None
+            if changed:
+                conn.execute(
+                    "UPDATE alerts SET discarded = ?, discarded_at = ?, evidence = ? "
+                    "WHERE alert_id = ?",
+                    (reason, t, reason, alert_id),
+                )
+                self._log(conn, "discarded", alert_id, detail=reason)
+        if changed:
+            self._notify()
+        return self.get(alert_id)
+
+    def decide(self, alert_id: str, decision: Decision, by: str,
+               when: float | None = None) -> Alert:
+        """An operator's decision on an alert; returns it. See :meth:`record_decision`."""
+        return self.record_decision(alert_id, decision, by, when).alert
+
+    def record_decision(self, alert_id: str, decision: Decision, by: str,
+                        when: float | None = None) -> Decided:
+        """Record an operator's ``decision`` (``"confirmed"`` or ``"dismissed"``) by ``by``,
+        durably; event ``decided`` (``detail``: the decision). Confirming a candidate also
+        confirms it (event ``confirmed`` with ``by``), dismissing one suppresses its place
+        (:meth:`dismissed_zones`) and keeps the system from promoting it later.
+
+        The alert's current decision repeated changes nothing (``changed`` False, no event).
+        A contradicting one (dismiss after confirm, or back) replaces it: operators change their
+        minds, and both stay in the log (:meth:`decisions`). Of two racing decisions the one
+        committed last is the state; the log has both, in commit order.
+
+        ``decided_at`` is the store's clock: ``when`` is for in-process callers only (tools,
+        tests) and must be finite; the feed never passes a client's time. No ordering ever
+        compares times, so clock skew between feed, controller and clients changes nothing.
+        Unknown id: KeyError; an unknown decision, an empty name or a bad ``when``: ValueError."""
+        if decision not in DECISIONS:
+            raise ValueError(f"decision must be one of {DECISIONS}, got {decision!r}")
+        name = by.strip()
+        if not name:
+            raise ValueError("a decision needs the name of who made it")
+        t = _finite_time(when)
+        with self._transaction() as conn:
+            state = self._state(conn, alert_id)
+            changed = state.decision != decision
+            if changed:
+                conn.execute(
+                    "UPDATE alerts SET decision = ?, decided_by = ?, decided_at = ? "
+                    "WHERE alert_id = ?",
+                    (decision, name, t, alert_id),
+                )
+                self._log(conn, "decided", alert_id, by=name, detail=decision)
+                if decision == "confirmed" and state.tier != "confirmed":
+                    conn.execute(
+                        "UPDATE alerts SET tier = 'confirmed', confirmed_at = ?, "
+                        "evidence = ?, discarded = NULL, discarded_at = NULL WHERE alert_id = ?",
+                        (t, f"confirmed by operator {name}", alert_id),
+                    )
+                    self._log(conn, "confirmed", alert_id, by=name,
+                              detail=f"confirmed by operator {name}")
+        if changed:
+            self._notify()
+        alert = self.get(alert_id)
+        assert alert is not None
+        return Decided(alert, changed)
+
+    # ------------------------------------------------------------------ drone and area
+
+    def record_drone(self, mission_id: str, t: float, lat: float, lon: float,
+                     alt_m: float | None) -> None:
+        """Append a point to the mission's drone track (the controller calls this about once a
+        second; nothing is logged as an event, the feed polls :meth:`drone_points_after`). Only
+        the newest :data:`DRONE_POINTS_KEPT` points per mission are kept. A time or altitude not
+        finite, or a position out of range: ValueError."""
+        t = float(t)
+        if not math.isfinite(t):
+            raise ValueError(f"drone time must be finite, got {t}")
+        lat, lon = check_position((lat, lon))
+        if alt_m is not None and not math.isfinite(alt_m):
+            raise ValueError(f"drone altitude must be finite or None, got {alt_m}")
+        with self._transaction() as conn:
+            seq = conn.execute(
+                "INSERT INTO drone (mission_id, t, lat, lon, alt_m, recorded) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                (mission_id, t, lat, lon, None if alt_m is None else float(alt_m), time.time()),
+            ).lastrowid
+            if seq is not None and seq % _TRIM_EVERY == 0:
+                conn.execute(
+                    "DELETE FROM drone WHERE mission_id = ? AND seq <= (SELECT seq FROM drone "
+                    "WHERE mission_id = ? ORDER BY seq DESC LIMIT 1 OFFSET ?)",
+                    (mission_id, mission_id, DRONE_POINTS_KEPT),
+                )
+
+    def drone_track(self, mission_id: str, since: float | None = None) -> list[DronePoint]:
+        """The mission's drone track in the order recorded; with ``since``, only points whose
+        time ``t`` is at or after it."""
+        sql = "SELECT t, lat, lon, alt_m FROM drone WHERE mission_id = ?"
+        params: tuple = (mission_id,)
+        if since is not None:
+            sql, params = sql + " AND t >= ?", (mission_id, since)
+        with self._lock:
+            rows = self._conn.execute(sql + " ORDER BY seq", params).fetchall()
+        return [DronePoint(*r) for r in rows]
+
+    def drone_points_after(self, mission_id: str, after: int = 0
+                           ) -> tuple[int, list[DronePoint]]:
+        """For a follower of the track: the newest track ``seq`` of the mission and its points
+        recorded after ``after`` (a ``seq`` this returned before; 0: all of them)."""
+        with self._lock:
+            rows = self._conn.execute(
+                "SELECT seq, t, lat, lon, alt_m FROM drone WHERE mission_id = ? AND seq > ? "
+                "ORDER BY seq", (mission_id, after),
+            ).fetchall()
+        return (rows[-1][0] if rows else after), [DronePoint(*r[1:]) for r in rows]
+
+    def set_mission_area(self, mission_id: str,
+                         polygon_latlon: list[tuple[float, float]]) -> None:
+        """Store the mission's area: a polygon of ``(lat, lon)`` vertices (at least 3, at most
+        :data:`MAX_AREA_VERTICES`, each in range), replacing an earlier one. ValueError
+        otherwise."""
+        vertices = [check_position(tuple(v)) for v in polygon_latlon]  # type: ignore[arg-type]
+        if not 3 <= len(vertices) <= MAX_AREA_VERTICES:
+            raise ValueError(f"a mission area needs 3 to {MAX_AREA_VERTICES} vertices, got "
+                             f"{len(vertices)}")
+        with self._transaction() as conn:
+            conn.execute(
+                "INSERT INTO areas (mission_id, polygon, set_time) VALUES (?, ?, ?) "
+                "ON CONFLICT (mission_id) DO UPDATE SET polygon = excluded.polygon, "
+                "set_time = excluded.set_time",
+                (mission_id, json.dumps([list(v) for v in vertices]), time.time()),
+            )
+
+    def mission_area(self, mission_id: str) -> list[tuple[float, float]] | None:
+        """The mission's area as ``(lat, lon)`` vertices, or None when none was set."""
+        with self._lock:
+            row = self._conn.execute(
+                "SELECT polygon FROM areas WHERE mission_id = ?", (mission_id,)
+            ).fetchone()
+        return None if row is None else [(v[0], v[1]) for v in json.loads(row[0])]
+
+    # ------------------------------------------------------------------ helpers
+
+    def _state(self, conn: sqlite3.Connection, alert_id: str) -> _TierState:
+        """The alert's tier, discard reason and decision, read inside a write transaction.
+        Unknown id: KeyError."""
+        row = conn.execute(
+            "SELECT tier, discarded, decision FROM alerts WHERE alert_id = ?", (alert_id,)
+        ).fetchone()
+        if row is None:
+            raise KeyError(alert_id)
+        return _TierState(*row)
+
     @staticmethod
     def _require(conn: sqlite3.Connection, alert_id: str) -> None:
         if conn.execute("SELECT 1 FROM alerts WHERE alert_id = ?", (alert_id,)).fetchone() is None:
             raise KeyError(alert_id)
 
     @staticmethod
-    def _log(conn: sqlite3.Connection, kind: EventKind, alert_id: str) -> None:
+    def _log(conn: sqlite3.Connection, kind: EventKind, alert_id: str, by: str | None = None,
+             detail: str = "") -> None:
         conn.execute(
-            "INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)",
-            (kind, alert_id, time.time()),
+            "INSERT INTO events (kind, alert_id, time, by, detail) VALUES (?, ?, ?, ?, ?)",
+            (kind, alert_id, time.time(), by, detail),
         )
 
     # ------------------------------------------------------------------ reading
@@ -430,12 +739,65 @@ class AlertStore:
         rows = self._query(_SELECT + "WHERE a.alert_id = ?", (alert_id,))
         return rows[0] if rows else None
 
-    def list(self, since: float | None = None) -> list[Alert]:
+    def list(self, since: float | None = None, mission_id: str | None = None) -> list[Alert]:
         """All alerts in the order they were added; with ``since``, only those whose
-        ``lock_time`` is at or after it (POSIX seconds)."""
-        if since is None:
-            return self._query(_SELECT + "ORDER BY a.seq", ())
-        return self._query(_SELECT + "WHERE a.lock_time >= ? ORDER BY a.seq", (since,))
+        ``lock_time`` is at or after it (POSIX seconds); with ``mission_id``, only that
+        mission's."""
+        where, params = ["1"], []
+        if since is not None:
+            where.append("a.lock_time >= ?")
+            params.append(since)
+        if mission_id is not None:
+            where.append("a.mission_id = ?")
+            params.append(mission_id)
+        return self._query(_SELECT + f"WHERE {' AND '.join(where)} ORDER BY a.seq",
+                           tuple(params))
+
+    def pending_candidates(self, mission_id: str) -> list[Alert]:
+        """The mission's candidates still open: neither confirmed, nor discarded, nor decided
+        on by an operator, oldest first (a restarted controller resumes judging them)."""
+        return self._query(
+            _SELECT + "WHERE a.mission_id = ? AND a.tier = 'candidate' AND a.discarded IS NULL "
+            "AND a.decision IS NULL ORDER BY a.seq", (mission_id,),
+        )
+
+    def dismissed_zones(self, mission_id: str) -> list[tuple[float, float, float]]:
+        """``(lat, lon, radius_m)`` of every alert of the mission an operator dismissed (and
+        has not confirmed since) that has a position, oldest first. The radius is twice the
+        alert's error radius, at least 10 m, and 25 m when its error is unknown
+        (:func:`~sarmission.alerts.model.dismiss_radius_m`). New alerts within one are
+        suppressed for the rest of the mission; it is a query, so it survives restarts."""
+        with self._lock:
+            rows = self._conn.execute(
+                "SELECT lat, lon, error_m FROM alerts WHERE mission_id = ? AND "
+                "decision = 'dismissed' AND lat IS NOT NULL AND lon IS NOT NULL ORDER BY seq",
+                (mission_id,),
+            ).fetchall()
+        return [(lat, lon, dismiss_radius_m(error_m)) for lat, lon, error_m in rows]
+
+    def decisions(self, alert_id: str) -> list[OperatorDecision]:
+        """Every operator decision on the alert, oldest first (the last one is its state)."""
+        with self._lock:
+            rows = self._conn.execute(
+                "SELECT time, detail, by FROM events WHERE alert_id = ? AND kind = 'decided' "
+                "ORDER BY seq", (alert_id,),
+            ).fetchall()
+        return [OperatorDecision(*r) for r in rows]
+
+    def current_mission(self) -> str | None:
+        """The mission the store heard of last (newest alert, drone point or area, by the
+        store's clock), None when it holds nothing: the one an operator's map shows."""
+        with self._lock:
+            rows = [
+                self._conn.execute(sql).fetchone()
+                for sql in (
+                    "SELECT added_time, mission_id FROM alerts ORDER BY seq DESC LIMIT 1",
+                    "SELECT recorded, mission_id FROM drone ORDER BY seq DESC LIMIT 1",
+                    "SELECT set_time, mission_id FROM areas ORDER BY set_time DESC LIMIT 1",
+                )
+            ]
+        known = [r for r in rows if r is not None]
+        return max(known)[1] if known else None
 
     def count(self) -> int:
         """Number of stored alerts."""
@@ -443,18 +805,19 @@ class AlertStore:
             return self._conn.execute("SELECT count(*) FROM alerts").fetchone()[0]
 
     def undelivered(self, channel: str, repeats: int = 1) -> list[Alert]:
-        """Alerts still to go out on ``channel``, oldest first (to resend after a link loss or a
-        restart): on a channel without acknowledgement (STATUSTEXT) those sent fewer than
-        ``repeats`` times; on any other, those the autopilot has not answered (a refusal is an
-        answer, and is not sent again)."""
+        """Confirmed alerts not dismissed by an operator still to go out on ``channel``, oldest
+        first (to resend after a link loss or a restart): on a channel without acknowledgement
+        (STATUSTEXT) those sent fewer than ``repeats`` times; on any other, those the autopilot
+        has not answered (a refusal is an answer, and is not sent again). Candidates never go
+        to the autopilot."""
         if channel in UNACKNOWLEDGED_CHANNELS:
             return self._query(
-                _SELECT + "WHERE coalesce((SELECT s.count FROM sends s WHERE s.alert_id = "
-                "a.alert_id AND s.channel = ?), 0) < ? ORDER BY a.seq",
+                _SELECT + f"WHERE {_FOR_AUTOPILOT} AND coalesce((SELECT s.count FROM sends s "
+                "WHERE s.alert_id = a.alert_id AND s.channel = ?), 0) < ? ORDER BY a.seq",
                 (channel, int(repeats)),
             )
         return self._query(
-            _SELECT + "WHERE NOT EXISTS (SELECT 1 FROM acks k "
+            _SELECT + f"WHERE {_FOR_AUTOPILOT} AND NOT EXISTS (SELECT 1 FROM acks k "
             "WHERE k.alert_id = a.alert_id AND k.channel = ?) ORDER BY a.seq",
             (channel,),
         )
@@ -498,10 +861,12 @@ class AlertStore:
         """Events with ``seq > after``, oldest first."""
         with self._lock:
             rows = self._conn.execute(
-                "SELECT seq, kind, alert_id FROM events WHERE seq > ? ORDER BY seq", (after,)
+                "SELECT seq, kind, alert_id, by, detail FROM events WHERE seq > ? ORDER BY seq",
+                (after,),
             ).fetchall()
             alerts = {a.alert_id: a for a in self._alerts_by_id({r[2] for r in rows})}
-        return [AlertEvent(seq, kind, alerts[alert_id]) for seq, kind, alert_id in rows]
+        return [AlertEvent(seq, kind, alerts[alert_id], by, detail)
+                for seq, kind, alert_id, by, detail in rows]
 
     def last_event_seq(self) -> int:
         """The newest event's ``seq`` (0 when there is none)."""
@@ -616,10 +981,25 @@ class Subscription:
         self.close()
 
 
+class _TierState(NamedTuple):
+    tier: str
+    discarded: str | None
+    decision: str | None
+
+
+def _finite_time(when: float | None) -> float:
+    """``when`` as a float (default: the store's clock now); ValueError unless finite."""
+    t = time.time() if when is None else float(when)
+    if not math.isfinite(t):
+        raise ValueError(f"time must be finite POSIX seconds, got {when}")
+    return t
+
+
 def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
     (alert_id, mission_id, target_id, class_name, score, lock_time, frame_index, lat, lon,
      position_note, error_m, target_hae_m, d_lat, d_lon, d_alt, track, pixel_track, thumbnail,
-     ack_time, ack_by) = row  # fmt: skip
+     ack_time, ack_by, tier, evidence, confirmed_at, discarded, discarded_at, decision,
+     decided_by, decided_at) = row  # fmt: skip
     return Alert(
         alert_id=alert_id,
         mission_id=mission_id,
@@ -641,4 +1021,12 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
         delivered={ch: t for ch, t, result, _ in acks if result == 0},
         refused={ch: Refusal(t, result, reason) for ch, t, result, reason in acks if result != 0},
         sent={ch: Sends(count, first, last) for ch, count, first, last in sends},
+        tier=tier,
+        evidence=evidence,
+        confirmed_at=confirmed_at,
+        discarded=discarded,
+        discarded_at=discarded_at,
+        decision=decision,
+        decided_by=decided_by,
+        decided_at=decided_at,
     )
