@@ -86,6 +86,35 @@ def test_cot_refuses_alert_without_position() -> None:
         alert_to_cot(make_alert(1, positioned=False))
 
 
+def test_cot_goes_out_only_for_confirmed_alerts_not_dismissed() -> None:
+    with pytest.raises(ValueError, match="unconfirmed candidate"):
+        alert_to_cot(make_alert(1, tier="candidate"))
+    with pytest.raises(ValueError, match="dismissed"):
+        alert_to_cot(make_alert(1, decision="dismissed", decided_by="ana", decided_at=5.0))
+    promoted = make_alert(1, tier="confirmed", evidence="held 4 s", decision="confirmed",
+                          decided_by="ana", decided_at=5.0)
+    assert ET.fromstring(alert_to_cot(promoted)).get("uid") == promoted.cot_uid
+
+
+def test_exports_say_which_alerts_are_candidates_or_dismissed() -> None:
+    cand = make_alert(1, tier="candidate", discarded="drifts 3 m/s", evidence="drifts 3 m/s")
+    gone = make_alert(2, decision="dismissed", decided_by="ana", decided_at=1_700_000_000.0)
+    sure = make_alert(3, evidence="held 4.2 s within 3 m")
+    ns = {"k": KML_NS}
+    placemarks = ET.fromstring(alerts_kml([cand, gone, sure])).findall(
+        "k:Document/k:Placemark", ns)
+    names = [p.find("k:name", ns).text for p in placemarks]
+    assert names == ["T1 swimmer 0.91 (unconfirmed)", "T2 swimmer 0.91 (dismissed)",
+                     "T3 swimmer 0.91"]
+    descriptions = [p.find("k:description", ns).text for p in placemarks]
+    assert "unconfirmed candidate, discarded: drifts 3 m/s" in descriptions[0]
+    assert "dismissed by ana at 2023-11-14T22:13:20.000Z" in descriptions[1]
+    assert "confirmed: held 4.2 s within 3 m" in descriptions[2]
+    props = [f["properties"] for f in alerts_geojson([cand, gone, sure])["features"]]
+    assert [(p["tier"], p["decision"]) for p in props] == [
+        ("candidate", None), ("confirmed", "dismissed"), ("confirmed", None)]
+
+
 def test_cot_over_udp_arrives() -> None:
     receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     receiver.bind(("127.0.0.1", 0))

@@ -108,7 +108,7 @@ def first_status(feed: FeedServer, target: str, headers: dict[str, str]) -> int:
 
 
 def every_route(alert_id: str) -> list[str]:
-    return ["/", "/events", "/api/alerts", f"/api/alerts/{alert_id}", "/alerts.jsonl",
+    return ["/", "/events", "/api/alerts", f"/api/alerts/{alert_id}", "/api/map", "/alerts.jsonl",
             "/alerts.jsonl?follow=1", "/alerts.geojson", "/alerts.kml",
             f"/thumb/{alert_id}.jpg", "/healthz"]
 
@@ -316,6 +316,42 @@ def test_bad_ack_requests_are_one_line_errors(
     assert one_line_error(status, headers, body, 414)
     status, headers, body = exchange(secured.port, b"NONSENSE\r\n\r\n")
     assert one_line_error(status, headers, body, 400)
+    assert not [r for r in caplog.records if r.levelno >= logging.ERROR]
+
+
+def test_decisions_are_guarded_like_acknowledgements(
+    secured: FeedServer, alert_id: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    port = secured.port
+    evil = {"Origin": "http://evil.example"}
+
+    def post(verb: str, headers: dict[str, str], body: bytes = b'{"by": "kim"}',
+             content_type: str = "application/json") -> tuple[int, dict[str, str], bytes]:
+        return request(port, "POST", f"/api/alerts/{alert_id}/{verb}",
+                       {"Content-Type": content_type, **headers}, body, host=f"127.0.0.1:{port}")
+
+    for verb in ("confirm", "dismiss"):
+        assert one_line_error(*post(verb, {}), 401)
+        assert one_line_error(*post(verb, {**BEARER, **evil}), 403)
+        assert one_line_error(*post(verb, BEARER, content_type="text/plain"), 415)
+        assert one_line_error(*request(port, "POST", f"/api/alerts/{alert_id}/{verb}",
+                                       BEARER, b'{"by": "kim"}', host=f"evil.example:{port}"),
+                              421)
+        for body, expected in ((b"{}", 400), (b'{"by": "  "}', 400), (b'{"by": null}', 400),
+                               (b'{"by": "kim", "when": 1}', 400), (b"[" * 4000, 400),
+                               (b'{"by": "' + b"n" * 65 + b'"}', 400), (b"\xff", 400),
+                               (b"{" + b" " * 5000 + b"}", 413)):
+            assert one_line_error(*post(verb, BEARER, body), expected), (verb, body[:30])
+        assert "no alert" in one_line_error(*request(
+            port, "POST", "/api/alerts/unknown-id/" + verb,
+            {"Content-Type": "application/json", **BEARER}, b'{"by": "kim"}',
+            host=f"127.0.0.1:{port}"), 404)
+    alert = secured.store.get(alert_id)
+    assert alert.decision is None and secured.store.decisions(alert_id) == []
+    status, _, body = post("dismiss", BEARER)
+    assert status == 200 and json.loads(body)["decided_by"] == "kim"
+    for target in ("/api/map?mission=", "/api/map?since=x", "/api/map?mission=m&token=x"):
+        assert one_line_error(*get(secured, target, BEARER), 400), target
     assert not [r for r in caplog.records if r.levelno >= logging.ERROR]
 
 

@@ -144,7 +144,7 @@ def test_sse_stream_receives_new_alert_and_ack(store: AlertStore, feed: FeedServ
     try:
         assert response.headers["Content-Type"].startswith("text/event-stream")
         snapshot = read_sse(response, until="hello")
-        assert [e["event"] for e in snapshot] == ["alert", "hello"]
+        assert [e["event"] for e in snapshot] == ["alert", "map", "hello"]
         assert json.loads(snapshot[0]["data"])["alert_id"] == old.alert_id
 
         new = make_alert(2)
@@ -166,7 +166,8 @@ def test_sse_stream_receives_new_alert_and_ack(store: AlertStore, feed: FeedServ
     store.add(missed)
     conn, response = open_stream(feed, "/events", {"Last-Event-ID": last_id})
     try:
-        assert [e["event"] for e in read_sse(response, until="hello")] == ["hello"]  # no snapshot
+        # no snapshot of alerts; the map is state and comes again
+        assert [e["event"] for e in read_sse(response, until="hello")] == ["map", "hello"]
         (update,) = read_sse(response, until="update")
         assert json.loads(update["data"])["alert_id"] == new.alert_id
         (event,) = read_sse(response, until="alert")

@@ -32,9 +32,13 @@ COT_UNKNOWN = 9999999.0
 def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 3600.0) -> bytes:
     """The alert as a CoT XML event (UTF-8 bytes, with XML declaration). ``time`` is ``now``
     (default: the current time), ``start`` the lock time, ``stale`` ``now + stale_after_s``.
-    Raises ValueError for an alert without a position: CoT has no way to say "somewhere"."""
+    Raises ValueError for an alert without a position: CoT has no way to say "somewhere"; and
+    for a candidate or an alert an operator dismissed: only confirmed alerts go to the team."""
     if alert.position is None:
         raise ValueError(f"alert {alert.alert_id} has no position; it cannot become a CoT event")
+    if alert.tier != "confirmed" or alert.dismissed:
+        state = "was dismissed" if alert.dismissed else "is an unconfirmed candidate"
+        raise ValueError(f"alert {alert.alert_id} {state}; only confirmed alerts go out as CoT")
     now = time.time() if now is None else now
     lat, lon = alert.position
     event = ET.Element(

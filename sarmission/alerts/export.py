@@ -1,5 +1,8 @@
 """Alerts as GeoJSON (RFC 7946) and KML 2.2, for GIS tools and mapping apps.
 
+Every alert is exported, candidates and dismissed ones included, each saying which it is (the
+``tier`` and ``decision`` properties; in KML also the placemark's name and description).
+
 Coordinates keep full float precision. Alerts without a position are never drawn as points:
 in GeoJSON they are Features with ``"geometry": null`` (RFC 7946 section 3.2, "unlocated"),
 in KML they are listed in the document's description.
@@ -59,6 +62,14 @@ def _describe(alert: Alert) -> str:
         lines.append(f"position {plain_decimal(lat)}, {plain_decimal(lon)}{err}")
     else:
         lines.append(f"position unknown: {alert.position_note or 'no geolocation'}")
+    if alert.tier == "candidate":
+        lines.append("unconfirmed candidate" + (f", discarded: {alert.discarded}"
+                                                if alert.discarded else ""))
+    elif alert.evidence:
+        lines.append(f"confirmed: {alert.evidence}")
+    if alert.decision is not None:
+        lines.append(f"{alert.decision} by {alert.decided_by} at "
+                     f"{utc_iso(alert.decided_at or 0.0)}")
     if alert.acknowledged:
         lines.append(f"acknowledged by {alert.ack_by} at {utc_iso(alert.ack_time or 0.0)}")
     lines.append(f"alert {alert.alert_id}")
@@ -90,7 +101,10 @@ def alerts_kml(alerts: Iterable[Alert], name: str = "sarmission alerts") -> byte
         lat, lon = alert.position
         placemark = sub(document, "Placemark")
         placemark.set("id", f"alert-{alert.alert_id}")
-        sub(placemark, "name", f"T{alert.target_id} {alert.class_name} {alert.score:.2f}")
+        state = {"candidate": " (unconfirmed)"}.get(alert.tier, "")
+        if alert.dismissed:
+            state = " (dismissed)"
+        sub(placemark, "name", f"T{alert.target_id} {alert.class_name} {alert.score:.2f}{state}")
         sub(placemark, "description", _describe(alert))
         sub(sub(placemark, "TimeStamp"), "when", utc_iso(alert.lock_time))
         extended = sub(placemark, "ExtendedData")

@@ -4,18 +4,30 @@ Routes (every error is one line of JSON, ``{"error": ..., "status": ...}``):
 
 - ``GET /``: the operator page (self-contained HTML, live over ``/events``).
 - ``GET /events``: Server-Sent Events. On connect, every stored alert as an ``alert`` event,
-  then ``hello``; afterwards ``alert`` for each new alert and ``update`` for acknowledgements,
-  deliveries and positions attached later. Data is the alert's JSON document; ``id`` is the
-  store's event sequence number, so a reconnecting browser (``Last-Event-ID``, digits only)
-  gets only what it missed.
+  the map (``map``: the current mission's area and drone track), then ``hello``; afterwards
+  ``alert`` for each new alert or candidate and ``update`` for every change to one
+  (acknowledgement, delivery, position attached later, a candidate confirmed or discarded, an
+  operator's decision). Data is the alert's JSON document; ``id`` is the store's event
+  sequence number, so a reconnecting browser (``Last-Event-ID``, digits only) gets only what
+  it missed. Map changes come as ``track`` (new drone points) and ``area`` events, at most one
+  of each per second, and ``map`` again when the store turns to another mission
+  (:mod:`sarmission.alerts.feed_map`).
 - ``GET /api/alerts[?since=T]``: JSON list of alerts (``since``: lock time, POSIX seconds).
 - ``GET /api/alerts/<id>``: one alert.
 - ``POST /api/alerts/<id>/ack``: acknowledge; body ``{"by": "name"}`` (1-64 printable
   characters), ``Content-Type: application/json`` required (a cross-site form cannot send it).
   Returns the alert.
+- ``POST /api/alerts/<id>/confirm``, ``POST /api/alerts/<id>/dismiss``: an operator's decision;
+  body ``{"by": "name"}`` (required), same rules as ``/ack``. Returns the alert with
+  ``"unchanged": true`` when it already had that decision; the newer of two contradicting
+  decisions wins (:meth:`~sarmission.alerts.store.AlertStore.record_decision`). Unknown id: 404.
+- ``GET /api/map[?mission=ID][&since=T]``: ``{"mission_id", "area", "track", "alerts",
+  "dismissed"}`` of the mission (default: the one the store heard of last); see
+  :func:`~sarmission.alerts.feed_map.map_document`.
 - ``GET /alerts.jsonl[?since=T][&follow=1]``: one alert per line; with ``follow=1`` the
   response stays open and each new alert is written as it is stored, and again when a position
-  is attached to an alert stored without one (same ``alert_id``: the later line supersedes).
+  is attached to an alert stored without one, when a candidate is confirmed or discarded, and
+  on an operator's decision (same ``alert_id``: the later line supersedes).
 - ``GET /alerts.geojson``, ``GET /alerts.kml``: exports (see :mod:`sarmission.alerts.export`).
 - ``GET /thumb/<id>.jpg``: the alert's thumbnail.
 - ``GET /healthz``: ``{"ok": true, "alerts": n, "last_event": seq, ...}``.
@@ -24,12 +36,13 @@ Access (:mod:`sarmission.alerts.feed_guard`): bound beyond loopback, every route
 access token (generated when none is given); a loopback feed needs one only when given. Tools
 send ``Authorization: Bearer <token>``. A browser opens ``/?token=<token>`` once: the page is
 served with an HttpOnly ``SameSite=Strict`` cookie derived from the token, which its own
-requests (events, acknowledgements, thumbnails, exports) then carry, and it drops the token from
-the address bar; the query token is accepted on ``/`` only, so it never rides along in other
-URLs. The ``Host`` header must name the feed (its bind address, ``localhost`` on loopback or
-wildcard binds, any IP literal on a wildcard bind, or a name in ``allowed_hosts``): 421
-otherwise. An acknowledgement with an ``Origin`` must come from the feed's own origin, one
-without must carry the token header: 403 otherwise. Unknown query parameters are refused.
+requests (events, acknowledgements, decisions, thumbnails, exports) then carry, and it drops
+the token from the address bar; the query token is accepted on ``/`` only, so it never rides
+along in other URLs. The ``Host`` header must name the feed (its bind address, ``localhost`` on
+loopback or wildcard binds, any IP literal on a wildcard bind, or a name in ``allowed_hosts``):
+421 otherwise. An acknowledgement or decision with an ``Origin`` must come from the feed's own
+origin, one without must carry the token header: 403 otherwise. Unknown query parameters are
+refused.
 
 Bounds (:mod:`sarmission.alerts.feed_limits`): at most ``max_connections`` connections (503
 beyond, answered without a thread) and ``max_streams`` open streams (``/events`` and followed
@@ -67,6 +80,7 @@ from sarmission.alerts.feed_guard import (
 )
 from sarmission.alerts.feed_input import BadRequest
 from sarmission.alerts.feed_limits import BusyRejecter, DeadlineReader, Slots, tune_socket
+from sarmission.alerts.feed_map import MapFollower, map_document
 from sarmission.alerts.model import Alert
 from sarmission.alerts.page import PAGE_HTML
 from sarmission.alerts.store import AlertEvent, AlertStore
@@ -76,7 +90,9 @@ log = logging.getLogger(__name__)
 
 _ID = r"([0-9A-Za-z_.-]{1,64})"
 _ALERT = re.compile(rf"^/api/alerts/{_ID}$")
-_ACK = re.compile(rf"^/api/alerts/{_ID}/ack$")
+_CHANGE = re.compile(rf"^/api/alerts/{_ID}/(ack|confirm|dismiss)$")
+#: What each decision route records.
+_DECISIONS = {"confirm": "confirmed", "dismiss": "dismissed"}
 _THUMB = re.compile(rf"^/thumb/{_ID}\.jpg$")
 _TOKEN_IN_TARGET = re.compile(r"([?&]token=)[^&#]*")
 _PAGE_CSP = (
@@ -89,9 +105,11 @@ _PARAMS: dict[str, frozenset[str]] = {
     "/": frozenset(("token",)),
     "/api/alerts": frozenset(("since",)),
     "/alerts.jsonl": frozenset(("since", "follow")),
+    "/api/map": frozenset(("mission", "since")),
 }
 _GET_PATHS = frozenset(
-    ("/", "/events", "/api/alerts", "/alerts.jsonl", "/alerts.geojson", "/alerts.kml", "/healthz")
+    ("/", "/events", "/api/alerts", "/api/map", "/alerts.jsonl", "/alerts.geojson",
+     "/alerts.kml", "/healthz")
 )
 #: How often a waiting stream checks for shutdown and client disconnects (seconds).
 _TICK_S = 0.5
@@ -434,6 +452,9 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/alerts":
             alerts = self.store.list(checked.since(params))
             self._json(HTTPStatus.OK, [a.to_json_dict() for a in alerts])
+        elif path == "/api/map":
+            mission, since = checked.mission(params), checked.since(params)
+            self._json(HTTPStatus.OK, map_document(self.store, mission, since))
         elif m := _ALERT.match(path):
             alert = self.store.get(m.group(1))
             if alert is None:
@@ -478,8 +499,8 @@ class _Handler(BaseHTTPRequestHandler):
                     "streams": self.feed.streams.held,
                 },
             )
-        elif _ACK.match(path):
-            self._error(HTTPStatus.METHOD_NOT_ALLOWED, "use POST to acknowledge")
+        elif m := _CHANGE.match(path):
+            self._error(HTTPStatus.METHOD_NOT_ALLOWED, f"use POST to {m.group(2)}")
         else:
             self._error(HTTPStatus.NOT_FOUND, "not found")
 
@@ -489,7 +510,7 @@ class _Handler(BaseHTTPRequestHandler):
         if admitted is None:
             return
         credential, _ = admitted
-        m = _ACK.match(url.path)
+        m = _CHANGE.match(url.path)
         if m is None:
             if _is_get_route(url.path):
                 self._error(HTTPStatus.METHOD_NOT_ALLOWED, "use GET")
@@ -506,18 +527,25 @@ class _Handler(BaseHTTPRequestHandler):
         if self.headers.get_content_type() != "application/json":
             self._error(HTTPStatus.UNSUPPORTED_MEDIA_TYPE, "send Content-Type: application/json")
             return
+        alert_id, verb = m.groups()
         try:
-            by = checked.ack_by(self.rfile.read(checked.content_length(self.headers)))
+            body = self.rfile.read(checked.content_length(self.headers))
+            by = checked.ack_by(body) if verb == "ack" else checked.decided_by(body)
         except BadRequest as exc:
             self._error(HTTPStatus(exc.status), str(exc))
             return
         try:
-            alert = self.store.acknowledge(m.group(1), by)
+            if verb == "ack":
+                doc = self.store.acknowledge(alert_id, by).to_json_dict()
+            else:
+                decided = self.store.record_decision(alert_id, _DECISIONS[verb], by)
+                doc = decided.alert.to_json_dict() | {"unchanged": not decided.changed}
         except KeyError:
-            self._error(HTTPStatus.NOT_FOUND, f"no alert {m.group(1)}")
+            self._error(HTTPStatus.NOT_FOUND, f"no alert {alert_id}")
             return
-        log.info("alert %s acknowledged by %s", alert.alert_id, by)
-        self._json(HTTPStatus.OK, alert.to_json_dict())
+        log.info("alert %s: %s by %s", alert_id, "acknowledged" if verb == "ack"
+                 else _DECISIONS[verb], by)
+        self._json(HTTPStatus.OK, doc)
 
     # ------------------------------------------------------------------ streams
 
@@ -542,6 +570,8 @@ class _Handler(BaseHTTPRequestHandler):
             if resume is None:
                 for alert in self.store.list():
                     self._sse("alert", alert, sub.cursor)
+            follower = MapFollower(self.store)
+            self._sse_map(follower)
             self.wfile.write(b"event: hello\ndata: {}\n\n")
             self.wfile.flush()
             idle_since = time.monotonic()
@@ -549,6 +579,8 @@ class _Handler(BaseHTTPRequestHandler):
                 events = sub.get(timeout=_TICK_S)
                 for event in events:
                     self._sse("alert" if event.kind == "new" else "update", event.alert, event.seq)
+                if self._sse_map(follower):
+                    idle_since = time.monotonic()
                 if events:
                     idle_since = time.monotonic()
                 elif time.monotonic() - idle_since > _KEEPALIVE_S:
@@ -559,6 +591,14 @@ class _Handler(BaseHTTPRequestHandler):
     def _sse(self, name: str, alert: Alert, seq: int) -> None:
         data = json.dumps(alert.to_json_dict())
         self.wfile.write(f"event: {name}\nid: {seq}\ndata: {data}\n\n".encode())
+
+    def _sse_map(self, follower: MapFollower) -> bool:
+        """Write the map events due now (without an ``id``: they are state, not log entries,
+        and must not move a reconnecting browser's place in the log); whether any were."""
+        due = follower.poll()
+        for name, data in due:
+            self.wfile.write(f"event: {name}\ndata: {json.dumps(data)}\n\n".encode())
+        return bool(due)
 
     def _jsonl(self, since: float | None, follow: bool) -> None:
         with self.store.subscribe() as sub:
@@ -581,12 +621,16 @@ class _Handler(BaseHTTPRequestHandler):
 
 
 def _is_line(event: AlertEvent, sent: set[str], since: float | None) -> bool:
-    """Whether a followed JSON-lines stream writes ``event``: a new alert not yet written, or
-    an alert's position found after it was stored."""
+    """Whether a followed JSON-lines stream writes ``event``: a new alert not yet written, an
+    alert's position found after it was stored, its tier settled or an operator's decision."""
     return (
-        (event.kind == "position" or event.kind == "new" and event.alert.alert_id not in sent)
+        (event.kind in _RELINED or event.kind == "new" and event.alert.alert_id not in sent)
         and (since is None or event.alert.lock_time >= since)
     )
+
+
+#: Changes after which a followed JSON-lines stream writes the alert again.
+_RELINED = frozenset(("position", "confirmed", "discarded", "decided"))
 
 
 def _redact(text: str) -> str:

@@ -17,8 +17,10 @@ from urllib.parse import parse_qsl
 MAX_TARGET = 2048
 #: Largest request body (an acknowledgement is a few dozen bytes).
 MAX_BODY = 4096
-#: Longest operator name recorded with an acknowledgement.
+#: Longest operator name recorded with an acknowledgement or a decision.
 MAX_BY = 64
+#: Longest mission id accepted in a query.
+MAX_MISSION = 128
 _EVENT_ID = re.compile(r"[0-9]{1,18}")
 _LENGTH = re.compile(r"[0-9]{1,9}")
 _MAX_PARAMS = 8
@@ -108,6 +110,17 @@ def content_length(headers: Message) -> int:
 def ack_by(body: bytes) -> str:
     """Who acknowledges, from an acknowledgement body: ``{}`` or ``{"by": "name"}`` with a name
     of 1-64 printable characters (default ``operator``)."""
+    return _operator(body, "operator")
+
+
+def decided_by(body: bytes) -> str:
+    """Who confirms or dismisses, from the body ``{"by": "name"}`` (1-64 printable characters).
+    Unlike an acknowledgement the name is required: a dismissal silences a place for the rest of
+    the mission, so who made it must be on record."""
+    return _operator(body, None)
+
+
+def _operator(body: bytes, default: str | None) -> str:
     try:
         doc = json.loads(body) if body.strip() else {}
     except (ValueError, RecursionError):
@@ -117,7 +130,20 @@ def ack_by(body: bytes) -> str:
     unknown = set(doc) - {"by"}
     if unknown:
         raise BadRequest(f"unknown field {sorted(unknown)[0][:40]!r} (the body takes: by)")
-    by = doc.get("by", "operator")
+    by = doc.get("by", default)
+    if by is None:
+        raise BadRequest('say who decides: send {"by": "name"}')
     if not isinstance(by, str) or not 1 <= len(by.strip()) <= MAX_BY or not by.isprintable():
         raise BadRequest(f"by must be a name of 1 to {MAX_BY} printable characters")
     return by.strip()
+
+
+def mission(params: dict[str, str]) -> str | None:
+    """``mission``: a mission id of 1-128 printable characters, None when absent."""
+    text = params.get("mission")
+    if text is None:
+        return None
+    if not 1 <= len(text) <= MAX_MISSION or not text.isprintable():
+        raise BadRequest(f"mission must be a mission id of 1 to {MAX_MISSION} printable "
+                         "characters")
+    return text
