@@ -1,4 +1,4 @@
-"""RoIAlign by grid_sample and the motion-enhanced crops."""
+"""RoIAlign (bit for bit torch's grid_sample, without torch) and the motion-enhanced crops."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import torch
 import torch.nn.functional as F
 
 from sarmission.perception.crops import (
+    _sample,
     crop_flops,
     enhanced_response,
     motion_enhanced_crops,
@@ -35,8 +36,8 @@ def _blob(h: int, w: int, cx: float, cy: float, sigma: float) -> np.ndarray:
     return np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * sigma**2)).astype(np.float32)
 
 
-def _centroid(crop: torch.Tensor) -> np.ndarray:
-    c = crop.numpy().astype(np.float64)
+def _centroid(crop: np.ndarray) -> np.ndarray:
+    c = crop.astype(np.float64)
     yy, xx = np.mgrid[0:c.shape[0], 0:c.shape[1]]
     return np.array([(c * xx).sum(), (c * yy).sum()]) / c.sum()
 
@@ -51,7 +52,7 @@ def test_roi_align_matches_analytic_bilinear_values():
     yy, xx = np.mgrid[0:60, 0:80].astype(np.float64)
     image = (2 * xx + 3 * yy + 0.1 * xx * yy + 5).astype(np.float32)
     boxes = np.array([[10.0, 12.0, 26.0, 28.0], [20.3, 7.7, 44.3, 31.7], [30.0, 20.0, 38.0, 28.0]])
-    crops = roi_align(image, boxes, 16, sampling_ratio=1)[:, 0].numpy()
+    crops = roi_align(image, boxes, 16, sampling_ratio=1)[:, 0]
     for crop, (x1, y1, x2, y2) in zip(crops, boxes, strict=True):
         xs = x1 - 0.5 + (np.arange(16) + 0.5) * (x2 - x1) / 16
         ys = y1 - 0.5 + (np.arange(16) + 0.5) * (y2 - y1) / 16
@@ -67,7 +68,29 @@ def test_roi_align_equals_whole_image_grid_sample_including_borders():
     boxes = np.array([[10, 12, 26, 28], [-5, -3, 11, 13], [40, 30, 56, 46], [3.3, 7.7, 19.3, 23.7],
                       [-30, -30, -14, -14]], np.float32)
     got = roi_align(image, boxes, 16, sampling_ratio=1)
-    torch.testing.assert_close(got, _reference(image, boxes), atol=1e-5, rtol=1e-5)
+    # The grid is normalised to the whole image here, to each box's window in roi_align: the
+    # same positions up to float32 rounding of the normalised coordinates.
+    np.testing.assert_allclose(got, _reference(image, boxes).numpy(), atol=1e-5, rtol=1e-5)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_sampling_is_torch_grid_sample_bit_for_bit(seed: int):
+    """The crops kernel repeats torch's float32 arithmetic: the head sees the same inputs as
+    with grid_sample and avg_pool2d, so detections do not change."""
+    rng = np.random.default_rng(seed)
+    n, k, m, c = 40, 13, 16, 3
+    scale = np.float32(10.0) ** rng.integers(-3, 3, (n, 1, 1, 1))
+    windows = (rng.standard_normal((n, k, k, c)) * scale).astype(np.float32)
+    grid_x = rng.uniform(-1.1, 1.1, (n, m)).astype(np.float32)  # a little outside: zero padding
+    grid_y = rng.uniform(-1.1, 1.1, (n, m)).astype(np.float32)
+    grid = np.empty((n, m, m, 2), np.float32)
+    grid[..., 0], grid[..., 1] = grid_x[:, None, :], grid_y[:, :, None]
+    expected = F.grid_sample(torch.from_numpy(windows).permute(0, 3, 1, 2),
+                             torch.from_numpy(grid), mode="bilinear", padding_mode="zeros",
+                             align_corners=False)
+    np.testing.assert_array_equal(_sample(windows, None, grid_x, grid_y, 1), expected.numpy())
+    np.testing.assert_array_equal(_sample(windows, None, grid_x, grid_y, 2),
+                                  F.avg_pool2d(expected, 2).numpy())
 
 
 def test_border_boxes_are_zero_padded():
@@ -75,13 +98,13 @@ def test_border_boxes_are_zero_padded():
     boxes = np.array([[-8, -8, 8, 8], [40, 24, 56, 40], [100, 100, 116, 116]], np.float32)
     crops = roi_align(image, boxes)
     assert crops.shape == (3, 3, 16, 16)
-    top_left = crops[0, 0].numpy()
+    top_left = crops[0, 0]
     assert np.all(top_left[:8, :] == 0) and np.all(top_left[:, :8] == 0)
     np.testing.assert_allclose(top_left[8:, 8:], 200.0)
-    bottom_right = crops[1, 0].numpy()
+    bottom_right = crops[1, 0]
     np.testing.assert_allclose(bottom_right[:8, :8], 200.0)
     assert np.all(bottom_right[8:, :] == 0) and np.all(bottom_right[:, 8:] == 0)
-    assert torch.all(crops[2] == 0)
+    assert np.all(crops[2] == 0)
 
 
 def test_sampling_ratio_averages_sub_samples():
@@ -89,10 +112,10 @@ def test_sampling_ratio_averages_sub_samples():
     image = rng.random((64, 64)).astype(np.float32)
     boxes = np.array([[5.5, 9.0, 37.5, 41.0], [-4.0, 20.0, 28.0, 52.0]])
     coarse = roi_align(image, boxes, 16, sampling_ratio=2)
-    fine = F.avg_pool2d(roi_align(image, boxes, 32, sampling_ratio=1), 2)
-    torch.testing.assert_close(coarse, fine, atol=1e-6, rtol=1e-6)
+    fine = F.avg_pool2d(torch.from_numpy(roi_align(image, boxes, 32, sampling_ratio=1)), 2)
+    np.testing.assert_array_equal(coarse, fine.numpy())
     # Adaptive ratio for 32 px boxes is 2.
-    torch.testing.assert_close(roi_align(image, boxes, 16), coarse)
+    np.testing.assert_array_equal(roi_align(image, boxes, 16), coarse)
 
 
 @pytest.mark.parametrize("ds", [2, 4])
@@ -124,15 +147,15 @@ def test_colour_channels_are_rgb_in_unit_range():
     z = np.zeros((10, 10), np.float32)
     crops = motion_enhanced_crops(frame, MotionMaps(2, z, z, z, z, z),
                                   np.array([[2, 2, 18, 18]], np.float32), np.zeros(1))
-    assert crops.shape == (1, 4, 16, 16) and crops.dtype == torch.float32
-    np.testing.assert_allclose(crops[0, :3, 8, 8].numpy(), [1.0, 128 / 255, 10 / 255], atol=1e-6)
-    assert torch.all(crops[0, 3] == 0)  # zero motion: normalisation guard keeps E at 0
+    assert crops.shape == (1, 4, 16, 16) and crops.dtype == np.float32
+    np.testing.assert_allclose(crops[0, :3, 8, 8], [1.0, 128 / 255, 10 / 255], atol=1e-6)
+    assert np.all(crops[0, 3] == 0)  # zero motion: normalisation guard keeps E at 0
 
 
 def test_enhanced_response_hand_made():
-    l_crop = torch.tensor([[[2.0, -1.0], [0.0, -4.0]], [[2.0, -1.0], [0.0, -4.0]]])
-    v_crop = torch.tensor([[[0.5, 1.0], [0.0, 0.25]], [[0.0, 0.0], [0.0, 0.0]]])
-    e = enhanced_response(l_crop, v_crop, np.array([1.0, 0.0])).numpy()
+    l_crop = np.array([[[2.0, -1.0], [0.0, -4.0]], [[2.0, -1.0], [0.0, -4.0]]], np.float32)
+    v_crop = np.array([[[0.5, 1.0], [0.0, 0.25]], [[0.0, 0.0], [0.0, 0.0]]], np.float32)
+    e = enhanced_response(l_crop, v_crop, np.array([1.0, 0.0]))
     # ON polarity: V / 1 + L_on / 2
     np.testing.assert_allclose(e[0], [[0.5 + 1.0, 1.0], [0.0, 0.25]])
     # OFF polarity, V all zero: L_off / 4

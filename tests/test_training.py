@@ -247,7 +247,8 @@ def test_crop_cache_matches_inference_and_is_reused(data):
             break
     rows = (crop_set.image_ids == frame_id) & ~crop_set.jittered
     np.testing.assert_array_equal(crop_set.boxes[rows].numpy(), result.proposals.boxes)
-    torch.testing.assert_close(crop_set.crops[rows].float(), expected, atol=2e-3, rtol=1e-3)
+    torch.testing.assert_close(crop_set.crops[rows].float(), torch.from_numpy(expected),
+                               atol=2e-3, rtol=1e-3)
     # Positive RPN crops clear the NWD threshold against their box target.
     boxes = ltrb_to_boxes(crop_set.target_ltrb[rpn_pos].numpy(), crop_set.boxes[rpn_pos].numpy())
     nwd = assign_by_nwd(crop_set.boxes[rpn_pos].numpy(), boxes).nwd

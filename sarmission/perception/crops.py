@@ -1,19 +1,22 @@
 """Motion-enhanced crops for the MITE-Net head (paper section 3.1, "TTM Motion-Enhanced Crop").
 
-RoIAlign (``aligned=True`` convention) is done with ``torch.nn.functional.grid_sample`` on a
-sampling grid built here. Coordinates are continuous pixel coordinates in which pixel ``j`` of a
-map covers ``[j, j + 1)``: a box ``[x1, y1, x2, y2]`` in full-resolution pixels maps to
-``x * spatial_scale`` on the sampled map, and bin ``i`` of ``S`` samples at continuous
-``x1' + (i + 0.5) * (x2' - x1') / S``, i.e. at array index ``x1' - 0.5 + (i + 0.5) * bin``.
-On a map pooled by ``ds`` (``spatial_scale = 1/ds``), map pixel ``j`` is centred at
-``(j + 0.5) * ds - 0.5`` in full-resolution array indices, so the same box lands on the same
-content in the colour crop and in the 1/ds motion crops.
+RoIAlign (``aligned=True`` convention) is bilinear sampling on a grid built here, by a small numba
+kernel that repeats the float32 arithmetic of torch's CPU ``grid_sample`` (bilinear, zero padding,
+``align_corners=False``) step for step, fused multiply-adds included: the crops are bit for bit
+what that call gives, without torch on the inference path.
+
+Coordinates are continuous pixel coordinates in which pixel ``j`` of a map covers ``[j, j + 1)``:
+a box ``[x1, y1, x2, y2]`` in full-resolution pixels maps to ``x * spatial_scale`` on the sampled
+map, and bin ``i`` of ``S`` samples at continuous ``x1' + (i + 0.5) * (x2' - x1') / S``, i.e. at
+array index ``x1' - 0.5 + (i + 0.5) * bin``. On a map pooled by ``ds`` (``spatial_scale =
+1/ds``), map pixel ``j`` is centred at ``(j + 0.5) * ds - 0.5`` in full-resolution array indices,
+so the same box lands on the same content in the colour crop and in the 1/ds motion crops.
 
 Speed: nothing is converted at full resolution. For each box a small window (the sampled
 footprint plus the bilinear neighbours) is gathered with numpy fancy indexing, the windows are
-stacked and only that stack goes through ``grid_sample``. Pixels outside the map read as 0 (zero
-padding), exactly as ``grid_sample(full_map, grid, padding_mode="zeros", align_corners=False)``
-would on the whole map.
+stacked and only that stack is sampled. Pixels outside the map read as 0 (zero padding), exactly
+as ``grid_sample(full_map, grid, padding_mode="zeros", align_corners=False)`` would on the whole
+map.
 
 Head input channels (``[N, 4, S, S]`` float32):
 
@@ -29,13 +32,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import torch
-import torch.nn.functional as F
-from torch import Tensor
+from numba import njit
 
 from sarmission.perception.types import MotionMaps
 
 CROP_SIZE = 16
+_ONE = np.float32(1.0)
 
 
 def _sample_coords(lo: np.ndarray, hi: np.ndarray, output_size: int, ratio: int) -> np.ndarray:
@@ -51,13 +53,14 @@ def _adaptive_ratio(boxes: np.ndarray, output_size: int) -> int:
     return max(1, math.ceil(side / output_size - 1e-3))
 
 
-def _roi_geometry(boxes: np.ndarray, height: int, width: int, output_size: int,
-                  ratio: int) -> tuple[np.ndarray, np.ndarray | None, Tensor]:
+def _roi_geometry(boxes: np.ndarray, height: int, width: int, output_size: int, ratio: int
+                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
     """Windows and sampling grid for boxes already scaled onto a ``height x width`` map.
 
     Returns the flat pixel index of every window pixel ``[N, K, K]`` (clipped into the map), the
-    in-map mask ``[N, K, K]`` (``None`` when every window lies inside) and the ``grid_sample`` grid
-    ``[N, S * ratio, S * ratio, 2]`` in the windows' normalised coordinates (align_corners=False).
+    in-map mask ``[N, K, K]`` (``None`` when every window lies inside) and the grid's x and y
+    ``[N, S * ratio]`` (float32) in the windows' normalised coordinates (align_corners=False),
+    as ``grid_sample`` would be given them: the grid is separable, x per column, y per row.
     """
     sx = _sample_coords(boxes[:, 0], boxes[:, 2], output_size, ratio)
     sy = _sample_coords(boxes[:, 1], boxes[:, 3], output_size, ratio)
@@ -74,24 +77,82 @@ def _roi_geometry(boxes: np.ndarray, height: int, width: int, output_size: int,
         xs = np.clip(xs, 0, width - 1)
         ys = np.clip(ys, 0, height - 1)
     flat = ys[:, :, None] * width + xs[:, None, :]
-    n, m = sx.shape
-    grid = np.empty((n, m, m, 2), dtype=np.float32)
-    grid[..., 0] = ((2.0 * (sx - x0[:, None]) + 1.0) / k - 1.0)[:, None, :]
-    grid[..., 1] = ((2.0 * (sy - y0[:, None]) + 1.0) / k - 1.0)[:, :, None]
-    return flat, mask, torch.from_numpy(grid)
+    grid_x = ((2.0 * (sx - x0[:, None]) + 1.0) / k - 1.0).astype(np.float32)
+    grid_y = ((2.0 * (sy - y0[:, None]) + 1.0) / k - 1.0).astype(np.float32)
+    return flat, mask, grid_x, grid_y
 
 
-def _sample(windows: np.ndarray, mask: np.ndarray | None, grid: Tensor, ratio: int) -> Tensor:
-    """Bilinear-sample windows ``[N, K, K, C]`` on ``grid``, averaging ``ratio**2`` samples."""
+@njit(cache=True, nogil=True)
+def _bilinear(windows, grid_x, grid_y, out):  # pragma: no cover - numba
+    """``grid_sample(windows, grid, "bilinear", "zeros", align_corners=False)`` into ``out``
+    ``[N, C, M, M]``, with torch's CPU arithmetic: ``x = fma(g + 1, K / 2, -0.5)``, weights
+    ``(1 - dy)(1 - dx)`` ..., then ``v_nw * w_nw`` and three fused multiply-adds (emulated in
+    float64: a product of two float32 is exact there, the sum is rounded once to float32).
+    No fastmath: every float32 step must round as torch's does."""
+    n, k, _, channels = windows.shape
+    m = grid_x.shape[1]
+    one = np.float32(1.0)
+    half = np.float64(np.float32(k) / np.float32(2.0))
+    xs = np.empty(m, np.int64)
+    xe = np.empty(m, np.float32)
+    for b in range(n):
+        for j in range(m):
+            x = np.float32(np.float64(grid_x[b, j] + one) * half - 0.5)
+            low = np.float32(math.floor(x))
+            xs[j] = np.int64(low)
+            xe[j] = x - low
+        for i in range(m):
+            y = np.float32(np.float64(grid_y[b, i] + one) * half - 0.5)
+            low_y = np.float32(math.floor(y))
+            r0 = np.int64(low_y)
+            south = y - low_y
+            north = one - south
+            r_ok0 = 0 <= r0 < k
+            r_ok1 = 0 <= r0 + 1 < k
+            for j in range(m):
+                c0 = xs[j]
+                east = xe[j]
+                west = one - east
+                c_ok0 = 0 <= c0 < k
+                c_ok1 = 0 <= c0 + 1 < k
+                w_nw, w_ne = north * west, north * east
+                w_sw, w_se = south * west, south * east
+                for c in range(channels):
+                    v_nw = windows[b, r0, c0, c] if r_ok0 and c_ok0 else np.float32(0.0)
+                    v_ne = windows[b, r0, c0 + 1, c] if r_ok0 and c_ok1 else np.float32(0.0)
+                    v_sw = windows[b, r0 + 1, c0, c] if r_ok1 and c_ok0 else np.float32(0.0)
+                    v_se = windows[b, r0 + 1, c0 + 1, c] if r_ok1 and c_ok1 else np.float32(0.0)
+                    acc = v_nw * w_nw
+                    acc = np.float32(np.float64(v_ne) * np.float64(w_ne) + np.float64(acc))
+                    acc = np.float32(np.float64(v_sw) * np.float64(w_sw) + np.float64(acc))
+                    acc = np.float32(np.float64(v_se) * np.float64(w_se) + np.float64(acc))
+                    out[b, c, i, j] = acc
+
+
+def _sample(windows: np.ndarray, mask: np.ndarray | None, grid_x: np.ndarray,
+            grid_y: np.ndarray, ratio: int) -> np.ndarray:
+    """Bilinear-sample windows ``[N, K, K, C]`` on the grid → ``[N, C, S, S]`` float32, averaging
+    ``ratio**2`` samples per bin (``grid_sample`` then ``avg_pool2d``, operation for operation)."""
     if mask is not None:
         windows = windows * mask[..., None].astype(windows.dtype)
-    t = torch.from_numpy(np.ascontiguousarray(windows, dtype=np.float32)).permute(0, 3, 1, 2)
-    out = F.grid_sample(t, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
-    return F.avg_pool2d(out, ratio) if ratio > 1 else out
+    windows = np.ascontiguousarray(windows, dtype=np.float32)
+    n, m = grid_x.shape
+    out = np.empty((n, windows.shape[3], m, m), np.float32)
+    _bilinear(windows, grid_x, grid_y, out)
+    if ratio == 1:
+        return out
+    c = out.shape[1]
+    bins = out.reshape(n, c, m // ratio, ratio, m // ratio, ratio)
+    total = bins[:, :, :, 0, :, 0].copy()
+    for dy in range(ratio):
+        for dx in range(ratio):
+            if dy or dx:
+                total += bins[:, :, :, dy, :, dx]
+    return total / np.float32(ratio * ratio)
 
 
 def roi_align(image: np.ndarray, boxes: np.ndarray, output_size: int = CROP_SIZE,
-              spatial_scale: float = 1.0, sampling_ratio: int | None = None) -> Tensor:
+              spatial_scale: float = 1.0, sampling_ratio: int | None = None) -> np.ndarray:
     """RoIAlign (aligned=True) of an ``[H, W]`` or ``[H, W, C]`` array → float32 ``[N, C, S, S]``.
 
     ``boxes`` are ``[N, 4]`` ``x1, y1, x2, y2`` in the coordinates that ``spatial_scale`` maps onto
@@ -103,47 +164,51 @@ def roi_align(image: np.ndarray, boxes: np.ndarray, output_size: int = CROP_SIZE
     h, w, c = img.shape
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4) * spatial_scale
     if b.shape[0] == 0:
-        return torch.zeros((0, c, output_size, output_size), dtype=torch.float32)
+        return np.zeros((0, c, output_size, output_size), dtype=np.float32)
     ratio = sampling_ratio or _adaptive_ratio(b, output_size)
-    flat, mask, grid = _roi_geometry(b, h, w, output_size, ratio)
-    return _sample(img.reshape(h * w, c)[flat], mask, grid, ratio)
+    flat, mask, grid_x, grid_y = _roi_geometry(b, h, w, output_size, ratio)
+    return _sample(img.reshape(h * w, c)[flat], mask, grid_x, grid_y, ratio)
 
 
-def _normalise_max_abs(x: Tensor) -> Tensor:
+def _normalise_max_abs(x: np.ndarray) -> np.ndarray:
     """Divide each crop ``[N, S, S]`` by its max-abs; all-zero crops stay zero."""
-    m = x.abs().amax(dim=(1, 2), keepdim=True)
-    return x / torch.where(m > 0, m, torch.ones_like(m))
+    m = np.abs(x).max(axis=(1, 2), keepdims=True)
+    return x / np.where(m > 0, m, _ONE)
 
 
-def enhanced_response(l_crop: Tensor, v_crop: Tensor, polarity: np.ndarray | Tensor) -> Tensor:
+def enhanced_response(l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarray
+                      ) -> np.ndarray:
     """``E = V/max|V| + p * L_on/max(L_on) + (1 - p) * L_off/max(L_off)``, crops ``[N, S, S]``."""
-    p = torch.as_tensor(np.asarray(polarity, dtype=np.float32)).reshape(-1, 1, 1)
-    l_on = _normalise_max_abs(torch.clamp(l_crop, min=0.0))
-    l_off = _normalise_max_abs(torch.clamp(-l_crop, min=0.0))
-    return _normalise_max_abs(v_crop) + p * l_on + (1.0 - p) * l_off
+    l_crop = np.asarray(l_crop, dtype=np.float32)
+    p = np.asarray(polarity, dtype=np.float32).reshape(-1, 1, 1)
+    l_on = _normalise_max_abs(np.maximum(l_crop, np.float32(0)))
+    l_off = _normalise_max_abs(np.maximum(-l_crop, np.float32(0)))
+    v = _normalise_max_abs(np.asarray(v_crop, dtype=np.float32))
+    return v + p * l_on + (_ONE - p) * l_off
 
 
 def motion_enhanced_crops(frame_bgr: np.ndarray, motion: MotionMaps, boxes: np.ndarray,
                           polarity: np.ndarray, output_size: int = CROP_SIZE,
-                          sampling_ratio: int | None = None) -> Tensor:
-    """Head input ``[N, 4, S, S]``: RGB crop in [0, 1] from the full-resolution BGR uint8 frame and
-    the enhanced response E from ``motion.temporal_change`` (L) and ``motion.response`` (V) at 1/ds.
+                          sampling_ratio: int | None = None) -> np.ndarray:
+    """Head input ``[N, 4, S, S]`` (float32): RGB crop in [0, 1] from the full-resolution BGR
+    uint8 frame and the enhanced response E from ``motion.temporal_change`` (L) and
+    ``motion.response`` (V) at 1/ds.
 
     ``boxes`` ``[N, 4]`` are full-resolution ``x1, y1, x2, y2``; ``polarity`` ``[N]`` is 1 for ON.
     """
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     if b.shape[0] == 0:
-        return torch.zeros((0, 4, output_size, output_size), dtype=torch.float32)
+        return np.zeros((0, 4, output_size, output_size), dtype=np.float32)
     bgr = roi_align(frame_bgr, b, output_size, 1.0, sampling_ratio)
-    rgb = bgr.flip(1) * (1.0 / 255.0)
+    rgb = bgr[:, ::-1] * np.float32(1.0 / 255.0)
     bm = b / motion.ds
     ratio = sampling_ratio or _adaptive_ratio(bm, output_size)
     h, w = motion.response.shape
-    flat, mask, grid = _roi_geometry(bm, h, w, output_size, ratio)
+    flat, mask, grid_x, grid_y = _roi_geometry(bm, h, w, output_size, ratio)
     lv = np.stack([motion.temporal_change.reshape(-1)[flat], motion.response.reshape(-1)[flat]], -1)
-    lv_crop = _sample(lv, mask, grid, ratio)
+    lv_crop = _sample(lv, mask, grid_x, grid_y, ratio)
     e = enhanced_response(lv_crop[:, 0], lv_crop[:, 1], polarity)
-    return torch.cat([rgb, e[:, None]], dim=1)
+    return np.concatenate([rgb, e[:, None]], axis=1)
 
 
 def crop_flops(num_boxes: int, output_size: int = CROP_SIZE, sampling_ratio: int = 1) -> int:

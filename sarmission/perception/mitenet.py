@@ -11,7 +11,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from sarmission.perception.chroma import (
     CHROMA_SCALE,
@@ -20,20 +19,13 @@ from sarmission.perception.chroma import (
     chroma_if_wanted,
 )
 from sarmission.perception.crops import CROP_SIZE, crop_flops, motion_enhanced_crops
-from sarmission.perception.head import (
-    HeadConfig,
-    MiteHead,
-    count_parameters,
-    head_flops_per_proposal,
-    ltrb_to_boxes,
-)
+from sarmission.perception.head_config import HeadConfig, ltrb_to_boxes
 from sarmission.perception.pyramid import half_resolution
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.runtime import (
     HeadRuntime,
     OnnxHeadRuntime,
     RuntimeName,
-    TorchHeadRuntime,
     load_head_runtime,
 )
 from sarmission.perception.types import (
@@ -59,7 +51,7 @@ def scaled_boxes(boxes: np.ndarray, scale: float) -> np.ndarray:
 
 
 def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "torch",
-                       intra_op_threads: int = 2) -> HeadRuntime:
+                       intra_op_threads: int | None = None) -> HeadRuntime:
     """Head runtime from a model file; with ``model=None`` the shipped default model, or, when the
     package has none, an untrained head with fixed seed-0 weights (for timing and FLOP counts).
     """
@@ -72,6 +64,11 @@ def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "
         return load_head_runtime(shipped, runtime, intra_op_threads)
     if DEFAULT_TORCH_MODEL.is_file():
         return load_head_runtime(DEFAULT_TORCH_MODEL, runtime, intra_op_threads)
+    import torch
+
+    from sarmission.perception.head import MiteHead
+    from sarmission.perception.runtime import TorchHeadRuntime
+
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(0)
         head = MiteHead().eval()
@@ -237,7 +234,7 @@ class MiteNet:
         return FrameResult(timestamp=float(timestamp), detections=detections,
                            proposals=proposals, motion=motion)
 
-    def _classify(self, crops: torch.Tensor) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _classify(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Best class probability, its class id and the box bins of every crop."""
         logits, ltrb = self.head.predict(crops)
         probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
@@ -245,7 +242,7 @@ class MiteNet:
         return probs[np.arange(len(probs)), class_ids], class_ids, ltrb
 
     def _detect(self, frame: np.ndarray, motion: MotionMaps, proposals: Proposals,
-                crops: torch.Tensor, boxes: np.ndarray) -> Detections:
+                crops: np.ndarray, boxes: np.ndarray) -> Detections:
         """Detections from the first-scale ``crops`` of ``boxes``, refined at the other scales."""
         if len(boxes) == 0:
             return Detections()
@@ -288,6 +285,8 @@ class MiteNet:
         proposals a frame can have. ``parameters``: ``head`` (learned) and ``total`` (vSTMD and
         the RPN learn nothing).
         """
+        from sarmission.perception.head import MiteHead, count_parameters, head_flops_per_proposal
+
         head = MiteHead(HeadConfig.from_dict(self.head.config.to_dict()))
         map_h, map_w = self.vstmd.map_shape(height, width)
         colour = self.rpn.colour_slots > 0 and chroma_applies(height, width)

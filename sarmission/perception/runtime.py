@@ -11,20 +11,28 @@ ONNX format (``.onnx``): input ``crops`` ``[N, 4, S, S]`` float32 with a symboli
 ``sarmission.format_version`` and ``sarmission.config`` (the same config dict as JSON).
 
 Every failure to read a model raises :class:`ModelLoadError` naming the file and the problem.
+
+torch is imported only by what needs it (checkpoints, :class:`TorchHeadRuntime`): running an ONNX
+head loads onnxruntime alone, which keeps a detecting process a few hundred MB smaller. An ONNX
+file is checked from the metadata and signature onnxruntime reads, without the ``onnx`` package.
 """
 
 from __future__ import annotations
 
 import json
+import sys
 from abc import ABC, abstractmethod
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import torch
-from torch import Tensor
 
-from sarmission.perception.head import HeadConfig, MiteHead
+from sarmission.perception.head_config import HeadConfig
+
+if TYPE_CHECKING:
+    from torch import Tensor
+
+    from sarmission.perception.head import MiteHead
 
 MODEL_FORMAT = "sarmission.mite_head"
 FORMAT_VERSION = 1
@@ -65,6 +73,8 @@ def _check_version(path: Path | str, fmt: object, version: object) -> None:
 
 def save_head_checkpoint(model: MiteHead, path: str | Path) -> Path:
     """Write ``model`` in the checkpoint format above; returns the path."""
+    import torch
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     torch.save({"format": MODEL_FORMAT, "format_version": FORMAT_VERSION,
@@ -78,6 +88,10 @@ def load_head_checkpoint(path: str | Path) -> MiteHead:
 
     Raises :class:`ModelLoadError` for a missing, foreign or mismatched file.
     """
+    import torch
+
+    from sarmission.perception.head import MiteHead
+
     path = Path(path)
     if not path.is_file():
         raise _fail(path, "file not found")
@@ -128,7 +142,9 @@ class HeadRuntime(ABC):
     def predict(self, crops: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
         """Class logits ``[N, C]`` and decoded ``ltrb`` ``[N, 4]`` (float32 numpy) for ``crops``."""
         c = self.config
-        x = crops.detach().cpu().numpy() if isinstance(crops, Tensor) else np.asarray(crops)
+        torch = sys.modules.get("torch")  # a tensor can only come from a process that has torch
+        x = (crops.detach().cpu().numpy() if torch is not None and isinstance(crops, torch.Tensor)
+             else np.asarray(crops))
         expected = (c.in_channels, c.crop_size, c.crop_size)
         if x.ndim != 4 or tuple(x.shape[1:]) != expected:
             raise ValueError(f"crops must have shape [N, {expected[0]}, {expected[1]}, "
@@ -150,6 +166,8 @@ class TorchHeadRuntime(HeadRuntime):
     """
 
     def __init__(self, model: MiteHead, num_threads: int | None = None) -> None:
+        import torch
+
         super().__init__(model.config)
         self.model = model.eval()
         if num_threads is not None:
@@ -161,18 +179,23 @@ class TorchHeadRuntime(HeadRuntime):
         return cls(load_head_checkpoint(path), num_threads)
 
     def _run(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        import torch
+
         with torch.inference_mode():
             logits, ltrb = self.model(torch.from_numpy(crops))
         return logits.numpy(), ltrb.numpy()
 
 
-def _dims(value_info) -> list[int | str]:
+def _proto_dims(value_info) -> list[int | str]:
     return [d.dim_param if d.dim_param else (d.dim_value if d.HasField("dim_value") else "?")
             for d in value_info.type.tensor_type.shape.dim]
 
 
-def _validate_onnx(path: Path | str, model) -> HeadConfig:
-    meta = {p.key: p.value for p in model.metadata_props}
+def _check_signature(path: Path | str, meta: dict[str, str], inputs: list[tuple[str, list]],
+                     outputs: list[str]) -> HeadConfig:
+    """The head config of a model with metadata ``meta``, graph inputs ``(name, dims)`` (a dim is
+    an int, or a name when symbolic) and output names; :class:`ModelLoadError` when it is not a
+    head this build runs."""
     if META_FORMAT not in meta:
         raise _fail(path, f"ONNX model has no '{META_FORMAT}' metadata (export it with "
                           "sarmission.perception.export.export_head_onnx)")
@@ -183,11 +206,9 @@ def _validate_onnx(path: Path | str, model) -> HeadConfig:
         raise _fail(path, f"unreadable sarmission metadata ({exc})") from exc
     _check_version(path, meta[META_FORMAT], version)
     config = _config_from(path, raw_config)
-    inputs = [i for i in model.graph.input
-              if i.name not in {init.name for init in model.graph.initializer}]
-    if len(inputs) != 1 or inputs[0].name != INPUT_NAME:
-        raise _fail(path, f"expected one input '{INPUT_NAME}', got {[i.name for i in inputs]}")
-    dims = _dims(inputs[0])
+    if len(inputs) != 1 or inputs[0][0] != INPUT_NAME:
+        raise _fail(path, f"expected one input '{INPUT_NAME}', got {[i[0] for i in inputs]}")
+    dims = inputs[0][1]
     want = [config.in_channels, config.crop_size, config.crop_size]
     if len(dims) != 4 or dims[1:] != want:
         raise _fail(path, f"input '{INPUT_NAME}' has shape {dims}, expected [N, {want[0]}, "
@@ -195,22 +216,49 @@ def _validate_onnx(path: Path | str, model) -> HeadConfig:
     if not isinstance(dims[0], str):
         raise _fail(path, f"input '{INPUT_NAME}' has a fixed proposal axis {dims[0]}; it must be "
                           "dynamic")
-    outputs = [o.name for o in model.graph.output]
     if tuple(outputs) != OUTPUT_NAMES:
         raise _fail(path, f"expected outputs {list(OUTPUT_NAMES)}, got {outputs}")
     return config
+
+
+def _session_config(path: Path | str, session) -> HeadConfig:
+    """:func:`_check_signature` on what an onnxruntime session reads of the model."""
+    inputs = [(i.name, ["?" if d is None else d for d in i.shape]) for i in session.get_inputs()]
+    return _check_signature(path, dict(session.get_modelmeta().custom_metadata_map), inputs,
+                            [o.name for o in session.get_outputs()])
+
+
+def _rejection(path: Path | str, data: bytes, exc: Exception) -> ModelLoadError:
+    """Why onnxruntime refused ``data``, in the user's terms: not ONNX at all, not a head of
+    ours (read with the ``onnx`` package, on this error path only), or onnxruntime's reason."""
+    import onnx
+
+    try:
+        model = onnx.load_from_string(data)
+    except Exception as decode_exc:  # protobuf decode errors have several types
+        return _fail(path, f"not an ONNX model ({type(decode_exc).__name__})")
+    initialisers = {init.name for init in model.graph.initializer}
+    inputs = [(i.name, _proto_dims(i)) for i in model.graph.input if i.name not in initialisers]
+    try:
+        _check_signature(path, {p.key: p.value for p in model.metadata_props}, inputs,
+                         [o.name for o in model.graph.output])
+    except ModelLoadError as wrong:
+        return wrong
+    return _fail(path, f"onnxruntime rejected the model ({str(exc).splitlines()[0]})")
 
 
 class OnnxHeadRuntime(HeadRuntime):
     """Runs an exported head with onnxruntime's ``CPUExecutionProvider``.
 
     ``source`` is a ``.onnx`` path or the serialised model bytes (``name`` is then used in errors).
+    ``intra_op_threads`` defaults to the process's thread plan (:mod:`sarmission.threads`).
     """
 
-    def __init__(self, source: str | Path | bytes, intra_op_threads: int = 2,
+    def __init__(self, source: str | Path | bytes, intra_op_threads: int | None = None,
                  name: str | None = None) -> None:
-        import onnx
         import onnxruntime as ort
+
+        from sarmission.threads import thread_plan
 
         label = name or ("<bytes>" if isinstance(source, bytes) else str(source))
         if isinstance(source, bytes):
@@ -219,21 +267,17 @@ class OnnxHeadRuntime(HeadRuntime):
             if not Path(source).is_file():
                 raise _fail(label, "file not found")
             data = Path(source).read_bytes()
-        try:
-            model = onnx.load_from_string(data)
-        except Exception as exc:  # protobuf decode errors have several types
-            raise _fail(label, f"not an ONNX model ({type(exc).__name__})") from exc
-        super().__init__(_validate_onnx(label, model))
         opts = ort.SessionOptions()
-        opts.intra_op_num_threads = intra_op_threads
+        opts.intra_op_num_threads = intra_op_threads or thread_plan().onnx
         opts.inter_op_num_threads = 1
         # No busy-waiting after a run: the vSTMD and crop stages need those cores next.
         opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        opts.log_severity_level = 3  # a foreign file is reported below, in one line
         try:
             self.session = ort.InferenceSession(data, opts, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception classes
-            raise _fail(label, f"onnxruntime rejected the model ({str(exc).splitlines()[0]})") \
-                from exc
+            raise _rejection(label, data, exc) from exc
+        super().__init__(_session_config(label, self.session))
 
     def _run(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         logits, ltrb = self.session.run(list(OUTPUT_NAMES), {INPUT_NAME: crops})
@@ -244,12 +288,13 @@ RuntimeName = Literal["auto", "torch", "onnx"]
 
 
 def load_head_runtime(path: str | Path, runtime: RuntimeName = "auto",
-                      intra_op_threads: int = 2) -> HeadRuntime:
+                      intra_op_threads: int | None = None) -> HeadRuntime:
     """Load a head model file into a runtime.
 
     ``auto`` picks by extension: ``.pt``/``.pth`` → :class:`TorchHeadRuntime`, ``.onnx`` →
     :class:`OnnxHeadRuntime`. ``onnx`` with a checkpoint exports it in memory first; ``torch`` with
-    an ONNX file is an error. ``intra_op_threads`` applies to onnxruntime only.
+    an ONNX file is an error. ``intra_op_threads`` applies to onnxruntime only (default: the thread
+    plan's).
     """
     path = Path(path)
     suffix = path.suffix.lower()

@@ -256,7 +256,7 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
         jittered.append(np.ones(len(src), bool))
     dtype = getattr(torch, settings.crop_dtype)
     return {
-        "crops": torch.cat(crops).to(dtype),
+        "crops": torch.from_numpy(np.concatenate(crops)).to(dtype),
         "labels": torch.from_numpy(np.concatenate(all_labels).astype(np.int64)),
         "target_ltrb": torch.from_numpy(np.concatenate(targets).astype(np.float32)),
         "boxes": torch.from_numpy(np.concatenate(boxes).astype(np.float32)),

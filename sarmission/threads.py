@@ -1,0 +1,88 @@
+"""Thread counts of the compute libraries, chosen once per process for the cores it may use.
+
+OpenCV (filters, resizes), onnxruntime (the head), numba (the simulator's parallel kernels),
+torch (training, export) and FFmpeg (video decoding) each keep their own thread pool, and each
+sizes it to every core by default. On a 2-8 core companion computer they then compete for the
+same cores: a decoder thread waits behind a filter's workers, and a pool that sleeps and wakes
+for every small batch costs more than the batch. :func:`plan_for` splits the cores instead:
+the decoder, which runs beside detection in its own thread, gets about half of them; the
+detection stages share the rest. :func:`apply_thread_plan` sets the libraries already loaded
+and the environment read by those loaded later. ``SARMISSION_THREADS`` (a core count) overrides
+what the process is allowed to use. Measurements: ``docs/benchmarks.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+
+#: Environment variable that overrides the number of cores the plan is made for.
+THREADS_ENV = "SARMISSION_THREADS"
+
+
+@dataclass(frozen=True)
+class ThreadPlan:
+    """Threads per library for a machine of ``cores`` usable cores."""
+
+    cores: int
+    decode: int  # FFmpeg decoding threads of one video or stream
+    opencv: int  # cv2.setNumThreads: filters and resizes of the detection stages
+    onnx: int  # onnxruntime intra-op threads of the head
+    numba: int  # numba's parallel loops (the simulator's renderer)
+    torch: int  # torch intra-op threads (training, export, the torch runtime)
+
+
+def available_cores() -> int:
+    """Cores this process may run on: ``$SARMISSION_THREADS``, else its CPU affinity."""
+    value = os.environ.get(THREADS_ENV, "").strip()
+    if value:
+        try:
+            cores = int(value)
+        except ValueError:
+            raise ValueError(f"${THREADS_ENV} must be a positive integer, got {value!r}") from None
+        if cores < 1:
+            raise ValueError(f"${THREADS_ENV} must be a positive integer, got {value!r}")
+        return cores
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def plan_for(cores: int) -> ThreadPlan:
+    """The split for ``cores`` cores: decoding about half, detection the rest, one pool each."""
+    cores = max(1, int(cores))
+    decode = max(1, cores // 2)
+    detect = max(1, cores - decode)
+    return ThreadPlan(cores=cores, decode=decode, opencv=detect, onnx=detect, numba=cores,
+                      torch=cores)
+
+
+_applied: ThreadPlan | None = None
+
+
+def thread_plan() -> ThreadPlan:
+    """The plan in force: the applied one, else the one for :func:`available_cores`."""
+    return _applied if _applied is not None else plan_for(available_cores())
+
+
+def apply_thread_plan(plan: ThreadPlan | None = None) -> ThreadPlan:
+    """Set OpenCV's and (when loaded) torch's thread counts to ``plan`` (default: the plan for
+    this machine), numba's for when it is imported, and remember the plan for the onnxruntime
+    sessions and decoders made later. Call it before the compute modules are imported."""
+    global _applied
+    plan = plan or plan_for(available_cores())
+    # Read when numba is imported (a pool started earlier keeps its size; starting it here just
+    # to resize it would cost threads that inference, which has no parallel numba loop, never
+    # uses) and when torch starts OpenMP.
+    os.environ["NUMBA_NUM_THREADS"] = str(plan.numba)
+    os.environ.setdefault("OMP_NUM_THREADS", str(plan.torch))
+    import cv2
+
+    cv2.setNumThreads(plan.opencv)
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(plan.torch)
+    _applied = plan
+    return plan
