@@ -1,12 +1,15 @@
 """``sarmission replay``: offline runs of the mission controller with the real MITE-Net, writing
-a rerun recording, with synthetic (flight) and dataset (meta) telemetry."""
+a rerun recording, with synthetic (sim, only when asked), dataset (meta), flight-log or no
+telemetry, and the post-flight report."""
 
+import json
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import rerun.chunk
+from flightlog_fixtures import START_UTC, write_mp4, write_tlog
 
 from sarmission.cli import main
 from sarmission.data.coco_video import Category, ImageRecord, Video, VideoDataset, write_coco_video
@@ -39,11 +42,12 @@ def test_replay_of_a_frames_folder_with_flight_telemetry_writes_a_recording(tmp_
     write_clip(tmp_path / "clip")
     rrd = tmp_path / "out.rrd"
     code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
+                 "--telemetry", "sim",
                  "--rerun", "save", str(rrd), "--alerts-db", str(tmp_path / "alerts.db"),
                  "--ds", "1"])
     out = capsys.readouterr().out
     assert code == 0, out
-    assert "telemetry: simulated flight of the mission" in out
+    assert "telemetry: simulated flight of the mission (positions are the simulator's" in out
     assert f"frames processed: {N_FRAMES}" in out
     assert "unreadable frames skipped by the reader: 1" in out
     assert "targets:" in out and f"wrote {rrd}" in out
@@ -87,3 +91,51 @@ def test_replay_rejects_bad_rerun_options(tmp_path, capsys, rerun_args):
     write_clip(tmp_path / "clip")
     assert main(["replay", str(tmp_path / "clip"), "--rerun", *rerun_args]) == 2
     assert "--rerun expects" in capsys.readouterr().err
+
+
+def test_replay_without_telemetry_invents_no_position(tmp_path, capsys):
+    write_clip(tmp_path / "clip")
+    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
+                 "--ds", "1", "--report", str(tmp_path / "report")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "telemetry: none given" in out and "simulated" not in out
+    alerts = [line for line in out.splitlines() if "target" in line and "score" not in line
+              and line.split()[0] in ("ALERT", "CANDIDATE")]
+    assert alerts, out
+    assert all("no position: no telemetry" in line and "±" not in line for line in alerts)
+    rows = (tmp_path / "report" / "alerts.csv").read_text().splitlines()
+    assert len(rows) == len(alerts) + 1
+    assert all(",,," in r and "no position: no telemetry" in r for r in rows[1:])
+
+
+def test_replay_with_a_tlog_aligned_by_offset_writes_the_report(tmp_path, capsys):
+    write_clip(tmp_path / "clip")
+    write_tlog(tmp_path / "flight.tlog", seconds=10.0, pitch_deg=-90.0)
+    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
+                 "--ds", "1", "--telemetry", str(tmp_path / "flight.tlog"),
+                 "--time-offset", "102", "--report", str(tmp_path / "report")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "telemetry: MAVLink tlog flight.tlog" in out
+    assert "alignment: given offset: image 1 at log time 102.000 s" in out
+    for name in ("report.html", "alerts.kml", "alerts.geojson", "alerts.csv"):
+        assert (tmp_path / "report" / name).stat().st_size > 0
+    geo = json.loads((tmp_path / "report" / "alerts.geojson").read_text())
+    track = [f for f in geo["features"] if f["id"] == "flight-track"]
+    assert track and len(track[0]["geometry"]["coordinates"]) >= 2
+    placed = [f for f in geo["features"] if f["id"] != "flight-track" and f["geometry"]]
+    assert placed, out  # the hover places what it sees, with the log's accuracy
+    assert all(f["properties"]["error_m"] >= 1.5 for f in placed)
+
+
+def test_replay_refuses_a_log_of_another_day(tmp_path, capsys):
+    write_mp4(tmp_path / "clip.mp4", frames=8, created=START_UTC + 3 * 86400)
+    write_tlog(tmp_path / "flight.tlog", seconds=10.0)
+    code = main(["replay", str(tmp_path / "clip.mp4"), "--mission", str(MISSION),
+                 "--ds", "1", "--telemetry", str(tmp_path / "flight.tlog")])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "telemetry: none: the video was recorded 2024-05-04" in out
+    assert "not the same flight; no positions" in out
+    assert "frames processed: 8" in out

@@ -1,14 +1,17 @@
 """``sarmission replay INPUT``: the mission controller offline on a video, image folder or COCO
-video dataset, with telemetry from the dataset's ``meta`` or the mission's simulated flight."""
+video dataset, with telemetry from a real flight log (``--telemetry FILE``, aligned with the
+footage), the dataset's ``meta``, the mission's simulated flight when asked (``--telemetry
+sim``), or none: then alerts carry frame, time and pixel and no position. ``--dem`` places
+pixels on terrain, ``--report DIR`` writes the post-flight report."""
 
 from __future__ import annotations
 
 import argparse
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from sarmission.commands.mission_options import (
     add_mission_options,
@@ -32,17 +35,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "replay",
         help="run the mission controller offline on a video, image folder or COCO dataset",
         description="Detection, tracking, lock, geolocation and alerts on recorded frames, "
-        "without MAVLink. Telemetry comes from the dataset's per-image meta (lat/lon/altitude/"
-        "gimbal pitch/heading) when present, else from the mission's simulated flight.",
+        "without MAVLink. Telemetry comes from a flight log (--telemetry FILE: MAVLink tlog, "
+        "ArduPilot DataFlash .bin/.log, PX4 .ulg, DJI .SRT, a folder of DJI JPEGs), the "
+        "dataset's per-image meta, or the mission's simulated flight (--telemetry sim); "
+        "without any, alerts have no position.",
     )
     parser.add_argument("input", help="video file, image folder or COCO video annotations (.json)")
     parser.add_argument("--fps", type=float, default=30.0,
                         help="frame rate of an image folder or dataset (default: %(default)s)")
     parser.add_argument("--video-id", type=int, default=None,
                         help="which video of a COCO dataset (default: the first)")
-    parser.add_argument("--telemetry", choices=("auto", "meta", "flight"), default="auto",
-                        help="telemetry source: the dataset's meta, the mission's simulated "
-                        "flight, or auto (meta when the dataset has positions; default)")
+    parser.add_argument("--telemetry", default="auto", metavar="auto|none|meta|sim|FILE",
+                        help="telemetry: a flight log FILE (format found from its content), "
+                        "meta (the dataset's), sim (the mission's simulated flight: made-up "
+                        "positions, for rehearsal), none, or auto: meta when the dataset has "
+                        "positions, else a DJI .SRT beside the video, else none (default)")
+    parser.add_argument("--time-offset", type=float, default=None, metavar="S",
+                        help="the flight log's time (its own clock, as printed) at which the "
+                        "video starts; default: from camera triggers or the video's creation "
+                        "time")
+    parser.add_argument("--dem", default=None, metavar="FILE",
+                        help="terrain for a land search: a GeoTIFF DEM or SRTM .hgt tile; pixels "
+                        "are placed where their ray meets it instead of a plane at home altitude")
+    parser.add_argument("--dem-sigma", type=float, default=None, metavar="M",
+                        help="1-sigma vertical accuracy of the DEM in metres (default: 6 for "
+                        "SRTM, 2 for a GeoTIFF)")
+    parser.add_argument("--report", default=None, metavar="DIR",
+                        help="write the post-flight report (HTML with an offline map, KML, "
+                        "GeoJSON, CSV) into DIR")
     parser.add_argument("--alerts-db", default=None,
                         help="alert store file (default: a temporary one)")
     add_mission_options(parser)
@@ -83,13 +103,38 @@ def _file_frames(path: Path, fps: float) -> tuple[Iterator[ReplayFrame], int | N
     return frames(), source.length, source
 
 
+def _image_names(file_source: object) -> list[str]:
+    """File names of an image folder's frames in order ([] for a video)."""
+    return [p.name for p in getattr(file_source, "files", [])]
+
+
+def _ground_model(args: argparse.Namespace) -> object | None:
+    if args.dem is None:
+        return None
+    from sarmission.geo.terrain import TerrainGround, read_dem
+
+    dem = read_dem(args.dem, args.dem_sigma)
+    print(f"terrain: {dem.source}, {dem.resolution_m:.1f} m cells, vertical 1-sigma "
+          f"{dem.vertical_sigma_m:g} m")
+    return TerrainGround(dem)
+
+
+def _console(write: Callable[[str], None]) -> Callable[[str], None]:
+    """Alert lines as replay words them: an alert without telemetry says so plainly."""
+    def console(line: str) -> None:
+        write(line.replace("- position unknown: telemetry: no telemetry",
+                           "- no position: no telemetry"))
+
+    return console
+
+
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from sarmission.alerts.store import AlertStore
     from sarmission.mission.controller import MissionController
     from sarmission.mission.live import telemetry_buffer
-    from sarmission.mission.replay_telemetry import push_flight_state, push_frame_telemetry
+    from sarmission.mission.replay_telemetry import telemetry_source
 
     mission = load_mission_from_args(args)
     path = Path(args.input)
@@ -102,30 +147,34 @@ def run(args: argparse.Namespace) -> int:
     else:
         frames, total, file_source = _file_frames(path, args.fps)
         with_meta = False
-    if args.telemetry == "meta" and not with_meta:
-        raise ValueError(f"{path}: no per-frame telemetry (meta with latitude, longitude and "
-                         "altitude) to replay; use --telemetry flight")
-    use_meta = with_meta and args.telemetry != "flight"
-    flight = None
-    if not use_meta:
-        from sim.flight import Flight
-
-        flight = Flight(mission)
+    names = _image_names(file_source)
+    source = telemetry_source(
+        args.telemetry, input_path=path, is_video=file_source is not None and not names,
+        names=names, fps=args.fps, with_meta=with_meta, offset_s=args.time_offset,
+        duration_s=total / getattr(file_source, "fps", args.fps) if total else None,
+        mission=mission)
+    ground_model = _ground_model(args)
     detector, model_note = build_detector(args, mission)
     recorder = build_recorder(args)
     print(f"replay of {path} ({total if total is not None else '?'} frames), mission "
-          f"'{mission.name}', telemetry: "
-          f"{'dataset meta' if use_meta else 'simulated flight of the mission'}")
+          f"'{mission.name}', telemetry: {source.description}")
+    for line in source.lines:
+        print(f"  {line}")
     print(model_note)
+    frame_times: dict[int, tuple[float, float]] = {}  # frame index -> (footage t, clock t)
 
     with tempfile.TemporaryDirectory() as tmp:
-        store = AlertStore(args.alerts_db or Path(tmp) / "alerts.db")
-        buffer = telemetry_buffer(mission)
+        db_path = Path(args.alerts_db or Path(tmp) / "alerts.db")
+        store = AlertStore(db_path)
+        buffer = source.buffer(lambda: telemetry_buffer(mission))
         start_posix = time.time()
+        utc = source.utc_offset_s
         controller = MissionController(mission, detector, buffer, store, recorder=recorder,
                                        mission_id=args.mission_id,
-                                       to_posix=lambda t: start_posix + t,
-                                       console=tqdm.write)
+                                       to_posix=(lambda t: t + utc) if utc is not None
+                                       else (lambda t: start_posix + t),
+                                       console=_console(tqdm.write),
+                                       ground_model=ground_model)
         started = time.monotonic()
         n = 0
         try:
@@ -136,11 +185,10 @@ def run(args: argparse.Namespace) -> int:
                 if (limit is not None and n >= limit) or (
                         args.duration is not None and t >= args.duration):
                     break
-                if use_meta and meta is not None:
-                    push_frame_telemetry(buffer, t, meta)
-                elif flight is not None:
-                    push_flight_state(buffer, t, flight.state_at(t), mission.area.home)
-                controller.process(index, t, image)
+                stamp = source.timestamp(t, names[index] if index < len(names) else None)
+                frame_times[index] = (t, stamp)
+                source.before(buffer, stamp, meta, mission.area.home)
+                controller.process(index, stamp, image)
                 n += 1
         finally:
             wall = time.monotonic() - started
@@ -155,4 +203,24 @@ def run(args: argparse.Namespace) -> int:
             print(f"wrote {recorder.path}")
         if args.alerts_db:
             print(f"alerts in {args.alerts_db}")
+        if args.report:
+            _write_report(args, db_path, controller, source, frame_times, path)
     return 0
+
+
+def _write_report(args: argparse.Namespace, db_path: Path, controller: Any, source: Any,
+                  frame_times: dict[int, tuple[float, float]], path: Path) -> None:
+    """The post-flight report of this replay: every alert the store holds for the mission."""
+    from sarmission.alerts.report import ReportInput, write_report
+    from sarmission.alerts.store import AlertStore
+    with AlertStore(db_path) as store:
+        alerts = store.list(mission_id=controller.mission_id)
+    track = source.flown
+    written = write_report(Path(args.report), ReportInput(
+        title=f"sarmission replay of {path.name}", alerts=alerts, track=track,
+        frame_times={k: v[0] for k, v in frame_times.items()},
+        facts=[("footage", str(path)), ("telemetry", source.description),
+               *(("", line) for line in source.lines),
+               ("summary", controller.summary())]))
+    for out in written:
+        print(f"wrote {out}")

@@ -118,14 +118,17 @@ class MissionController:
         to_posix: maps a frame timestamp to POSIX seconds for the alert's lock time.
         merge_radius_m: target registry merge radius.
         console: receives one line per new alert.
+        ground_model: places pixels instead of the flat plane at home altitude (anything with
+            :meth:`~sarmission.geo.terrain.TerrainGround.locate`, e.g. a DEM).
     """
 
     def __init__(self, mission: MissionConfig, detector: Detector, telemetry: TelemetryBuffer,
                  store: AlertStore, actions: ActionPolicy | None = None,
                  recorder: Recorder | None = None, mission_id: str | None = None,
                  to_posix: Callable[[float], float] | None = None, merge_radius_m: float = 8.0,
-                 console: Callable[[str], None] = print) -> None:
+                 console: Callable[[str], None] = print, ground_model: Any = None) -> None:
         self.mission = mission
+        self.ground_model = ground_model
         self.detector = detector
         self.telemetry = telemetry
         self.store = store
@@ -260,6 +263,11 @@ class MissionController:
             return GeoFix(None, None, None, None, math.nan,
                           "no home position from the autopilot yet")
         assert self._intrinsics is not None
+        if self.ground_model is not None:
+            home = self.telemetry.home
+            assert home is not None
+            return self.ground_model.locate(centre, self._intrinsics, pose, home,
+                                            self.min_height_m)
         return geolocate(centre, self._intrinsics, pose, ground, min_height_m=self.min_height_m)
 
     def _locate(self, track: TrackState, pose: PlatformPose | StaleTelemetry,

@@ -1,0 +1,102 @@
+"""DJI subtitle sidecars (.SRT): per-frame position, height and gimbal angles of a DJI video.
+
+An SRT is text: numbered blocks, each a ``start --> end`` time in the video
+(``HH:MM:SS,mmm``) and lines of values. Two layouts are read:
+
+- bracketed (Mavic 2/3, Air 2S, Mini 2/3/4, M30 ...): ``[latitude: 43.1] [longitude: 10.2]
+  [rel_alt: 50.0 abs_alt: 120.0]`` (or ``[altitude: 50.0]``), gimbal as
+  ``[gb_yaw: 90.1 gb_pitch: -90.0 gb_roll: 0.0]`` where the model writes it;
+- parenthesised (Phantom 4, Mavic Pro, Inspire): ``GPS(10.2,43.1,16)`` (longitude first!),
+  ``BAROMETER:50.3`` or ``H 50.3m`` the height above take-off.
+
+Clock: the video's own (a block's start time); no alignment is needed. Conventions: degrees;
+``gb_pitch`` 0 at the horizon and -90 straight down, ``gb_yaw`` from north clockwise (the
+earth frame), ``gb_roll`` right side down positive: the gimbal is taken in the earth frame.
+Without gimbal angles the camera's pointing is unknown and no pixel is placed (positions
+still draw the track). Home: the first position's ground (``abs_alt - rel_alt``).
+A block without a time or a position is skipped and counted.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
+
+_TIME = re.compile(r"(\d+):(\d{2}):(\d{2})[,.](\d{1,3})\s*-->")
+_NUM = r"([-+]?\d+(?:\.\d+)?)"
+
+
+def _field(text: str, *names: str) -> float | None:
+    for name in names:
+        m = re.search(rf"\b{name}\s*[:=]\s*{_NUM}", text)
+        if m:
+            return float(m.group(1))
+    return None
+
+
+def _seconds(m: re.Match[str]) -> float:
+    h, mi, s, ms = m.groups()
+    return int(h) * 3600 + int(mi) * 60 + int(s) + int(ms.ljust(3, "0")) / 1000.0
+
+
+def _values(text: str) -> dict[str, float | None]:
+    gps = re.search(rf"GPS\s*\(\s*{_NUM}\s*,\s*{_NUM}\s*,\s*{_NUM}\s*\)", text)
+    if gps:  # GPS(lon, lat, satellites or altitude)
+        lon, lat = float(gps.group(1)), float(gps.group(2))
+    else:
+        lat, lon = _field(text, "latitude"), _field(text, "longitude")
+    height = _field(text, "rel_alt", "altitude", "BAROMETER")
+    if height is None:
+        m = re.search(rf"\bH\s*{_NUM}\s*m", text)
+        height = float(m.group(1)) if m else None
+    return {"lat": lat, "lon": lon, "rel_alt": height, "abs_alt": _field(text, "abs_alt"),
+            "gb_yaw": _field(text, "gb_yaw"), "gb_pitch": _field(text, "gb_pitch"),
+            "gb_roll": _field(text, "gb_roll")}
+
+
+def read_dji_srt(path: str | Path) -> FlightLog:
+    """Read a DJI SRT (see the module docstring)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as exc:
+        raise FlightLogError(f"{path.name}: cannot read ({exc.strerror})") from exc
+    builder = LogBuilder("DJI SRT", path, "the video's own time", ACCURACY["dji"])
+    log = builder.log
+    log.per_frame = True
+    blocks = re.split(r"\r?\n\s*\r?\n", text.replace("\ufeff", ""))
+    missing = 0
+    for block in blocks:
+        if not block.strip():
+            continue
+        m = _TIME.search(block)
+        if m is None:
+            missing += 1
+            continue
+        v = _values(block)
+        if v["lat"] is None or v["lon"] is None or v["rel_alt"] is None:
+            missing += 1
+            continue
+        t = _seconds(m)
+        abs_alt = v["abs_alt"] if v["abs_alt"] is not None else math.nan
+        if not builder.position(t, v["lat"], v["lon"], v["rel_alt"], abs_alt):
+            continue
+        if log.home is None and math.isfinite(abs_alt):
+            log.home = (v["lat"], v["lon"], abs_alt - v["rel_alt"])
+            log.home_note = "home altitude from the first block (abs_alt - rel_alt)"
+        if v["gb_pitch"] is not None and v["gb_yaw"] is not None:
+            yaw = math.radians(v["gb_yaw"])
+            builder.attitude_euler(t, 0.0, 0.0, yaw)  # vehicle yaw unknown; earth-frame gimbal
+            builder.gimbal_euler(t, math.radians(v["gb_roll"] or 0.0),
+                                 math.radians(v["gb_pitch"]), yaw, "earth")
+    if missing:
+        log.rejected["subtitle block without a time or position"] += missing
+        log.notes.append(f"{path.name}: {missing} subtitle blocks without a time or a "
+                         "position skipped")
+    if log.positions and not log.gimbal:
+        log.notes.append(f"{path.name}: no gimbal angles (gb_pitch, gb_yaw): the camera's "
+                         "pointing is unknown, so no alert gets a position")
+    return builder.build()

@@ -1,0 +1,178 @@
+"""MAVLink telemetry logs (.tlog, as QGroundControl and MAVProxy write them), via pymavlink.
+
+A tlog is every MAVLink packet the ground station received, each after an 8-byte big-endian
+microsecond POSIX timestamp of its arrival. Only the autopilot is believed: the first sender
+of an autopilot-type HEARTBEAT (MAV_AUTOPILOT not INVALID, MAV_TYPE not GCS); every message
+goes through the same field checks as live telemetry
+(:func:`~sarmission.mavlink.telemetry_checks.message_problem`).
+
+Clock: the autopilot's ``time_boot_ms`` in seconds. A reboot (boot time back by more than a
+second) ends what is read: samples of a later boot would sit on another timeline. UTC: from
+SYSTEM_TIME (``time_unix_usec - time_boot_ms``, the autopilot's GNSS time) when it is set,
+else the ground station's arrival stamps (the least-delayed ``arrival - boot``).
+
+Messages and conventions (the live buffer's, :mod:`sarmission.mavlink.telemetry`):
+
+- GLOBAL_POSITION_INT: lat/lon 1e-7 deg, ``relative_alt`` mm above home, ``alt`` mm AMSL;
+  believed only while the newest GPS_RAW_INT (at most 5 s old) reports a 3D fix, whose
+  ``h_acc`` (mm, when non-zero) is the fix's horizontal 1-sigma.
+- ATTITUDE (ZYX Euler radians, pitch up positive, yaw clockwise from north) and
+  ATTITUDE_QUATERNION.
+- GIMBAL_DEVICE_ATTITUDE_STATUS: ``q`` in the frame its ``flags`` say; MOUNT_ORIENTATION:
+  degrees, roll/pitch from the horizon (pitch -90 straight down), ``yaw_absolute`` from
+  north when finite, else ``yaw`` relative to the heading.
+- HOME_POSITION: home. CAMERA_FEEDBACK: a camera trigger at ``time_usec`` (UTC), else its
+  arrival.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from pathlib import Path
+from typing import Any
+
+from pymavlink import mavutil
+
+from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
+from sarmission.geo.frames import gimbal_frame_from_flags
+from sarmission.mavlink.telemetry_checks import GPS_FIX_3D, message_problem
+
+#: A GPS_RAW_INT older than this says nothing about the current fix (seconds).
+GPS_FIX_MAX_AGE_S = 5.0
+_TYPES = ["HEARTBEAT", "GLOBAL_POSITION_INT", "GPS_RAW_INT", "ATTITUDE", "ATTITUDE_QUATERNION",
+          "GIMBAL_DEVICE_ATTITUDE_STATUS", "MOUNT_ORIENTATION", "HOME_POSITION", "SYSTEM_TIME",
+          "CAMERA_FEEDBACK"]
+_MAV_AUTOPILOT_INVALID = 8
+_MAV_TYPE_GCS = 6
+
+
+class _State:
+    def __init__(self) -> None:
+        self.autopilot: tuple[int, int] | None = None
+        # (boot s or None: before any boot time was seen, fix type, h_acc m)
+        self.gps: tuple[float | None, int, float | None] | None = None
+        self.last_boot = -math.inf
+        self.arrival_offsets: list[float] = []
+        self.system_offsets: list[float] = []
+        self.feedback_utc: list[float] = []
+        self.feedback_arrival: list[float] = []
+        self.rebooted = False
+
+
+def read_tlog(path: str | Path) -> FlightLog:
+    """Read a tlog (see the module docstring); :class:`FlightLogError` when it gives nothing."""
+    path = Path(path)
+    builder = LogBuilder("MAVLink tlog", path, "autopilot boot time", ACCURACY["autopilot"])
+    try:
+        conn = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
+    except Exception as exc:  # noqa: BLE001 - pymavlink raises anything on a bad file
+        raise FlightLogError(f"{path.name}: not readable as a MAVLink tlog ({exc})") from exc
+    state = _State()
+    try:
+        while not state.rebooted:
+            try:
+                msg = conn.recv_match(type=_TYPES)
+            except Exception as exc:  # noqa: BLE001 - a corrupt tail ends the log
+                builder.log.notes.append(f"{path.name}: read stopped at a corrupt packet "
+                                         f"({type(exc).__name__})")
+                break
+            if msg is None:
+                break
+            _take(builder, state, msg)
+    finally:
+        conn.close()
+    if state.autopilot is None:
+        raise FlightLogError(f"{path.name}: no autopilot HEARTBEAT: not a MAVLink tlog of a "
+                             "flight (or truncated before one)")
+    log = builder.log
+    if state.rebooted:
+        log.notes.append(f"{path.name}: the autopilot rebooted during the log; read up to the "
+                         "reboot")
+    if state.system_offsets:
+        log.utc_offset_s = statistics.median(state.system_offsets)
+        log.clock += ", UTC from the autopilot's SYSTEM_TIME"
+    elif state.arrival_offsets:
+        log.utc_offset_s = min(state.arrival_offsets)
+        log.clock += ", UTC from the ground station's arrival stamps"
+    if log.utc_offset_s is not None:
+        for utc in state.feedback_utc:
+            builder.trigger(utc - log.utc_offset_s)
+        for arrival in state.feedback_arrival:
+            builder.trigger(arrival - log.utc_offset_s)
+    return builder.build()
+
+
+def _take(builder: LogBuilder, state: _State, msg: Any) -> None:
+    mtype = msg.get_type()
+    source = (msg.get_srcSystem(), msg.get_srcComponent())
+    if mtype == "HEARTBEAT":
+        if (state.autopilot is None and msg.autopilot != _MAV_AUTOPILOT_INVALID
+                and msg.type != _MAV_TYPE_GCS):
+            state.autopilot = source
+        return
+    if source != state.autopilot:
+        return
+    problem = message_problem(msg)
+    if problem:
+        builder.reject(f"{mtype} implausible")
+        return
+    arrival = float(getattr(msg, "_timestamp", math.nan))
+    if mtype == "HOME_POSITION":
+        builder.log.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
+        builder.log.home_note = "home from HOME_POSITION"
+        return
+    if mtype == "CAMERA_FEEDBACK":
+        if msg.time_usec > 0:
+            state.feedback_utc.append(msg.time_usec / 1e6)
+        elif math.isfinite(arrival):
+            state.feedback_arrival.append(arrival)
+        return
+    boot = getattr(msg, "time_boot_ms", None)
+    if boot is None:  # GPS_RAW_INT: time_usec may be since boot or UNIX: take the newest boot
+        boot_s = state.last_boot
+    else:
+        boot_s = boot / 1000.0
+        if boot_s < state.last_boot - 1.0:
+            state.rebooted = True
+            return
+        state.last_boot = max(state.last_boot, boot_s)
+        if math.isfinite(arrival):
+            state.arrival_offsets.append(arrival - boot_s)
+    if mtype == "SYSTEM_TIME":
+        if msg.time_unix_usec > 0:
+            state.system_offsets.append(msg.time_unix_usec / 1e6 - boot_s)
+    elif mtype == "GPS_RAW_INT":
+        h_acc = getattr(msg, "h_acc", 0)
+        state.gps = (boot_s if math.isfinite(boot_s) else None, int(msg.fix_type),
+                     h_acc / 1000.0 if 0 < h_acc < 0xFFFFFFFF else None)
+    elif mtype == "GLOBAL_POSITION_INT":
+        _position(builder, state, msg, boot_s)
+    elif mtype == "ATTITUDE":
+        builder.attitude_euler(boot_s, msg.roll, msg.pitch, msg.yaw)
+    elif mtype == "ATTITUDE_QUATERNION":
+        builder.attitude_quaternion(boot_s, (msg.q1, msg.q2, msg.q3, msg.q4))
+    elif mtype == "GIMBAL_DEVICE_ATTITUDE_STATUS":
+        frame = gimbal_frame_from_flags(int(msg.flags))
+        builder.gimbal_quaternion(boot_s, msg.q, frame)
+    elif mtype == "MOUNT_ORIENTATION":
+        roll, pitch = math.radians(msg.roll), math.radians(msg.pitch)
+        if math.isfinite(msg.yaw_absolute):
+            builder.gimbal_euler(boot_s, roll, pitch, math.radians(msg.yaw_absolute), "earth")
+        else:
+            builder.gimbal_euler(boot_s, roll, pitch, math.radians(msg.yaw), "vehicle")
+
+
+def _position(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    gps = state.gps
+    if gps is None:
+        builder.reject("position before any GPS_RAW_INT (fix unknown)")
+        return
+    if gps[0] is not None and boot_s - gps[0] > GPS_FIX_MAX_AGE_S:
+        builder.reject("position with a GPS_RAW_INT older than 5 s (fix unknown)")
+        return
+    if gps[1] < GPS_FIX_3D:
+        builder.reject("position without a 3D GPS fix")
+        return
+    builder.position(boot_s, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0,
+                     msg.alt / 1000.0, gps[2])

@@ -1,0 +1,221 @@
+"""Flight logs read with their ecosystem's libraries (pymavlink, pyulog, exifread), from fixtures
+in the real formats: values, each format's angle conventions (checked as the camera's optical
+axis in NED once the log is in a TelemetryBuffer), alignment, and bad input."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from flightlog_fixtures import (
+    LAT0,
+    LON0,
+    SITL_BIN,
+    START_UTC,
+    dji_srt_text,
+    px4_ulog,
+    write_dji_jpeg,
+    write_tlog,
+)
+
+from sarmission.flightlog.align import AlignmentError, align_images, align_video
+from sarmission.flightlog.detect import open_flight_log, sniff
+from sarmission.flightlog.feed import LogFeeder
+from sarmission.flightlog.model import FlightLog, FlightLogError
+from sarmission.geo.frames import rotation_ned_from_camera
+from sarmission.geo.geolocate import PlatformPose
+from sarmission.mavlink.telemetry import TelemetryBuffer
+
+
+def optical_axis(log: FlightLog, t: float) -> np.ndarray:
+    """The camera's optical axis (unit NED) at log time ``t``, through a TelemetryBuffer."""
+    buffer = TelemetryBuffer()
+    feeder = LogFeeder(log, buffer)
+    feeder.advance(t)
+    pose = buffer.lookup(t)
+    assert isinstance(pose, PlatformPose), pose
+    r = rotation_ned_from_camera(pose.vehicle_rpy, pose.gimbal_rpy, pose.gimbal_frame)
+    return r @ np.array([0.0, 0.0, 1.0])
+
+
+def test_tlog_positions_home_accuracy_trigger_and_mount_signs(tmp_path: Path) -> None:
+    path = tmp_path / "flight.tlog"
+    write_tlog(path, pitch_deg=-45.0, gimbal_yaw_deg=90.0, yaw_deg=30.0, h_acc_mm=1500)
+    log = open_flight_log(path)
+    assert log.fmt == "MAVLink tlog" and len(log.positions) == 200
+    assert log.home == (LAT0, LON0, 120.0) and log.positions[0].rel_alt_m == 50.0
+    assert log.positions[0].gnss_sigma_m == pytest.approx(1.5)
+    assert log.utc_offset_s == pytest.approx(START_UTC - 100.0)
+    assert log.triggers == [pytest.approx(105.0)]
+    # MOUNT_ORIENTATION pitch -45 (below the horizon), yaw_absolute 90 (east)
+    axis = optical_axis(log, 110.0)
+    assert axis == pytest.approx([0.0, math.sqrt(0.5), math.sqrt(0.5)], abs=1e-6)
+
+
+def test_dataflash_from_sitl_servo_mount_is_in_the_body_frame() -> None:
+    """The real ArduCopter SITL log: a servo mount asked for -60 deg (earth frame) logs its
+    servo angle (-48 deg) while the copter flies 12 deg nose down; the camera looks 60 deg
+    below the horizon, not 48."""
+    log = open_flight_log(SITL_BIN)
+    assert log.fmt == "ArduPilot DataFlash log"
+    assert log.home is not None and log.home[2] == pytest.approx(120.08, abs=0.01)
+    assert len(log.triggers) == 1 and log.utc_offset_s is not None
+    cam = log.triggers[0]
+    axis = optical_axis(log, cam)
+    assert math.degrees(math.asin(axis[2])) == pytest.approx(60.0, abs=2.0)
+    assert axis[0] > 0.4  # flying north, camera forward of the nadir
+    gps_position = min(log.positions, key=lambda p: abs(p.t - cam))
+    assert gps_position.rel_alt_m == pytest.approx(40.0, abs=0.5)
+    assert gps_position.gnss_sigma_m == pytest.approx(0.3)
+
+
+def test_ulog_attitude_quaternion_and_vehicle_frame_gimbal(tmp_path: Path) -> None:
+    path = tmp_path / "flight.ulg"
+    px4_ulog(path, gimbal_pitch_deg=-30.0, yaw_deg=90.0)
+    log = open_flight_log(path)
+    assert log.fmt == "PX4 ULog" and log.home == (LAT0, LON0, 100.0)
+    assert log.positions[0].rel_alt_m == pytest.approx(40.0)
+    assert log.positions[0].gnss_sigma_m == pytest.approx(0.8)
+    assert log.utc_offset_s == pytest.approx(START_UTC)
+    assert log.triggers == [pytest.approx(22.0)]
+    axis = optical_axis(log, 25.0)  # heading east, camera 30 deg down
+    assert axis == pytest.approx([0.0, math.cos(math.radians(30)), 0.5], abs=1e-6)
+
+
+def test_ulog_without_home_or_fix_gives_no_positions(tmp_path: Path) -> None:
+    px4_ulog(tmp_path / "a.ulg", with_home=False)
+    with pytest.raises(FlightLogError, match="without a usable GNSS position"):
+        open_flight_log(tmp_path / "a.ulg")
+    px4_ulog(tmp_path / "b.ulg", fix=2)
+    with pytest.raises(FlightLogError, match="3D GNSS fix"):
+        open_flight_log(tmp_path / "b.ulg")
+
+
+def test_dji_srt_positions_gimbal_signs_and_missing_lines(tmp_path: Path) -> None:
+    path = tmp_path / "DJI_0001.SRT"
+    path.write_text(dji_srt_text(frames=30, drop=(3, 4)))
+    log = open_flight_log(path)
+    assert log.per_frame and len(log.positions) == 28
+    assert log.rejected["subtitle block without a time or position"] == 2
+    assert log.home == (LAT0, LON0, pytest.approx(120.0))
+    axis = optical_axis(log, 0.5)  # gb_yaw 180 (south), gb_pitch -60
+    assert axis == pytest.approx([-0.5, 0.0, math.sin(math.radians(60))], abs=1e-6)
+
+
+def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:
+    path = tmp_path / "DJI_0002.SRT"
+    path.write_text(dji_srt_text(frames=10, gimbal=False))
+    log = open_flight_log(path)
+    assert log.positions and not log.gimbal and not log.attitudes
+    assert any("pointing is unknown" in n for n in log.notes)
+
+
+def test_dji_images_exif_xmp_and_images_without_exif(tmp_path: Path) -> None:
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    write_dji_jpeg(folder / "DJI_0001.JPG", lat=LAT0, lon=LON0, gimbal_pitch=-45.0,
+                   gimbal_yaw=270.0, flight_yaw=265.0, when="2024:05:01 12:00:00")
+    write_dji_jpeg(folder / "DJI_0002.JPG", lat=LAT0 + 1e-4, lon=LON0, when="2024:05:01 12:00:02")
+    write_dji_jpeg(folder / "DJI_0003.JPG", lat=None, lon=None, exif=False)
+    log = open_flight_log(folder)
+    assert sorted(log.image_times) == ["DJI_0001.JPG", "DJI_0002.JPG"]
+    assert log.image_times["DJI_0002.JPG"] - log.image_times["DJI_0001.JPG"] == 2.0
+    assert log.rejected["image without EXIF"] == 1
+    axis = optical_axis(log, log.image_times["DJI_0001.JPG"])
+    assert axis == pytest.approx([0.0, -math.sqrt(0.5), math.sqrt(0.5)], abs=1e-6)
+    chile = tmp_path / "chile"
+    chile.mkdir()
+    write_dji_jpeg(chile / "DJI_0001.JPG", lat=-33.5, lon=-70.25)
+    south = open_flight_log(chile).positions[0]
+    assert (south.lat, south.lon) == (pytest.approx(-33.5), pytest.approx(-70.25))
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    write_dji_jpeg(empty / "a.jpg", lat=None, lon=None, exif=False)
+    with pytest.raises(FlightLogError, match="no JPEG with EXIF GPS"):
+        open_flight_log(empty)
+
+
+def test_format_found_from_content_not_the_extension(tmp_path: Path) -> None:
+    write_tlog(tmp_path / "flight.tlog", seconds=2.0)
+    disguised = tmp_path / "flight.bin"
+    disguised.write_bytes((tmp_path / "flight.tlog").read_bytes())
+    assert sniff(disguised) == "tlog"
+    assert sniff(SITL_BIN) == "dataflash"
+    (tmp_path / "noise.tlog").write_bytes(np.random.default_rng(0).bytes(5000))
+    with pytest.raises(FlightLogError, match="not a flight log"):
+        open_flight_log(tmp_path / "noise.tlog")
+    (tmp_path / "empty.ulg").write_bytes(b"")
+    with pytest.raises(FlightLogError, match="empty"):
+        open_flight_log(tmp_path / "empty.ulg")
+
+
+def test_truncated_and_corrupt_logs_read_what_is_there(tmp_path: Path) -> None:
+    write_tlog(tmp_path / "full.tlog")
+    data = (tmp_path / "full.tlog").read_bytes()
+    (tmp_path / "cut.tlog").write_bytes(data[: len(data) // 2 + 7])
+    cut = open_flight_log(tmp_path / "cut.tlog")
+    assert 50 < len(cut.positions) < 200
+    raw = bytearray(SITL_BIN.read_bytes())
+    raw[30_000:30_400] = bytes(400)  # a hole in the middle
+    (tmp_path / "hole.BIN").write_bytes(bytes(raw[:45_000]))
+    holed = open_flight_log(tmp_path / "hole.BIN")
+    assert 0 < len(holed.positions) < len(open_flight_log(SITL_BIN).positions)
+    ulog = tmp_path / "a.ulg"
+    px4_ulog(ulog)
+    (tmp_path / "cut.ulg").write_bytes(ulog.read_bytes()[:40])
+    with pytest.raises(FlightLogError):
+        open_flight_log(tmp_path / "cut.ulg")
+
+
+def test_log_without_gps_fix_gives_no_positions(tmp_path: Path) -> None:
+    write_tlog(tmp_path / "nofix.tlog", gps_fix=1)
+    with pytest.raises(FlightLogError, match="without a usable GNSS position.*3D GPS fix"):
+        open_flight_log(tmp_path / "nofix.tlog")
+
+
+def test_video_alignment_order_and_refusals(tmp_path: Path) -> None:
+    write_tlog(tmp_path / "t.tlog", trigger_at=5.0)
+    log = open_flight_log(tmp_path / "t.tlog")
+    by_trigger = align_video(log, created=None, duration_s=5.0)
+    assert by_trigger.offset_s == pytest.approx(105.0) and "camera trigger" in by_trigger.method
+    given = align_video(log, created=None, duration_s=5.0, offset_s=101.5)
+    assert given.log_time(2.0) == pytest.approx(103.5)
+    write_tlog(tmp_path / "n.tlog", trigger_at=None)
+    plain = open_flight_log(tmp_path / "n.tlog")
+    by_clock = align_video(plain, created=START_UTC + 3.0, duration_s=5.0)
+    assert by_clock.offset_s == pytest.approx(103.0) and "creation time" in by_clock.method
+    with pytest.raises(AlignmentError, match="not the same flight"):
+        align_video(log, created=START_UTC + 3 * 86400, duration_s=5.0)
+    with pytest.raises(AlignmentError, match="give --time-offset"):
+        align_video(plain, created=None, duration_s=5.0)
+    with pytest.raises(AlignmentError, match="cameras often store local time"):
+        align_video(plain, created=START_UTC + 3600, duration_s=5.0)
+    with pytest.raises(AlignmentError, match="outside the log"):
+        align_video(plain, created=None, duration_s=5.0, offset_s=500.0)
+
+
+def test_image_alignment_pairs_triggers_one_to_one(tmp_path: Path) -> None:
+    write_tlog(tmp_path / "t.tlog", trigger_at=5.0)
+    log = open_flight_log(tmp_path / "t.tlog")
+    paired = align_images(log, ["a.jpg"], fps=1.0)
+    assert paired.log_time(0.0, "a.jpg") == pytest.approx(105.0)
+    with pytest.raises(AlignmentError, match="2 images but 1 camera triggers"):
+        align_images(log, ["a.jpg", "b.jpg"], fps=1.0)
+
+
+def test_per_image_log_gives_no_pose_to_an_image_it_does_not_place(tmp_path: Path) -> None:
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for k, when in ((1, "12:00:00"), (3, "12:00:02")):
+        write_dji_jpeg(folder / f"DJI_{k}.JPG", lat=LAT0, lon=LON0, when=f"2024:05:01 {when}")
+    write_dji_jpeg(folder / "DJI_2.JPG", lat=None, lon=None, exif=False)
+    log = open_flight_log(folder)
+    alignment = align_images(log, ["DJI_1.JPG", "DJI_2.JPG", "DJI_3.JPG"], fps=1.0)
+    buffer = TelemetryBuffer()
+    LogFeeder(log, buffer).advance(alignment.log_time(0.0, "DJI_3.JPG"))
+    middle = alignment.log_time(1.0, "DJI_2.JPG")
+    assert alignment.log_time(0.0, "DJI_1.JPG") < middle < alignment.log_time(0.0, "DJI_3.JPG")
+    assert not isinstance(buffer.lookup(middle), PlatformPose)
+    assert isinstance(buffer.lookup(alignment.log_time(0.0, "DJI_3.JPG")), PlatformPose)
