@@ -155,6 +155,14 @@ def test_dismiss_always_wins_over_a_later_promotion_whatever_the_clocks(
         assert store.promote(alert.alert_id, "held 5 s", when=time.time() + 3600) is None
         got = store.get(alert.alert_id)
         assert got.tier == "candidate" and got.dismissed and got.confirmed_at is None
+        # the other order: a dismissal after the promotion stands, and stops the autopilot
+        late = candidate(3)
+        store.add(late)
+        assert store.promote(late.alert_id, "held 5 s").tier == "confirmed"
+        assert late.alert_id in {a.alert_id for a in store.undelivered("mavlink_loiter")}
+        store.decide(late.alert_id, "dismissed", "ana", when=time.time() - 3600)
+        assert late.alert_id not in {a.alert_id for a in store.undelivered("mavlink_loiter")}
+        assert store.promote(late.alert_id, "held 6 s") is None
         # and the operator's confirmation is not undone by a discard from any clock
         other = candidate(2)
         store.add(other)

@@ -124,7 +124,9 @@ def test_page_is_self_contained(feed: FeedServer) -> None:
     status, ctype, body = get(feed, "/")
     assert status == 200 and ctype.startswith("text/html")
     page = body.decode()
-    assert "EventSource" in page and "/ack" in page
+    assert "EventSource" in page and "/api/alerts/" in page
+    assert all(f'"{verb}"' in page for verb in ("ack", "confirm", "dismiss"))
+    assert "<svg" in page  # the map, drawn in the page
     assert "http://" not in page and "https://" not in page  # no CDN or remote assets
 
 
