@@ -78,7 +78,7 @@ def test_a_pose_needs_home_and_a_3d_gps_fix():
     pose = buf.pose_at(last)
     assert pose is not None and pose.lat == pytest.approx(HOME_LAT)
     # the GPS_RAW_INT stream stops: positions are no longer believed
-    buf.handle_message(wire(position(3000)), last + 6.0)
+    buf.handle_message(wire(position(2400 + 6000)), last + 6.0)
     assert buf.rejected["GLOBAL_POSITION_INT: GPS_RAW_INT older than N s: GPS fix unknown"] == 1
 
 

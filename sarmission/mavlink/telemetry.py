@@ -117,7 +117,9 @@ class BootClock:
     amortised per observation), so slow drift between the clocks is followed and delayed
     messages never pull the estimate. ``transport_latency_s`` (known minimum delay) is
     subtracted. A sample off the current timeline (boot time more than ``reboot_jump_s`` behind
-    the newest, or a capture more than ``future_tolerance_s`` after its arrival) is rejected
+    the newest, a capture more than ``future_tolerance_s`` after its arrival, or a delay more
+    than ``late_tolerance_s`` beyond the least one: useless if late, a new timeline if not;
+    an autopilot rebooted a second after its boot looks like that) is rejected
     (:meth:`observe` returns None); once such samples agree on a new timeline for
     ``confirm_s`` while the old one is silent, the clock restarts on it (``reboots`` counts it).
     """
@@ -129,12 +131,14 @@ class BootClock:
         reboot_jump_s: float = 1.0,
         future_tolerance_s: float = 1.0,
         confirm_s: float = 1.0,
+        late_tolerance_s: float = 3.0,
     ) -> None:
         self.window_s = window_s
         self.transport_latency_s = transport_latency_s
         self.reboot_jump_s = reboot_jump_s
         self.future_tolerance_s = future_tolerance_s
         self.confirm_s = confirm_s
+        self.late_tolerance_s = late_tolerance_s
         self.reboots = 0
         self.rejected = 0
         self._mins: deque[tuple[float, float]] = deque()  # (arrival, arrival - boot), increasing
@@ -168,11 +172,12 @@ class BootClock:
             return True
         if boot_s < self._last_boot - self.reboot_jump_s:
             return False  # back in time: a reboot, or a forged sample
-        return delay >= self._mins[0][1] - self.future_tolerance_s
+        least = self._mins[0][1]
+        return least - self.future_tolerance_s <= delay <= least + self.late_tolerance_s
 
     def _confirms_new_timeline(self, delay: float, arrival: float) -> bool:
         cand = self._candidate
-        if cand is None or abs(delay - cand[0]) > self.future_tolerance_s:
+        if cand is None or abs(delay - cand[0]) > self.future_tolerance_s:  # another new one
             self._candidate = (delay, arrival, 1)
             return False
         self._candidate = (cand[0], cand[1], cand[2] + 1)
