@@ -17,7 +17,7 @@ from sarmission.mavlink.commands import CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
 from sarmission.mavlink.telemetry import TelemetryBuffer
 from sarmission.mission.actions import ROI_SETTLE_S, ActionPolicy, ascii_statustext
-from sarmission.mission.config import load_mission
+from sarmission.mission.config import ConfirmConfig, load_mission
 from sarmission.mission.controller import MissionController
 from sarmission.mission.targets import distance_m
 from sarmission.mission.visits import MoveGate
@@ -35,6 +35,11 @@ FPS = 10.0
 def mission():
     return load_mission(overrides={"camera.width": W, "camera.height": H,
                                    "camera.hfov_deg": 30.0, "name": "ctl_test"})
+
+
+def confirm_at_lock(mission) -> None:
+    """Confirm a candidate at its lock (one sighting): for the tests about what follows."""
+    mission.confirm = ConfirmConfig(min_seen_s=0.0, min_sightings=1)
 
 
 def filled_buffer(mission, t_end: float, t_start: float = 0.0) -> TelemetryBuffer:
@@ -101,12 +106,17 @@ def test_target_seen_3_of_5_frames_is_alerted_once_within_1m(tmp_path, mission):
     assert alert.thumbnail and alert.thumbnail[:2] == b"\xff\xd8"
     assert [p[0] for p in alert.pixel_track] == [0, 1, 2, 3]
     assert len(alert.track) == 4 and distance_m(alert.track[-1][1:], alert.position) < 1.0
-    assert len(lines) == 1 and "ALERT target 1: swimmer" in lines[0]
+    # a candidate at the lock, the alert once a second of sightings confirmed it in the world
+    assert len(lines) == 2 and lines[0].startswith("CANDIDATE target 1: swimmer")
+    assert lines[1].startswith(f"ALERT target 1 ({alert.short_id}): swimmer")
+    assert "1.0 s, 10 sightings" in lines[1] and alert.tier == "confirmed"
+    assert ctl.stats.confirmed[0][1] == 13  # frame 3 + 1 s at 10 frames/s
     assert ctl.stats.frames == n and ctl.stats.locks == 1
     store.close()
 
 
 def test_restart_on_the_same_store_does_not_re_announce(tmp_path, mission):
+    confirm_at_lock(mission)
     n = 12
     path = tmp_path / "alerts.db"
     with AlertStore(path) as store:
@@ -127,9 +137,10 @@ def test_stale_telemetry_gives_an_alert_without_position_and_the_reason(tmp_path
     with AlertStore(tmp_path / "alerts.db") as store:
         ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)), buf,
                                 store, console=lambda s: None)
-        alerts = run_frames(ctl, n, t0=5.0)
-        assert len(alerts) == 1
-        alert = store.list()[0]
+        # a candidate for the operator; never confirmed: there is nothing to check it against
+        assert run_frames(ctl, n, t0=5.0) == []
+        (alert,) = ctl.stats.candidates
+        assert store.list() == [alert] and alert.tier == "candidate"
         assert alert.position is None and alert.error_m is None
         assert alert.position_note.startswith("telemetry: no position for")
         assert alert.drone_position is None
@@ -165,8 +176,9 @@ class AnnouncedActions:
 def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission, reborn):
     """Telemetry starts at t = 2 s; the target locks at frame 2 (t = 0.2 s) without a position.
     Either its track goes on, or it is lost for 2 s and a new track locks on it (frame 25) with
-    telemetry: one alert either way, which gets the position."""
-    n = 31
+    telemetry: one candidate either way, which gets the position, and is confirmed (announced
+    once, with its position) after a second of placed sightings."""
+    n = 41
     u, v = target_pixel(mission)
     box = (u - 5, v - 5, u + 5, v + 5)
     seen = set(range(n)) - (set(range(5, 23)) if reborn else set())
@@ -180,18 +192,20 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
         alerts = run_frames(ctl, n)
         assert len(alerts) == 1 and store.count() == 1
         stored = store.get(alerts[0].alert_id)
-        assert [e.kind for e in store.events()] == ["new", "position"]
+        assert [e.kind for e in store.events()] == ["new", "position", "confirmed"]
     assert alerts[0].frame_index == 2
     assert distance_m(stored.position, truth_latlon(mission)) < 1.0
     assert 0 < stored.error_m < 10 and "stale" not in stored.position_note
     assert alerts[0].position == stored.position  # the run's own record follows
     assert ctl.stats.located_later == 1 and ctl.stats.merged_tracks == int(reborn)
-    assert [p for _, p in actions.announced] == [None, stored.position]
-    assert [line.split(":")[0] for line in lines] == ["ALERT target 1", "POSITION target 1"]
+    assert [p for _, p in actions.announced] == [stored.position]
+    assert [line.split(":")[0] for line in lines] == [
+        "CANDIDATE target 1", "POSITION target 1", f"ALERT target 1 ({stored.short_id})"]
     assert "positions found after the alert: 1" in ctl.summary()
 
 
 def test_corrupt_frames_are_skipped_and_counted(tmp_path, mission):
+    confirm_at_lock(mission)
     good = np.full((H, W, 3), 90, np.uint8)
     frames = [good, good, None, good, np.zeros((H, W), np.uint8), good,
               good.astype(np.float32), np.zeros((H // 2, W // 2, 3), np.uint8), "garbage", good]
@@ -217,6 +231,7 @@ def free_udp_port() -> int:
 def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp_path, mission):
     """The STATUSTEXT (no acknowledgement exists) is recorded as sent n times, never as
     delivered; the DO_REPOSITION as acknowledged, without waiting for the text's repeats."""
+    confirm_at_lock(mission)
     n = 10
     mission.actions.policy = ["alert", "loiter"]
     mission.actions.statustext_repeats = 3
@@ -275,6 +290,7 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
     """ROI on the alert, DO_SET_ROI_NONE once ``roi_hold_s`` has passed on the policy's clock
     (not before), the simulated gimbal back at nadir; no frame is searched from the ROI's
     delivery until ROI_SETTLE_S after the release."""
+    confirm_at_lock(mission)
     n = 10
     mission.actions.policy = ["roi"]
     mission.actions.roi_hold_s = 10.0

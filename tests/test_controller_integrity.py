@@ -79,7 +79,8 @@ def test_no_position_before_the_autopilot_reports_home_then_placed_from_the_buff
         # seen in frames 0-9 only: the position must come from those sightings
         ctl = MissionController(mission, ScriptedDetector(script(10, 60.0) + [[]] * 5), buf,
                                 store, console=lines.append)
-        alerts = run(ctl, 10)
+        run(ctl, 10)
+        alerts = ctl.stats.candidates  # locked without a position: a candidate, unconfirmed
         assert len(alerts) == 1 and alerts[0].position is None
         assert "no home position from the autopilot yet" in alerts[0].position_note
         assert "position unknown: " in lines[0]
@@ -100,7 +101,8 @@ def test_no_fix_for_a_drone_on_the_ground(tmp_path, mission):
     with AlertStore(tmp_path / "a.db") as store:
         ctl = MissionController(mission, ScriptedDetector(script(20, 0.4)), buf, store,
                                 console=lambda s: None)
-        alerts = run(ctl, 20)
+        assert run(ctl, 20) == []  # nothing confirmed without a position
+        alerts = ctl.stats.candidates
         assert len(alerts) == 1 and alerts[0].position is None
         assert "0.4 m above the ground" in alerts[0].position_note
         assert store.list()[0].position is None
@@ -116,7 +118,8 @@ def test_a_fix_needs_the_minimum_height_from_the_mission(tmp_path):
     with AlertStore(tmp_path / "a.db") as store:
         ctl = MissionController(mission, ScriptedDetector(script(10, 25.0)), buf, store,
                                 console=lambda s: None)
-        (alert,) = run(ctl, 10)
+        run(ctl, 10)
+        (alert,) = ctl.stats.candidates
         assert alert.position is None and "a fix needs 30 m" in alert.position_note
 
 
@@ -127,7 +130,8 @@ def test_exact_position_around_the_drone_not_the_mission_home(tmp_path, mission)
     with AlertStore(tmp_path / "a.db") as store:
         ctl = MissionController(mission, ScriptedDetector(script(10, 60.0)), buf, store,
                                 console=lambda s: None)
-        (alert,) = run(ctl, 10)
+        run(ctl, 10)
+        (alert,) = ctl.stats.candidates
         assert alert.position is not None and metres(alert.position, truth()) < 0.05
         assert alert.error_m is not None and alert.error_m < 5.0
 
@@ -139,5 +143,6 @@ def test_non_finite_gimbal_attitude_is_no_fix_and_no_crash(tmp_path, mission):
     with AlertStore(tmp_path / "a.db") as store:
         ctl = MissionController(mission, ScriptedDetector(script(10, 60.0)), buf, store,
                                 console=lambda s: None)
-        (alert,) = run(ctl, 10)
+        run(ctl, 10)
+        (alert,) = ctl.stats.candidates
         assert alert.position is None and "not finite" in alert.position_note

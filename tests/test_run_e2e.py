@@ -23,6 +23,7 @@ from scripted_detector import BlobDetector
 from sarmission.alerts.store import AlertStore
 from sarmission.cli import main
 from sarmission.mavlink.connection import M
+from sarmission.mission.actions import ascii_statustext
 from sarmission.mission.config import load_mission
 from sarmission.mission.live import LiveSession
 from sarmission.mission.targets import distance_m
@@ -200,22 +201,31 @@ def test_alert_during_link_loss_is_delivered_after(tmp_path):
         cut = threading.Thread(target=outage)
         cut.start()
         try:
-            session.run(duration_s=15.5)
+            session.run(duration_s=20.0)
         finally:
             cut.join()
             summary = session.close()
     finally:
         vehicle.stop()
     with AlertStore(tmp_path / "alerts.db") as store:
-        (alert,) = store.list()
-    assert alert.position is None and "no position for" in alert.position_note
+        stored = store.list()
+    # locked while the autopilot was silent: a candidate without a position (the operator
+    # sees it); once the rebooted autopilot's telemetry places the person again (the flight
+    # starts over, so a new target) it is confirmed, and only then told to the autopilot
+    assert any(line.startswith("CANDIDATE target 1") and "no position for" in line
+               for line in lines), lines
+    (alert,) = [a for a in stored if a.tier == "confirmed"]
+    assert [a.position for a in stored if a.tier == "candidate"] in ([], [None])
+    assert session.telemetry.resets == 1  # the reboot dropped what came before
+    assert alert.position is not None
+    assert distance_m(alert.position, truth(mission, 20.0, 10.0)) < 5.0
     assert "mavlink" not in alert.delivered  # STATUSTEXT: sent, nothing acknowledges it
     texts = [s.text for s in vehicle.statustexts]
-    assert set(texts) == {alert.statustext()}
+    assert set(texts) == {ascii_statustext(alert)}
     assert 1 <= len(texts) <= alert.sent["mavlink"].count
     assert any(line.startswith("link lost") for line in lines), lines
     assert any(line.startswith("link back") for line in lines), lines
-    assert "pending" in summary
+    assert "confirmed alerts: 1" in summary
 
 
 def free_tcp_port() -> int:
@@ -246,10 +256,11 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
                 assert time.monotonic() < deadline and runner.is_alive(), "no feed"
                 time.sleep(0.1)
         with urllib.request.urlopen(base + "/alerts.jsonl?follow=1", timeout=10) as stream:
-            # blocks until the run stores an alert; an alert locked before the first position
-            # arrived is written again when its position is attached: wait for that line
+            # blocks until the run stores an alert: a candidate first, written again when its
+            # position is attached (locked before the first position arrived) and when the
+            # evidence confirms it: wait for that line
             streamed = json.loads(stream.readline())
-            while streamed["position"] is None:
+            while streamed["tier"] != "confirmed":
                 streamed = json.loads(stream.readline())
         with urllib.request.urlopen(base + "/api/alerts", timeout=5) as r:
             (listed,) = json.loads(r.read())

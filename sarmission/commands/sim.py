@@ -38,6 +38,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     vehicle.set_defaults(func=_run_vehicle)
     add_generate_parser(sim_sub)
     add_replay_parser(sim_sub)
+    from sarmission.commands.sim_score import add_score_parser
+
+    add_score_parser(sim_sub)
 
 
 def _run_vehicle(args: argparse.Namespace) -> int:

@@ -8,7 +8,12 @@ Per frame (:meth:`MissionController.process`)::
       -> for each locked track seen this frame:
            telemetry pose at the capture time -> geolocate the box centre -> target registry
            (box in scene pixels: the image shifts since the first frame taken out)
-      -> for each new target: Alert -> store.add (durable) -> console line -> action policy
+      -> each sighting of a target: fix, size on the ground, head score -> its evidence
+      -> for each new target: a *candidate* alert -> store.add (durable) -> console line
+         (the operator sees it; nobody else), unless it lies in a zone the operator dismissed
+      -> each candidate whose evidence over seconds confirms it (or that the operator
+         confirmed): store.promote (durable) -> ALERT console line -> action policy;
+         one that clearly is no person: store.discard (the reason kept)
       -> for a target alerted without a position that now has one (seen again, or its
          earlier sightings placed from buffered telemetry once the autopilot's state is known):
            store.attach_position (durable) -> console line -> action policy (now with a place)
@@ -44,8 +49,11 @@ from sarmission.alerts.store import AlertStore
 from sarmission.alerts.thumbnail import crop_thumbnail
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.geo.geolocate import GeoFix, PlatformPose, geolocate
+from sarmission.geo.ground_size import ground_extent_m
+from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
+from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception.types import FrameResult
@@ -56,6 +64,8 @@ log = logging.getLogger(__name__)
 
 #: Geolocated history entries put in an alert (the newest ones).
 ALERT_TRACK_POINTS = 10
+#: Seconds between two aircraft positions stored for the operator's map.
+DRONE_TRACK_PERIOD_S = 1.0
 DRONE_COLOUR = (60, 140, 255)
 
 
@@ -85,7 +95,11 @@ class ControllerStats:
     skipped: Counter[str] = field(default_factory=Counter)
     detections: int = 0
     locks: int = 0
-    alerts: list[Alert] = field(default_factory=list)
+    candidates: list[Alert] = field(default_factory=list)  # every lock of a new target
+    alerts: list[Alert] = field(default_factory=list)  # confirmed: the team was told
+    # each confirmed alert with the frame and capture time it was confirmed at
+    confirmed: list[tuple[Alert, int, float]] = field(default_factory=list)
+    suppressed: int = 0  # new targets inside a zone the operator dismissed
     located_later: int = 0
     unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
     merged_tracks: int = 0
@@ -144,6 +158,7 @@ class MissionController:
                                    None if fix is None else fix[2])
             for target_id, fix in store.known_fixes(self.mission_id).items()})
         self.known_at_start = len(self.registry)
+        self.candidates = CandidateBook(store, self.mission_id, mission.confirm)
         self.console = console
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m
@@ -158,6 +173,16 @@ class MissionController:
         # telemetry once the autopilot's state allows a fix
         self._unplaced_sightings: dict[int, list[tuple[float, float, float]]] = {}
         self._paused = False  # the last frame was not searched (camera on a target)
+        self._drone_recorded = -math.inf
+        self._store_area(mission)
+
+    def _store_area(self, mission: MissionConfig) -> None:
+        """The mission's search area (planned around the mission file's home) for the map."""
+        lat0, lon0, h0 = mission.area.home
+        ne = mission.area.polygon_ne()
+        lat, lon, _ = ned_to_geodetic([p[0] for p in ne], [p[1] for p in ne], 0.0, lat0, lon0, h0)
+        self.store.set_mission_area(self.mission_id, [(float(a), float(b))
+                                                      for a, b in zip(lat, lon, strict=True)])
 
     # -- per frame -------------------------------------------------------------------------------
     def process(self, frame_index: int, timestamp: float, frame: Any) -> list[Alert]:
@@ -200,10 +225,11 @@ class MissionController:
             target, is_new = self.registry.observe(track.track_id, track.class_id, track.score,
                                                    timestamp, fix, note, box=track.box - scene)
             changed.append(target)
+            self._sighting(target, track, timestamp, pose, fix)
             if track.just_locked:
                 self.stats.locks += 1
                 if is_new:
-                    alerts.append(self._alert(target, track, frame, frame_index, pose, fix))
+                    self._candidate(target, track, frame, frame_index, pose, fix)
                 else:
                     self.stats.merged_tracks += 1
                     log.info("track %d joined target %d", track.track_id, target.target_id)
@@ -212,6 +238,9 @@ class MissionController:
             if target.position is not None and target.target_id in self._unplaced:
                 self._attach_position(target, track.track_id, frame_index)
         self._place_from_buffer(frame_index)
+        self._record_drone(timestamp, pose)
+        for promotion in self.candidates.review(timestamp) + self.candidates.operator_decisions():
+            alerts.append(self._confirm(promotion, frame_index, timestamp))
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:
@@ -315,15 +344,79 @@ class MissionController:
                 self._unplaced_sightings.pop(target_id, None)
                 self._attach_position(target, None, frame_index)
 
-    # -- alerts ----------------------------------------------------------------------------------
-    def _alert(self, target: Target, track: TrackState, frame: np.ndarray, frame_index: int,
-               pose: PlatformPose | StaleTelemetry, fix: GeoFix | None) -> Alert:
+    def _record_drone(self, timestamp: float, pose: PlatformPose | StaleTelemetry | None) -> None:
+        """The aircraft's position into the store about once a second (the operator's map)."""
+        if timestamp - self._drone_recorded < DRONE_TRACK_PERIOD_S:
+            return
+        if pose is None:
+            pose = self.telemetry.lookup(timestamp)
+        if isinstance(pose, PlatformPose):
+            self.store.record_drone(self.mission_id, self.to_posix(timestamp), pose.lat,
+                                    pose.lon, pose.rel_alt_m)
+            self._drone_recorded = timestamp
+
+    # -- candidates and alerts ---------------------------------------------------------------
+    def _sighting(self, target: Target, track: TrackState, timestamp: float,
+                  pose: PlatformPose | StaleTelemetry, fix: GeoFix | None) -> None:
+        """This frame's evidence of ``target``: the track's fix, box size on the ground and the
+        head's score of the detection it took."""
+        if fix is None or not fix.ok or not isinstance(pose, PlatformPose):
+            self.candidates.sighting(target.target_id, timestamp, None, None, None, None,
+                                     track.last_score)
+            return
+        ground = self._ground_below_home()
+        assert self._intrinsics is not None and ground is not None
+        size = ground_extent_m(track.raw_box, self._intrinsics, pose, ground)
+        self.candidates.sighting(target.target_id, timestamp, fix.lat, fix.lon, fix.error_m,
+                                 size, track.last_score)
+
+    def _candidate(self, target: Target, track: TrackState, frame: np.ndarray,
+                   frame_index: int, pose: PlatformPose | StaleTelemetry,
+                   fix: GeoFix | None) -> None:
+        """A new target's lock: a candidate alert for the operator (not the autopilot)."""
+        target.announced = True
+        zone = self.candidates.suppressing(target.position)
+        if zone is not None:
+            self.stats.suppressed += 1
+            log.info("target %d lies in a dismissed zone (%.6f, %.6f, %.0f m): not alerted",
+                     target.target_id, *zone)
+            return
+        alert = self._new_alert(target, track, frame, frame_index, pose, fix)
+        self.store.add(alert)  # durable before anyone is told
+        self.candidates.add(target.target_id, alert)
+        self.stats.candidates.append(alert)
+        if alert.position is None:
+            self._unplaced[target.target_id] = alert
+            self._remember_sighting(target.target_id, track)
+            self.stats.unplaced[re.sub(r"\d+(\.\d+)?", "N", alert.position_note)] += 1
+        line = format_alert(alert, track.track_id)
+        self.console(line)
+        if self.recorder is not None:
+            self.recorder.text("alerts", line, level="INFO")
+
+    def _confirm(self, promotion: Promotion, frame_index: int, timestamp: float) -> Alert:
+        """A candidate confirmed (stored already): told to the console, the autopilot, the
+        team."""
+        alert = promotion.alert
+        self.stats.alerts.append(alert)
+        self.stats.confirmed.append((alert, frame_index, timestamp))
+        line = format_alert(alert)
+        self.console(line)
+        if self.recorder is not None:
+            self.recorder.text("alerts", line, level="WARN")
+        if self.actions is not None:
+            self.actions.announce(alert)
+        return alert
+
+    def _new_alert(self, target: Target, track: TrackState, frame: np.ndarray,
+                   frame_index: int, pose: PlatformPose | StaleTelemetry,
+                   fix: GeoFix | None) -> Alert:
         box = track.box
         centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
         classes = self.detector.classes
         class_name = classes[track.class_id] if 0 <= track.class_id < len(classes) else "target"
         placed = fix is not None and fix.ok
-        alert = Alert(
+        return Alert(
             mission_id=self.mission_id,
             target_id=target.target_id,
             class_name=class_name,
@@ -339,20 +432,8 @@ class MissionController:
             track=self._history_fixes(track),
             pixel_track=[(int(i), float(x), float(y)) for i, _, x, y in track.history],
             thumbnail=crop_thumbnail(frame, centre),
+            tier="candidate",
         )
-        self.store.add(alert)  # durable before anyone is told
-        target.announced = True
-        self.stats.alerts.append(alert)
-        if alert.position is None:
-            self._unplaced[target.target_id] = alert
-            self._remember_sighting(target.target_id, track)
-            self.stats.unplaced[re.sub(r"\d+(\.\d+)?", "N", alert.position_note)] += 1
-        self.console(format_alert(alert, track.track_id))
-        if self.recorder is not None:
-            self.recorder.text("alerts", format_alert(alert, track.track_id), level="WARN")
-        if self.actions is not None:
-            self.actions.announce(alert)
-        return alert
 
     def _target_hae(self) -> float | None:
         """The ground plane's altitude (AMSL), None while the autopilot's home is unknown."""
@@ -376,7 +457,7 @@ class MissionController:
         self.console(line)
         if self.recorder is not None:
             self.recorder.text("alerts", line, level="WARN")
-        if self.actions is not None:
+        if self.actions is not None and alert.tier == "confirmed":  # told before: tell again
             self.actions.announce(alert)
 
     # -- recording -------------------------------------------------------------------------------
@@ -430,9 +511,15 @@ class MissionController:
         lines.append(f"detections: {s.detections}, locks: {s.locks}, "
                      f"tracks merged into known targets: {s.merged_tracks}")
         lines.append(f"targets: {len(self.registry)} ({self.known_at_start} known at start), "
-                     f"new alerts: {len(s.alerts)}"
+                     f"candidates: {len(s.candidates)}, confirmed alerts: {len(s.alerts)}"
                      + (f", positions found after the alert: {s.located_later}"
                         if s.located_later else ""))
+        book = self.candidates
+        if book.discarded or s.suppressed or book.candidates:
+            lines.append("candidates discarded: " + (", ".join(
+                f"{n} ({why})" for why, n in book.discarded.most_common()) or "0")
+                + f"; still unconfirmed: {len(book.candidates)}"
+                + (f"; in dismissed zones: {s.suppressed}" if s.suppressed else ""))
         if s.unplaced:
             lines.append("alerted without a position: " + ", ".join(
                 f"{n} ({why})" for why, n in s.unplaced.most_common()))
@@ -444,12 +531,16 @@ class MissionController:
 
 
 def format_alert(alert: Alert, track_id: int | None = None) -> str:
-    """One console line for a new alert."""
+    """One console line for a new candidate, or for an alert confirmed (with its evidence)."""
     where = (f"at {alert.format_position(6)} {alert.format_error()}".rstrip()
              if alert.position is not None else f"- position unknown: {alert.position_note}")
     track = f", track {track_id}" if track_id is not None else ""
-    return (f"ALERT target {alert.target_id}: {alert.class_name} {alert.score:.2f} {where} "
-            f"(frame {alert.frame_index}{track})")
+    if alert.tier == "candidate":
+        return (f"CANDIDATE target {alert.target_id}: {alert.class_name} {alert.score:.2f} "
+                f"{where} (frame {alert.frame_index}{track}; unconfirmed)")
+    evidence = f"; {alert.evidence}" if alert.evidence else ""
+    return (f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
+            f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence})")
 
 
 def format_located(alert: Alert, frame_index: int, track_id: int | None) -> str:

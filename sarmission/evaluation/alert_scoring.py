@@ -1,0 +1,162 @@
+"""Scoring confirmed alerts against a flight's ground truth: people found, false alerts per hour,
+time from first view to alert, geolocation error.
+
+Inputs are plain records, so any simulator or annotated flight can be scored:
+
+- frames: objects with ``index``, ``sim_time`` (s), ``targets`` and ``others`` (annotations
+  with ``track_id``, ``category``, ``bbox_xyxy`` pixel edges, ``lat``/``lon``);
+- alerts: ``(alert, frame_index, t)``: a confirmed alert, the frame it was confirmed on and
+  that frame's time (the same clock as ``sim_time``).
+
+An alert is matched to the person whose box centre lies nearest its last pixel position, within
+``match_px``, in the frame it was locked on (``alert.frame_index``); no person there makes it a
+false alert, named after the distractor under it ("open water" when none). A person is *in view*
+when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least ``min_view_s``;
+the time to alert runs from their first frame to the confirmation.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sarmission.geo.wgs84 import geodetic_to_ned
+
+#: A detection is the person whose box centre is within this many pixels.
+MATCH_PX = 24.0
+
+
+@dataclass
+class FlightScore:
+    """The figures of one flight (or a suite: :meth:`add`)."""
+
+    flight_s: float = 0.0
+    people_in_view: int = 0
+    found: int = 0
+    found_briefly_seen: int = 0
+    alerts: int = 0
+    false_alerts: int = 0
+    duplicates: int = 0
+    false_on: Counter[str] = field(default_factory=Counter)
+    time_to_alert_s: list[float] = field(default_factory=list)
+    geo_error_m: list[float] = field(default_factory=list)
+    missed: list[str] = field(default_factory=list)
+
+    def add(self, other: FlightScore) -> None:
+        """Fold another flight's figures into this one."""
+        for name in ("flight_s", "people_in_view", "found", "found_briefly_seen", "alerts",
+                     "false_alerts", "duplicates"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+        self.false_on.update(other.false_on)
+        self.time_to_alert_s += other.time_to_alert_s
+        self.geo_error_m += other.geo_error_m
+        self.missed += other.missed
+
+    @property
+    def false_per_hour(self) -> float:
+        return self.false_alerts / (self.flight_s / 3600.0) if self.flight_s > 0 else math.nan
+
+    @property
+    def found_share(self) -> float:
+        return self.found / self.people_in_view if self.people_in_view else math.nan
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready figures (percentiles computed here)."""
+        return {
+            "flight_s": round(self.flight_s, 1),
+            "people_in_view": self.people_in_view,
+            "found": self.found,
+            "found_share": _round(self.found_share, 4),
+            "found_briefly_seen": self.found_briefly_seen,
+            "alerts": self.alerts,
+            "false_alerts": self.false_alerts,
+            "false_per_hour": _round(self.false_per_hour, 2),
+            "false_on": dict(self.false_on.most_common()),
+            "duplicates": self.duplicates,
+            "time_to_alert_s": {"p50": _pct(self.time_to_alert_s, 50),
+                                "p90": _pct(self.time_to_alert_s, 90)},
+            "geo_error_m": {"p50": _pct(self.geo_error_m, 50),
+                            "p95": _pct(self.geo_error_m, 95)},
+            "missed": list(self.missed),
+        }
+
+
+def _round(v: float, digits: int) -> float | None:
+    return None if math.isnan(v) else round(v, digits)
+
+
+def _pct(values: Sequence[float], q: float) -> float | None:
+    return None if not values else round(float(np.percentile(values, q)), 2)
+
+
+def _centre(box: Sequence[float]) -> tuple[float, float]:
+    return (box[0] + box[2]) / 2 - 0.5, (box[1] + box[3]) / 2 - 0.5
+
+
+def nearest(annotations: Iterable[Any], cx: float, cy: float,
+            match_px: float = MATCH_PX) -> Any | None:
+    """The annotation whose box centre is nearest ``(cx, cy)`` within ``match_px``, or None."""
+    best, best_d = None, match_px
+    for a in annotations:
+        x, y = _centre(a.bbox_xyxy)
+        d = math.hypot(x - cx, y - cy)
+        if d <= best_d:
+            best, best_d = a, d
+    return best
+
+
+def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], dict[int, float]]:
+    """Per person: first sighting time and longest stretch in view (s)."""
+    first: dict[int, float] = {}
+    last: dict[int, float] = {}
+    start: dict[int, float] = {}
+    longest: dict[int, float] = {}
+    for frame in frames:
+        t = frame.sim_time
+        for a in frame.targets:
+            tid = a.track_id
+            first.setdefault(tid, t)
+            if tid not in last or t - last[tid] > max_gap_s:
+                start[tid] = t
+            last[tid] = t
+            longest[tid] = max(longest.get(tid, 0.0), t - start[tid])
+    return first, longest
+
+
+def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]],
+                 min_view_s: float = 3.0, max_gap_s: float = 0.5,
+                 match_px: float = MATCH_PX) -> FlightScore:
+    """The figures of one flight (see the module docstring)."""
+    by_index = {f.index: f for f in frames}
+    first, longest = _views(frames, max_gap_s)
+    in_view = {tid for tid, s in longest.items() if s >= min_view_s}
+    out = FlightScore(flight_s=(frames[-1].sim_time - frames[0].sim_time) if frames else 0.0,
+                      people_in_view=len(in_view), alerts=len(alerts))
+    found: set[int] = set()
+    for alert, _confirm_index, confirm_t in alerts:
+        frame = by_index.get(alert.frame_index)
+        cx, cy = alert.pixel_track[-1][1:] if alert.pixel_track else (math.nan, math.nan)
+        person = None if frame is None else nearest(frame.targets, cx, cy, match_px)
+        if person is None:
+            other = None if frame is None else nearest(frame.others, cx, cy, match_px)
+            out.false_alerts += 1
+            out.false_on[other.category if other is not None else "open water"] += 1
+            continue
+        if person.track_id in found:
+            out.duplicates += 1
+            continue
+        found.add(person.track_id)
+        out.time_to_alert_s.append(confirm_t - first[person.track_id])
+        if alert.position is not None and person.lat is not None:
+            n, e, _ = geodetic_to_ned(alert.position[0], alert.position[1], 0.0, person.lat,
+                                      person.lon, 0.0)
+            out.geo_error_m.append(math.hypot(float(n), float(e)))
+    out.found = len(found & in_view)
+    out.found_briefly_seen = len(found - in_view)
+    out.missed = [f"person {tid} ({longest[tid]:.1f} s in view)" for tid in sorted(in_view - found)]
+    return out

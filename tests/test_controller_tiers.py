@@ -1,0 +1,150 @@
+"""Candidates and confirmed alerts through the controller: a person still in the world frame is
+confirmed after a second of sightings; sun glint that keeps its place in the image while the
+aircraft flies on, and a boat, are discarded and never told to the autopilot; an operator's
+confirmation announces at once, a dismissal silences the place, also after a restart."""
+
+import math
+
+import numpy as np
+import pymap3d
+import pytest
+from scripted_detector import ScriptedDetector
+
+from sarmission.alerts.store import AlertStore
+from sarmission.mavlink.telemetry import TelemetryBuffer
+from sarmission.mission.config import load_mission
+from sarmission.mission.controller import MissionController
+
+W, H, HFOV_DEG, FPS = 960, 540, 30.0, 10.0
+DRONE = (43.0, 10.0)
+F = (W / 2) / math.tan(math.radians(HFOV_DEG) / 2)
+
+
+@pytest.fixture
+def mission():
+    return load_mission(overrides={"camera.width": W, "camera.height": H,
+                                   "camera.hfov_deg": HFOV_DEG, "name": "tiers"})
+
+
+class Announced:
+    """Stands in for the action policy: what it was asked to announce."""
+
+    def __init__(self) -> None:
+        self.alerts: list = []
+
+    def announce(self, alert) -> int:
+        self.alerts.append(alert)
+        return 1
+
+    def tick(self) -> bool:
+        return False
+
+    def search_paused(self) -> bool:
+        return False
+
+    def pending(self) -> int:
+        return 0
+
+    def summary(self) -> str:
+        return ""
+
+
+def flight(seconds: float, speed_north: float = 0.0, height: float = 60.0) -> TelemetryBuffer:
+    """Level flight northwards at ``speed_north`` m/s, camera at nadir, yaw 0."""
+    buf = TelemetryBuffer()
+    buf.set_home(*DRONE, 2.0)
+    for t in np.arange(0.0, seconds + 1e-9, 0.05):
+        lat, lon, _ = pymap3d.ned2geodetic(speed_north * t, 0.0, 0.0, *DRONE, 0.0)
+        buf.push_position(float(t), float(lat), float(lon), height,
+                          velocity_ned=(speed_north, 0.0, 0.0))
+        buf.push_attitude(float(t), 0.0, 0.0, 0.0)
+    return buf
+
+
+def box_at(north: float, east: float, height: float, side_px: float = 8.0):
+    """The box of a point ``north``/``east`` metres from the point below the camera."""
+    u = (W - 1) / 2 + F * east / height
+    v = (H - 1) / 2 - F * north / height
+    return (u - side_px / 2, v - side_px / 2, u + side_px / 2, v + side_px / 2)
+
+
+def run(ctl, n: int, start: int = 0) -> list:
+    alerts = []
+    for i in range(start, start + n):
+        alerts += ctl.process(i, i / FPS, np.full((H, W, 3), 90, np.uint8))
+    return alerts
+
+
+def test_a_still_person_is_a_candidate_then_confirmed_after_a_second(tmp_path, mission):
+    script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 20
+    actions = Announced()
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
+                                actions=actions, console=lambda s: None)
+        alerts = run(ctl, 20)
+        (alert,) = alerts
+        assert store.get(alert.alert_id).tier == "confirmed"
+        assert actions.alerts == alerts
+        (_, frame_index, _) = ctl.stats.confirmed[0]
+        assert frame_index == 12  # locked at frame 2, 1.0 s of sightings later
+        assert "drift 0.0 m/s" in store.get(alert.alert_id).evidence
+
+
+def test_glint_that_keeps_its_place_in_the_image_is_discarded(tmp_path, mission):
+    script = [[(box_at(0.0, 8.0, 60.0), 0.95, 0)]] * 30  # fixed pixel, aircraft at 10 m/s
+    actions = Announced()
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ScriptedDetector(script), flight(4.0, 10.0), store,
+                                actions=actions, console=lambda s: None)
+        assert run(ctl, 30) == [] and actions.alerts == []
+        (candidate,) = ctl.stats.candidates
+        stored = store.get(candidate.alert_id)
+        assert stored.tier == "candidate" and "moves 10" in stored.discarded
+        assert "1 (moves)" in ctl.summary()
+
+
+def test_a_boat_is_too_large_to_be_a_person(tmp_path, mission):
+    script = [[(box_at(5.0, 5.0, 60.0, side_px=130.0), 0.9, 0)]] * 20  # 6 m across
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
+                                actions=Announced(), console=lambda s: None)
+        assert run(ctl, 20) == []
+        (candidate,) = ctl.stats.candidates
+        assert "on the ground is no person" in store.get(candidate.alert_id).discarded
+
+
+def test_the_operator_confirms_a_candidate_before_the_evidence_does(tmp_path, mission):
+    script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 6
+    actions = Announced()
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
+                                actions=actions, console=lambda s: None)
+        assert run(ctl, 4) == []
+        (candidate,) = ctl.stats.candidates
+        store.decide(candidate.alert_id, "confirmed", by="jo")
+        assert ctl.process(4, 0.4, np.full((H, W, 3), 90, np.uint8))[0].alert_id == \
+            candidate.alert_id
+        assert [a.alert_id for a in actions.alerts] == [candidate.alert_id]
+
+
+def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
+    script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 20
+    path = tmp_path / "a.db"
+    with AlertStore(path) as store:
+        ctl = MissionController(mission, ScriptedDetector(script[:4]), flight(3.0), store,
+                                actions=Announced(), console=lambda s: None)
+        run(ctl, 4)
+        (candidate,) = ctl.stats.candidates
+        store.decide(candidate.alert_id, "dismissed", by="jo")  # foam, says the operator
+        actions = Announced()
+        ctl.actions = actions
+        ctl.detector = ScriptedDetector(script[:16])
+        assert run(ctl, 16, start=4) == [] and actions.alerts == []  # evidence cannot overrule
+    with AlertStore(path) as store:  # a restart: a new track on the same spot, another id
+        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
+                                actions=Announced(), console=lambda s: None,
+                                mission_id="tiers")
+        ctl.registry.targets.clear()  # forget the known target: only the zone may silence it
+        assert run(ctl, 20) == []
+        assert ctl.stats.suppressed == 1 and ctl.stats.candidates == []
+        assert store.count() == 1
