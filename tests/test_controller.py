@@ -142,7 +142,7 @@ def test_stale_telemetry_gives_an_alert_without_position_and_the_reason(tmp_path
         (alert,) = ctl.stats.candidates
         assert store.list() == [alert] and alert.tier == "candidate"
         assert alert.position is None and alert.error_m is None
-        assert alert.position_note.startswith("telemetry: no position for")
+        assert alert.position_note.startswith("no position for")
         assert alert.drone_position is None
         assert "pos unknown" in alert.statustext()
 

@@ -20,7 +20,7 @@ SCREENSHOT = Path("/tmp/sarmission_report.png")
 
 def sample_report() -> ReportInput:
     alerts = [make_alert(1), make_alert(2, frame_index=240), make_alert(3, positioned=False)]
-    alerts[2].position_note = "telemetry: no telemetry"
+    alerts[2].position_note = "no telemetry"
     track = [(float(k), -35.3635 + k * 2e-5, 149.1648 + (k % 20) * 3e-5) for k in range(60)]
     return ReportInput(title="replay of flight.mp4", alerts=alerts, track=track,
                        frame_times={101: 3.37, 240: 8.0, 103: 3.43},
@@ -35,7 +35,7 @@ def test_report_files_hold_every_alert_and_say_why_one_has_no_position(tmp_path:
     rows = list(csv.DictReader((tmp_path / "alerts.csv").open()))
     assert [r["frame_index"] for r in rows] == ["101", "240", "103"]
     assert rows[0]["footage_time_s"] == "3.370" and rows[0]["lat"] and rows[0]["error_m"]
-    assert rows[2]["lat"] == "" and rows[2]["position_note"] == "no position: no telemetry"
+    assert rows[2]["lat"] == "" and rows[2]["position_note"] == "position unknown: no telemetry"
     assert rows[2]["pixel_x"] != ""
     geo = json.loads((tmp_path / "alerts.geojson").read_text())
     assert [f["geometry"] and f["geometry"]["type"] for f in geo["features"]] == [
@@ -68,7 +68,7 @@ def test_report_renders_offline_in_chromium(tmp_path: Path, browser: Chromium) -
                      "> 0)", timeout=5.0)
     assert browser.js("document.querySelectorAll('.card img').length") == 3
     text = browser.js("document.body.innerText")
-    assert "no position: no telemetry" in text and "t = 8.00 s, frame 240" in text
+    assert "position unknown: no telemetry" in text and "t = 8.00 s, frame 240" in text
     assert browser.js("document.getElementById('counts').textContent") == (
         "3 alerts, 2 with a position, 1 without")
     marker_box = browser.js("JSON.stringify(document.querySelector('.alert-marker')"

@@ -103,10 +103,10 @@ def test_replay_without_telemetry_invents_no_position(tmp_path, capsys):
     alerts = [line for line in out.splitlines() if "target" in line and "score" not in line
               and line.split()[0] in ("ALERT", "CANDIDATE")]
     assert alerts, out
-    assert all("no position: no telemetry" in line and "±" not in line for line in alerts)
+    assert all("position unknown: no telemetry" in line and "±" not in line for line in alerts)
     rows = (tmp_path / "report" / "alerts.csv").read_text().splitlines()
     assert len(rows) == len(alerts) + 1
-    assert all(",,," in r and "no position: no telemetry" in r for r in rows[1:])
+    assert all(",,," in r and "position unknown: no telemetry" in r for r in rows[1:])
 
 
 def test_replay_with_a_tlog_aligned_by_offset_writes_the_report(tmp_path, capsys):

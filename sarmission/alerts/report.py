@@ -7,7 +7,7 @@ the alerts, a strip of alert cards (thumbnail, footage time, frame, pixel, posit
 there is none) and a summary table. ``alerts.kml`` and ``alerts.geojson`` come from
 :mod:`~sarmission.alerts.export` (the GeoJSON with the track as a LineString feature beside
 the alerts); ``alerts.csv`` has one row per alert. An alert without a position is never drawn
-as a point: it says ``no position: <why>``.
+as a point: it says ``position unknown: <why>``.
 """
 
 from __future__ import annotations
@@ -62,15 +62,14 @@ def _pixel(alert: Alert) -> tuple[float, float] | None:
 
 def _where(alert: Alert) -> str:
     if alert.position is None:
-        return f"no position: {_reason(alert.position_note)}"
+        return f"position unknown: {_reason(alert.position_note)}"
     lat, lon = alert.position
     err = alert.format_error()
     return f"{lat:.6f}, {lon:.6f}" + (f" {err}" if err else "")
 
 
 def _reason(note: str) -> str:
-    note = note or "no geolocation"
-    return "no telemetry" if note == "telemetry: no telemetry" else note
+    return note or "no geolocation"
 
 
 def _footage_time(alert: Alert, frame_times: dict[int, float]) -> float | None:

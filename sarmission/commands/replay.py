@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -119,15 +119,6 @@ def _ground_model(args: argparse.Namespace) -> object | None:
     return TerrainGround(dem)
 
 
-def _console(write: Callable[[str], None]) -> Callable[[str], None]:
-    """Alert lines as replay words them: an alert without telemetry says so plainly."""
-    def console(line: str) -> None:
-        write(line.replace("- position unknown: telemetry: no telemetry",
-                           "- no position: no telemetry"))
-
-    return console
-
-
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -173,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
                                        mission_id=args.mission_id,
                                        to_posix=(lambda t: t + utc) if utc is not None
                                        else (lambda t: start_posix + t),
-                                       console=_console(tqdm.write),
+                                       console=tqdm.write,
                                        ground_model=ground_model)
         started = time.monotonic()
         n = 0

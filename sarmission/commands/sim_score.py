@@ -16,6 +16,7 @@ import json
 import math
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -49,9 +50,20 @@ def add_score_parser(sim_sub: argparse._SubParsersAction) -> None:
     score.set_defaults(func=run)
 
 
+@dataclass
+class Flown:
+    """One scenario flown: its score, the session's summary, and what tools look into: the
+    controller (candidates, evidence) and the camera's ground truth per frame."""
+
+    score: FlightScore
+    summary: str
+    controller: Any
+    truth: list[Any]
+
+
 def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: float,
-        workdir: Path) -> tuple[FlightScore, str]:
-    """One scenario through the live pipeline; its score and the session's summary."""
+        workdir: Path) -> Flown:
+    """One scenario through the live pipeline (see :class:`Flown`)."""
     from sarmission.commands.demo import free_udp_port
     from sarmission.evaluation.alert_scoring import score_flight
     from sarmission.mission.live import LiveSession
@@ -80,7 +92,7 @@ def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: fl
     truth = camera.truth
     alerts = [(alert, index, truth[index].sim_time) for alert, index, _ in confirmed
               if 0 <= index < len(truth)]
-    return score_flight(truth, alerts), summary
+    return Flown(score_flight(truth, alerts), summary, session.controller, truth)
 
 
 def table(rows: list[tuple[str, FlightScore]]) -> str:
@@ -123,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
             seconds = args.seconds or scenario.duration_s
             if not args.json:
                 print(f"{scenario.name}: {seconds:.0f} s of flight ...", flush=True)
-            score, _ = fly(scenario, base, detector, seconds, Path(tmp))
+            score = fly(scenario, base, detector, seconds, Path(tmp)).score
             rows.append((scenario.name, score))
             total.add(score)
     rows.append(("suite", total))

@@ -302,7 +302,7 @@ class MissionController:
     def _locate(self, track: TrackState, pose: PlatformPose | StaleTelemetry,
                 ) -> tuple[GeoFix | None, str]:
         if isinstance(pose, StaleTelemetry):
-            return None, f"telemetry: {pose.reason}"
+            return None, pose.reason
         box = track.box
         fix = self._fix(((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0), pose)
         return fix, "" if fix.ok else f"no ground fix: {fix.note}"

@@ -1,0 +1,103 @@
+"""What tells a person from clutter in a candidate's evidence? Features of every candidate on the
+development scenarios (never the suite), with its truth, to choose the confirmation's
+thresholds from.
+
+    python tools/candidate_features.py [--scenarios dev_calm,...] [--seconds 120] [--csv F]
+
+For each candidate: whether a person was under it at its lock, its sightings, the time they
+span, the share of frames it was seen in over that span, the head's scores (mean, better half,
+lowest), its median size on the ground and its drift over the ground, and the verdict the
+current rule gave it. Printed: the quantiles of each feature for people and for clutter.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from sarmission.commands.mission_options import build_detector
+from sarmission.commands.sim_score import fly
+from sarmission.evaluation.alert_scoring import nearest
+from sarmission.mission.config import load_mission
+from sarmission.mission.confirmation import drift_speed
+from sim.suite import DEVELOPMENT, suite
+
+FEATURES = ("sightings", "span_s", "seen_share", "score_mean", "score_top", "score_min",
+            "size_m", "speed_m_s", "speed_sigma")
+
+
+def features(evidence, fps: float) -> dict[str, float]:
+    s = evidence.sightings
+    if not s:
+        return {k: math.nan for k in FEATURES}
+    span = s[-1].t - s[0].t
+    scores = sorted((x.score for x in s), reverse=True)
+    sizes = [x.size_m for x in s if x.size_m is not None]
+    speed, sigma = drift_speed(s) if len(s) >= 3 else (math.nan, math.nan)
+    return {"sightings": len(s), "span_s": span,
+            "seen_share": len(s) / (span * fps + 1.0),
+            "score_mean": float(np.mean(scores)),
+            "score_top": float(np.mean(scores[: max(1, len(scores) // 2)])),
+            "score_min": scores[-1], "size_m": float(np.median(sizes)) if sizes else math.nan,
+            "speed_m_s": speed, "speed_sigma": sigma}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenarios", default=",".join(s.name for s in DEVELOPMENT))
+    parser.add_argument("--seconds", type=float, default=120.0)
+    parser.add_argument("--csv", type=Path, default=None)
+    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    args = parser.parse_args()
+    base = load_mission(None, args.overrides)
+    detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
+    detector, _ = build_detector(detector_args, base)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for scenario in suite(args.scenarios.split(",")):
+            flown = fly(scenario, base, detector, args.seconds, Path(tmp))
+            by_index = {f.index: f for f in flown.truth}
+            book = flown.controller.candidates
+            for alert in flown.controller.stats.candidates:
+                frame = by_index.get(alert.frame_index)
+                cx, cy = alert.pixel_track[-1][1:]
+                person = frame is not None and nearest(frame.targets, cx, cy) is not None
+                other = None if frame is None or person else nearest(frame.others, cx, cy)
+                row = {"scenario": scenario.name, "target": alert.target_id,
+                       "person": int(person),
+                       "under": "person" if person else (other.category if other else "water")}
+                row.update(features(book.evidence.get(alert.target_id), 30.0)
+                           if alert.target_id in book.evidence else
+                           {k: math.nan for k in FEATURES})
+                stored = flown.controller.store.get(alert.alert_id) \
+                    if not flown.controller.store.closed else None
+                row["verdict"] = (stored.tier if stored else "?")
+                rows.append(row)
+            print(f"{scenario.name}: {len(flown.controller.stats.candidates)} candidates, "
+                  f"score {flown.score.as_dict()['found']} found, "
+                  f"{flown.score.false_alerts} false", flush=True)
+    if args.csv:
+        with open(args.csv, "w", newline="") as out:
+            writer = csv.DictWriter(out, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    for label, want in (("people", 1), ("clutter", 0)):
+        sel = [r for r in rows if r["person"] == want]
+        print(f"\n{label}: {len(sel)} candidates")
+        for k in FEATURES:
+            v = np.array([r[k] for r in sel], dtype=float)
+            v = v[np.isfinite(v)]
+            if v.size:
+                q = np.percentile(v, [5, 25, 50, 75, 95])
+                print(f"  {k:12s} " + " ".join(f"{x:7.2f}" for x in q))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
