@@ -1,10 +1,12 @@
 """Frame sources on real files written by OpenCV: video, image folder, corrupt frames, errors."""
 
 import logging
+import subprocess
 
 import cv2
 import numpy as np
 import pytest
+from stream_sender import FFMPEG, needs_ffmpeg
 
 from sarmission.data import Frame, FrameSourceError, open_frame_source
 
@@ -94,3 +96,43 @@ def test_errors(tmp_path):
     with pytest.raises(FrameSourceError, match="fps"):
         open_frame_source(tmp_path, fps=0)
     assert issubclass(FrameSourceError, ValueError)
+
+
+@needs_ffmpeg
+def test_variable_frame_rate_video_keeps_its_presentation_times(tmp_path):
+    """Frames are stamped with their times in the file, not index / fps: a camera recording at
+    a varying rate (or a stream saved with gaps) keeps the real time between its frames."""
+    durations = [0.1, 0.3, 0.05, 0.2, 0.1, 0.1]
+    lines = []
+    for i, duration in enumerate(durations):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), image(i))
+        lines += [f"file 'f{i}.png'", f"duration {duration}"]
+    (tmp_path / "list.txt").write_text("\n".join(lines + [f"file 'f{len(durations) - 1}.png'"]))
+    path = tmp_path / "vfr.mkv"
+    subprocess.run([FFMPEG, "-loglevel", "error", "-f", "concat", "-i", str(tmp_path / "list.txt"),
+                    "-fps_mode", "vfr", "-c:v", "libx264", "-preset", "ultrafast", "-pix_fmt",
+                    "yuv420p", str(path)], check=True, timeout=120)
+    probe = subprocess.run([FFMPEG.replace("ffmpeg", "ffprobe"), "-v", "error", "-select_streams",
+                            "v", "-show_entries", "frame=pts_time", "-of", "csv=p=0", str(path)],
+                           check=True, capture_output=True, text=True, timeout=60)
+    expected = [float(v.strip(",")) for v in probe.stdout.split()]
+    assert np.diff(expected).std() > 0.02  # the file's frame rate really varies
+    source = open_frame_source(path)
+    frames = list(source)
+    assert [f.timestamp_s for f in frames] == pytest.approx(expected, abs=1e-6)
+    assert [f.index for f in frames] == list(range(len(expected)))
+    assert source.skipped == 0  # an estimated frame count past the end is no skipped frame
+
+
+def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog):
+    path = tmp_path / "clip.avi"
+    write_video(path, "MJPG", 8, make=noise)
+    data = path.read_bytes()
+    starts = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
+    path.write_bytes(data[:starts[5]])  # frames 5..7 gone, the header still says 8
+    source = open_frame_source(path)
+    with caplog.at_level(logging.INFO):
+        indices = [f.index for f in source]
+    assert indices == [0, 1, 2, 3, 4] and source.skipped == 0
+    lines = [r.getMessage() for r in caplog.records if "clip.avi" in r.getMessage()]
+    assert lines == [f"{path}: the video ends at frame 5 of the 8 its header announces"]

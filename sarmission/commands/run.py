@@ -40,7 +40,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="autopilot MAVLink connection string (pymavlink), e.g. "
                         "udp:127.0.0.1:14550, tcp:127.0.0.1:5760, /dev/ttyACM0")
     src = parser.add_mutually_exclusive_group(required=True)
-    src.add_argument("--video", metavar="PATH", help="play a video file as the camera")
+    src.add_argument("--video", metavar="PATH|URL",
+                     help="play a video file as the camera, or read a live stream: "
+                     "rtsp://HOST/PATH, udp://IP:PORT (MPEG-TS), ...")
     src.add_argument("--frames", metavar="DIR", help="play an image folder as the camera")
     src.add_argument("--camera", type=int, metavar="N", help="camera device N (OpenCV)")
     src.add_argument("--sim", action="store_true",
@@ -165,10 +167,12 @@ def stop_on_signals() -> Iterator[threading.Event]:
 def _open_source(args: argparse.Namespace, mission: MissionConfig, renderer: Any
                  ) -> tuple[LiveSource, Any]:
     """The frame source and, for --sim, the started simulated vehicle."""
-    from sarmission.mission.live_sources import CameraSource, FileSource
+    from sarmission.mission.live_sources import CameraSource, FileSource, open_video_source
 
-    if args.video or args.frames:
-        return FileSource(args.video or args.frames, args.fps), None
+    if args.video:
+        return open_video_source(args.video, args.fps), None
+    if args.frames:
+        return FileSource(args.frames, args.fps), None
     if args.camera is not None:
         return CameraSource(args.camera), None
     from sim.camera import SimCamera

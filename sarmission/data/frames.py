@@ -2,20 +2,32 @@
 
 Unreadable frames (a corrupt image file, a frame the decoder fails on) are skipped with a
 logged warning and counted in ``source.skipped``; they never raise. Frame ``index`` is the
-position in the source (skipped frames leave a gap) and ``timestamp_s = index / fps``.
+position in the source (skipped frames leave a gap). A video frame's ``timestamp_s`` is its
+presentation time in the file (so a variable frame rate keeps its real spacing), an image's
+``index / fps``.
+
+Videos are decoded by OpenCV's FFmpeg backend with the thread plan's decoding threads
+(:mod:`sarmission.threads`); :class:`~sarmission.data.prefetch.Prefetcher` runs a source in its
+own thread. Network streams (``rtsp://``, ``udp://``, ...) are live sources: see
+:mod:`sarmission.data.stream`.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
+
+if TYPE_CHECKING:
+    from sarmission.data.stream import StreamSource
 
 log = logging.getLogger(__name__)
 
@@ -99,13 +111,16 @@ class ImageFolderSource(FrameSource):
 class VideoFileSource(FrameSource):
     """Frames of a video file decoded by OpenCV (BGR ``uint8``).
 
-    ``fps`` is the container's rate (``default_fps`` when it reports none). A failed read before
-    the reported frame count is a skipped frame; reading stops at the count or after
-    :data:`MAX_CONSECUTIVE_VIDEO_FAILURES` failures in a row.
+    ``fps`` is the container's rate (``default_fps`` when it reports none). A failed read
+    followed by a good one is a skipped frame; reading stops at the reported frame count or
+    after :data:`MAX_CONSECUTIVE_VIDEO_FAILURES` failures in a row (the end of the file: some
+    containers only estimate the count). ``threads`` is the number of FFmpeg
+    decoding threads (default: the thread plan's).
     """
 
-    def __init__(self, path: Path, default_fps: float = 30.0) -> None:
-        capture = self._open(path)
+    def __init__(self, path: Path, default_fps: float = 30.0, threads: int | None = None) -> None:
+        self.threads = threads
+        capture = self._open(path, threads)
         try:
             fps = capture.get(cv2.CAP_PROP_FPS)
             count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
@@ -118,8 +133,14 @@ class VideoFileSource(FrameSource):
         self._count = count if count > 0 else None
 
     @staticmethod
-    def _open(path: Path) -> cv2.VideoCapture:
-        capture = cv2.VideoCapture(str(path))
+    def _open(path: Path, threads: int | None) -> cv2.VideoCapture:
+        from sarmission.threads import thread_plan
+
+        count = threads or thread_plan().decode
+        capture = cv2.VideoCapture(str(path), cv2.CAP_ANY, [cv2.CAP_PROP_N_THREADS, count])
+        if not capture.isOpened():  # a backend that takes no thread count
+            capture.release()
+            capture = cv2.VideoCapture(str(path))
         if not capture.isOpened():
             capture.release()
             raise FrameSourceError(f"{path}: OpenCV cannot open this file as a video")
@@ -130,34 +151,75 @@ class VideoFileSource(FrameSource):
         return self._count
 
     def __iter__(self) -> Iterator[Frame]:
-        capture = self._open(self.path)
+        capture = self._open(self.path, self.threads)
         try:
-            index, failures = 0, 0
+            index = 0
+            failed: list[int] = []  # reads that failed since the last frame
+            clock = _PresentationTimes(self.fps)
             while self._count is None or index < self._count:
                 ok, image = capture.read()
                 if ok and image is not None and image.size > 0:
-                    failures = 0
-                    yield Frame(index, index / self.fps, image)
+                    for skipped in failed:  # a frame came after them: they were frames
+                        self._skip(skipped, "decoder returned no image")
+                    failed.clear()
+                    yield Frame(index, clock.time(index, capture.get(cv2.CAP_PROP_POS_MSEC)),
+                                image)
                 else:
-                    failures += 1
-                    if self._count is None or failures >= MAX_CONSECUTIVE_VIDEO_FAILURES:
+                    if self._count is None:
                         break
-                    self._skip(index, "decoder returned no image")
+                    failed.append(index)
+                    if len(failed) >= MAX_CONSECUTIVE_VIDEO_FAILURES:
+                        break
                 index += 1
+            if failed:
+                # No frame after them: the file ends here (the header's count is an estimate in
+                # some containers, or the file was cut short). One line, not one per frame.
+                log.info("%s: the video ends at frame %d of the %d its header announces",
+                         self.path, failed[0], self._count)
         finally:
             capture.release()
 
 
-def open_frame_source(path: str | Path, fps: float = 30.0) -> FrameSource:
-    """Open a video file or an image folder.
+class _PresentationTimes:
+    """A decoded frame's time in its file: the decoder's presentation time while it moves
+    forward, else (a container without timestamps, or one that goes back) the frame period on
+    from the last time given, for the rest of the file: time never jumps or goes back."""
+
+    def __init__(self, fps: float) -> None:
+        self.fps = fps
+        self._last: tuple[int, float] | None = None  # index and time of the last frame
+        self._trusted = True
+
+    def time(self, index: int, position_ms: float) -> float:
+        seconds = position_ms / 1000.0
+        last = self._last
+        if self._trusted and math.isfinite(seconds) and seconds >= 0 and (
+                last is None or seconds > last[1]):
+            stamp = seconds
+        else:
+            self._trusted = False
+            stamp = index / self.fps if last is None else last[1] + (index - last[0]) / self.fps
+        self._last = (index, stamp)
+        return stamp
+
+
+def open_frame_source(path: str | Path, fps: float = 30.0) -> FrameSource | StreamSource:
+    """Open a video file, an image folder or a live stream URL (``rtsp://``, ``udp://``, ...:
+    a :class:`~sarmission.data.stream.StreamSource`, whose ``length`` is None). Only a ``str``
+    can be a URL: a ``Path`` (e.g. from a dataset file) is always a file or folder.
 
     ``fps`` is the rate of an image folder, and of a video whose container reports none.
     Raises :class:`FrameSourceError` for a missing path, a single image file, a folder without
-    images, or a file OpenCV cannot open or decode a first frame from.
+    images, a file OpenCV cannot open or decode a first frame from, or a stream that sends no
+    video.
     """
-    path = Path(path)
     if fps <= 0:
         raise FrameSourceError(f"fps must be positive, got {fps}")
+    from sarmission.data.stream import StreamSource, is_stream_url
+
+    if isinstance(path, str) and is_stream_url(path):
+        return StreamSource(path, default_fps=fps)
+    path = Path(path)
     if not path.exists():
         raise FrameSourceError(f"{path}: no such file or folder")
     if path.is_dir():

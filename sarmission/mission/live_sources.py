@@ -7,7 +7,11 @@
   waited in the queue) and stamps each frame when its grab returns, before it is decoded, or
   with the driver's own capture time where that is on the same clock (:func:`capture_time`).
 - :class:`FileSource`: a video file or an image folder played as a camera at its frame rate
-  (a frame is not returned before it is due; the stamp is the time it was returned).
+  (a frame is not returned before it is due; the stamp is the time it was returned), decoded
+  one frame ahead in its own thread.
+- :class:`~sarmission.data.stream.StreamSource`: a live network stream (``rtsp://``,
+  ``udp://`` MPEG-TS, ...), decoded in its own thread, newest frame first, reconnected when
+  lost; :func:`open_video_source` picks it for a URL.
 
 Every source has ``read() -> Frame | None`` (None: the source has ended), ``skipped`` and
 ``close()``; the simulator's camera (``sim.camera.SimCamera``) has the same interface.
@@ -26,6 +30,8 @@ from typing import Protocol
 import cv2
 
 from sarmission.data.frames import Frame, open_frame_source
+from sarmission.data.prefetch import Prefetcher
+from sarmission.data.stream import StreamSource, is_stream_url
 
 log = logging.getLogger(__name__)
 
@@ -128,7 +134,7 @@ class FileSource:
         self.source = open_frame_source(path, fps)
         self.fps = self.source.fps
         self.realtime = realtime
-        self._frames: Iterator[Frame] = iter(self.source)
+        self._frames: Iterator[Frame] = Prefetcher(self.source, depth=1)
         self._start: float | None = None
 
     @property
@@ -149,4 +155,16 @@ class FileSource:
         return Frame(frame.index, time.monotonic(), frame.image_bgr)
 
     def close(self) -> None:
+        close = getattr(self._frames, "close", None)
+        if close is not None:
+            close()
         self._frames = iter(())
+
+
+def open_video_source(path: str, fps: float = 30.0) -> LiveSource:
+    """A live source for ``--video``: a stream URL (``rtsp://``, ``udp://``, ...) or a file
+    played in real time. Raises :class:`~sarmission.data.frames.FrameSourceError` when it
+    cannot be opened."""
+    if is_stream_url(path):
+        return StreamSource(path, default_fps=fps)
+    return FileSource(path, fps)

@@ -1,0 +1,217 @@
+"""Live streams over real UDP on 127.0.0.1: ffmpeg sends H.264 in MPEG-TS, the stream source
+decodes it in its own thread and hands out the newest frame; drops, loss and reconnection,
+corrupt datagrams, silence and bad URLs; ``detect`` and ``run`` reading a stream URL."""
+
+from __future__ import annotations
+
+import json
+import logging
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from conftest import free_udp_port, wait_until
+from stream_sender import CorruptingRelay, UdpStream, needs_ffmpeg
+
+from sarmission.data.frames import FrameSourceError, open_frame_source
+from sarmission.data.stream import StreamClock, StreamSource, check_stream_url, redact
+from sarmission.mission.live_sources import open_video_source
+
+
+def test_clock_keeps_the_cameras_spacing_anchored_to_the_least_delay():
+    clock = StreamClock(drift=0.0)
+    # pts every 40 ms; the second frame arrives 50 ms late, the third with less delay than the
+    # first (it moves the anchor), the fourth on time.
+    assert clock.stamp(0.00, 100.010) == pytest.approx(100.010)
+    assert clock.stamp(0.04, 100.100) == pytest.approx(100.050)  # not made younger: pts spacing
+    assert clock.stamp(0.08, 100.085) == pytest.approx(100.085)  # 5 ms less delay: new anchor
+    assert clock.stamp(0.12, 100.130) == pytest.approx(100.125)
+    # never later than the arrival
+    assert clock.stamp(0.16, 100.140) == pytest.approx(100.140)
+
+
+def test_clock_follows_a_slow_camera_clock_and_restarts_on_jumps():
+    clock = StreamClock(drift=1e-3, max_gap_s=5.0)
+    clock.stamp(0.0, 10.0)
+    # the camera's clock runs 0.5 % slow: arrival - pts grows 5 ms per second of pts
+    stamps = [clock.stamp(t, 10.0 + t * 1.005) for t in (1.0, 2.0, 3.0)]
+    assert stamps == pytest.approx([11.001, 12.002, 13.003])  # followed at the drift allowance
+    assert clock.stamp(2.5, 20.0) == pytest.approx(20.0)  # back in time: a new stream
+    assert clock.stamp(2.54, 20.04) == pytest.approx(20.04)
+    assert clock.stamp(60.0, 21.0) == pytest.approx(21.0)  # a jump of a minute: restart
+    assert clock.stamp(None, 22.0) == pytest.approx(22.0)  # no pts: the arrival
+
+
+@pytest.mark.parametrize(("url", "phrase"), [
+    ("file:///etc/passwd", "unsupported stream URL scheme 'file'"),
+    ("udp://127.0.0.1", "needs a port"),
+    ("rtsp:///live", "names no host"),
+    ("udp://127.0.0.1:99999", "malformed stream URL"),
+    ("rtsp://cam/live\nX-Injected: 1", "control characters"),
+])
+def test_bad_stream_urls_are_refused_in_one_line(url: str, phrase: str):
+    with pytest.raises(FrameSourceError) as info:
+        open_frame_source(url)
+    assert phrase in str(info.value) and "\n" not in str(info.value)
+
+
+def test_passwords_stay_out_of_messages():
+    url = "rtsp://pilot:s3cret@10.0.0.5:8554/live"
+    assert redact(url) == "rtsp://pilot:***@10.0.0.5:8554/live"
+    assert check_stream_url(url) == url
+    with pytest.raises(FrameSourceError) as info:
+        check_stream_url("ftp://pilot:s3cret@host/x")
+    assert "s3cret" not in str(info.value)
+
+
+def test_silence_is_a_one_line_error_after_the_connect_timeout():
+    port = free_udp_port()
+    with pytest.raises(FrameSourceError) as info:
+        StreamSource(f"udp://127.0.0.1:{port}", connect_timeout_s=1.0)
+    message = str(info.value)
+    assert f"udp://127.0.0.1:{port}: no video within 1 s" in message and "\n" not in message
+
+
+def test_datagrams_that_are_not_video_are_a_clear_error():
+    import socket
+    import threading
+
+    port = free_udp_port()
+    stop = threading.Event()
+
+    def noise() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            n = 0
+            while not stop.is_set():
+                s.sendto(bytes((n * 131 + i) % 251 for i in range(1316)), ("127.0.0.1", port))
+                n += 1
+                time.sleep(0.005)
+
+    sender = threading.Thread(target=noise, daemon=True)
+    sender.start()
+    try:
+        with pytest.raises(FrameSourceError, match="no video within"):
+            StreamSource(f"udp://127.0.0.1:{port}", connect_timeout_s=4.0)
+    finally:
+        stop.set()
+        sender.join(5)
+
+
+@needs_ffmpeg
+def test_newest_frame_wins_and_every_frame_not_read_is_counted():
+    port = free_udp_port()
+    with UdpStream(port):
+        source = StreamSource(f"udp://127.0.0.1:{port}", connect_timeout_s=30.0)
+        try:
+            assert source.fps == pytest.approx(25.0)
+            frames = []
+            for _ in range(8):
+                frame = source.read()
+                assert frame is not None and frame.image_bgr is not None
+                assert frame.image_bgr.shape == (240, 320, 3)
+                assert frame.timestamp_s <= time.monotonic()  # stamped on the local clock
+                frames.append(frame)
+                time.sleep(0.2)  # a busy detector: about 5 frames arrive meanwhile
+        finally:
+            source.close()
+    indices = [f.index for f in frames]
+    stamps = [f.timestamp_s for f in frames]
+    assert indices == sorted(set(indices)) and stamps == sorted(set(stamps))
+    assert max(b - a for a, b in zip(indices, indices[1:], strict=False)) > 1  # newest, not next
+    assert source.dropped > 0
+    assert source.received >= indices[-1] + 1
+    assert source.read() is None  # closed
+
+
+@needs_ffmpeg
+def test_a_lost_stream_is_reported_and_picked_up_again(caplog):
+    port = free_udp_port()
+    url = f"udp://127.0.0.1:{port}"
+    caplog.set_level(logging.INFO, logger="sarmission.data.stream")
+    first = UdpStream(port)
+    source = StreamSource(url, connect_timeout_s=30.0, read_timeout_s=1.0)
+    try:
+        assert source.read().image_bgr is not None
+        first.stop()
+        seen = []  # what read() returns meanwhile: the last decoded frames, then none
+
+        def read_until(condition) -> bool:
+            return (f := source.read()) is not None and not seen.append(f) and condition()
+
+        assert wait_until(lambda: read_until(lambda: "stream lost" in caplog.text), 30.0, 0.0)
+        assert read_until(lambda: True) and seen[-1].image_bgr is None  # an outage frame
+        outage_at = seen[-1].timestamp_s
+        assert source.skipped >= 1 and source.reconnects == 0
+        with UdpStream(port):
+            assert wait_until(lambda: read_until(lambda: source.reconnects == 1), 60.0, 0.0)
+            assert "stream back after" in caplog.text
+            assert wait_until(lambda: read_until(lambda: seen[-1].image_bgr is not None), 30.0,
+                              0.0)
+            assert seen[-1].timestamp_s > outage_at
+    finally:
+        first.stop()
+        source.close()
+    assert f"{url}: " in caplog.text and "1 reconnection(s)" in caplog.text  # closing summary
+
+
+@needs_ffmpeg
+def test_corrupt_and_missing_datagrams_never_stop_the_stream(caplog):
+    caplog.set_level(logging.WARNING, logger="sarmission.data.stream")
+    port = free_udp_port()
+    relay = CorruptingRelay(port)
+    try:
+        with UdpStream(relay.port, seconds=8.0):
+            source = StreamSource(f"udp://127.0.0.1:{port}", connect_timeout_s=30.0)
+            try:
+                images = []
+                assert wait_until(lambda: (f := source.read()) is not None and (
+                    f.image_bgr is None or not images.append(f)) and len(images) >= 40, 60.0,
+                    step=0.0)
+            finally:
+                source.close()
+    finally:
+        relay.close()
+    assert relay.corrupted > 0 and relay.dropped > 0
+    assert all(f.image_bgr.shape == (240, 320, 3) for f in images)
+    assert source.lost > 0  # frames whose packets were damaged or dropped are counted
+    warnings = [r for r in caplog.records if "missing from the stream" in r.getMessage()]
+    assert len(warnings) == 1  # one warning, not one per damaged packet
+
+
+@needs_ffmpeg
+def test_detect_reads_a_udp_stream(tmp_path: Path):
+    port = free_udp_port()
+    out = tmp_path / "dets.json"
+    with UdpStream(port):
+        done = subprocess.run(
+            [sys.executable, "-m", "sarmission.cli", "detect", f"udp://127.0.0.1:{port}",
+             "--max-frames", "6", "--conf", "0", "--out", str(out)],
+            capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("6 frames, ")
+    assert f"udp://127.0.0.1:{port}: " in done.stderr and "frames received" in done.stderr
+    records = json.loads(out.read_text())
+    assert {r["frame_index"] for r in records} and all(
+        set(r) == {"image_id", "frame_index", "bbox", "score", "category_id"} for r in records)
+    assert "\r" not in done.stderr  # no progress bar redraws into a pipe
+
+
+@needs_ffmpeg
+def test_run_takes_a_stream_url_as_its_camera(tmp_path: Path):
+    port = free_udp_port()
+    url = f"udp://127.0.0.1:{port}"
+    with UdpStream(port):
+        source = open_video_source(url)
+        try:
+            assert isinstance(source, StreamSource) and source.read().image_bgr is not None
+        finally:
+            source.close()
+        done = subprocess.run(
+            [sys.executable, "-m", "sarmission.cli", "run", "--connect",
+             f"udpin:127.0.0.1:{free_udp_port()}", "--connect-timeout", "0.5", "--video", url,
+             "--max-frames", "8", "--alerts-db", str(tmp_path / "alerts.db")],
+            capture_output=True, text=True, timeout=180)
+    assert done.returncode == 0, done.stderr
+    assert "frames received" in done.stderr  # the stream's summary when the run closes it
