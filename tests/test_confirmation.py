@@ -12,7 +12,9 @@ from sarmission.mission.config import ConfirmConfig
 from sarmission.mission.confirmation import Sighting, TargetEvidence, assess, drift_speed
 
 ORIGIN = (54.17, 7.89)
-RULE = ConfirmConfig()
+# the rule's shape, not its tuned defaults: a second of at least six sightings
+RULE = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_seen_share=0.4, max_speed_m_s=1.5,
+                     min_size_m=0.15, max_size_m=2.5, min_score=0.6, give_up_s=20.0)
 
 
 def sightings(velocity=(0.0, 0.0), seconds=1.5, fps=30.0, error=1.5, size=0.6, score=0.85,
@@ -73,3 +75,14 @@ def test_drift_speed_of_a_straight_line_and_its_error():
     assert speed == pytest.approx(1.0, abs=0.1) and sigma < 0.2
     _, wide = drift_speed(sightings((0.6, 0.8), seconds=3.0, error=5.0, bias=(0, 0)))
     assert wide > sigma  # a poor fix error widens the speed's uncertainty
+
+
+def test_clutter_seen_in_few_of_the_frames_is_discarded():
+    every = sightings(seconds=2.0)
+    flicker = evidence_of(every[::4])  # placed in one frame of four
+    flicker.frames = len(every)
+    found = assess(flicker, 102.0, RULE)
+    assert found.verdict == "discard" and "seen in 26 % of frames" in found.reason  # 16 of 61
+    steady = evidence_of(every[::2])
+    steady.frames = len(every)
+    assert assess(steady, 102.0, RULE).verdict == "confirm"

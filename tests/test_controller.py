@@ -39,7 +39,7 @@ def mission():
 
 def confirm_at_lock(mission) -> None:
     """Confirm a candidate at its lock (one sighting): for the tests about what follows."""
-    mission.confirm = ConfirmConfig(min_seen_s=0.0, min_sightings=1)
+    mission.confirm = ConfirmConfig(min_seen_s=0.0, min_sightings=1, min_score=0.5)
 
 
 def filled_buffer(mission, t_end: float, t_start: float = 0.0) -> TelemetryBuffer:
@@ -87,6 +87,7 @@ def run_frames(ctl, n_frames: int, t0: float = 0.0, frames=None, start: int = 0)
 
 
 def test_target_seen_3_of_5_frames_is_alerted_once_within_1m(tmp_path, mission):
+    mission.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_score=0.6)
     n = 20
     store = AlertStore(tmp_path / "alerts.db")
     lines = []
@@ -178,6 +179,8 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
     Either its track goes on, or it is lost for 2 s and a new track locks on it (frame 25) with
     telemetry: one candidate either way, which gets the position, and is confirmed (announced
     once, with its position) after a second of placed sightings."""
+    mission.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_score=0.6,
+                                    min_seen_share=0.0)
     n = 41
     u, v = target_pixel(mission)
     box = (u - 5, v - 5, u + 5, v + 5)

@@ -12,7 +12,7 @@ from scripted_detector import ScriptedDetector
 
 from sarmission.alerts.store import AlertStore
 from sarmission.mavlink.telemetry import TelemetryBuffer
-from sarmission.mission.config import load_mission
+from sarmission.mission.config import ConfirmConfig, load_mission
 from sarmission.mission.controller import MissionController
 
 W, H, HFOV_DEG, FPS = 960, 540, 30.0, 10.0
@@ -22,8 +22,12 @@ F = (W / 2) / math.tan(math.radians(HFOV_DEG) / 2)
 
 @pytest.fixture
 def mission():
-    return load_mission(overrides={"camera.width": W, "camera.height": H,
-                                   "camera.hfov_deg": HFOV_DEG, "name": "tiers"})
+    mission = load_mission(overrides={"camera.width": W, "camera.height": H,
+                                      "camera.hfov_deg": HFOV_DEG, "name": "tiers"})
+    # the rule's shape, not its tuned defaults: a second of at least six sightings
+    mission.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_seen_share=0.4,
+                                    min_score=0.6)
+    return mission
 
 
 class Announced:

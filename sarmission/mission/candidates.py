@@ -21,7 +21,13 @@ from sarmission.alerts.model import Alert
 from sarmission.alerts.store import AlertStore
 from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import ConfirmConfig
-from sarmission.mission.confirmation import Assessment, Sighting, TargetEvidence, assess
+from sarmission.mission.confirmation import (
+    Assessment,
+    Sighting,
+    TargetEvidence,
+    assess,
+    frames_seen,
+)
 
 log = logging.getLogger(__name__)
 
@@ -78,9 +84,13 @@ class CandidateBook:
 
     # -- verdicts ----------------------------------------------------------------------------
     def review(self, now: float) -> list[Promotion]:
-        """Assess every candidate at time ``now``; returns those confirmed now (promoted in the
-        store first). Discarded ones are recorded and forgotten."""
+        """Count this processed frame for every candidate, assess each at time ``now``; returns
+        those confirmed now (promoted in the store first). Discarded ones are recorded and
+        forgotten."""
         promoted = []
+        for target_id in self.candidates:
+            if target_id in self.evidence:
+                frames_seen(self.evidence[target_id])
         for target_id, alert in list(self.candidates.items()):
             found = assess(self.evidence.get(target_id, TargetEvidence()), now, self.rule)
             if found.verdict == "wait":

@@ -213,16 +213,19 @@ class TelemetryConfig:
 @dataclass
 class ConfirmConfig:
     """When a locked candidate becomes a confirmed alert (:mod:`sarmission.mission.confirmation`):
-    seen for ``min_seen_s`` in ``min_sightings`` geolocated frames, drifting no faster than
-    ``max_speed_m_s``, ``min_size_m``-``max_size_m`` across on the ground, the better half of
-    its scores at least ``min_score``; discarded if not confirmed within ``give_up_s``."""
+    seen for ``min_seen_s`` in ``min_sightings`` geolocated frames, at least ``min_seen_share``
+    of the frames since its first sighting, drifting no faster than ``max_speed_m_s``,
+    ``min_size_m``-``max_size_m`` across on the ground, its scores' mean at least
+    ``min_score``; discarded if not confirmed within ``give_up_s``. The defaults were chosen on
+    the development scenarios (``tools/candidate_features.py``), never on the scored suite."""
 
-    min_seen_s: float = 1.0
-    min_sightings: int = 6
+    min_seen_s: float = 2.0
+    min_sightings: int = 20
+    min_seen_share: float = 0.4
     max_speed_m_s: float = 1.5
     min_size_m: float = 0.15
     max_size_m: float = 2.5
-    min_score: float = 0.6
+    min_score: float = 0.85
     give_up_s: float = 20.0
 
 
@@ -464,7 +467,8 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
     if c.min_sightings < 1 or not c.min_seen_s >= 0 or not c.give_up_s > c.min_seen_s:
         raise bad("[confirm] min_sightings/min_seen_s/give_up_s",
                   "expected min_sightings >= 1, min_seen_s >= 0 and give_up_s > min_seen_s")
-    if not 0 < c.min_size_m < c.max_size_m or c.max_speed_m_s < 0 or not 0 <= c.min_score <= 1:
+    if not 0 < c.min_size_m < c.max_size_m or c.max_speed_m_s < 0 or not 0 <= c.min_score <= 1 \
+            or not 0 <= c.min_seen_share <= 1:
         raise bad("[confirm] sizes/speed/score",
                   "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1")
     if cfg.geolocation.min_height_m < 0:

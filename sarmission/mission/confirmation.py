@@ -2,15 +2,16 @@
 
 A frame-level lock (m of k frames) is a fraction of a second of evidence: foam, glint, debris
 and birds persist that long. A candidate is confirmed only when, over at least
-``min_seen_s`` and ``min_sightings`` geolocated sightings:
+``min_seen_s`` and ``min_sightings`` geolocated sightings, seen in at least ``min_seen_share`` of
+the frames processed since its first sighting (a person stays in view; clutter flickers):
 
 - its position persists, or drifts no faster than water and people do: a straight-line fit of
   its fixes over time gives a ground velocity whose speed, less twice its standard error, is at
   most ``max_speed_m_s`` (sun glint moves with the aircraft, birds fly, waves travel);
 - its size on the ground fits a person: the median over sightings of the box's larger ground
   extent lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck centimetres);
-- the head's scores of its sightings agree: the mean of the better half is at least
-  ``min_score`` (one lucky crop does not make a person).
+- the head's scores of its sightings agree: their mean is at least ``min_score`` (a few lucky
+  crops do not make a person).
 
 A candidate that clearly fails (too large, too fast or too faint over ``min_sightings``) is
 discarded with the reason; one not confirmed within ``give_up_s`` of its first sighting is
@@ -57,6 +58,7 @@ class Assessment:
     reason: str
     seen_s: float = 0.0
     sightings: int = 0
+    seen_share: float | None = None
     speed_m_s: float | None = None
     size_m: float | None = None
     score: float | None = None
@@ -64,6 +66,8 @@ class Assessment:
     def summary(self) -> str:
         """One line of the evidence, e.g. ``1.3 s, 9 sightings, drift 0.2 m/s, 0.6 m, 0.84``."""
         parts = [f"{self.seen_s:.1f} s", f"{self.sightings} sightings"]
+        if self.seen_share is not None:
+            parts.append(f"in {100 * self.seen_share:.0f} % of frames")
         if self.speed_m_s is not None:
             parts.append(f"drift {self.speed_m_s:.1f} m/s")
         if self.size_m is not None:
@@ -79,6 +83,12 @@ class TargetEvidence:
 
     sightings: list[Sighting] = field(default_factory=list)
     first_seen: float = math.nan
+    frames: int = 0  # frames processed since the first sighting, that one included
+
+    @property
+    def seen_share(self) -> float:
+        """Share of the frames since the first sighting that placed it."""
+        return len(self.sightings) / self.frames if self.frames else 0.0
 
     def add(self, sighting: Sighting) -> None:
         if math.isnan(self.first_seen):
@@ -90,6 +100,12 @@ class TargetEvidence:
         """A sighting without a fix still starts the give-up clock."""
         if math.isnan(self.first_seen):
             self.first_seen = t
+
+
+def frames_seen(evidence: TargetEvidence) -> None:
+    """Count one processed frame for ``evidence`` (from its first sighting on)."""
+    if not math.isnan(evidence.first_seen):
+        evidence.frames += 1
 
 
 def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
@@ -124,13 +140,13 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     seen = sightings[-1].t - sightings[0].t
     sizes = [s.size_m for s in sightings if s.size_m is not None]
     size = float(np.median(sizes)) if sizes else None
-    ranked = sorted((s.score for s in sightings), reverse=True)
-    score = float(np.mean(ranked[: max(1, len(ranked) // 2)]))
+    score = float(np.mean([s.score for s in sightings]))
+    share = evidence.seen_share if evidence.frames else None
     speed = spread = None
     if len(sightings) >= 3:
         speed, spread = drift_speed(sightings)
-    figures = dict(seen_s=seen, sightings=len(sightings), speed_m_s=speed, size_m=size,
-                   score=score)
+    figures = dict(seen_s=seen, sightings=len(sightings), seen_share=share, speed_m_s=speed,
+                   size_m=size, score=score)
     enough = len(sightings) >= rule.min_sightings
     if enough and size is not None and not rule.min_size_m <= size <= rule.max_size_m:
         return Assessment("discard", f"{size:.2f} m on the ground is no person "
@@ -142,6 +158,10 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     if enough and seen >= rule.min_seen_s:
         if score < rule.min_score:
             return Assessment("discard", f"score {score:.2f} below {rule.min_score:g}",
+                              **figures)
+        if share is not None and share < rule.min_seen_share:
+            return Assessment("discard", f"seen in {100 * share:.0f} % of frames (a person "
+                                         f"stays in view: {100 * rule.min_seen_share:.0f} %)",
                               **figures)
         if size is None:
             return Assessment("wait", "size on the ground unknown", **figures)
