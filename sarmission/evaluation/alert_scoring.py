@@ -9,14 +9,18 @@ Inputs are plain records, so any simulator or annotated flight can be scored:
   that frame's time (the same clock as ``sim_time``).
 
 An alert is matched to the person whose box centre lies nearest its last pixel position, within
-``match_px``, in the frame it was locked on (``alert.frame_index``); no person there makes it a
-false alert, named after the distractor under it ("open water" when none). A person is *in view*
+``match_px``, in the frame it was locked on (``alert.frame_index``); failing that (a swimmer
+washed over by a wave has no box in that frame), to the person whose true position within
+``window_s`` of the lock lies within ``max(match_m, 3 x the alert's error)`` of the alert's
+position. Neither makes it a false alert, named after the distractor under it ("open water"
+when none). A person is *in view*
 when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least ``min_view_s``;
 the time to alert runs from their first frame to the confirmation.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import Counter
 from collections.abc import Iterable, Sequence
@@ -29,6 +33,10 @@ from sarmission.geo.wgs84 import geodetic_to_ned
 
 #: A detection is the person whose box centre is within this many pixels.
 MATCH_PX = 24.0
+#: Or whose true position is within this many metres (or 3 x the alert's error) ...
+MATCH_M = 5.0
+#: ... at a time within this many seconds of the lock.
+WINDOW_S = 2.0
 
 
 @dataclass
@@ -110,6 +118,35 @@ def nearest(annotations: Iterable[Any], cx: float, cy: float,
     return best
 
 
+def _metres(a: tuple[float, float], b: tuple[float, float]) -> float:
+    n, e, _ = geodetic_to_ned(a[0], a[1], 0.0, b[0], b[1], 0.0)
+    return math.hypot(float(n), float(e))
+
+
+def _by_position(frames: Sequence[Any], index: int, alert: Any, window_s: float,
+                 match_m: float) -> Any | None:
+    """The person nearest the alert's position, in the frames within ``window_s`` of its
+    lock, if within ``max(match_m, 3 x error)``."""
+    if alert.position is None:
+        return None
+    times = [f.sim_time for f in frames]  # frames come in capture order
+    here = next((k for k, f in enumerate(frames) if f.index == index), None)
+    if here is None:
+        return None
+    at = times[here]
+    gate = max(match_m, 3.0 * (alert.error_m or 0.0))
+    best, best_d = None, gate
+    lo, hi = bisect.bisect_left(times, at - window_s), bisect.bisect_right(times, at + window_s)
+    for frame in frames[lo:hi]:
+        for a in frame.targets:
+            if a.lat is None:
+                continue
+            d = _metres(alert.position, (a.lat, a.lon))
+            if d <= best_d:
+                best, best_d = a, d
+    return best
+
+
 def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], dict[int, float]]:
     """Per person: first sighting time and longest stretch in view (s)."""
     first: dict[int, float] = {}
@@ -130,7 +167,8 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
 
 def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]],
                  min_view_s: float = 3.0, max_gap_s: float = 0.5,
-                 match_px: float = MATCH_PX) -> FlightScore:
+                 match_px: float = MATCH_PX, match_m: float = MATCH_M,
+                 window_s: float = WINDOW_S) -> FlightScore:
     """The figures of one flight (see the module docstring)."""
     by_index = {f.index: f for f in frames}
     first, longest = _views(frames, max_gap_s)
@@ -143,6 +181,8 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
         cx, cy = alert.pixel_track[-1][1:] if alert.pixel_track else (math.nan, math.nan)
         person = None if frame is None else nearest(frame.targets, cx, cy, match_px)
         if person is None:
+            person = _by_position(frames, alert.frame_index, alert, window_s, match_m)
+        if person is None:
             other = None if frame is None else nearest(frame.others, cx, cy, match_px)
             out.false_alerts += 1
             out.false_on[other.category if other is not None else "open water"] += 1
@@ -153,9 +193,7 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
         found.add(person.track_id)
         out.time_to_alert_s.append(confirm_t - first[person.track_id])
         if alert.position is not None and person.lat is not None:
-            n, e, _ = geodetic_to_ned(alert.position[0], alert.position[1], 0.0, person.lat,
-                                      person.lon, 0.0)
-            out.geo_error_m.append(math.hypot(float(n), float(e)))
+            out.geo_error_m.append(_metres(alert.position, (person.lat, person.lon)))
     out.found = len(found & in_view)
     out.found_briefly_seen = len(found - in_view)
     out.missed = [f"person {tid} ({longest[tid]:.1f} s in view)" for tid in sorted(in_view - found)]

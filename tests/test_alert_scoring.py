@@ -1,0 +1,79 @@
+"""Scoring alerts against truth, on hand-made frames: people in view for 3 s, found by pixel or
+(washed over by a wave at the lock) by position, false alerts named after what lay under them,
+duplicates, time to alert and geolocation error computed by hand."""
+
+from dataclasses import dataclass
+
+import pymap3d
+import pytest
+
+from sarmission.evaluation.alert_scoring import score_flight
+
+ORIGIN = (54.0, 7.0)
+
+
+@dataclass
+class Ann:
+    track_id: int
+    category: str
+    bbox_xyxy: tuple[float, float, float, float]
+    lat: float | None = None
+    lon: float | None = None
+
+
+@dataclass
+class Frame:
+    index: int
+    sim_time: float
+    targets: list
+    others: list
+
+
+@dataclass
+class Alert:
+    frame_index: int
+    pixel_track: list
+    position: tuple[float, float] | None
+    error_m: float | None = 1.0
+
+
+def at(north: float, east: float) -> tuple[float, float]:
+    lat, lon, _ = pymap3d.ned2geodetic(north, east, 0.0, *ORIGIN, 0.0)
+    return float(lat), float(lon)
+
+
+def frames() -> list[Frame]:
+    """10 s at 10 frames/s: person 1 in view 0-5 s at pixel (100, 100), 10 m north; person 2
+    in view 1-2 s only; a boat at (400, 300) throughout; person 1 hidden by a wave at 3.0 s."""
+    out = []
+    for k in range(100):
+        t = k / 10
+        targets = []
+        if t < 5.0 and k != 30:
+            targets.append(Ann(1, "swimmer", (95, 95, 106, 106), *at(10.0, 0.0)))
+        if 1.0 <= t <= 2.0:
+            targets.append(Ann(2, "swimmer", (295, 95, 306, 106), *at(10.0, 20.0)))
+        out.append(Frame(k, t, targets, [Ann(9, "boat", (380, 280, 421, 321))]))
+    return out
+
+
+def test_found_false_duplicate_time_and_error():
+    alerts = [
+        (Alert(30, [(30, 100.0, 100.0)], at(12.0, 0.0)), 35, 3.5),  # washed over at its lock
+        (Alert(40, [(40, 100.0, 100.0)], at(10.0, 0.0)), 45, 4.5),  # person 1 again
+        (Alert(50, [(50, 400.0, 300.0)], at(50.0, 50.0)), 55, 5.5),  # the boat
+        (Alert(60, [(60, 700.0, 100.0)], at(80.0, 0.0)), 65, 6.5),  # nothing there
+    ]
+    s = score_flight(frames(), alerts)
+    assert (s.people_in_view, s.found, s.found_briefly_seen) == (1, 1, 0)
+    assert (s.false_alerts, s.duplicates) == (2, 1)
+    assert dict(s.false_on) == {"boat": 1, "open water": 1}
+    assert s.time_to_alert_s == [pytest.approx(3.5)]  # first seen at 0 s
+    assert s.geo_error_m == [pytest.approx(2.0, abs=0.01)]
+    assert s.false_per_hour == pytest.approx(2 / (9.9 / 3600))
+
+
+def test_a_person_seen_briefly_counts_apart():
+    s = score_flight(frames(), [(Alert(15, [(15, 300.0, 100.0)], at(10.0, 20.0)), 18, 1.8)])
+    assert (s.people_in_view, s.found, s.found_briefly_seen) == (1, 0, 1)
+    assert s.missed == ["person 1 (4.9 s in view)"]
