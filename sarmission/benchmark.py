@@ -1,8 +1,14 @@
-"""Throughput benchmark of MITE-Net on 4K frames held in memory (the paper's Table 4 sweep).
+"""Throughput benchmark of MITE-Net on 4K frames (the paper's Table 4 sweep), in memory and end
+to end on an encoded clip.
 
-Each configuration (ds, N) runs in its own Python process so that its peak resident memory is
-its own; every process also times a plain memory pass over the same frames (a BGR copy plus a
-grayscale conversion) as the reference the pipeline is compared with.
+In memory: each configuration (ds, N) runs in its own Python process so that its peak resident
+memory is its own, and times a plain memory pass (a BGR copy plus a grayscale conversion) on
+each frame just before MITE-Net runs on it, so the reference shares the pipeline's conditions.
+
+End to end: the same frames encoded as a video (H.264 by the ``ffmpeg`` command where there is
+one, else MPEG-4 by OpenCV), and in another fresh process per configuration, passes of plain
+decoding alternate with passes of what ``sarmission detect`` does (decoding in its own thread,
+one frame ahead, and MiteNet): ms per frame of each, frames/s, and that process's peak memory.
 """
 
 from __future__ import annotations
@@ -10,11 +16,14 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +31,8 @@ from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALE
 
 BLOBS = 120  # enough moving targets that every N up to 100 is filled
 WARMUP_FRAMES = 8  # JIT compilation, allocator, and the medulla building up its potentials
+CLIP_REPEATS = 2  # alternating decode-only and end-to-end passes over the clip
+CLIP_BITRATE = "100M"  # as a 4K drone camera records
 
 
 @dataclass
@@ -45,6 +56,27 @@ class BenchRow:
     colour_share: float = 0.0
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
     refine_threshold: float | None = None
+    clip: dict[str, float | str] = field(default_factory=dict)  # :class:`ClipRow`, or empty
+
+
+@dataclass
+class ClipRow:
+    """Medians of the passes over an encoded clip (ms per frame of wall time).
+
+    ``decode_ms``: plain decoding; ``detect_ms``: MiteNet in the end-to-end pass; ``total_ms``:
+    the end-to-end pass (decoding overlapped with detection); ``ratio``: total / decode;
+    ``cpu_ms``: process CPU time per frame of the end-to-end pass (all threads).
+    """
+
+    codec: str
+    frames: int
+    decode_ms: float
+    detect_ms: float
+    total_ms: float
+    fps: float
+    ratio: float
+    cpu_ms: float
+    peak_rss_mb: float
 
 
 def synthetic_frames(width: int, height: int, count: int, seed: int = 0) -> list[np.ndarray]:
@@ -81,39 +113,61 @@ def _median(values: list[float]) -> float:
     return float(statistics.median(values)) if values else float("nan")
 
 
+def _peak_rss_mb() -> float:
+    return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1)
+
+
+def _memory_pass(image: np.ndarray) -> float:
+    """ms of the reference: a BGR copy and a grayscale conversion of ``image``."""
+    import cv2
+
+    start = time.perf_counter()
+    copy = image.copy()
+    cv2.cvtColor(copy, cv2.COLOR_BGR2GRAY)
+    return (time.perf_counter() - start) * 1e3
+
+
+def _mitenet(ds: int, topn: int, model: str | None, runtime: str, ego_motion: str,
+             colour_share: float, crop_scales: tuple[float, ...],
+             refine_threshold: float | None):
+    from sarmission.perception.mitenet import MiteNet, build_head_runtime
+
+    return MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion,
+                   colour_share=colour_share, crop_scales=crop_scales,
+                   refine_threshold=refine_threshold)
+
+
 def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
                    model: str | None, runtime: str, ego_motion: str = "estimate",
                    colour_share: float = DEFAULT_COLOUR_SHARE,
                    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
                    refine_threshold: float | None = None) -> BenchRow:
-    """Time one configuration in this process (call it in a fresh process for memory figures)."""
-    import cv2
+    """Time one configuration in this process (call it in a fresh process for memory figures).
 
-    from sarmission.perception.mitenet import STAGES, MiteNet, build_head_runtime
+    The memory pass runs on each frame right before MiteNet does, so both see the same caches,
+    clock and neighbours."""
+    from sarmission.perception.mitenet import STAGES
+    from sarmission.threads import apply_thread_plan
 
+    apply_thread_plan()
     images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
-    memory_pass = []
-    for image in images:
-        start = time.perf_counter()
-        copy = image.copy()
-        cv2.cvtColor(copy, cv2.COLOR_BGR2GRAY)
-        memory_pass.append((time.perf_counter() - start) * 1e3)
-
-    net = MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion,
-                  colour_share=colour_share, crop_scales=crop_scales,
-                  refine_threshold=refine_threshold)
+    net = _mitenet(ds, topn, model, runtime, ego_motion, colour_share, crop_scales,
+                   refine_threshold)
     stage_ms: dict[str, list[float]] = {stage: [] for stage in STAGES}
-    totals, proposals = [], []
+    totals, proposals, memory_pass = [], [], []
     for i, image in enumerate(images):
+        reference = _memory_pass(image)
         start = time.perf_counter()
         result = net.process(image, i / 30.0)
         elapsed = (time.perf_counter() - start) * 1e3
         if i < WARMUP_FRAMES:
             continue
+        memory_pass.append(reference)
         totals.append(elapsed)
         proposals.append(len(result.proposals))
         for stage in STAGES:
             stage_ms[stage].append(net.per_stage_ms.get(stage, float("nan")))
+    peak = _peak_rss_mb()  # before the FLOP count, which builds the torch head
     flops = net.complexity(height, width)
     total = _median(totals)
     reference = _median(memory_pass)
@@ -123,36 +177,130 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
         total_ms=round(total, 3), fps=round(1e3 / total, 2),
         memory_pass_ms=round(reference, 3), ratio_to_memory_pass=round(total / reference, 2),
         gflops={k: round(v / 1e9, 4) for k, v in flops["flops"].items()},
-        peak_rss_mb=round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
+        peak_rss_mb=peak,
         proposals_per_frame=round(float(np.mean(proposals)), 1),
         colour_share=colour_share, crop_scales=tuple(crop_scales),
         refine_threshold=net.refine_threshold,
     )
 
 
+def encode_clip(width: int, height: int, frames: int, folder: str | Path) -> Path:
+    """The benchmark's frames as a video in ``folder``: H.264 at :data:`CLIP_BITRATE` by the
+    ``ffmpeg`` command when there is one (as a drone camera records), else MPEG-4 by OpenCV."""
+    import cv2
+
+    folder = Path(folder)
+    images = synthetic_frames(width, height, frames)
+    ffmpeg = shutil.which("ffmpeg")
+    if ffmpeg is not None:
+        path = folder / "bench_h264.mp4"
+        encoder = subprocess.Popen(
+            [ffmpeg, "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24", "-s",
+             f"{width}x{height}", "-r", "30", "-i", "-", "-c:v", "libx264", "-preset",
+             "veryfast", "-b:v", CLIP_BITRATE, "-maxrate", CLIP_BITRATE, "-bufsize", "200M",
+             "-pix_fmt", "yuv420p", "-g", "30", str(path)],
+            stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert encoder.stdin is not None
+        try:
+            for image in images:
+                encoder.stdin.write(image.tobytes())
+        finally:
+            encoder.stdin.close()
+        if encoder.wait() == 0:
+            return path
+    path = folder / "bench_mp4v.mp4"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (width, height))
+    for image in images:
+        writer.write(image)
+    writer.release()
+    return path
+
+
+def measure_clip(ds: int, topn: int, clip: str | Path, model: str | None, runtime: str,
+                 ego_motion: str = "estimate", colour_share: float = DEFAULT_COLOUR_SHARE,
+                 crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+                 refine_threshold: float | None = None,
+                 repeats: int = CLIP_REPEATS) -> ClipRow:
+    """Alternate plain decoding passes and end-to-end passes (decoding one frame ahead in its
+    own thread, as ``detect`` does) over ``clip``; call it in a fresh process."""
+    import cv2
+
+    from sarmission.data.frames import VideoFileSource
+    from sarmission.data.prefetch import Prefetcher
+    from sarmission.threads import apply_thread_plan
+
+    apply_thread_plan()
+    source = VideoFileSource(Path(clip))
+    net = _mitenet(ds, topn, model, runtime, ego_motion, colour_share, crop_scales,
+                   refine_threshold)
+    for i, frame in enumerate(source):  # warm-up: JIT caches, allocator, onnxruntime
+        net.process(frame.image_bgr, frame.timestamp_s)
+        if i + 1 >= WARMUP_FRAMES:
+            break
+    decode, detect, total, cpu = [], [], [], []
+    count = 0
+    for _ in range(repeats):
+        start, count = time.perf_counter(), 0
+        for _frame in source:
+            count += 1
+        decode.append((time.perf_counter() - start) * 1e3 / max(count, 1))
+        net.reset()
+        start, cpu_start, count, busy = time.perf_counter(), time.process_time(), 0, 0.0
+        with Prefetcher(source) as frames:
+            for frame in frames:
+                t0 = time.perf_counter()
+                net.process(frame.image_bgr, frame.timestamp_s)
+                busy += time.perf_counter() - t0
+                count += 1
+        total.append((time.perf_counter() - start) * 1e3 / max(count, 1))
+        cpu.append((time.process_time() - cpu_start) * 1e3 / max(count, 1))
+        detect.append(busy * 1e3 / max(count, 1))
+    capture = cv2.VideoCapture(str(clip))
+    fourcc = int(capture.get(cv2.CAP_PROP_FOURCC))
+    capture.release()
+    codec = "".join(chr((fourcc >> 8 * k) & 0xFF) for k in range(4)).strip() or "?"
+    decode_ms, total_ms = _median(decode), _median(total)
+    return ClipRow(codec=codec, frames=count, decode_ms=round(decode_ms, 2),
+                   detect_ms=round(_median(detect), 2), total_ms=round(total_ms, 2),
+                   fps=round(1e3 / total_ms, 2), ratio=round(total_ms / decode_ms, 2),
+                   cpu_ms=round(_median(cpu), 2), peak_rss_mb=_peak_rss_mb())
+
+
+def _settings_argv(colour_share: float, crop_scales: tuple[float, ...],
+                   refine_threshold: float | None) -> list[str]:
+    return [repr(colour_share), ",".join(repr(v) for v in crop_scales),
+            "" if refine_threshold is None else repr(refine_threshold)]
+
+
+def _run_worker(argv: list[str], what: str) -> dict:
+    cmd = [sys.executable, "-m", "sarmission.benchmark", *argv]
+    done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
+    if done.returncode != 0:
+        raise RuntimeError(f"benchmark of {what} failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
               frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
-              progress: bool = True, colour_share: float = DEFAULT_COLOUR_SHARE,
+              on_row: Callable[[BenchRow], None] | None = None,
+              colour_share: float = DEFAULT_COLOUR_SHARE,
               crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-              refine_threshold: float | None = None) -> list[BenchRow]:
-    """Run every (ds, N) configuration in a fresh process and collect the rows."""
-    from tqdm import tqdm
-
-    configs = [(ds, n) for ds in ds_values for n in topn_values]
+              refine_threshold: float | None = None, clip: str | Path | None = None
+              ) -> list[BenchRow]:
+    """Run every (ds, N) configuration in a fresh process (and, with ``clip``, its end-to-end
+    passes over that video in another) and collect the rows; ``on_row`` sees each."""
+    settings = _settings_argv(colour_share, crop_scales, refine_threshold)
     rows = []
-    for ds, topn in tqdm(configs, desc="bench", unit="config", disable=not progress,
-                         file=sys.stderr):
-        cmd = [sys.executable, "-m", "sarmission.benchmark", str(ds), str(topn), str(width),
-               str(height), str(frames), model or "", runtime, ego_motion,
-               repr(colour_share),
-               ",".join(repr(v) for v in crop_scales),
-               "" if refine_threshold is None else repr(refine_threshold)]
-        done = subprocess.run(cmd, capture_output=True, text=True, env=os.environ.copy())
-        if done.returncode != 0:
-            raise RuntimeError(f"benchmark of ds={ds} N={topn} failed:\n{done.stderr[-2000:]}")
-        row = json.loads(done.stdout.strip().splitlines()[-1])
+    for ds, topn in [(ds, n) for ds in ds_values for n in topn_values]:
+        common = [str(ds), str(topn), model or "", runtime, ego_motion, *settings]
+        row = _run_worker(["memory", *common, str(width), str(height), str(frames)],
+                          f"ds={ds} N={topn}")
         row["crop_scales"] = tuple(row["crop_scales"])
+        if clip is not None:
+            row["clip"] = _run_worker(["clip", *common, str(clip)], f"ds={ds} N={topn} on {clip}")
         rows.append(BenchRow(**row))
+        if on_row is not None:
+            on_row(rows[-1])
     return rows
 
 
@@ -171,7 +319,7 @@ def format_table(rows: list[BenchRow]) -> str:
             f"{r.gflops.get('total', float('nan')):>7.4f} {r.peak_rss_mb:>7.0f} "
             f"{r.proposals_per_frame:>6.1f}")
     lines.append("times in ms (medians per frame); mem = plain memory pass (BGR copy + grayscale) "
-                 "on the same frames; ratio = total / mem")
+                 "on each frame just before MITE-Net; ratio = total / mem")
     if rows:
         scales = ",".join(f"{v:g}" for v in rows[0].crop_scales)
         lines.append(f"ego-motion compensation: {rows[0].ego_motion}; colour share "
@@ -179,6 +327,28 @@ def format_table(rows: list[BenchRow]) -> str:
                      + (f" (further scales from first-crop score {rows[0].refine_threshold:g})"
                         if len(rows[0].crop_scales) > 1 and rows[0].refine_threshold is not None
                         else ""))
+    clip_rows = [r for r in rows if r.clip]
+    if clip_rows:
+        lines += ["", _clip_table(clip_rows)]
+    return "\n".join(lines)
+
+
+def _clip_table(rows: list[BenchRow]) -> str:
+    """End-to-end rows: decoding alone, then decoding overlapped with MiteNet."""
+    header = (f"{'ds':>2} {'N':>4} {'decode':>7} {'detect':>7} {'total':>7} {'FPS':>6} "
+              f"{'ratio':>6} {'CPU':>7} {'RSS MB':>7}")
+    lines = [f"end to end on an encoded clip ({rows[0].clip['codec']}, "
+             f"{rows[0].width}x{rows[0].height}, {rows[0].clip['frames']} frames):", header,
+             "-" * len(header)]
+    for r in rows:
+        c = r.clip
+        lines.append(f"{r.ds:>2} {r.topn:>4} {c['decode_ms']:>7.1f} {c['detect_ms']:>7.1f} "
+                     f"{c['total_ms']:>7.1f} {c['fps']:>6.1f} {c['ratio']:>6.2f} "
+                     f"{c['cpu_ms']:>7.1f} {c['peak_rss_mb']:>7.0f}")
+    lines.append("decode = plain decoding pass; detect = MiteNet while decoding runs in its own "
+                 "thread; total = that pass per frame; ratio = total / decode; CPU = CPU time "
+                 "per frame, all threads; passes alternate, medians of "
+                 f"{CLIP_REPEATS}")
     return "\n".join(lines)
 
 
@@ -188,13 +358,19 @@ def rows_to_json(rows: list[BenchRow]) -> str:
 
 
 def _worker(argv: list[str]) -> None:
-    ds, topn, width, height, frames = (int(v) for v in argv[:5])
-    model, runtime, ego_motion = argv[5] or None, argv[6], argv[7]
-    crop_scales = tuple(float(v) for v in argv[9].split(","))
-    refine_threshold = float(argv[10]) if argv[10] else None
-    row = measure_config(ds, topn, width, height, frames, model, runtime, ego_motion,
-                         float(argv[8]), crop_scales, refine_threshold)
-    print(json.dumps(asdict(row)))
+    mode, ds, topn, model, runtime, ego_motion = argv[:6]
+    colour_share = float(argv[6])
+    crop_scales = tuple(float(v) for v in argv[7].split(","))
+    refine_threshold = float(argv[8]) if argv[8] else None
+    settings = (ego_motion, colour_share, crop_scales, refine_threshold)
+    if mode == "memory":
+        width, height, frames = (int(v) for v in argv[9:12])
+        row = asdict(measure_config(int(ds), int(topn), width, height, frames, model or None,
+                                    runtime, *settings))
+    else:
+        row = asdict(measure_clip(int(ds), int(topn), argv[9], model or None, runtime,
+                                  *settings))
+    print(json.dumps(row))
 
 
 if __name__ == "__main__":

@@ -24,7 +24,10 @@ def test_items_come_in_order_and_at_most_depth_ahead():
 
     with Prefetcher(items(), depth=2) as ahead:
         got = [next(ahead)]
-        # the reader fills the queue (2) and holds one more it cannot put: 0 + 3 produced
+        # item 0 is being worked on: the reader decodes 1 and 2, not 3 (4K frames are 25 MB)
+        assert wait_until(lambda: len(produced) == 3, 10.0)
+        assert not wait_until(lambda: len(produced) > 3, 0.3)
+        got.append(next(ahead))  # done with 0: one more may start
         assert wait_until(lambda: len(produced) == 4, 10.0)
         assert not wait_until(lambda: len(produced) > 4, 0.3)
         got += list(ahead)

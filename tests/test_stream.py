@@ -119,6 +119,8 @@ def test_newest_frame_wins_and_every_frame_not_read_is_counted():
     indices = [f.index for f in frames]
     stamps = [f.timestamp_s for f in frames]
     assert indices == sorted(set(indices)) and stamps == sorted(set(stamps))
+    positions = [f.stream_time_s for f in frames]  # the stream's own clock, kept
+    assert None not in positions and positions == sorted(set(positions))
     assert max(b - a for a, b in zip(indices, indices[1:], strict=False)) > 1  # newest, not next
     assert source.dropped > 0
     assert source.received >= indices[-1] + 1

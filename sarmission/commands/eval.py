@@ -28,6 +28,7 @@ from sarmission.commands.detector_options import (
     check_colour_share,
     check_refine_threshold,
 )
+from sarmission.commands.progress import add_progress_option, bars_wanted
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +75,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--sweep-topn", type=_int_list, default=[10, 25, 50, 100],
                         help="sweep proposal counts (default: 10,25,50,100)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    add_progress_option(parser)
     add_detector_options(parser)
     parser.set_defaults(func=run)
 
@@ -120,6 +121,9 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.evaluation.report import format_report, format_sweep, report_to_json
 
     _check_args(args)
+    from sarmission.threads import apply_thread_plan
+
+    apply_thread_plan()
     dataset = read_coco_video(args.annotations)
     metric_options = {"m": args.m, "k": args.k, "score_thr": args.score_thr,
                       "nwd_thr": args.nwd_thr}
@@ -135,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     head = build_head_runtime(args.model, args.runtime)
     if args.sweep:
         rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
-                         max_frames=args.max_frames, progress=not args.no_progress,
+                         max_frames=args.max_frames, progress=bars_wanted(args),
                          ego_motion=args.ego_motion, colour_share=args.colour_share,
                          crop_scales=args.crop_scales, refine_threshold=args.refine_threshold,
                          **metric_options)
@@ -175,7 +179,7 @@ def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: st
                   ego_motion=args.ego_motion, colour_share=args.colour_share,
                   crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
     target_category_map(dataset.categories, net.classes)  # fail before running, not after
-    run = run_mitenet(net, dataset, args.max_frames, progress=not args.no_progress)
+    run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
     if not run.frame_ms:
         raise ValueError(f"{args.annotations}: none of the {run.skipped} frames could be read")
     report = evaluate_detections(dataset, run.detections, net.classes, run.proposals,

@@ -19,6 +19,7 @@ from sarmission.commands.mission_options import (
     build_recorder,
     load_mission_from_args,
 )
+from sarmission.commands.progress import add_progress_option, progress_for
 
 if TYPE_CHECKING:
     import numpy as np
@@ -65,6 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "GeoJSON, CSV) into DIR")
     parser.add_argument("--alerts-db", default=None,
                         help="alert store file (default: a temporary one)")
+    add_progress_option(parser)
     add_mission_options(parser)
     parser.set_defaults(func=run)
 
@@ -120,8 +122,6 @@ def _ground_model(args: argparse.Namespace) -> object | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from sarmission.alerts.store import AlertStore
     from sarmission.mission.controller import MissionController
     from sarmission.mission.live import telemetry_buffer
@@ -160,19 +160,19 @@ def run(args: argparse.Namespace) -> int:
         buffer = source.buffer(lambda: telemetry_buffer(mission))
         start_posix = time.time()
         utc = source.utc_offset_s
+        limit = args.max_frames
+        bar_total = min(total, limit) if total is not None and limit else (total or limit)
+        bar = progress_for(args, "replay", bar_total)
         controller = MissionController(mission, detector, buffer, store, recorder=recorder,
                                        mission_id=args.mission_id,
                                        to_posix=(lambda t: t + utc) if utc is not None
                                        else (lambda t: start_posix + t),
-                                       console=tqdm.write,
+                                       console=bar.write,
                                        ground_model=ground_model)
         started = time.monotonic()
         n = 0
         try:
-            limit = args.max_frames
-            bar_total = min(total, limit) if total is not None and limit else (total or limit)
-            for index, t, image, meta in tqdm(frames, total=bar_total, unit="frame",
-                                              desc="replay", leave=False):
+            for index, t, image, meta in frames:
                 if (limit is not None and n >= limit) or (
                         args.duration is not None and t >= args.duration):
                     break
@@ -181,7 +181,9 @@ def run(args: argparse.Namespace) -> int:
                 source.before(buffer, stamp, meta, mission.area.home)
                 controller.process(index, stamp, image)
                 n += 1
+                bar.update(1)
         finally:
+            bar.close()
             wall = time.monotonic() - started
             if recorder is not None:
                 recorder.close()

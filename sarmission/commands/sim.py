@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from sarmission.commands.progress import add_progress_option, bars_wanted
+
 if TYPE_CHECKING:
     from sarmission.mission.config import MissionConfig
     from sim.footage import FootageCamera
@@ -84,6 +86,7 @@ def add_generate_parser(sim_sub: argparse._SubParsersAction) -> None:
     gen.add_argument("--yolo", action="store_true",
                      help="also write YOLO labels (yolo/<video>/<frame>.txt)")
     gen.add_argument("--out", required=True, help="output folder")
+    add_progress_option(gen)
     gen.set_defaults(func=_run_generate)
 
 
@@ -96,7 +99,8 @@ def _run_generate(args: argparse.Namespace) -> int:
         raise ValueError(f"--frames must be at least 1, got {args.frames}")
     annotations = generate_split(
         name, args.sequences, args.frames, args.out, size=_size(args.size), fps=args.fps,
-        first_start_s=args.start, spacing_s=args.spacing, video=not args.images, seed=args.seed)
+        first_start_s=args.start, spacing_s=args.spacing, video=not args.images, seed=args.seed,
+        progress=bars_wanted(args))
     print(f"wrote {args.sequences} x {args.frames} frames of {name} -> {annotations}")
     if args.mot or args.yolo:
         from sarmission.data.coco_video import read_coco_video

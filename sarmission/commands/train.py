@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sarmission.commands.progress import add_progress_option, bars_wanted
 from sarmission.perception.types import DEFAULT_COLOUR_SHARE
 
 _DEFAULT_CLASSES = "swimmer,swimmer_with_life_jacket"
@@ -61,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--onnx", action="store_true",
                         help="also export the best checkpoint as ONNX next to --out")
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_progress_option(parser)
     parser.set_defaults(func=run)
 
 
@@ -88,7 +89,7 @@ def config_from_args(args: argparse.Namespace):
                        select_from=args.select_from, ema_decay=args.ema_decay,
                        seed=args.seed, crops=crops, cache_dir=args.cache_dir,
                        resume=args.resume, num_threads=args.threads,
-                       progress=not args.no_progress)
+                       progress=bars_wanted(args))
 
 
 def run(args: argparse.Namespace) -> int:

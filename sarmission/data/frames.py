@@ -42,11 +42,14 @@ class FrameSourceError(ValueError):
 
 @dataclass
 class Frame:
-    """One frame: position in its source, capture time (s), BGR ``uint8`` image ``[H, W, 3]``."""
+    """One frame: position in its source, capture time (s), BGR ``uint8`` image ``[H, W, 3]``;
+    for a live stream also its presentation time in the stream (``timestamp_s`` is then on the
+    local monotonic clock)."""
 
     index: int
     timestamp_s: float
     image_bgr: np.ndarray
+    stream_time_s: float | None = None
 
 
 class FrameSource(ABC):

@@ -236,7 +236,7 @@ class StreamSource:
                     self._report_loss(arrival)
             last_pts = pts
             got_any = True
-            frame = Frame(self.received, self.clock.stamp(pts, arrival), image)
+            frame = Frame(self.received, self.clock.stamp(pts, arrival), image, pts)
             with self._cond:
                 if self._latest is not None:
                     self.dropped += 1  # decoded, never read
