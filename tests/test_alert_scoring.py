@@ -35,6 +35,7 @@ class Alert:
     pixel_track: list
     position: tuple[float, float] | None
     error_m: float | None = 1.0
+    discarded: str | None = None
 
 
 def at(north: float, east: float) -> tuple[float, float]:
@@ -76,4 +77,8 @@ def test_found_false_duplicate_time_and_error():
 def test_a_person_seen_briefly_counts_apart():
     s = score_flight(frames(), [(Alert(15, [(15, 300.0, 100.0)], at(10.0, 20.0)), 18, 1.8)])
     assert (s.people_in_view, s.found, s.found_briefly_seen) == (1, 0, 1)
-    assert s.missed == ["person 1 (4.9 s in view)"]
+    assert s.missed == ["person 1 (4.9 s in view; never locked)"]
+    candidate = Alert(20, [(20, 100.0, 100.0)], at(10.0, 0.0))
+    candidate.discarded = "seen in 30 % of frames"
+    s = score_flight(frames(), [], candidates=[candidate])
+    assert s.missed == ["person 1 (4.9 s in view; discarded: seen in 30 % of frames)"]

@@ -86,13 +86,15 @@ def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: fl
             session.run(duration_s=seconds)
         finally:
             confirmed = list(session.controller.stats.confirmed)
+            stored = session.store.list()
             summary = session.close()
     finally:
         vehicle.stop()
     truth = camera.truth
     alerts = [(alert, index, truth[index].sim_time) for alert, index, _ in confirmed
               if 0 <= index < len(truth)]
-    return Flown(score_flight(truth, alerts), summary, session.controller, truth)
+    return Flown(score_flight(truth, alerts, candidates=stored), summary, session.controller,
+                 truth)
 
 
 def table(rows: list[tuple[str, FlightScore]]) -> str:
@@ -136,6 +138,7 @@ def run(args: argparse.Namespace) -> int:
             if not args.json:
                 print(f"{scenario.name}: {seconds:.0f} s of flight ...", flush=True)
             score = fly(scenario, base, detector, seconds, Path(tmp)).score
+            score.missed = [f"{scenario.name}: {m}" for m in score.missed]
             rows.append((scenario.name, score))
             total.add(score)
     rows.append(("suite", total))
@@ -149,5 +152,7 @@ def run(args: argparse.Namespace) -> int:
             print("false alerts on: " + ", ".join(f"{what} {n}"
                                                   for what, n in total.false_on.most_common()))
         if total.missed:
-            print(f"missed ({len(total.missed)}): " + "; ".join(total.missed[:10]))
+            print(f"missed ({len(total.missed)}):")
+            for line in total.missed:
+                print(f"  {line}")
     return 0

@@ -168,8 +168,10 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
 def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]],
                  min_view_s: float = 3.0, max_gap_s: float = 0.5,
                  match_px: float = MATCH_PX, match_m: float = MATCH_M,
-                 window_s: float = WINDOW_S) -> FlightScore:
-    """The figures of one flight (see the module docstring)."""
+                 window_s: float = WINDOW_S, candidates: Sequence[Any] = ()) -> FlightScore:
+    """The figures of one flight (see the module docstring). ``candidates`` (every stored
+    alert, confirmed or not) only explain the misses: what became of a missed person's
+    candidate, or that none was locked."""
     by_index = {f.index: f for f in frames}
     first, longest = _views(frames, max_gap_s)
     in_view = {tid for tid, s in longest.items() if s >= min_view_s}
@@ -196,5 +198,18 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
             out.geo_error_m.append(_metres(alert.position, (person.lat, person.lon)))
     out.found = len(found & in_view)
     out.found_briefly_seen = len(found - in_view)
-    out.missed = [f"person {tid} ({longest[tid]:.1f} s in view)" for tid in sorted(in_view - found)]
+    fate: dict[int, str] = {}
+    for candidate in candidates:
+        frame = by_index.get(candidate.frame_index)
+        cx, cy = (candidate.pixel_track[-1][1:] if candidate.pixel_track
+                  else (math.nan, math.nan))
+        person = None if frame is None else nearest(frame.targets, cx, cy, match_px)
+        person = person or _by_position(frames, candidate.frame_index, candidate, window_s,
+                                        match_m)
+        if person is not None and person.track_id not in found:
+            why = (f"discarded: {candidate.discarded}" if candidate.discarded
+                   else "still unconfirmed")
+            fate.setdefault(person.track_id, why)
+    out.missed = [f"person {tid} ({longest[tid]:.1f} s in view; "
+                  f"{fate.get(tid, 'never locked')})" for tid in sorted(in_view - found)]
     return out
