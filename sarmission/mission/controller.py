@@ -440,7 +440,7 @@ class MissionController:
         if self.ground_alt is not None:
             return self.ground_alt
         home = self.telemetry.home
-        return None if home is None else home[2]
+        return None if home is None or not math.isfinite(home[2]) else home[2]
 
     def _attach_position(self, target: Target, track_id: int | None, frame_index: int) -> None:
         """The first position of a target alerted without one: into its stored alert, then told."""
