@@ -37,6 +37,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     try:
+        from sarmission.threads import apply_thread_plan
+
+        apply_thread_plan()  # before any command loads its compute libraries
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("sarmission: interrupted", file=sys.stderr)

@@ -16,7 +16,13 @@ from conftest import free_udp_port, wait_until
 from stream_sender import CorruptingRelay, UdpStream, needs_ffmpeg
 
 from sarmission.data.frames import FrameSourceError, open_frame_source
-from sarmission.data.stream import StreamClock, StreamSource, check_stream_url, redact
+from sarmission.data.stream import (
+    StreamClock,
+    StreamSource,
+    check_stream_url,
+    redact,
+    with_udp_defaults,
+)
 from sarmission.mission.live_sources import open_video_source
 
 
@@ -64,6 +70,15 @@ def test_passwords_stay_out_of_messages():
     with pytest.raises(FrameSourceError) as info:
         check_stream_url("ftp://pilot:s3cret@host/x")
     assert "s3cret" not in str(info.value)
+
+
+def test_udp_streams_survive_a_full_receive_buffer_unless_told_otherwise():
+    assert with_udp_defaults("udp://127.0.0.1:5600") == "udp://127.0.0.1:5600?overrun_nonfatal=1"
+    assert with_udp_defaults("udp://@239.0.0.1:5600?fifo_size=9000") == \
+        "udp://@239.0.0.1:5600?fifo_size=9000&overrun_nonfatal=1"
+    assert with_udp_defaults("udp://127.0.0.1:5600?overrun_nonfatal=0") == \
+        "udp://127.0.0.1:5600?overrun_nonfatal=0"
+    assert with_udp_defaults("rtsp://cam/live") == "rtsp://cam/live"
 
 
 def test_silence_is_a_one_line_error_after_the_connect_timeout():

@@ -40,9 +40,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Detect over the input and write the results file."""
-    from sarmission.threads import apply_thread_plan
-
-    apply_thread_plan()
     from sarmission.data.coco_results import detections_to_coco
     from sarmission.data.frames import open_frame_source
     from sarmission.data.prefetch import Prefetcher

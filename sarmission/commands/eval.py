@@ -121,9 +121,6 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.evaluation.report import format_report, format_sweep, report_to_json
 
     _check_args(args)
-    from sarmission.threads import apply_thread_plan
-
-    apply_thread_plan()
     dataset = read_coco_video(args.annotations)
     metric_options = {"m": args.m, "k": args.k, "score_thr": args.score_thr,
                       "nwd_thr": args.nwd_thr}

@@ -80,6 +80,17 @@ def check_stream_url(url: str) -> str:
     return url
 
 
+def with_udp_defaults(url: str) -> str:
+    """``url`` with ``overrun_nonfatal=1`` for a ``udp://`` stream that does not say otherwise:
+    when decoding falls behind and FFmpeg's receive buffer fills, the oldest data is dropped
+    (damaged frames, counted as lost) instead of the stream failing and being reopened."""
+    parts = urlsplit(url)
+    if parts.scheme.lower() != "udp" or "overrun_nonfatal" in parts.query:
+        return url
+    query = "&".join(q for q in (parts.query, "overrun_nonfatal=1") if q)
+    return parts._replace(query=query).geturl()
+
+
 def quiet_opencv_warnings() -> None:
     """Keep OpenCV's warnings (a read timeout) and FFmpeg's messages (one or more per damaged
     packet: dozens a second on a lossy link) off the console: the stream's state is reported in
@@ -173,11 +184,12 @@ class StreamSource:
     # -- reader thread -------------------------------------------------------------------------
 
     def _open(self) -> cv2.VideoCapture | None:
+        url = with_udp_defaults(self.url)
         timeout_ms = int(self.read_timeout_s * 1000)
         params = [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, max(timeout_ms, 5000),
                   cv2.CAP_PROP_READ_TIMEOUT_MSEC, timeout_ms,
                   cv2.CAP_PROP_N_THREADS, self.threads]
-        capture = cv2.VideoCapture(self.url, cv2.CAP_FFMPEG, params)
+        capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
         if capture.isOpened():
             fps = capture.get(cv2.CAP_PROP_FPS)
             if math.isfinite(fps) and 0 < fps <= 1000:
