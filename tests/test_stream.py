@@ -17,6 +17,7 @@ from stream_sender import CorruptingRelay, UdpStream, needs_ffmpeg
 
 from sarmission.data.frames import FrameSourceError, open_frame_source
 from sarmission.data.stream import (
+    FramePeriod,
     StreamClock,
     StreamSource,
     check_stream_url,
@@ -70,6 +71,17 @@ def test_passwords_stay_out_of_messages():
     with pytest.raises(FrameSourceError) as info:
         check_stream_url("ftp://pilot:s3cret@host/x")
     assert "s3cret" not in str(info.value)
+
+
+def test_missing_frames_are_counted_from_the_streams_own_frame_period():
+    period = FramePeriod()
+    # the first steps teach the period (a stream announcing 60 frames/s may send 30)
+    assert [period.missing(1 / 30) for _ in range(5)] == [0] * 5
+    assert period.missing(1 / 30) == 0
+    assert period.missing(4 / 30) == 3  # three frames never arrived
+    assert period.missing(1.2 / 30) == 0  # jitter is no loss
+    assert period.missing(0.0) == 0 and period.missing(-1.0) == 0
+    assert period.missing(30.0) == 0  # a restart, not a loss
 
 
 def test_udp_streams_survive_a_full_receive_buffer_unless_told_otherwise():

@@ -26,8 +26,10 @@ import logging
 import math
 import os
 import re
+import statistics
 import threading
 import time
+from collections import deque
 from collections.abc import Iterator
 from urllib.parse import urlsplit
 
@@ -136,6 +138,25 @@ class StreamClock:
         return min(pts_s + offset, arrival)
 
 
+class FramePeriod:
+    """The time between a stream's frames, from its own presentation times (the median of the
+    last 31 steps, not the rate the stream announces, which can be off by a factor of two), and
+    how many frames a longer step skipped. Nothing is counted before 5 steps are known."""
+
+    def __init__(self) -> None:
+        self.steps: deque[float] = deque(maxlen=31)
+
+    def missing(self, step: float) -> int:
+        """Frames missing in a step of ``step`` seconds between two frames (0 for a step
+        shorter than two periods, or longer than 10 s: a restart, not a loss)."""
+        if not 0 < step <= 10.0:
+            return 0
+        known = len(self.steps) >= 5
+        period = statistics.median(self.steps) if known else 0.0
+        self.steps.append(step)
+        return max(0, round(step / period) - 1) if known else 0
+
+
 class StreamSource:
     """A live stream at ``url``, decoded in a reader thread; the newest frame wins.
 
@@ -227,6 +248,7 @@ class StreamSource:
         """Decode frames until the stream stops or the source is closed; whether any came."""
         got_any = False
         last_pts: float | None = None
+        periods = FramePeriod()
         while not self._stop.is_set():
             if not capture.grab():
                 return got_any
@@ -242,8 +264,8 @@ class StreamSource:
                 self._lost_since = None
             pts = pts_ms / 1000.0 if math.isfinite(pts_ms) and pts_ms >= 0 else None
             if pts is not None and last_pts is not None:
-                missing = round((pts - last_pts) * self.fps) - 1
-                if 0 < missing < 10 * self.fps:
+                missing = periods.missing(pts - last_pts)
+                if missing:
                     self.lost += missing
                     self._report_loss(arrival)
             last_pts = pts
