@@ -184,7 +184,8 @@ def test_killed_and_restarted_run_loses_and_repeats_nothing(tmp_path):
 
 
 def test_alert_during_link_loss_is_delivered_after(tmp_path):
-    mission = mission_with()
+    # a second of evidence (the default is two): the rebooted autopilot is back for four
+    mission = mission_with(**{"confirm.min_seen_s": 1.0, "confirm.min_sightings": 6})
     port = free_udp_port()
     vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission, stream_on_request=True).start()
     lines: list[str] = []
