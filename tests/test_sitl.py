@@ -78,7 +78,8 @@ def wait_for(cond: Callable[[], Any], timeout: float = DEADLINE_S) -> Any:
 
 def mission_config(policy: list[str]) -> MissionConfig:
     """The mission as flown here: SITL's home, the survey box inside the area, a hard-mounted
-    nadir camera (SITL has no gimbal), a small image, the survey altitude."""
+    nadir camera (SITL has no gimbal), a small image, the survey altitude, a candidate
+    confirmed at its lock."""
     return load_mission(overrides={
         "name": "sitl",
         "area.home_lat": HOME[0],
@@ -90,6 +91,9 @@ def mission_config(policy: list[str]) -> MissionConfig:
         "camera.mount_pitch_deg": -90.0,
         "flight.altitude_m": ALT,
         "actions.policy": policy,
+        # confirmed at the lock: these tests are about the autopilot, not the evidence
+        "confirm.min_seen_s": 0.0,
+        "confirm.min_sightings": 1,
     })
 
 
