@@ -1,17 +1,16 @@
 """Thread counts of the compute libraries, chosen once per process for the cores it may use.
 
-OpenCV (filters, resizes), onnxruntime (the head), numba (the simulator's parallel kernels),
-torch (training, export) and FFmpeg (video decoding) each keep their own thread pool, and each
-sizes it to every core by default. On a 2-8 core companion computer they then compete for the
-same cores: a decoder thread waits behind a filter's workers, and a pool that sleeps and wakes
-for every small batch costs more than the batch. :func:`plan_for` gives each a deliberate
-share instead. The FFmpeg decoder, in its own thread beside detection, gets frame threads on
-every core up to four (its threads fill the moments detection leaves a core idle; more than four
-only hold more 4K frames in memory); OpenCV's filters half the cores; onnxruntime one thread on
-two cores and two beyond (a batch of 25-100 crops of 16 x 16 does not spread further). Chosen by
-measurement on two cores (``docs/benchmarks.md``); above that it is the same reasoning, not a
-measurement. :func:`apply_thread_plan` sets the libraries already loaded and the environment read
-by those loaded later; ``SARMISSION_THREADS`` (a core count) overrides the cores it plans for.
+FFmpeg (video decoding), OpenCV (filters, resizes), onnxruntime (the head), numba (the
+simulator's parallel kernels) and torch (training, export) each keep a thread pool sized to
+every core by default, and on a 2-8 core companion computer they compete for the same cores.
+:func:`plan_for` gives each a deliberate share: the FFmpeg decoder, in its own thread beside
+detection, gets frame threads on every core up to four (they fill the moments detection leaves
+a core idle; more than four only hold more 4K frames in memory); OpenCV's filters half the
+cores, at least two; onnxruntime two threads, which never spin while idle (a batch of 25-100
+crops of 16 x 16 spreads no further). On two cores that is two of each, the best of the plans
+measured (``docs/benchmarks.md``); above two cores it is the same reasoning, not a measurement.
+:func:`apply_thread_plan` sets the libraries already loaded and the environment read by those
+loaded later; ``SARMISSION_THREADS`` (a core count) overrides the cores it plans for.
 """
 
 from __future__ import annotations
@@ -56,8 +55,8 @@ def available_cores() -> int:
 def plan_for(cores: int) -> ThreadPlan:
     """The plan for ``cores`` cores (module docstring)."""
     cores = max(1, int(cores))
-    return ThreadPlan(cores=cores, decode=min(cores, 4), opencv=max(1, cores // 2),
-                      onnx=1 if cores <= 2 else 2, numba=cores, torch=cores)
+    return ThreadPlan(cores=cores, decode=min(cores, 4), opencv=min(cores, max(2, cores // 2)),
+                      onnx=min(cores, 2), numba=cores, torch=cores)
 
 
 _applied: ThreadPlan | None = None

@@ -13,7 +13,7 @@ from sarmission.threads import ThreadPlan, apply_thread_plan, available_cores, p
 
 
 @pytest.mark.parametrize(("cores", "decode", "opencv", "onnx"), [
-    (1, 1, 1, 1), (2, 2, 1, 1), (4, 4, 2, 2), (8, 4, 4, 2), (16, 4, 8, 2)])
+    (1, 1, 1, 1), (2, 2, 2, 2), (4, 4, 2, 2), (8, 4, 4, 2), (16, 4, 8, 2)])
 def test_plans_for_two_to_eight_cores(cores: int, decode: int, opencv: int, onnx: int):
     plan = plan_for(cores)
     assert (plan.decode, plan.opencv, plan.onnx) == (decode, opencv, onnx)

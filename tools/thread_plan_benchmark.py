@@ -14,7 +14,6 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -23,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 
-from pipeline_benchmark import DOC, make_clip, write_section  # noqa: E402
+from pipeline_benchmark import DOC, make_clip, measure, write_section  # noqa: E402
 
 PIPELINE = """
 import json, resource, sys, time
@@ -73,11 +72,11 @@ print(json.dumps(out))
 PLANS = [(1, 1, 1), (2, 1, 1), (2, 1, 2), (2, 2, 2)]
 
 
-def child(code: str, *argv: str) -> dict:
-    done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True,
-                          timeout=900, cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
-                          check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+def child(code: str, *argv: str, others: list[float]) -> dict:
+    """Run ``code`` in a fresh process; its JSON result (and the other processes' load)."""
+    done = measure([sys.executable, "-c", code, *argv], ROOT)
+    others.append(done.others)
+    return json.loads(done.out.strip().splitlines()[-1])
 
 
 def main() -> int:
@@ -90,22 +89,23 @@ def main() -> int:
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
     clip = make_clip(args.work, args.clip_frames)
-    loads = []
+    others: list[float] = []
     runs: dict[tuple[int, int, int], list[dict]] = {plan: [] for plan in PLANS}
     heads: dict[int, list[dict]] = {1: [], 2: []}
     for repeat in range(args.repeats):
         print(f"repeat {repeat + 1}/{args.repeats}", flush=True)
         for plan in PLANS:
-            loads.append(os.getloadavg()[0])
-            runs[plan].append(child(PIPELINE, str(clip), *map(str, plan), str(args.frames)))
+            runs[plan].append(child(PIPELINE, str(clip), *map(str, plan), str(args.frames),
+                                    others=others))
         for threads in heads:
-            heads[threads].append(child(HEAD, str(threads)))
+            heads[threads].append(child(HEAD, str(threads), others=others))
     med = {plan: {k: statistics.median(r[k] for r in rs) for k in rs[0]}
            for plan, rs in runs.items()}
     lines = [
         f"Thread plans on {os.cpu_count()} cores, measured {time.strftime('%Y-%m-%d')} with "
-        f"`python tools/thread_plan_benchmark.py` (1-minute load average "
-        f"{min(loads):.2f}-{max(loads):.2f}): decoding one frame ahead + MITE-Net ds 2 N 25 on "
+        f"`python tools/thread_plan_benchmark.py` (other processes kept "
+        f"{min(others):.2f}-{max(others):.2f} cores busy meanwhile): decoding one frame ahead + "
+        f"MITE-Net ds 2 N 25 on "
         f"{args.frames} frames of `{clip.name}` after 8 warm-up frames, medians of "
         f"{args.repeats} interleaved runs.", "",
         "| FFmpeg threads | OpenCV threads | onnxruntime threads | ms per frame | CPU ms per "
