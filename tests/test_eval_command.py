@@ -202,7 +202,11 @@ def test_json_has_the_documented_keys(annotations, tmp_path, capsys):
                        "--detections", str(_results_file(annotations, tmp_path)),
                        "--m", "2", "--k", "4")
     assert set(report) == {"dataset", "classes", "categories", "settings", "sar", "boxes",
-                           "module_recall", "definitions", "detector"}
+                           "module_recall", "reliability", "definitions", "detector"}
+    # the detections equal the targets' boxes at score 0.9: one bin, every one right
+    (only,) = report["reliability"]["bins"]
+    assert only["n"] == report["dataset"]["n_gt_boxes"] and only["share_correct"] == 1.0
+    assert only["low"] == 0.9 and report["reliability"]["ece"] == pytest.approx(0.1)
     assert report["settings"]["m"] == 2 and report["settings"]["k"] == 4
     assert report["classes"] == ["swimmer", "swimmer_with_life_jacket"]
     assert [c["class"] for c in report["categories"]["targets"]] == list(report["classes"])

@@ -26,7 +26,8 @@ import numpy as np
 from sarmission.boxes import SIZE_BANDS, xywh_to_xyxy
 from sarmission.data.coco_video import Category, VideoDataset
 from sarmission.evaluation import box_metrics, sar_metrics
-from sarmission.evaluation.matching import FrameBoxes, ground_truth_by_image
+from sarmission.evaluation.matching import FrameBoxes, ground_truth_by_image, match_frame
+from sarmission.evaluation.reliability import format_reliability, reliability_table
 
 #: Normalised dataset category names that mean a head class although they are spelled otherwise.
 CATEGORY_ALIASES: dict[str, str] = {
@@ -175,6 +176,7 @@ def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBox
         "rpn": None if proposals is None else _recall(ground_truth, proposals, None, True),
         "head": _recall(ground_truth, detections, score_thr, False),
     }
+    reliability = _reliability(ground_truth, detections, nwd_thr)
     names = {c.id: c.name for c in dataset.categories}
     return {
         "dataset": {
@@ -196,8 +198,27 @@ def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBox
         "sar": sar,
         "boxes": boxes,
         "module_recall": module_recall,
+        "reliability": reliability,
         "definitions": dict(REPORT_DEFINITIONS),
     }
+
+
+def _reliability(ground_truth: Mapping[int, FrameBoxes], detections: Mapping[int, FrameBoxes],
+                 nwd_thr: float) -> dict[str, Any]:
+    """Every detection's score against whether it matched a GT box (NWD > ``nwd_thr``, any
+    score): what a detection's confidence means on this data."""
+    scores: list[float] = []
+    correct: list[bool] = []
+    for image_id, det in detections.items():
+        gt = ground_truth.get(image_id)
+        if gt is None or not len(det):
+            continue
+        match = match_frame(det, gt, score_thr=-1.0, nwd_thr=nwd_thr)
+        hit = np.zeros(len(det), dtype=bool)
+        hit[match.det_indices] = True
+        scores += det.scores.tolist()
+        correct += hit.tolist()
+    return reliability_table(scores, correct)
 
 
 def report_to_json(report: Mapping[str, Any]) -> str:
@@ -252,6 +273,10 @@ def format_report(report: Mapping[str, Any]) -> str:
         values = report["module_recall"][key]
         cells = ["n/a" if values is None else f"{values[t]:.4f}" for t in thresholds]
         lines.append(f"  {label:<38}" + "".join(f"{c:>8}" for c in cells))
+    if report.get("reliability"):
+        lines += ["", "Reliability (what a detection's score means: share matching a person, "
+                  "NWD > " + f"{settings['nwd_thr']:g})"]
+        lines += format_reliability(report["reliability"])
     definitions = report["definitions"]
     lines += ["", "FAR per frame: " + definitions["false_alarm_rate_per_frame"],
               "FAR per detection: " + definitions["false_alarm_rate_detections"]]
