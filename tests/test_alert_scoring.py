@@ -36,6 +36,8 @@ class Alert:
     position: tuple[float, float] | None
     error_m: float | None = 1.0
     discarded: str | None = None
+    alert_id: str = "a"
+    score: float = 0.9
 
 
 def at(north: float, east: float) -> tuple[float, float]:
@@ -80,5 +82,8 @@ def test_a_person_seen_briefly_counts_apart():
     assert s.missed == ["person 1 (4.9 s in view; never locked)"]
     candidate = Alert(20, [(20, 100.0, 100.0)], at(10.0, 0.0))
     candidate.discarded = "seen in 30 % of frames"
-    s = score_flight(frames(), [], candidates=[candidate])
+    clutter = Alert(60, [(60, 700.0, 100.0)], at(80.0, 0.0), alert_id="b", score=0.95)
+    s = score_flight(frames(), [], candidates=[candidate, clutter],
+                     track_scores={"a": 0.8})
     assert s.missed == ["person 1 (4.9 s in view; discarded: seen in 30 % of frames)"]
+    assert (s.candidate_scores, s.candidate_right) == ([0.8, 0.95], [True, False])

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from sarmission.commands.mission_options import add_mission_options
 
 if TYPE_CHECKING:
@@ -93,8 +95,12 @@ def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: fl
     truth = camera.truth
     alerts = [(alert, index, truth[index].sim_time) for alert, index, _ in confirmed
               if 0 <= index < len(truth)]
-    return Flown(score_flight(truth, alerts, candidates=stored), summary, session.controller,
-                 truth)
+    evidence = session.controller.candidates.evidence
+    track_scores = {a.alert_id: float(np.mean([x.score for x in evidence[a.target_id].sightings]))
+                    for a in stored if a.target_id in evidence
+                    and evidence[a.target_id].sightings}
+    return Flown(score_flight(truth, alerts, candidates=stored, track_scores=track_scores),
+                 summary, session.controller, truth)
 
 
 def table(rows: list[tuple[str, FlightScore]]) -> str:
@@ -121,6 +127,7 @@ def table(rows: list[tuple[str, FlightScore]]) -> str:
 def run(args: argparse.Namespace) -> int:
     from sarmission.commands.mission_options import build_detector, load_mission_from_args
     from sarmission.evaluation.alert_scoring import FlightScore
+    from sarmission.evaluation.reliability import format_reliability
     from sim.suite import suite
 
     names = [n.strip() for n in args.scenarios.split(",")] if args.scenarios else None
@@ -151,6 +158,9 @@ def run(args: argparse.Namespace) -> int:
         if total.false_on:
             print("false alerts on: " + ", ".join(f"{what} {n}"
                                                   for what, n in total.false_on.most_common()))
+        print("What a candidate's track score means (share with a person under it):")
+        print("\n".join(format_reliability(total.as_dict()["candidate_reliability"],
+                                           "track score")))
         if total.missed:
             print(f"missed ({len(total.missed)}):")
             for line in total.missed:

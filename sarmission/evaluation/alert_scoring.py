@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from sarmission.evaluation.reliability import reliability_table
 from sarmission.geo.wgs84 import geodetic_to_ned
 
 #: A detection is the person whose box centre is within this many pixels.
@@ -54,6 +55,9 @@ class FlightScore:
     time_to_alert_s: list[float] = field(default_factory=list)
     geo_error_m: list[float] = field(default_factory=list)
     missed: list[str] = field(default_factory=list)
+    # every candidate's track score and whether a person was under it (reliability)
+    candidate_scores: list[float] = field(default_factory=list)
+    candidate_right: list[bool] = field(default_factory=list)
 
     def add(self, other: FlightScore) -> None:
         """Fold another flight's figures into this one."""
@@ -64,6 +68,8 @@ class FlightScore:
         self.time_to_alert_s += other.time_to_alert_s
         self.geo_error_m += other.geo_error_m
         self.missed += other.missed
+        self.candidate_scores += other.candidate_scores
+        self.candidate_right += other.candidate_right
 
     @property
     def false_per_hour(self) -> float:
@@ -91,6 +97,8 @@ class FlightScore:
             "geo_error_m": {"p50": _pct(self.geo_error_m, 50),
                             "p95": _pct(self.geo_error_m, 95)},
             "missed": list(self.missed),
+            "candidate_reliability": reliability_table(self.candidate_scores,
+                                                       self.candidate_right),
         }
 
 
@@ -168,10 +176,12 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
 def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]],
                  min_view_s: float = 3.0, max_gap_s: float = 0.5,
                  match_px: float = MATCH_PX, match_m: float = MATCH_M,
-                 window_s: float = WINDOW_S, candidates: Sequence[Any] = ()) -> FlightScore:
+                 window_s: float = WINDOW_S, candidates: Sequence[Any] = (),
+                 track_scores: dict[str, float] | None = None) -> FlightScore:
     """The figures of one flight (see the module docstring). ``candidates`` (every stored
-    alert, confirmed or not) only explain the misses: what became of a missed person's
-    candidate, or that none was locked."""
+    alert, confirmed or not) explain the misses (what became of a missed person's candidate,
+    or that none was locked) and, with ``track_scores`` (alert id -> its track score; else its
+    lock score), give the reliability of a candidate's score."""
     by_index = {f.index: f for f in frames}
     first, longest = _views(frames, max_gap_s)
     in_view = {tid for tid, s in longest.items() if s >= min_view_s}
@@ -206,6 +216,9 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
         person = None if frame is None else nearest(frame.targets, cx, cy, match_px)
         person = person or _by_position(frames, candidate.frame_index, candidate, window_s,
                                         match_m)
+        out.candidate_scores.append((track_scores or {}).get(candidate.alert_id,
+                                                             candidate.score))
+        out.candidate_right.append(person is not None)
         if person is not None and person.track_id not in found:
             why = (f"discarded: {candidate.discarded}" if candidate.discarded
                    else "still unconfirmed")
