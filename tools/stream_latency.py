@@ -1,23 +1,24 @@
 """Frame-to-alert latency on a live stream, written to docs/benchmarks.md.
 
 ``ffmpeg`` sends the simulator's 4K maritime_test clip (from ``tools/pipeline_benchmark.py``),
-re-encoded as a camera streams it (H.264 at 20 Mb/s without B-frames; the 100 Mb/s recording
-takes 2.6 cores to decode at 30 frames/s), as MPEG-TS over UDP to 127.0.0.1 in real time.
-The receiving side is what ``sarmission run --video udp://...`` runs: the stream source
-(decoding in its own thread, newest frame first), MITE-Net and the mission controller, with the
-clip's own per-frame telemetry (dataset ``meta``) pushed at each frame's capture time.
+re-encoded as a camera streams it (H.264 at 20 Mb/s without B-frames, at each of ``--rates``
+frames/s), as MPEG-TS over UDP to 127.0.0.1 in real time. The receiving side is what
+``sarmission run --video udp://...`` runs: the stream source (decoding in its own thread, newest
+frame first), MITE-Net and the mission controller, with the clip's own per-frame telemetry
+(dataset ``meta``) pushed at each frame's capture time.
 
 Per processed frame: the latency from its capture stamp (the stream's presentation time on the
-local clock, anchored to the least-delayed arrival, so the camera's encoding and the network's
-minimum delay come on top) to the controller's result; per alert: from the capture stamp of the
-frame that confirmed it to the alert leaving the controller. Also frames received, processed and
-dropped (a busy detector takes the newest frame).
+local clock, anchored to the least-delayed decoded frame, so the camera's encoding and the
+network's minimum delay come on top) to the controller's result; per alert: from the capture
+stamp of the frame that confirmed it to the alert leaving the controller. Also frames received,
+processed, dropped (a busy detector takes the newest frame) and lost.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import socket
 import statistics
@@ -34,6 +35,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 from pipeline_benchmark import DOC, machine_busy_s, make_clip, write_section  # noqa: E402
 
 BEGIN_TAG = "stream_latency"
+CLIP_FPS = 30.0  # the rendered clip's rate: its telemetry is per frame of it
 
 
 def free_port() -> int:
@@ -42,20 +44,28 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def own_cpu_s() -> float:
+    """CPU seconds of this process and its finished children (the sender)."""
+    me, children = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
+                                                          resource.RUSAGE_CHILDREN))
+    return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
+
+
 def percentile(values: list[float], q: float) -> float:
     ordered = sorted(values)
     return ordered[min(len(ordered) - 1, int(round(q * (len(ordered) - 1))))]
 
 
-def stream_clip(work: Path, frames: int) -> Path:
-    """The benchmark clip as a camera streams it: 20 Mb/s, no B-frames (cached)."""
-    path = work / f"maritime_test_{frames}_stream20M.mp4"
+def stream_clip(work: Path, frames: int, rate: int) -> Path:
+    """The benchmark clip as a camera streams it: 20 Mb/s, no B-frames, ``rate`` frames/s (every
+    frame of the 30 frames/s clip, or every second or third; cached)."""
+    path = work / f"maritime_test_{frames}_stream20M_{rate}fps.mp4"
     if not path.is_file():
         subprocess.run([shutil.which("ffmpeg") or "ffmpeg", "-loglevel", "error", "-y", "-i",
-                        str(make_clip(work, frames)), "-c:v", "libx264", "-preset", "veryfast",
-                        "-tune", "zerolatency", "-b:v", "20M", "-maxrate", "20M", "-bufsize",
-                        "20M", "-bf", "0", "-g", "30", "-pix_fmt", "yuv420p", str(path)],
-                       check=True)
+                        str(make_clip(work, frames)), "-r", str(rate), "-c:v", "libx264",
+                        "-preset", "veryfast", "-tune", "zerolatency", "-b:v", "20M", "-maxrate",
+                        "20M", "-bufsize", "20M", "-bf", "0", "-g", str(rate), "-pix_fmt",
+                        "yuv420p", str(path)], check=True)
     return path
 
 
@@ -101,7 +111,7 @@ def measure(clip: Path, annotations: Path) -> dict:
         raise SystemExit(f"no stream: {opened['error']}")
     source = opened["source"]
     frame_latency, alert_latency, processed, last = [], [], 0, -1
-    busy, own, started = machine_busy_s(), time.process_time(), time.perf_counter()
+    busy, own, started = machine_busy_s(), own_cpu_s(), time.perf_counter()
     lines: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         store = AlertStore(Path(tmp) / "alerts.db")
@@ -114,7 +124,7 @@ def measure(clip: Path, annotations: Path) -> dict:
                     break
                 if frame.image_bgr is None:
                     continue
-                index = round((frame.stream_time_s or 0.0) * source.fps)
+                index = round((frame.stream_time_s or 0.0) * CLIP_FPS)
                 if index <= last:  # a restarted stream: the clip's frame cannot be told
                     continue
                 last = index
@@ -127,19 +137,18 @@ def measure(clip: Path, annotations: Path) -> dict:
                 alert_latency += [done - frame.timestamp_s] * len(alerts)
         finally:
             sender.kill()
-            usage = os.wait4(sender.pid, 0)[2]
-            sender.returncode = -9
+            sender.wait()
             source.close()
             store.close()
     elapsed = time.perf_counter() - started
-    others = (machine_busy_s() - busy - (time.process_time() - own)
-              - usage.ru_utime - usage.ru_stime) / elapsed
+    others = (machine_busy_s() - busy - (own_cpu_s() - own)) / elapsed
     return {"received": source.received, "dropped": source.dropped, "lost": source.lost,
             "processed": processed, "frame_latency": frame_latency,
             "alert_latency": alert_latency, "fps": source.fps, "others": max(0.0, others)}
 
 
 def render(result: dict, clip: Path) -> str:
+    """The Markdown lines of one run."""
     frames, alerts = result["frame_latency"], result["alert_latency"]
 
     def stats(values: list[float]) -> str:
@@ -150,22 +159,14 @@ def render(result: dict, clip: Path) -> str:
                 f"({len(values)})")
 
     return "\n".join([
-        f"Frame-to-alert latency on a live stream, measured {time.strftime('%Y-%m-%d')} with "
-        f"`python tools/stream_latency.py` ({os.cpu_count()} cores; other processes kept "
-        f"{result['others']:.2f} cores busy meanwhile): `{clip.name}` sent by ffmpeg "
-        f"as MPEG-TS over UDP on 127.0.0.1 in real time ({result['fps']:g} frames/s), read by "
-        "the stream source, MITE-Net (ds 2, N 25) and the mission controller with the clip's "
-        "telemetry.",
+        f"**{result['fps']:g} frames/s** (`{clip.name}`; other processes kept "
+        f"{result['others']:.2f} cores busy meanwhile):",
         "",
         f"- frames: {result['received']} received, {result['processed']} processed, "
         f"{result['dropped']} dropped while the detector was busy (the newest frame wins), "
         f"{result['lost']} lost on the way",
         f"- capture to controller result, per processed frame: {stats(frames)}",
         f"- capture of the confirming frame to the alert: {stats(alerts)}",
-        "",
-        "Capture is the frame's stamp: the stream's presentation time on the local clock, "
-        "anchored to the least-delayed arrival; a camera's encoder and the radio link add their "
-        "own delay before that.",
     ])
 
 
@@ -173,13 +174,24 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "sar-bench")
     parser.add_argument("--frames", type=int, default=300)
+    parser.add_argument("--rates", default="10,30",
+                        help="stream frame rates to measure, comma-separated (default: 10,30)")
     parser.add_argument("--out", type=Path, default=DOC)
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    clip = stream_clip(args.work, args.frames)
     annotations = args.work / f"maritime_test_{args.frames}.json"
-    result = measure(clip, annotations)
-    report = render(result, clip)
+    parts = [
+        f"Measured {time.strftime('%Y-%m-%d')} with `python tools/stream_latency.py` "
+        f"({os.cpu_count()} cores): the 4K maritime_test clip re-encoded as a camera streams it "
+        "(H.264, 20 Mb/s, no B-frames) and sent by ffmpeg as MPEG-TS over UDP on 127.0.0.1 in "
+        "real time, read by the stream source, MITE-Net (ds 2, N 25) and the mission "
+        "controller with the clip's telemetry. Capture is the frame's stamp: the stream's "
+        "presentation time on the local clock, anchored to the least-delayed decoded frame; a "
+        "camera's encoder and the radio link add their own delay before that."]
+    for rate in (int(v) for v in args.rates.split(",")):
+        clip = stream_clip(args.work, args.frames, rate)
+        parts += ["", render(measure(clip, annotations), clip)]
+    report = "\n".join(parts)
     write_section(args.out, report, BEGIN_TAG)
     print(report)
     return 0
