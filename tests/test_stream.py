@@ -1,6 +1,7 @@
-"""Live streams over real UDP on 127.0.0.1: ffmpeg sends H.264 in MPEG-TS, the stream source
-decodes it in its own thread and hands out the newest frame; drops, loss and reconnection,
-corrupt datagrams, silence and bad URLs; ``detect`` and ``run`` reading a stream URL."""
+"""Live streams on 127.0.0.1: ffmpeg sends H.264 in MPEG-TS over UDP, or as RTP through a small
+RTSP server; the stream source decodes it in its own thread and hands out the newest frame;
+drops, loss and reconnection, corrupt datagrams, silence and bad URLs; ``detect`` and ``run``
+reading a stream URL."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from conftest import free_udp_port, wait_until
+from rtsp_server import RtspServer
 from stream_sender import CorruptingRelay, UdpStream, needs_ffmpeg
 
 from sarmission.data.frames import FrameSourceError, open_frame_source
@@ -244,3 +246,25 @@ def test_run_takes_a_stream_url_as_its_camera(tmp_path: Path):
             capture_output=True, text=True, timeout=180)
     assert done.returncode == 0, done.stderr
     assert "frames received" in done.stderr  # the stream's summary when the run closes it
+
+
+@needs_ffmpeg
+def test_an_rtsp_camera_is_read_and_reopened_when_its_server_restarts(tmp_path: Path, caplog):
+    caplog.set_level(logging.INFO, logger="sarmission.data.stream")
+    server = RtspServer(tmp_path)
+    port, url = server.port, server.url
+    source = StreamSource(url, connect_timeout_s=30.0, read_timeout_s=1.0)
+    try:
+        frame = source.read()
+        assert frame.image_bgr.shape == (240, 320, 3) and frame.stream_time_s is not None
+        assert server.requests[:4] == ["OPTIONS", "DESCRIBE", "SETUP", "PLAY"]
+        server.close()  # the camera reboots
+        assert wait_until(lambda: "stream lost" in caplog.text, 30.0)
+        server = RtspServer(tmp_path, port=port)
+        back: list = []
+        assert wait_until(lambda: (f := source.read()) is not None and f.image_bgr is not None
+                          and source.reconnects == 1 and not back.append(f), 60.0, 0.0)
+        assert "stream back after" in caplog.text and back[0].index > frame.index
+    finally:
+        source.close()
+        server.close()
