@@ -18,10 +18,13 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-import rerun as rr
+
+if TYPE_CHECKING:
+    import rerun as rr
 
 log = logging.getLogger(__name__)
 
@@ -29,6 +32,13 @@ PROPOSAL_COLOUR = (80, 160, 255)
 DETECTION_COLOUR = (255, 200, 0)
 TRACK_COLOUR = (0, 220, 120)
 LOCKED_COLOUR = (255, 40, 40)
+
+
+def _rerun():  # noqa: ANN202 - the rerun module
+    """rerun, imported on first use: a session that records nothing does not pay its memory."""
+    import rerun
+
+    return rerun
 
 
 class Recorder:
@@ -60,7 +70,7 @@ class Recorder:
         self._stream: rr.RecordingStream | None = None
         if mode == "off":
             return
-        self._stream = rr.RecordingStream(application_id)
+        self._stream = _rerun().RecordingStream(application_id)
         if mode == "save":
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._stream.save(str(self.path))
@@ -92,8 +102,8 @@ class Recorder:
             interpolation=cv2.INTER_AREA)
         ok, jpeg = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
         if ok:
-            self._stream.log("camera/frame",
-                             rr.EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg"))
+            image = _rerun().EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg")
+            self._stream.log("camera/frame", image)
 
     def boxes(self, entity: str, boxes_xyxy: np.ndarray, labels: list[str] | None = None,
               colours: list[tuple[int, int, int]] | tuple[int, int, int] | None = None) -> None:
@@ -101,7 +111,7 @@ class Recorder:
         if self._stream is None:
             return
         b = np.asarray(boxes_xyxy, dtype=np.float32).reshape(-1, 4) * self._scale
-        self._stream.log(f"camera/{entity}", rr.Boxes2D(
+        self._stream.log(f"camera/{entity}", _rerun().Boxes2D(
             mins=b[:, :2], sizes=b[:, 2:] - b[:, :2], labels=labels, colors=colours,
             show_labels=labels is not None))
 
@@ -109,7 +119,7 @@ class Recorder:
         """Log one time-series value under ``telemetry/<name>`` (skipped when None)."""
         if self._stream is None or value is None or not np.isfinite(value):
             return
-        self._stream.log(f"telemetry/{name}", rr.Scalars(float(value)))
+        self._stream.log(f"telemetry/{name}", _rerun().Scalars(float(value)))
 
     def geo_points(self, entity: str, lat_lon: np.ndarray, radius_m: float = 5.0,
                    colour: tuple[int, int, int] = LOCKED_COLOUR) -> None:
@@ -117,14 +127,14 @@ class Recorder:
         if self._stream is None:
             return
         points = np.asarray(lat_lon, dtype=np.float64).reshape(-1, 2)
-        self._stream.log(f"map/{entity}", rr.GeoPoints(
+        self._stream.log(f"map/{entity}", _rerun().GeoPoints(
             lat_lon=points, radii=np.full(len(points), radius_m, np.float32), colors=[colour]))
 
     def text(self, entity: str, message: str, level: str = "INFO") -> None:
         """Log a line of text (alerts, skipped frames) under ``log/<entity>``."""
         if self._stream is None:
             return
-        self._stream.log(f"log/{entity}", rr.TextLog(message, level=level))
+        self._stream.log(f"log/{entity}", _rerun().TextLog(message, level=level))
 
     def close(self) -> None:
         """Flush and close the recording (the ``.rrd`` file is complete after this)."""
