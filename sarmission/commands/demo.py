@@ -66,8 +66,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "meanwhile), loiter, mission (default: alert)")
     add_detector_options(parser)
     # Motion proposals only by default: in this narrow 960x540 view the colour proposals find
-    # a few more people but raise far more false alerts (two 43 s flights, alert action: 11 of
-    # 17 people found with 54 false alerts each, vs 8-10 with 6-9); --colour-share 0.4 shows it.
+    # a few more people but raise far more false alerts (docs/experiments.md).
     parser.set_defaults(func=run, colour_share=DEMO_COLOUR_SHARE)
 
 

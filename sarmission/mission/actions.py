@@ -14,11 +14,8 @@ The mission file's ``[actions] policy`` lists, in order, what to do for each new
   for :data:`ROI_SETTLE_S` after the release, the search pauses (:meth:`ActionPolicy.
   search_paused`): the camera does not look at the survey strip, and off nadir the motion
   front-end sees the waves move. Without a gimbal the ROI only turns the vehicle (the fixed
-  camera keeps its view), so the search goes on. Measured with
-  ``sarmission demo --actions alert,roi`` (43 s, 17 people in view): without the pause every
-  false alert re-pointed the camera (89-91 false alerts, the camera never released); with it
-  1-2 false alerts per run, but the camera spent up to 3 x 12 s on targets and 1-3 people were
-  found (alert only: 8-10 of 17 found, 6-9 false alerts). A dense scene costs coverage;
+  camera keeps its view), so the search goes on. Without the pause every false alert
+  re-pointed the camera; with it a dense scene costs coverage (docs/experiments.md);
 - ``mission``: the pilot's mission is kept: downloaded, the visit plan's targets inserted as
   NAV_LOITER_TIME items (``visit_loiter_s``) before the item the vehicle flies to, uploaded
   whole, and the first visit made current; after the visits the survey resumes where it was.

@@ -20,20 +20,12 @@ are mostly foam and glint. Pixel ``(i, j)`` of the map stands for the frame bloc
 ``i*8 .. i*8+7, j*8 .. j*8+7``, like a vSTMD map at ds 8 (the last ``H % 8`` rows and ``W % 8``
 columns are ignored); ``m`` and ``V`` are per block, but the windows lie on a 4-px grid (the
 block itself and the windows 4 px up, left, or both, from 4 x 4 block means), so a target that a
-block edge cuts in two still fills one window. With blocks alone, a 25 x 6 px swimmer scored 20-36
-while straddling a block edge and 56-65 inside one row of blocks (colour proposals on that frame
-began at 40-49), and went unproposed for four frames. Reading a 4K frame (25 MB) costs more than
-the rest of the map, so the first halving is the frame's
-:func:`~sarmission.perception.pyramid.half_resolution`, which
-:class:`~sarmission.perception.mitenet.MiteNet` computes once for vSTMD and this map (the map
-alone then costs about 2.7 ms per 4K frame on two cores, 1.6 ms with the aligned blocks alone).
+block edge cuts in two still fills one window.
 
-Measured with the blocks alone on the simulator's maritime_test split (4K, 2 x 150 frames, 2,155
-GT boxes sampled every third frame; "reached" = a point within half the box's longer side plus
-4 px of its centre): the top 15 vSTMD maxima at ds 2 reach 44 % of the swimmers, the 10 strongest
-local maxima of ``A`` (3 x 3 window) 42 %, their union 67 % (boxes of 24 px and more: 78 %). The
-same at 1/4 resolution (w = 31, a 1.5-px Gaussian on ``A``) reaches 67.5 % for three times the
-cost.
+Reading a 4K frame (25 MB) costs more than the rest of the map, so the first halving is the
+frame's :func:`~sarmission.perception.pyramid.half_resolution`, which
+:class:`~sarmission.perception.mitenet.MiteNet` computes once for vSTMD and this map. What the
+map reaches and costs: docs/experiments.md.
 """
 
 from __future__ import annotations

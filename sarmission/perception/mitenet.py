@@ -82,8 +82,8 @@ def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "
 def nms_xyxy(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.ndarray:
     """Greedy IoU non-maximum suppression; indices of the kept boxes, best score first.
 
-    The pairwise IoU matrix is computed once; the greedy pass then only reads its rows (a
-    per-box loop of array operations cost about 0.8 ms for 25 boxes).
+    The pairwise IoU matrix is computed once; the greedy pass then only reads its rows (cheaper
+    than a per-box loop of array operations).
     """
     order = np.argsort(-scores, kind="stable")
     area = np.maximum(boxes[:, 2] - boxes[:, 0], 0) * np.maximum(boxes[:, 3] - boxes[:, 1], 0)
@@ -130,15 +130,7 @@ class MiteNet:
             crops per frame; ``(1.0,)`` is the paper's single crop.
         refine_threshold: first-crop score from which a proposal is cropped at the further
             scales; None = ``score_threshold`` (only would-be detections are refined), 0 = every
-            proposal. Measured on maritime_test (ds 2, N 25, 2 x 150 frames of 4K, shipped
-            head), single crop -> scales (1, 2): SSR 93.0 -> 97.7 % (40 -> 42 of 43
-            trajectories; the one never locked is annotated in a single frame), FAR 32.2 ->
-            22.6 % per detection, 3.5 -> 2.5 false detections per frame, head R@0.5 0.56 ->
-            0.66; refining every proposal (``refine_threshold=0``): the same 42 of 43 at FAR
-            25.9 %; urban_test (a head that never saw a city) 68.2 -> 40.9 % (with an earlier
-            head the wide crop won on 60 % of the refined urban proposals and boxed pedestrians
-            of 8-16 px wider than 16 px). Without the size condition (measured with an earlier
-            head): FAR 25.3 % instead of 20.0 % (every proposal: 33.2 %), R@0.5 0.60, same SSR.
+            proposal. What each setting was measured to do: docs/experiments.md.
     """
 
     def __init__(self, head_runtime: HeadRuntime, ds: int = 2, topn: int = 25,
@@ -257,8 +249,7 @@ class MiteNet:
                 break
             wide = scaled_boxes(proposals.boxes[refine], scale)
             # One bilinear sample per bin, as for the first crop: averaging 2 x 2 samples per bin
-            # (RoIAlign's adaptive ratio at 2 S) costs more and changed nothing measurable
-            # (maritime_test SSR 93.0 % both, FAR 19.6 % with it, 18.9 % without).
+            # (RoIAlign's adaptive ratio at 2 S) costs more and changed nothing measurable.
             wide_scores, wide_ids, wide_ltrb = self._classify(motion_enhanced_crops(
                 frame, motion, wide, proposals.polarity[refine], sampling_ratio=1))
             seen = ltrb_to_boxes(wide_ltrb, wide, self.head.config.crop_size)

@@ -12,33 +12,6 @@
        Delta = shift_ratio * S,   cx = x + Delta * cos(theta),   cy = y - Delta * sin(theta)
        box   = [cx - S/2, cy - S/2, cx + S/2, cy + S/2]          (S = box_size, full-res px)
 
-**Measured on the simulator's maritime scenes** (4K, ds 2, N 25, T 16, ego-motion estimated;
-module recall R@0.1 / R@0.5 with NWD, C = 12.8; maritime_val 120 frames / 980 GT, maritime_test
-40 frames). The RPN's post-processing is not what limits recall there; what does is the ranking
-of ``R`` itself: about half of the swimmers have ``R = 0`` (their correlation blob is a few map
-pixels wide and does not outweigh the dense wave and foam correlation under the lobula's
-surround, whose negative integral is about 8 times the positive one), and foam streaks outrank
-most of the others::
-
-                                          maritime_val      maritime_test
-    default (nms 3, shift 0.3 S)          0.234  0.133      0.556  0.198
-    nms window 5 / 7 / 9 / 11             0.234  0.133      0.556  0.198  (nms 7)
-    no proposal within 4 map px of edge   0.237  0.134      0.554  0.193
-    lobula BORDER_REPLICATE               0.231  0.132      0.549  0.198
-    lobula BORDER_REFLECT_101             0.228  0.131      0.549  0.195
-    R / (G(s2) * C + mean C)              0.194  0.116
-    shift 0 / 0.15 S / 0.5 S              0.235  0.097      0.556  0.244
-                                          0.236  0.121      0.556  0.228
-                                          0.232  0.119      0.556  0.147
-
-``R`` is smooth at the DoG scale, so its maxima are already further apart than the 3x3 window
-and a window scaled with T / ds changes nothing. Pixels outside the map count as zero in the
-lobula, but the resulting edge bias is mild (1.6 % of the proposals lie within 2 map px of the
-edge, which covers 0.6 % of the map) and neither a proposal margin nor a replicated or reflected
-border changes recall beyond a few GT boxes. A divisive normalisation by the local correlation
-level loses recall. The forward shift helps R@0.5 on one split and hurts it on the other, so
-the paper's 0.3 S stays the default (``shift_ratio``).
-
 **Colour proposals.** Given a chromatic anomaly map (:mod:`~sarmission.perception.chroma`), a
 share of the N proposals (``colour_share``, default 0.4: 10 of 25) goes to its strongest local
 maxima (``colour_nms`` window, 1/8-resolution map pixels) that lie at least ``colour_spacing``
@@ -46,11 +19,7 @@ full-resolution pixels from every motion proposal kept; they are boxes of side S
 maximum (no forward shift), with theta and polarity read from the motion maps at that point. The
 motion maxima fill the list first up to ``N - round(colour_share * N)`` and take back any colour
 slot left empty, so a frame without colour anomalies still gets N motion proposals.
-Measured with ``python tools/results.py --frames 150 --sequences 2`` (ds 2, N 25, the shipped
-head, trained with colour proposals, default crop scales), motion only -> motion + colour:
-maritime_test SSR 81.4 -> 97.7 % (35 -> 42 of 43 trajectories), average search time 20.8 -> 4.9
-frames, RPN R@0.1 0.57 -> 0.86, FAR 24.0 -> 22.6 % per detection (1.6 -> 2.5 false detections
-per frame); urban_test SSR 27.3 -> 40.9 %, FAR 96.5 -> 95.9 % per detection.
+What the colour proposals and the RPN's variants were measured to do: docs/experiments.md.
 """
 
 from __future__ import annotations

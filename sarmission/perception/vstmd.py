@@ -1,171 +1,17 @@
 """vSTMD: the learning-free small-target motion front-end of MITE-Net (streaming, one video).
 
-Per frame ``I_t`` (grayscale in [0, 1]) the model runs, with state carried between frames:
+Per frame it turns a grayscale image into 1/ds motion maps: retina blur, lamina (fractional
+temporal difference), medulla (ON/OFF cross-inhibition potentials), their correlation ``C`` and
+the lobula's size-selective centre-surround response ``R`` (:class:`MotionMaps`), which the
+TTM-RPN proposes from. The camera's own motion is compensated first, so only what moves
+against the background responds. Everything before the 1/ds map is linear, so the only
+full-resolution work is one OpenCV pass per frame; the rest is one fused numba loop plus
+separable lobula filters. The equations, geometry and approximations are in docs/vstmd.md, the
+measurements behind the constants in docs/experiments.md.
 
-1. Retina: ``P_t = G_{sigma=1} * I_t`` (3x3 Gaussian).
-2. Lamina (fractional-order temporal difference, ``alpha = 0.25``, width 20)::
-
-       D_t = P_t - P_{t-1}                       (0 on the first frame)
-       L_t = a0 * D_t + exp(-alpha / (1 - alpha)) * L_{t-1}
-       a0  = 1 / sum_{j=0}^{19} exp(-alpha * j / (1 - alpha))
-
-   Power-saving mode average-pools ``L`` by ``ds`` (kernel = stride = ds); all later stages run
-   on the 1/ds map. ``ON = max(L, 0)``, ``OFF = max(-L, 0)``.
-3. Medulla, cross-inhibition dynamic potential (cIDP)::
-
-       V_on  += exp(OFF) * g_leak * (v_rest - V_on)  + ON  * (v_exc - V_on)
-       V_off += exp(ON)  * g_leak * (v_rest - V_off) + OFF * (v_exc - V_off)
-
-4. Lobula: ``C = V_on * V_off`` and ``R = max(W * C, 0)`` with the centre-surround kernel::
-
-       W = A * [G(s1) - e * G(s2) - rho]^+  -  B * [G(s1) - e * G(s2) - rho]^-
-
-   evaluated one octave below the map, at 1/ds_L with ``ds_L = 2 ds`` clamped to
-   ``lobula_ds_range`` (4 to 8 by default: ds 1 and 2 -> 1/4, ds 4 and 8 -> 1/8 for T = 16)
-   and halved while the centre sigma there would be under ``lobula_min_sigma`` pixels (see
-   "Lobula resolution" below), and returned on the 1/ds map.
-
-5. Direction (CDGC, evaluated only at requested points, :func:`direction_at`).
-
-**Linear shortcut.** Grayscale conversion, the retina blur, the temporal difference, the lamina
-recursion and average pooling are all linear and commute, so with ``P'_t = pool(blur(gray(I_t)))``
-``pool(L_t) = a0 * (P'_t - P'_{t-1}) + decay * pool(L_{t-1})``.
-The only full-resolution work per frame is therefore one pass that produces ``P'_t`` at 1/ds
-(OpenCV, all uint8): at ds 1 ``cvtColor`` → 3x3 ``GaussianBlur`` (sigma ``retina_sigma``); at
-ds >= 2 the BGR frame is halved first (:func:`~sarmission.perception.pyramid.half_resolution`,
-shared with the chromatic anomaly map), then ``cvtColor`` → 3x3 ``GaussianBlur`` with half the
-sigma → further 2x ``INTER_AREA`` halvings. Blurring after the first halving instead of before
-is the one approximation (the retina's 1-px sigma at full resolution is half a pixel there);
-it halves the full-resolution work, and on the simulator's maritime_test (ds 2, N 25, 2 x 150
-4K frames, with the chroma map pooled from the same half frame) SSR stays 93.0 % (40/43), FAR
-20.0 -> 19.6 % per detection, RPN R@0.1 0.843 -> 0.839, while vSTMD + colour took 24.8 -> 20.0
-ms per frame side by side. Everything after runs on the 1/ds map in one fused numba loop plus
-the lobula filters. For uint8 input the intermediate images are rounded to uint8 (at most about
-one grey level, 1/255); the rounding is deterministic, so a static scene still gives exactly
-zero temporal change.
-
-**Geometry.** The map has ``h = H // ds`` rows and ``w = W // ds`` columns; the last ``H % ds``
-rows and ``W % ds`` columns of the frame are ignored. Map pixel ``(i, j)`` averages the frame block
-rows ``i*ds .. i*ds+ds-1``, columns ``j*ds .. j*ds+ds-1``; its centre in full-resolution pixel
-coordinates is ``x = (j + 0.5) * ds - 0.5``, ``y = (i + 0.5) * ds - 0.5`` (:func:`map_to_full`).
-
-**Surround strength: e = 1.5, not the reference 3.** The reference kernel (A = 1, B = 3, e = 3,
-s2 = 2 s1) is strongly inhibitory: its positive lobe reaches only 0.88 s1 with a peak a quarter of
-``G(s1)(0)`` and its integral is about -6, so ``W * C`` stays positive only where the centre's
-correlation exceeds its surround's roughly 90-fold. That suits a still, plain background; over a
-moving textured sea (waves moving across the compensated camera motion, foam, glint) the residual
-correlation is dense and the reference kernel rectifies nearly everything to zero, swimmers
-included. Measured with the TTM-RPN (top 25) on the simulator's maritime scenes (drone at 90 m,
-10 m/s, 4K, swimmers 6-38 px, ego-motion compensation on; recall = GT swimmers with a proposal box
-centre within ``max(w, h) / 2 + 8`` px; "false" = proposals near no annotated object)::
-
-                        maritime_val (55 frames, 252 GT)    maritime_test (35 frames, 380 GT)
-                        ds 2              ds 4              ds 2              ds 4
-    e 3    B 3 T 6.25   0.00    0/2       0.00    2/5       0.00    1/11      0.00   14/18
-    e 3    B 3 T 16     0.00   10/20      0.00   11/22      0.09   14/73      0.09   20/120
-    e 3    B 1 T 16     0.07   20/62      0.14   91/153     0.14   25/184     0.23   53/257
-    e 2    B 3 T 16     0.19  448/555     0.23 1262/1375    0.40  196/508     0.40  387/709
-    e 2    B 1 T 16     0.26 1242/1375    0.23 1264/1375    0.62  458/875     0.53  505/875
-    e 1.5  B 3 T 16     0.25 1238/1375    0.23 1264/1375    0.60  462/869     0.54  496/875
-    e 1.5  B 3 T 24     0.27 1248/1375    0.23 1269/1375    0.61  424/840     0.52  488/866
-    e 1.5  B 3 T 8      0.13 1252/1375    0.13 1277/1375    0.51  539/875     0.45  531/875
-    e 1.5  B 1 T 16     0.25 1247/1375    0.23 1271/1375    0.60  471/875     0.51  519/875
-    e 1.25 B 3 T 16     0.26 1243/1375    0.23 1266/1375    0.61  467/875     0.53  503/875
-    e 1    B 3 T 16     0.25 1247/1375    0.22 1269/1375    0.60  471/875     0.51  514/875
-
-(recall, then false proposals / all proposals over the frames, 25 per frame at most; frames after
-a 5-frame warm-up; the lobula parameters were chosen on maritime_val). The reference kernel
-proposes almost nothing: R > 0 on about 1e-6 of the map although ``C`` singles the swimmers out
-(1e-4 to 6e-3 on them against a 99.9th percentile of 1e-4). Recall saturates for e <= 1.5 (B = 1
-or 3 alike) and e = 2 with B = 3 loses a quarter of it at ds 2; the many proposals that match no
-annotation (wave and foam motion) are left to the head to reject. ``e = 1.5`` with the reference
-``A = 1, B = 3`` is the default (:class:`VSTMDParams`); ``dog_e = 3`` restores the reference.
-With e = 1.5 the positive lobe reaches 1.62 s1, its peak is 0.625 ``G(s1)(0)`` and the kernel's
-integral is about -2.1.
-
-**Size selectivity (paper Appendix A).** The DoG sigmas follow the configured target size ``T``
-(full-resolution pixels) and the pooling factor through the radius of the excitatory lobe, where
-``G(s1) = e G(s2)`` (:func:`lobe_radius`; ``rho = 0``, ``k = s2 / s1``)::
-
-    r = s1 * sqrt(2 k^2 ln(k^2 / e) / (k^2 - 1))          (k = 2: s1 * sqrt(8/3 ln(4 / e)))
-
-The rule keeps the lobe radius of the reference kernel (s1 = 5, s2 = 10 px, e = 3, which prefers
-``T_ref = 6.25`` px on synthetic squares moving a quarter of their size per frame) per target
-size, ``kappa = r_ref / T_ref = 0.70``, for any e::
-
-    s1 = max(kappa * T / ds / lobe_radius(1, k, e), s_min),   s2 = k * s1      (map pixels)
-
-so the lobe covers the correlation blob a target of size ``T`` leaves in ``C`` whatever the
-surround strength; for ``e = e_ref`` it is the reference rule ``s1 = 5 * T / 6.25 / ds``. With e =
-1.5 the response-vs-size curves still peak at ``T`` to ``1.4 T`` for ds 1, 2 and 4 (T 8 and 16).
-The default ``T = 16`` px suits swimmers seen from 60-120 m (boxes 6-38 px): on maritime_val
-T = 16 and 24 give the same recall within 1-2 points at ds 2 and 4, T = 12 slightly less, and
-T = 6.25 or 8 lose half of it (0.05 and 0.13 at ds 2).
-
-**Lobula filtering, exactly and separably.** With ``D = G(s1) - e * G(s2) - rho`` and
-``D^- = D^+ - D``, the kernel is ``W = (A - B) * D^+ + B * (G(s1) - e * G(s2) - rho)``. ``D^+`` is
-a compact bump of radius ``lobe_radius`` (a small direct ``filter2D``, about ``0.7 T / ds`` px
-whatever e); the Gaussians are separable (``sepFilter2D``) and ``rho`` is a box filter over the
-kernel support. This equals ``W * C`` with the dense 2-D kernel (:meth:`VSTMD.dog_kernel`) and is
-several times faster than a dense ``filter2D`` (which switches to a DFT) at these sizes. Each
-Gaussian is truncated at ``truncate`` sigmas and normalised to unit sum; pixels outside the map
-count as zero. For a given T a weaker surround makes the sigmas smaller (the lobe is a larger
-multiple of s1), so the filters get cheaper: at 4K, ds 2, T 16 the lobula takes about 35 ms per
-frame with e = 1.5 against 64 ms with e = 3 (19 ms for the old default e = 3, T = 6.25).
-
-**Lobula resolution.** The lobula's kernels are several map pixels wide at ds 1 and 2 (T = 16,
-ds 2: s1 = 3.5, s2 = 6.9 map px, 23- and 43-tap Gaussians and an 11 x 11 bump), and its response
-is smooth at that scale, so it need not be computed on every map pixel. For ``ds < ds_L`` the
-model area-pools ``C`` by ``f = ds_L / ds`` (exact 2x halvings), filters it
-with the kernels sized for ``ds * f`` (the same size rule, so the same preferred target size)
-and resizes the rectified response back to the 1/ds map bilinearly (pixel-centre aligned; the
-last ``h % f`` rows and ``w % f`` columns, which no pooled pixel covers, get ``R = 0``). The
-lamina, medulla and ``C`` stay at 1/ds, and so do the RPN's maxima, direction and polarity.
-Measured at ds 2 (4K, T 16, maritime_test 2 x 150 frames and maritime_val 2 x 60, full MITE-Net
-with colour proposals, N 25): SSR 93.0 % and 70 % with and without pooling alike, RPN R@0.1
-0.843 vs 0.849 and 0.616 vs 0.616, detection-level FAR 45.2 vs 45.4 % and 55.7 vs 55.8 %, while
-the lobula's cost drops from about 15 ms to 4 ms per frame on two cores. At ds 4 (lobula at 1/8
-instead of on the map, same splits, the head trained with the pooled lobula): SSR 90.7 and 70 %
-alike, RPN R@0.1 0.825 vs 0.826 and 0.552 vs 0.559, FAR 32.7 vs 33.2 % and 28.7 vs 31.4 %,
-lobula 2.6 -> 0.65 ms. A kernel must stay resolved, though: at ds 4, T = 8 the centre sigma at
-1/8 would be 0.43 px (clamped to ``min_sigma``) and the preferred size drifts to 16 px, so the
-pooling stops where ``s1`` falls below ``lobula_min_sigma`` (0.8 px; T = 16 at 1/8 has 0.87).
-``lobula_ds_range = (1, 1)`` restores the lobula at the map's own resolution.
-
-**Ego-motion compensation.** On a moving camera the whole scene translates by ``s_t``
-(content at ``x`` in frame t-1 is at ``x + s_t`` in frame t). The correlation only answers to
-motion below about a third of the target size per frame, so the state is first carried into the
-current frame's coordinates and the model sees only motion relative to the background::
-
-    P~_{t-1}(x) = P'_{t-1}(x - s)                      (Catmull-Rom cubic, sub-pixel)
-    L~_{t-1}(x), V~_on(x), V~_off(x) at x - s          (bilinear)
-    L_t = a0 * (P'_t - P~_{t-1}) + decay * L~_{t-1},   cIDP on V~_on, V~_off
-
-with ``s = s_full / ds`` in map pixels. Where ``x - s`` falls outside the map (the strip of new
-content at the leading border) ``P~ = P'_t`` (no temporal change), ``L~ = V~ = 0``. The shift is
-fused into the lamina/medulla loop as index offsets, so it costs no copies. ``P~`` needs the
-sharper cubic: bilinear resampling low-passes ``P'_{t-1}`` but not ``P'_t``, and on fine texture
-the mismatch is a dense temporal change whose correlation the lobula surround turns against the
-target. ``L`` and ``V`` must be resampled too (rounding them to whole map pixels misplaces the
-ON/OFF trail by up to half a pixel each frame and cuts the target's correlation several-fold);
-bilinear suffices there because they decay within a few frames.
-
-The shift is either supplied (telemetry) or estimated from ``P'`` (:class:`ShiftEstimator`):
-area-downsample ``P'`` to at most ``480 x 270`` (image ``E``), take the dominant translation by
-phase correlation one octave coarser, refine it to sub-pixel accuracy by robust (Huber-weighted)
-Gauss-Newton on ``E`` and accept it only if it explains most of the frame-to-frame change::
-
-    e(s) = mean_x |E_t(x) - E_{t-1}(x - s)|
-    accept  iff  e(0) - e(s) > min_gain,  e(s) < max_ratio * e(0)
-                 and  share_x(|E_t - E_{t-1}| > change_level) >= min_changed,   else s = 0
-
-A static camera with moving targets thus gets exactly ``s = 0`` (and the same maps as without
-compensation); a textureless background, whose only change is a small target, is not
-"compensated" onto the target.
-
-**Buffers.** The arrays of a returned :class:`MotionMaps` belong to the model and alternate between
-two sets: they stay valid through the next :meth:`VSTMD.step` and are overwritten by the one after.
-Copy them to keep them longer.
+Map pixel ``(i, j)`` averages frame rows ``i*ds .. i*ds+ds-1`` and columns ``j*ds .. j*ds+ds-1``
+(:func:`map_to_full`). The arrays of a returned :class:`MotionMaps` belong to the model: they
+stay valid through the next :meth:`VSTMD.step` and are overwritten by the one after.
 """
 
 from __future__ import annotations
@@ -187,7 +33,8 @@ EGO_MOTION_MODES = ("estimate", "none")
 @dataclass(frozen=True)
 class VSTMDParams:
     """vSTMD constants: the vSTMD paper's and its public implementation's, except the lobula's
-    surround strength ``dog_e`` (1.5 instead of 3, see the module docstring)."""
+    surround strength ``dog_e`` (1.5 instead of 3: the reference suppresses swimmers on a
+    textured sea, docs/experiments.md)."""
 
     retina_size: int = 3
     retina_sigma: float = 1.0
@@ -198,7 +45,7 @@ class VSTMDParams:
     v_exc: float = 1.0
     #: Lobula kernel ``W = A [D]^+ - B [D]^-``, ``D = G(s1) - e G(s2) - rho``. ``dog_e`` is the
     #: surround strength; it must stay below ``(s2/s1)^2`` for the kernel to have an excitatory
-    #: centre. The default e departs from the reference e = 3 (see the module docstring).
+    #: centre. The default e departs from the reference e = 3 (docs/experiments.md).
     dog_a: float = 1.0
     dog_b: float = 3.0
     dog_e: float = 1.5
@@ -630,7 +477,7 @@ class ShiftEstimator:
 
 
 class VSTMD:
-    """Streaming vSTMD for one video (see the module docstring for the maths and geometry).
+    """Streaming vSTMD for one video (maths and geometry: docs/vstmd.md).
 
     Args:
         ds: average-pooling factor of the motion maps, one of 1, 2, 4, 8.
@@ -674,7 +521,8 @@ class VSTMD:
     # ------------------------------------------------------------------ kernels
     @classmethod
     def lobula_pooling(cls, ds: int, target_size: float, params: VSTMDParams) -> int:
-        """Factor ``f`` by which the lobula pools the 1/ds correlation map (module docstring):
+        """Factor ``f`` by which the lobula pools the 1/ds correlation map (docs/vstmd.md,
+        "Lobula resolution"):
         ``ds_L = clamp(2 ds, *lobula_ds_range)``, halved while the centre sigma at 1/ds_L is
         below ``lobula_min_sigma``; ``f = max(ds_L / ds, 1)``."""
         low, high = params.lobula_ds_range
@@ -769,7 +617,7 @@ class VSTMD:
 
     def _pooled(self, frame: np.ndarray, h: int, w: int,
                 half: np.ndarray | None) -> tuple[np.ndarray, np.float32]:
-        """``P'`` at 1/ds and the scale to [0, 1] (module docstring, "Linear shortcut")."""
+        """``P'`` at 1/ds and the scale to [0, 1] (docs/vstmd.md, "Linear shortcut")."""
         ds = self.ds
         k = self.params.retina_size
         if ds == 1:
@@ -864,7 +712,7 @@ class VSTMD:
         return (0.0, 0.0) if self._first else moved
 
     def _lobula(self, corr: np.ndarray, out: np.ndarray) -> None:
-        """``out = max(W * corr, 0)``, at the lobula's resolution (module docstring)."""
+        """``out = max(W * corr, 0)``, at the lobula's resolution (docs/vstmd.md)."""
         f = self.lobula_pool
         if f == 1:
             self._lobula_filter(corr, out)

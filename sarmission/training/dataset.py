@@ -18,10 +18,7 @@ frames before it responds) the frame yields:
   RPN's peak sits on the trailing edge, where a bright target leaves ``L < 0``), or at the GT centre
   when ``R`` is zero there. The default shift, half a side (±8 px for 16-px boxes), spans the
   offsets of the RPN's own boxes on targets (its peak on the trailing edge, the 0.3 S forward
-  shift); with a quarter side the head learned centred targets only and scored the offset ones
-  it meets at inference low (measured on the simulator's maritime splits while the recipe was
-  being settled, ds 2, N 25: share of target boxes detected with score > 0.5 and NWD > 0.5 per
-  frame, maritime_val 0.157 -> 0.188, maritime_test 0.335 -> 0.396).
+  shift); with a quarter side the head learned centred targets only (docs/experiments.md).
 
 Targets: annotations of the categories that map to a head class
 (:func:`sarmission.evaluation.report.target_category_map`: normalised name equal to a class or an
@@ -71,8 +68,7 @@ log = logging.getLogger(__name__)
 #: Version of the cache file's layout. The proposals and crops themselves are keyed by the source
 #: of the modules that make them (:data:`RECIPE_MODULES`), so that a cache cut by older code is
 #: never mistaken for the current recipe (a hand-bumped version once missed a change of the
-#: chroma map, and a head trained on the stale crops locked 40 instead of 41 of maritime_test's
-#: 43 trajectories).
+#: chroma map; docs/experiments.md).
 CACHE_VERSION = 2
 CACHE_FORMAT = "sarmission.crop_cache"
 

@@ -16,13 +16,9 @@ With ``ema_decay > 0`` a copy of the head follows the trained weights as an expo
 average, updated after every optimiser step ``i`` (0-based) with the decay
 ``min(ema_decay, (1 + i) / (10 + i))`` (short runs still move it); BatchNorm running statistics
 are averaged the same way. That copy, not the raw weights, is validated and written as the
-checkpoint. It is off by default. With the default model's recipe (``tools/train_default_model.py``)
-the raw head's validation F2 jumps by up to 0.09 from one epoch to the next (0.48-0.61 over
-epochs 8-30, best 0.614 at epoch 18), the averaged one (decay 0.999) moves smoothly (0.55-0.60,
-best 0.596 at epoch 15); on maritime_test (ds 2, N 25) both lock 42 of 43 trajectories, but the
-averaged head does worse on everything else: FAR 26.4 vs 22.6 % per detection, search time
-7.4 / 134 vs 4.9 / 44 frames (average / max), AP 0.235 vs 0.255. So the default model keeps the
-raw weights; the average is there for recipes whose validation F2 is too noisy to pick from.
+checkpoint. It is off by default: with the default model's recipe the averaged head validates
+more smoothly but finds no more and raises more false alarms (docs/experiments.md); it is there
+for recipes whose validation F2 is too noisy to pick from.
 
 Validation (after every epoch): the head runs on the validation crops (the real RPN proposals of
 every validation frame after the warm-up, whatever ``frame_stride`` the training crops use: a
@@ -41,9 +37,7 @@ simulator's maritime split). The checkpoint with the best validation F2 among th
 ``<out stem>.last.pt`` for ``resume``.
 
 ``select_from`` exists because the first epochs, still at the peak rate, can score a lucky F2
-on a small validation set: training the default head with colour proposals, epoch 1 had the best
-F2 of 30 (0.511, the others 0.38-0.48) yet locked 36 of maritime_test's 43 trajectories at
-42.1 % FAR per detection, where epoch 30 locked 39 at 30.9 %.
+on a small validation set and pick a head that does worse on the search (docs/experiments.md).
 """
 
 from __future__ import annotations
