@@ -39,8 +39,6 @@ delay the newest order.
 from __future__ import annotations
 
 import logging
-import math
-import threading
 import time
 from collections.abc import Callable
 from typing import NamedTuple
@@ -50,6 +48,7 @@ from sarmission.alerts.store import AlertStore
 from sarmission.mavlink.commands import Action, CommandResult, Outbox
 from sarmission.mavlink.connection import M
 from sarmission.mavlink.mission_transfer import loiter_item
+from sarmission.mission.camera_hold import ROI_SETTLE_S, CameraHold
 from sarmission.mission.config import ActionsConfig
 from sarmission.mission.visits import MoveGate, VisitPlanner
 
@@ -66,9 +65,7 @@ _POSITIONAL = ("loiter", "roi", "mission")
 _VISITS = ("loiter", "mission")
 #: Outbox key channel of the camera release (not an alert delivery: nothing is stored).
 ROI_RELEASE = "roi_release"
-#: Seconds after the release is delivered until the camera is back on the survey view (the
-#: gimbal slews for about a second).
-ROI_SETTLE_S = 2.0
+__all__ = ["CHANNELS", "ROI_RELEASE", "ROI_SETTLE_S", "ActionPolicy", "ascii_statustext"]
 
 
 class _Key(NamedTuple):
@@ -127,9 +124,7 @@ class ActionPolicy:
         self.acknowledged = 0
         self.refused = 0
         self.sent = 0
-        self._release_lock = threading.Lock()
-        self._release_at: float | None = None  # when the camera goes back to the survey view
-        self._paused_until: float | None = None  # the search pauses while the camera is away
+        self.camera = CameraHold(config.roi_hold_s, ROI_SETTLE_S, clock)
         outbox.on_delivered = self._on_delivered
         outbox.on_refused = self._on_refused
         outbox.on_sent = self._on_sent
@@ -181,8 +176,7 @@ class ActionPolicy:
         :data:`ROI_SETTLE_S` after its release), so that its frames should not be searched. A
         release waiting for a lost link keeps the pause (the autopilot still points the camera
         at the target); a refused release ends it (where the camera looks is then unknown)."""
-        with self._release_lock:
-            return self._paused_until is not None and self.clock() < self._paused_until
+        return self.camera.search_paused()
 
     def tick(self) -> bool:
         """Call once per frame: sends the next visit when the plan allows one, and releases
@@ -190,15 +184,13 @@ class ActionPolicy:
         unless another ROI is still on its way (its delivery restarts the hold). Returns
         whether a release was queued."""
         self._dispatch_visits()
-        with self._release_lock:
-            due = self._release_at
-            if due is None or self.clock() < due:
-                return False
-            if any(a.kind == "set_roi" for a in self.outbox.pending()):
-                return False
-            self._release_at = None
+        if not self.camera.release_due(self._roi_on_its_way):
+            return False
         self.outbox.submit("clear_roi", key=_Key("", ROI_RELEASE, 0))
         return True
+
+    def _roi_on_its_way(self) -> bool:
+        return any(a.kind == "set_roi" for a in self.outbox.pending())
 
     def _submit(self, entry: str, alert: Alert, repeats: int | None = None) -> bool:
         key = _Key(alert.alert_id, CHANNELS[entry], alert.target_id, alert.short_id)
@@ -265,15 +257,12 @@ class ActionPolicy:
     def _on_delivered(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
         if key.channel == ROI_RELEASE:
-            with self._release_lock:
-                self._paused_until = self.clock() + ROI_SETTLE_S
+            self.camera.release_delivered()
             self.console("  -> camera back to the survey view (DO_SET_ROI_NONE)")
             return
         if key.channel == CHANNELS["roi"]:
             gimbal = self.gimbal_present()
-            with self._release_lock:
-                self._release_at = self.clock() + self.roi_hold_s
-                self._paused_until = math.inf if gimbal else None
+            self.camera.roi_delivered(gimbal)
             if not gimbal:
                 log.info("ROI without a gimbal reporting: it turns the vehicle, the fixed "
                          "camera keeps its view, the search goes on")
@@ -287,8 +276,7 @@ class ActionPolicy:
         key = _key(action)
         self.refused += 1
         if key.channel == ROI_RELEASE:  # where the camera looks is unknown: search on regardless
-            with self._release_lock:
-                self._paused_until = None
+            self.camera.release_refused()
             self.console(f"  -> camera release: {result.error}")
             return
         if result.result is not None:
