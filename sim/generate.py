@@ -3,8 +3,9 @@
 Output in ``out_dir``: ``<name>.mp4`` (``video=True``, mp4v) or ``<name>/NNNNNN.jpg``, and
 ``<name>.json`` in the SeaDronesSee / COCO video layout (see :mod:`sarmission.data.coco_video`):
 one video (with ``file_name`` of the MP4 when there is one), an image per frame with flight
-telemetry in ``meta`` (SeaDronesSee MOT keys: degrees, metres above home, m/s with x north,
-y east, z down, ``time`` seconds since the flight start), and an annotation per visible object with
+telemetry in ``meta`` (SeaDronesSee MOT keys and conventions: degrees, gimbal pitch positive below
+the horizon as ``info.meta_conventions`` states, metres above home, m/s with x north, y east,
+z down, ``time`` seconds since the flight start), and an annotation per visible object with
 its ``track_id``, exact ``bbox`` and true ``gt_lat`` / ``gt_lon``; ``visibility``, ``is_target``
 and ``position_ned`` are kept as extra keys. Categories are :data:`sim.scene.CATEGORIES`; only
 ``swimmer`` and ``swimmer_with_life_jacket`` are maritime detector classes (``person`` is a
@@ -30,6 +31,7 @@ from sarmission.data.coco_video import (
     read_coco_video,
     write_coco_video,
 )
+from sarmission.data.meta_conventions import DEPRESSION, INFO_KEY
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mission.config import MissionConfig
 from sim.flight import Flight, VehicleState
@@ -46,7 +48,7 @@ def frame_meta(state: VehicleState, home: tuple[float, float, float]) -> dict[st
         "gps_latitude": float(lat),
         "gps_longitude": float(lon),
         "altitude": float(-state.position_ned[2]),
-        "gimbal_pitch": math.degrees(state.gimbal_pitch),
+        "gimbal_pitch": -math.degrees(state.gimbal_pitch),  # SeaDronesSee: 90 straight down
         "gimbal_roll": math.degrees(state.gimbal_roll),
         "gimbal_heading": math.degrees(gimbal_heading) % 360.0,
         "compass_heading": math.degrees(state.yaw) % 360.0,
@@ -128,7 +130,7 @@ def generate_sequence(scenario: Scenario, mission_or_flight: MissionConfig | Fli
         categories=categories,
         info={"description": f"sarmission synthetic {scenario.kind} scene", "seed": scenario.seed,
               "sea_state": scenario.sea_state, "fps": fps, "start_s": start_s,
-              "home": list(home)})
+              "home": list(home), INFO_KEY: {"gimbal_pitch": DEPRESSION}})
     path = out / f"{name}.json"
     write_coco_video(dataset, path)
     return path

@@ -13,7 +13,9 @@ From the frames' :class:`~sarmission.data.coco_video.FrameTelemetry`:
   (altitude is above take-off); home is the first frame's position at altitude 0 unless given;
 - vehicle yaw from ``compass_heading``, roll and pitch level (not in the data; irrelevant for an
   earth-stabilised gimbal); velocity is the slope of the piecewise-linear position;
-- gimbal: pitch from ``gimbal_pitch`` (else the mission's mount pitch), roll from ``gimbal_roll``,
+- gimbal: pitch from ``gimbal_pitch`` read with the file's sign convention
+  (:mod:`sarmission.data.meta_conventions`; a file with mixed signs is :class:`NoUsableMeta`),
+  else the mission's mount pitch; roll from ``gimbal_roll``,
   yaw relative to the vehicle = ``gimbal_heading - compass_heading`` (the data gives earth-frame
   headings), reported in the ``"vehicle"`` frame like a stabilised gimbal.
 
@@ -44,6 +46,7 @@ import math
 import numpy as np
 
 from sarmission.data.coco_video import FrameTelemetry, VideoDataset
+from sarmission.data.meta_conventions import DEPRESSION, ConventionError, dataset_conventions
 from sarmission.data.sequence import sequence_images
 from sarmission.geo.camera import CameraPose
 from sarmission.geo.wgs84 import geodetic_to_ned
@@ -158,7 +161,13 @@ class MetaFlight:
             raise NoUsableMeta(f"video {video_id}: no frame has {', '.join(missing)} in its meta")
         compass = _fill(t, [m.compass_heading for m in meta], 360.0)
         gimbal_heading = _fill(t, [m.gimbal_heading for m in meta], 360.0)
-        gimbal_pitch = _fill(t, [m.gimbal_pitch for m in meta])
+        try:
+            conventions = dataset_conventions(dataset)
+        except ConventionError as exc:
+            raise NoUsableMeta(f"video {video_id}: {exc}") from exc
+        sign = -1.0 if conventions.pitch == DEPRESSION else 1.0
+        gimbal_pitch = _fill(t, [None if m.gimbal_pitch is None else sign * m.gimbal_pitch
+                                 for m in meta])
         gimbal_roll = _fill(t, [m.gimbal_roll for m in meta])
         if compass is None:  # no compass: face where the camera looks (else north)
             compass = gimbal_heading if gimbal_heading is not None else np.zeros(len(t))

@@ -85,7 +85,8 @@ def check_against_meta(flight: MetaFlight, images) -> None:
         assert distance_m((float(lat), float(lon)), (m.latitude, m.longitude)) < 0.5
         assert abs((float(h) - flight.home[2]) - m.altitude) < 0.5
         assert angle_diff_deg(math.degrees(s.yaw), m.compass_heading) < 1.0
-        assert abs(math.degrees(s.gimbal_pitch) - m.gimbal_pitch) < 1.0
+        # the meta's pitch is SeaDronesSee's: positive below the horizon
+        assert abs(math.degrees(s.gimbal_pitch) + m.gimbal_pitch) < 1.0
         assert angle_diff_deg(math.degrees(s.yaw + s.gimbal_yaw), m.gimbal_heading) < 1.0
 
 

@@ -72,6 +72,7 @@ def stream_clip(work: Path, frames: int, rate: int) -> Path:
 def measure(clip: Path, annotations: Path) -> dict:
     from sarmission.alerts.store import AlertStore
     from sarmission.data.coco_video import read_coco_video
+    from sarmission.data.meta_conventions import MetaPose, dataset_conventions, meta_pose
     from sarmission.data.stream import StreamSource
     from sarmission.mission.config import load_mission
     from sarmission.mission.controller import MissionController
@@ -82,7 +83,8 @@ def measure(clip: Path, annotations: Path) -> dict:
 
     apply_thread_plan()
     dataset = read_coco_video(annotations)
-    meta = {im.frame_index: im.telemetry for im in dataset.images}
+    conventions = dataset_conventions(dataset)
+    meta = {im.frame_index: meta_pose(im.telemetry, conventions) for im in dataset.images}
     mission = load_mission()
     d = mission.detector
     detector = MiteNet(build_head_runtime(None, "onnx"), ds=d.ds, topn=d.topn,
@@ -128,7 +130,7 @@ def measure(clip: Path, annotations: Path) -> dict:
                 if index <= last:  # a restarted stream: the clip's frame cannot be told
                     continue
                 last = index
-                if index in meta:
+                if isinstance(meta.get(index), MetaPose):
                     push_frame_telemetry(buffer, frame.timestamp_s, meta[index])
                 alerts = controller.process(index, frame.timestamp_s, frame.image_bgr)
                 done = time.monotonic()

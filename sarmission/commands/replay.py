@@ -24,10 +24,10 @@ from sarmission.commands.progress import add_progress_option, progress_for
 if TYPE_CHECKING:
     import numpy as np
 
-    from sarmission.data.coco_video import FrameTelemetry
+    from sarmission.data.meta_conventions import MetaConventions, MetaPose, NoMetaPose
 
-#: (frame index, time s, image, per-frame dataset telemetry or None)
-ReplayFrame = tuple[int, float, "np.ndarray", "FrameTelemetry | None"]
+#: (frame index, time s, image, the frame's placement from dataset meta, or why none, or None)
+ReplayFrame = tuple[int, float, "np.ndarray", "MetaPose | NoMetaPose | None"]
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -51,6 +51,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "meta (the dataset's), sim (the mission's simulated flight: made-up "
                         "positions, for rehearsal), none, or auto: meta when the dataset has "
                         "positions, else a DJI .SRT beside the video, else none (default)")
+    parser.add_argument("--meta-pitch", default="auto",
+                        choices=("auto", "depression", "elevation"),
+                        help="how a dataset's meta gives the gimbal pitch: depression (positive "
+                        "below the horizon, 90 straight down: SeaDronesSee), elevation (negative "
+                        "below the horizon: DJI logs, MAVLink) or auto: as the file states, else "
+                        "from the signs of its pitches; a file with both signs is refused "
+                        "(default: %(default)s)")
     parser.add_argument("--time-offset", type=float, default=None, metavar="S",
                         help="the flight log's time (its own clock, as printed) at which the "
                         "video starts; default: from camera triggers or the video's creation "
@@ -71,11 +78,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _dataset_frames(path: Path, video_id: int | None, fps: float,
-                    counters: dict[str, int]) -> tuple[Iterator[ReplayFrame], int, bool]:
+def _dataset_frames(path: Path, video_id: int | None, fps: float, counters: dict[str, int],
+                    pitch_option: str | None = None
+                    ) -> tuple[Iterator[ReplayFrame], int, bool, MetaConventions | str]:
+    """The dataset's frames with each one's placement from meta, whether any frame has one,
+    and the file's meta conventions (or the line saying why the meta cannot be read)."""
     from sarmission.data.coco_video import read_coco_video
+    from sarmission.data.meta_conventions import (
+        ConventionError,
+        MetaPose,
+        dataset_conventions,
+        meta_pose,
+    )
     from sarmission.data.sequence import iter_sequence, sequence_ids, sequence_images
-    from sarmission.mission.replay_telemetry import has_position
 
     dataset = read_coco_video(path)
     ids = sequence_ids(dataset)
@@ -83,14 +98,20 @@ def _dataset_frames(path: Path, video_id: int | None, fps: float,
     if vid not in ids:
         raise ValueError(f"{path}: no video {video_id} (videos: {ids})")
     images = sequence_images(dataset, vid)
-    with_meta = any(has_position(im.telemetry) for im in images)
+    try:
+        conventions: MetaConventions | str = dataset_conventions(dataset, pitch_option)
+    except ConventionError as exc:
+        conventions = str(exc)
+    poses = ({im.id: meta_pose(im.telemetry, conventions) for im in images}
+             if not isinstance(conventions, str) else {})
+    with_meta = any(isinstance(p, MetaPose) for p in poses.values())
 
     def frames() -> Iterator[ReplayFrame]:
         for n, item in enumerate(iter_sequence(dataset, vid, counters)):
             index = item.image.frame_index if item.image.frame_index is not None else n
-            yield index, index / fps, item.frame_bgr, item.image.telemetry
+            yield index, index / fps, item.frame_bgr, poses.get(item.image.id)
 
-    return frames(), len(images), with_meta
+    return frames(), len(images), with_meta, conventions
 
 
 def _file_frames(path: Path, fps: float) -> tuple[Iterator[ReplayFrame], int | None, object]:
@@ -133,8 +154,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--fps must be positive, got {args.fps}")
     counters: dict[str, int] = {}
     file_source = None
+    conventions = None
     if path.suffix.lower() == ".json":
-        frames, total, with_meta = _dataset_frames(path, args.video_id, args.fps, counters)
+        frames, total, with_meta, conventions = _dataset_frames(
+            path, args.video_id, args.fps, counters, args.meta_pitch)
     else:
         frames, total, file_source = _file_frames(path, args.fps)
         with_meta = False
@@ -143,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
         args.telemetry, input_path=path, is_video=file_source is not None and not names,
         names=names, fps=args.fps, with_meta=with_meta, offset_s=args.time_offset,
         duration_s=total / getattr(file_source, "fps", args.fps) if total else None,
-        mission=mission)
+        mission=mission, meta_conventions=conventions)
     ground_model = _ground_model(args)
     detector, model_note = build_detector(args, mission)
     recorder = build_recorder(args)

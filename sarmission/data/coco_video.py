@@ -245,7 +245,10 @@ def parse_telemetry(meta: Mapping[str, Any] | None, where: str = "meta") -> Fram
     keys are divided by 1000); without it a ``date_time`` / ``datetime(utc)`` string becomes POSIX
     seconds. ``gps_latitude_ref`` of ``S`` / ``gps_longitude_ref`` of ``W`` make a positive value
     negative. Numeric strings are parsed; unparsable values become ``None`` with a warning naming
-    ``where``. ``None`` or an empty dict gives all-``None`` telemetry.
+    ``where``, and so do two keys of one name that disagree (``gimbal_pitch`` beside
+    ``gimbal_pitch(degrees)``). ``None`` or an empty dict gives all-``None`` telemetry. Values
+    are kept as the file gives them: :mod:`sarmission.data.meta_conventions` reads their meaning
+    (the gimbal pitch's sign differs between datasets).
     """
     if not meta:
         return FrameTelemetry()
@@ -253,9 +256,16 @@ def parse_telemetry(meta: Mapping[str, Any] | None, where: str = "meta") -> Fram
         log.warning("%s: telemetry is a %s, not an object; ignored", where, type(meta).__name__)
         return FrameTelemetry()
     by_name: dict[str, tuple[str, str, Any]] = {}
+    conflicting: set[str] = set()
     for key, value in meta.items():
         name, unit = _normalise_key(str(key))
-        by_name.setdefault(name, (str(key), unit, value))
+        first = by_name.setdefault(name, (str(key), unit, value))
+        if first[2] != value and _to_float(first[2]) != _to_float(value):
+            log.warning("%s: %r = %r and %r = %r disagree; both ignored", where, first[0],
+                        first[2], key, value)
+            conflicting.add(name)
+    for name in conflicting:
+        by_name[name] = (by_name[name][0], by_name[name][1], None)
 
     values: dict[str, float | None] = {}
     for attr, names in _TELEMETRY_KEYS.items():

@@ -5,12 +5,15 @@ frame, time and pixel and no position: nothing is invented), a real flight log
 (:mod:`sarmission.flightlog`, aligned with the footage), the dataset's meta, or the mission's
 simulated flight only when asked for (``--telemetry sim``). Beside flight logs, two sources:
 
-- a dataset's per-frame ``meta`` (:class:`~sarmission.data.coco_video.FrameTelemetry`,
-  SeaDronesSee style): position (latitude, longitude, altitude above take-off), vehicle yaw from
-  the compass heading, and the gimbal's earth-frame attitude (pitch from ``gimbal_pitch``,
-  yaw from ``gimbal_heading``, else the compass heading; roll from ``gimbal_roll``). Roll and
-  pitch of the vehicle are not in the data and are taken as level, which does not matter for an
+- a dataset's per-frame ``meta``, read with the file's conventions
+  (:mod:`sarmission.data.meta_conventions`: the gimbal pitch's sign, height above take-off,
+  headings from north) into a :class:`~sarmission.data.meta_conventions.MetaPose`: position,
+  vehicle yaw from the compass heading, and the gimbal's earth-frame attitude. Roll and pitch of
+  the vehicle are not in the data and are taken as level, which does not matter for an
   earth-stabilised gimbal. Home is the first frame's position at altitude 0 (take-off height).
+  A frame whose meta cannot place the camera (:class:`~sarmission.data.meta_conventions.NoMetaPose`)
+  has no position, for the reason it gives (warned about at most every few seconds), and is
+  never given a neighbour's.
 - an exact flight state (anything with ``position_ned``, ``velocity_ned``, ``vehicle_rpy``,
   ``gimbal_rpy`` and ``gimbal_frame``, such as the simulator's ``VehicleState``) in the NED frame
   of the mission's home.
@@ -18,13 +21,14 @@ simulated flight only when asked for (``--telemetry sim``). Beside flight logs, 
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sarmission.data.coco_video import FrameTelemetry
+from sarmission.data.meta_conventions import MetaConventions, MetaPose, NoMetaPose
 from sarmission.flightlog.align import Alignment, AlignmentError, align_images, align_video
 from sarmission.flightlog.detect import open_flight_log
 from sarmission.flightlog.feed import LogFeeder
@@ -33,30 +37,45 @@ from sarmission.flightlog.video_time import creation_time
 from sarmission.geo.geolocate import PlatformPose
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
+from sarmission.ratelimit import RateLimitedLog
+
+log = logging.getLogger(__name__)
 
 
-def has_position(meta: FrameTelemetry) -> bool:
-    """True when the frame's telemetry can place the camera (latitude, longitude, altitude)."""
-    return None not in (meta.latitude, meta.longitude, meta.altitude)
-
-
-def push_frame_telemetry(buffer: TelemetryBuffer, t: float, meta: FrameTelemetry) -> bool:
-    """Push one frame's dataset telemetry at time ``t``; False (nothing pushed) when it lacks a
-    position. Sets home from the first frame pushed."""
-    if not has_position(meta):
-        return False
-    assert meta.latitude is not None and meta.longitude is not None and meta.altitude is not None
+def push_frame_telemetry(buffer: TelemetryBuffer, t: float, pose: MetaPose) -> None:
+    """Push one frame's placement from dataset meta at time ``t``; sets home from the first
+    frame pushed."""
     if buffer.home is None:
-        buffer.set_home(meta.latitude, meta.longitude, 0.0)
-    buffer.push_position(t, meta.latitude, meta.longitude, meta.altitude)
-    heading = math.radians(meta.compass_heading or 0.0)
-    buffer.push_attitude(t, 0.0, 0.0, heading)
-    if meta.gimbal_pitch is not None:
-        gimbal_yaw = math.radians(meta.gimbal_heading) if meta.gimbal_heading is not None \
-            else heading
-        buffer.push_gimbal(t, (math.radians(meta.gimbal_roll or 0.0),
-                               math.radians(meta.gimbal_pitch), gimbal_yaw), "earth")
-    return True
+        buffer.set_home(pose.latitude, pose.longitude, 0.0)
+    buffer.push_position(t, pose.latitude, pose.longitude, pose.height_m)
+    buffer.push_attitude(t, 0.0, 0.0, math.radians(pose.heading_deg))
+    buffer.push_gimbal(t, (math.radians(pose.gimbal_roll_deg), math.radians(pose.gimbal_pitch_deg),
+                           math.radians(pose.gimbal_heading_deg)), "earth")
+
+
+class MetaReplayTelemetry:
+    """The telemetry of a replay from dataset meta: ``buffer`` holds the placed frames; a frame
+    whose meta placed nothing answers its own reason instead of an interpolated neighbour.
+    Everything else is the buffer's."""
+
+    def __init__(self, buffer: TelemetryBuffer) -> None:
+        self.buffer = buffer
+        self.refused: dict[float, str] = {}
+        self.warn = RateLimitedLog(log, 5.0)
+
+    def refuse(self, t: float, reason: str) -> None:
+        """Frame time ``t`` has no position, because of ``reason`` (one line)."""
+        self.refused[t] = reason
+        self.warn.event(reason, "dataset meta at t=%.2f s: %s; no position", t, reason)
+
+    def lookup(self, t: float) -> PlatformPose | StaleTelemetry:
+        reason = self.refused.get(t)
+        if reason is not None:
+            return StaleTelemetry(t, f"dataset meta: {reason}")
+        return self.buffer.lookup(t)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.buffer, name)
 
 
 def push_flight_state(buffer: TelemetryBuffer, t: float, state: Any,
@@ -82,8 +101,12 @@ class NoTelemetry(TelemetryBuffer):
 
     REASON = "no telemetry"
 
+    def __init__(self, reason: str = REASON) -> None:
+        super().__init__()
+        self.reason = reason
+
     def lookup(self, t: float) -> PlatformPose | StaleTelemetry:
-        return StaleTelemetry(t, self.REASON)
+        return StaleTelemetry(t, self.reason)
 
 
 @dataclass
@@ -104,6 +127,8 @@ class ReplaySource:
     alignment: Alignment | None = None
     feeder: LogFeeder | None = None
     utc_offset_s: float | None = None
+    #: why a replay without telemetry has none (each alert's "position unknown" says it)
+    none_reason: str = NoTelemetry.REASON
     #: ``(t, lat, lon)`` of the drone at the replayed frames, every TRACK_STEP_S
     flown: list[tuple[float, float, float]] = field(default_factory=list)
 
@@ -116,18 +141,23 @@ class ReplaySource:
     def buffer(self, make: Callable[[], TelemetryBuffer]) -> TelemetryBuffer:
         """The telemetry buffer for this source (``make`` builds the mission's)."""
         if self.kind == "none":
-            return NoTelemetry()
+            return NoTelemetry(self.none_reason)
         buf = make()
         if self.log is not None:
             self.feeder = LogFeeder(self.log, buf)
+        if self.kind == "meta":
+            return MetaReplayTelemetry(buf)  # type: ignore[return-value]
         return buf
 
-    def before(self, buffer: TelemetryBuffer, t: float, meta: FrameTelemetry | None,
+    def before(self, buffer: TelemetryBuffer, t: float, meta: MetaPose | NoMetaPose | None,
                home: tuple[float, float, float]) -> None:
         """Push the telemetry frame time ``t`` (controller clock) needs; note the drone's
         position there for the track."""
-        if self.kind == "meta" and meta is not None:
-            push_frame_telemetry(buffer, t, meta)
+        if self.kind == "meta" and isinstance(buffer, MetaReplayTelemetry):
+            if isinstance(meta, MetaPose):
+                push_frame_telemetry(buffer.buffer, t, meta)
+            else:
+                buffer.refuse(t, meta.reason if meta is not None else "frame has no meta")
         elif self.kind == "sim" and self.flight is not None:
             push_flight_state(buffer, t, self.flight.state_at(t), home)
         elif self.feeder is not None:
@@ -141,17 +171,26 @@ class ReplaySource:
 
 def telemetry_source(choice: str, *, input_path: Path, is_video: bool, names: list[str],
                      fps: float, duration_s: float | None, with_meta: bool,
-                     offset_s: float | None, mission: Any) -> ReplaySource:
+                     offset_s: float | None, mission: Any,
+                     meta_conventions: MetaConventions | str | None = None) -> ReplaySource:
     """The replay's telemetry for ``--telemetry choice`` (auto, none, meta, sim or a file).
 
     ``auto`` takes the dataset's meta, else a DJI sidecar beside the video (``clip.SRT``), else
     nothing. A flight log that cannot be read or aligned gives one line and no telemetry.
+    ``meta_conventions``: how the dataset's meta reads, or the one line saying why it cannot be
+    read (mixed conventions): then no telemetry from it.
     """
+    if isinstance(meta_conventions, str) and choice in ("meta", "auto"):
+        return ReplaySource(f"none: dataset meta not used: {meta_conventions}",
+                            none_reason="dataset meta in mixed conventions")
     if choice == "meta" and not with_meta:
-        raise ValueError(f"{input_path}: no per-frame telemetry (meta with latitude, longitude "
-                         "and altitude) to replay; use --telemetry sim")
+        raise ValueError(f"{input_path}: no per-frame telemetry (meta with latitude, longitude, "
+                         "height above take-off, gimbal pitch and heading) to replay; use "
+                         "--telemetry sim")
     if choice in ("meta", "auto") and with_meta:
-        return ReplaySource("dataset meta", kind="meta")
+        lines = ([f"meta read as: {meta_conventions.describe()}"]
+                 if isinstance(meta_conventions, MetaConventions) else [])
+        return ReplaySource("dataset meta", lines=lines, kind="meta")
     if choice in ("sim", "flight"):
         from sim.flight import Flight
 
