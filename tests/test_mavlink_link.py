@@ -14,6 +14,7 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
 from sarmission.mavlink.commands import CommandSender, MissionItem, Outbox
 from sarmission.mavlink.connection import MavlinkLink, signing_key_from_passphrase
+from sarmission.mavlink.outbox_commands import Reposition, StatusText
 from sarmission.mavlink.telemetry import MESSAGE_TYPES, TelemetryBuffer
 from sarmission.mission.config import load_mission
 from sim.vehicle import SimVehicle
@@ -188,13 +189,13 @@ def test_outbox_delivers_after_link_loss(ardupilot):
         repeat_interval_s=0.3,
     )
     try:
-        outbox.submit("statustext", "before loss", key="a1")
+        outbox.submit(StatusText("before loss"), key="a1")
         assert wait_until(lambda: len(sent) == 2, 3.0)
         assert wait_until(lambda: len(vehicle.statustexts) == 2, 3.0)
         vehicle.stop()  # the autopilot goes silent
         assert wait_until(lambda: not link.link_ok, 3.0)
-        outbox.submit("statustext", "ALERT during loss", key="a2")
-        outbox.submit("reposition", 54.1705, 7.8905, 40.0, key="r1")
+        outbox.submit(StatusText("ALERT during loss"), key="a2")
+        outbox.submit(Reposition(54.1705, 7.8905, 40.0), key="r1")
         time.sleep(1.5)
         assert [a.key for a in outbox.pending()] == ["a2", "r1"]
         n_before = len(vehicle.statustexts)

@@ -34,7 +34,9 @@ which nothing acknowledges, is instead *sent* ``repeats`` times ``interval_s`` a
 while the link is down), on a thread of its own so that repeats never hold up commands, and
 never counted as delivered: with independent loss p, n sends reach the autopilot with
 probability 1 - p^n (99.2 % for p = 0.3, n = 4). The caller persists actions (alert store) and
-learns outcomes from ``on_delivered`` (accepted), ``on_refused`` and ``on_sent`` (one per send).
+learns outcomes from ``on_delivered`` (accepted), ``on_refused`` and ``on_sent`` (one per send),
+given to the outbox's constructor or to :meth:`Outbox.set_callbacks`. What it delivers is typed:
+one dataclass per kind of command (:mod:`~sarmission.mavlink.outbox_commands`).
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ from sarmission.mavlink.mission_transfer import (
     download_mission,
     insert_visits,
 )
+from sarmission.mavlink.outbox_commands import COMMAND_KINDS, OutboxCommand, StatusText
 
 log = logging.getLogger(__name__)
 
@@ -483,17 +486,15 @@ class CommandSender:
 
 @dataclass(eq=False)
 class Action:
-    """Something for the outbox: ``kind`` is a :class:`CommandSender` method name
-    ("statustext", "reposition", "set_roi", "upload_mission", "command_int", "command_long")
-    called with ``args``. ``key`` is the caller's id (e.g. its alert store row).
+    """Something for the outbox: the ``command`` to deliver and ``key``, the caller's id for it
+    (e.g. its alert store row), handed back with every outcome.
 
     ``attempts`` counts tries of a command, and sends of a STATUSTEXT; a STATUSTEXT is sent
     ``repeats`` times, ``interval_s`` apart (``next_at``: ``time.monotonic()`` of its next send).
     """
 
-    kind: str
-    args: tuple[Any, ...]
-    key: Any = None
+    command: OutboxCommand
+    key: object = None
     created: float = field(default_factory=time.monotonic)
     attempts: int = 0
     last_result: CommandResult | None = None
@@ -502,15 +503,27 @@ class Action:
     next_at: float = 0.0
 
     @property
+    def is_text(self) -> bool:
+        """A STATUSTEXT: sent ``repeats`` times, never acknowledged."""
+        return isinstance(self.command, StatusText)
+
+    @property
     def done(self) -> bool:
         """A STATUSTEXT sent all its repeats (commands: never; they leave by a callback)."""
-        return self.kind == "statustext" and self.attempts >= self.repeats
+        return self.is_text and self.attempts >= self.repeats
 
 
 ActionCallback = Callable[[Action, CommandResult], None]
 
-_KINDS = ("statustext", "reposition", "set_roi", "clear_roi", "upload_mission", "insert_visits",
-          "command_int", "command_long")
+
+@dataclass(frozen=True)
+class OutboxCallbacks:
+    """Who hears what became of an action: ``delivered`` (accepted), ``refused`` (refused by
+    the autopilot) and ``sent`` (each send of a STATUSTEXT); None: nobody."""
+
+    delivered: ActionCallback | None = None
+    refused: ActionCallback | None = None
+    sent: ActionCallback | None = None
 
 
 class Outbox:
@@ -522,7 +535,8 @@ class Outbox:
     STATUSTEXT: a second thread sends each ``statustext_repeats`` times (unless ``submit`` says
     otherwise), ``repeat_interval_s`` apart, the earliest due first, at most one every
     :data:`STATUSTEXT_MIN_GAP_S`, only while the link is up; ``on_sent(action, result)`` after
-    each send (``action.attempts`` sends so far; ``action.done`` after the last).
+    each send (``action.attempts`` sends so far; ``action.done`` after the last). The callbacks
+    run on the outbox's threads.
     """
 
     def __init__(
@@ -539,9 +553,7 @@ class Outbox:
         if statustext_repeats < 1 or not repeat_interval_s > 0:
             raise ValueError("statustext_repeats must be >= 1 and repeat_interval_s > 0")
         self.sender = sender
-        self.on_delivered = on_delivered
-        self.on_refused = on_refused
-        self.on_sent = on_sent
+        self._callbacks = OutboxCallbacks(on_delivered, on_refused, on_sent)
         self.poll_s = poll_s
         self.statustext_repeats = statustext_repeats
         self.repeat_interval_s = repeat_interval_s
@@ -559,14 +571,22 @@ class Outbox:
         self._thread.start()
         self._text_thread.start()
 
-    def submit(self, kind: str, *args: Any, key: Any = None, repeats: int | None = None,
+    def set_callbacks(self, *, on_delivered: ActionCallback | None = None,
+                      on_refused: ActionCallback | None = None,
+                      on_sent: ActionCallback | None = None) -> None:
+        """Replace who hears the outcomes (one owner, e.g. the action policy, which needs the
+        outbox to exist before it can listen to it)."""
+        self._callbacks = OutboxCallbacks(on_delivered, on_refused, on_sent)
+
+    def submit(self, command: OutboxCommand, *, key: object = None, repeats: int | None = None,
                interval_s: float | None = None) -> Action:
-        """Queue ``sender.<kind>(*args)``; returns the :class:`Action` (delivered later). A
-        STATUSTEXT goes out ``repeats`` times ``interval_s`` apart (default: the outbox's)."""
-        if kind not in _KINDS:
-            raise ValueError(f"unknown action kind {kind!r}")
-        action = Action(kind, tuple(args), key)
-        if kind == "statustext":
+        """Queue ``command``; returns its :class:`Action` (delivered later). A
+        :class:`~sarmission.mavlink.outbox_commands.StatusText` goes out ``repeats`` times
+        ``interval_s`` apart (default: the outbox's)."""
+        if not isinstance(command, COMMAND_KINDS):
+            raise TypeError(f"not an outbox command: {command!r}")
+        action = Action(command, key)
+        if action.is_text:
             action.repeats = max(1, int(self.statustext_repeats if repeats is None else repeats))
             action.interval_s = self.repeat_interval_s if interval_s is None else interval_s
             with self._lock:
@@ -603,16 +623,16 @@ class Outbox:
                 action = self._pending[0]
             if not link.link_ok:
                 return
-            result: CommandResult = getattr(self.sender, action.kind)(*action.args)
+            result = action.command.send(self.sender)
             action.attempts += 1
             action.last_result = result
             if result.accepted:
-                self._finish(action, result, self.on_delivered)
+                self._finish(action, result, self._callbacks.delivered)
             elif result.no_answer:
-                log.info("outbox: %s not delivered yet (%s)", action.kind, result.error)
+                log.info("outbox: %s not delivered yet (%s)", result.name, result.error)
                 return
             else:
-                self._finish(action, result, self.on_refused)
+                self._finish(action, result, self._callbacks.refused)
 
     def _finish(self, action: Action, result: CommandResult, cb: ActionCallback | None) -> None:
         with self._lock:
@@ -645,7 +665,7 @@ class Outbox:
             return self._last_text_send + STATUSTEXT_MIN_GAP_S - now
         if not self.sender.link.link_ok:
             return self.poll_s
-        result = self.sender.statustext(*due.args)
+        result = due.command.send(self.sender)
         if not result.accepted:  # link lost or transport refused: try again later
             log.info("outbox: STATUSTEXT not sent (%s)", result.error)
             return self.poll_s
@@ -657,7 +677,7 @@ class Outbox:
             with self._lock:
                 if due in self._texts:
                     self._texts.remove(due)
-        self._call(self.on_sent, due, result)
+        self._call(self._callbacks.sent, due, result)
         return STATUSTEXT_MIN_GAP_S
 
     @staticmethod

@@ -41,13 +41,20 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import NamedTuple
+from dataclasses import dataclass
 
 from sarmission.alerts.model import CHANNEL_MAVLINK, Alert
 from sarmission.alerts.store import AlertStore
 from sarmission.mavlink.commands import Action, CommandResult, Outbox
 from sarmission.mavlink.connection import M
 from sarmission.mavlink.mission_transfer import loiter_item
+from sarmission.mavlink.outbox_commands import (
+    ClearRoi,
+    InsertVisits,
+    Reposition,
+    SetRoi,
+    StatusText,
+)
 from sarmission.mission.camera_hold import ROI_SETTLE_S, CameraHold
 from sarmission.mission.config import ActionsConfig
 from sarmission.mission.visits import MoveGate, VisitPlanner
@@ -68,7 +75,8 @@ ROI_RELEASE = "roi_release"
 __all__ = ["CHANNELS", "ROI_RELEASE", "ROI_SETTLE_S", "ActionPolicy", "ascii_statustext"]
 
 
-class _Key(NamedTuple):
+@dataclass(frozen=True)
+class _Key:
     """An outbox action's key: the alert and store channel it is for (the camera release has
     neither), the target and the alert's short id for the console."""
 
@@ -125,9 +133,8 @@ class ActionPolicy:
         self.refused = 0
         self.sent = 0
         self.camera = CameraHold(config.roi_hold_s, ROI_SETTLE_S, clock)
-        outbox.on_delivered = self._on_delivered
-        outbox.on_refused = self._on_refused
-        outbox.on_sent = self._on_sent
+        outbox.set_callbacks(on_delivered=self._on_delivered, on_refused=self._on_refused,
+                             on_sent=self._on_sent)
 
     @property
     def delivered(self) -> int:
@@ -186,16 +193,16 @@ class ActionPolicy:
         self._dispatch_visits()
         if not self.camera.release_due(self._roi_on_its_way):
             return False
-        self.outbox.submit("clear_roi", key=_Key("", ROI_RELEASE, 0))
+        self.outbox.submit(ClearRoi(), key=_Key("", ROI_RELEASE, 0))
         return True
 
     def _roi_on_its_way(self) -> bool:
-        return any(a.kind == "set_roi" for a in self.outbox.pending())
+        return any(isinstance(a.command, SetRoi) for a in self.outbox.pending())
 
     def _submit(self, entry: str, alert: Alert, repeats: int | None = None) -> bool:
         key = _Key(alert.alert_id, CHANNELS[entry], alert.target_id, alert.short_id)
         if entry == "alert":
-            self.outbox.submit("statustext", ascii_statustext(alert), M.MAV_SEVERITY_ALERT,
+            self.outbox.submit(StatusText(ascii_statustext(alert), M.MAV_SEVERITY_ALERT),
                                key=key, repeats=self.repeats if repeats is None else repeats,
                                interval_s=self.repeat_interval_s)
             return True
@@ -211,7 +218,7 @@ class ActionPolicy:
             return False
         if entry == "roi":
             lat, lon = alert.position
-            self.outbox.submit("set_roi", lat, lon, self.target_altitude_m, key=key)
+            self.outbox.submit(SetRoi(lat, lon, self.target_altitude_m), key=key)
             return True
         if not self.planner.add(alert.target_id, alert.position):
             return False  # visited already
@@ -237,17 +244,19 @@ class ActionPolicy:
                    tuple(a.alert_id for a in alerts if a is not first))
         if entry == "loiter":
             lat, lon = visits[0].position
-            self.outbox.submit("reposition", lat, lon, self.loiter_altitude_m, key=key)
+            self.outbox.submit(Reposition(lat, lon, self.loiter_altitude_m), key=key)
         else:
             items = [loiter_item(*v.position, self.loiter_altitude_m, self.visit_loiter_s)
                      for v in visits]
-            self.outbox.submit("insert_visits", items, key=key)
+            self.outbox.submit(InsertVisits(tuple(items)), key=key)
         covered = ", ".join(str(t) for v in visits for t in v.covered)
         self.console(f"  -> visit plan: {entry} to target{'s' if len(alerts) > 1 else ''} "
                      f"{covered}")
 
     def _on_sent(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
+        if key is None:
+            return
         sends = self.store.record_sent(key.alert_id, key.channel)
         if action.done:
             self.sent += 1
@@ -256,6 +265,8 @@ class ActionPolicy:
 
     def _on_delivered(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
+        if key is None:
+            return
         if key.channel == ROI_RELEASE:
             self.camera.release_delivered()
             self.console("  -> camera back to the survey view (DO_SET_ROI_NONE)")
@@ -274,6 +285,8 @@ class ActionPolicy:
 
     def _on_refused(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
+        if key is None:
+            return
         self.refused += 1
         if key.channel == ROI_RELEASE:  # where the camera looks is unknown: search on regardless
             self.camera.release_refused()
@@ -291,6 +304,6 @@ def ascii_statustext(alert: Alert) -> str:
     return alert.statustext().replace("±", "+-")
 
 
-def _key(action: Action) -> _Key:
-    key = action.key
-    return key if isinstance(key, _Key) else _Key(*key)
+def _key(action: Action) -> _Key | None:
+    """The policy's key of ``action``; None for an action that someone else queued."""
+    return action.key if isinstance(action.key, _Key) else None
