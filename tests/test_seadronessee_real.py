@@ -131,10 +131,13 @@ def test_rays_below_the_horizon_meet_the_ground_where_the_altitude_says(dataset,
             assert angle_diff(near_bearing, heading + 180.0) < 1.0, where
         top = geolocate((intr.cx, 0.0), intr, platform)
         above = pitch - half_vfov
+        unbounded = 3.0 * math.degrees(platform.attitude_sigma_rad)  # FixLimits' default
         if above <= -0.01:
             assert not top.ok and "horizon" in top.note, where
             horizon_in_view += 1
-        elif above >= 0.5:
+        elif 0.01 <= above < unbounded - 0.01:
+            assert not top.ok and "range unbounded" in top.note, where
+        elif above >= unbounded + 0.01:
             far, _ = ground_offset_m(platform.lat, platform.lon, top.lat, top.lon)
             assert far == pytest.approx(height / math.tan(math.radians(above)), rel=5e-3), where
             assert far > distance > near or pitch + half_vfov > 90.0, where

@@ -32,6 +32,13 @@ Error model (first-order propagation; independent Gaussian sources; horizontal c
 ``error_m = sqrt(trace(S))``, the root-mean-square horizontal error (DRMS). Timing errors
 (frame vs telemetry time) and lens calibration errors are not modelled. Any non-finite input
 or result is no fix.
+
+Near the horizon the estimate grows without bound (the pointing term goes as ``1/sin^2(delta)``)
+and, once ``delta`` is within a few pointing sigmas, the first-order model no longer holds: the
+true ray may be at or above the horizon, the range unbounded. :class:`FixLimits` refuses such
+fixes (the ray within ``horizon_sigmas`` pointing sigmas of the horizon, further than
+``max_off_nadir_deg`` from straight down, or an estimate above ``max_error_m``), so a grazing view
+says "no fix" and why rather than giving a position whose error it cannot bound.
 """
 
 from __future__ import annotations
@@ -45,7 +52,7 @@ from sarmission.geo.camera import CameraIntrinsics, CameraPose, pixel_rays
 from sarmission.geo.frames import rotation_ned_from_camera
 from sarmission.geo.wgs84 import ned_to_geodetic
 
-__all__ = ["GeoFix", "PlatformPose", "geolocate"]
+__all__ = ["FixLimits", "GeoFix", "PlatformPose", "geolocate"]
 
 
 @dataclass(frozen=True)
@@ -109,6 +116,37 @@ class GeoFix:
         return self.lat is not None and self.lon is not None
 
 
+@dataclass(frozen=True)
+class FixLimits:
+    """When a fix is too uncertain to give (see the module docstring).
+
+    ``max_off_nadir_deg``: the ray's angle from straight down (90 - depression) at most this;
+    ``max_error_m``: the 1-sigma estimate at most this; ``horizon_sigmas``: the depression at
+    least this many pointing sigmas (``attitude_sigma_rad``) of the pose.
+    """
+
+    max_off_nadir_deg: float = 90.0
+    max_error_m: float = math.inf
+    horizon_sigmas: float = 3.0
+
+    def refusal(self, fix: GeoFix, attitude_sigma_rad: float) -> str:
+        """Why ``fix`` is refused, or "" when it stands."""
+        if not fix.ok or fix.error_m is None:
+            return ""
+        off_nadir = 90.0 - fix.depression_deg
+        margin = math.degrees(self.horizon_sigmas * attitude_sigma_rad)
+        if fix.depression_deg < margin:
+            return (f"ray {fix.depression_deg:.1f} deg below the horizon, within "
+                    f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded")
+        if off_nadir > self.max_off_nadir_deg:
+            return (f"ray {off_nadir:.1f} deg from straight down (a fix needs at most "
+                    f"{self.max_off_nadir_deg:g}; error estimate {fix.error_m:.0f} m)")
+        if fix.error_m > self.max_error_m:
+            return (f"error estimate {fix.error_m:.0f} m (a fix needs at most "
+                    f"{self.max_error_m:g} m; ray {off_nadir:.1f} deg from straight down)")
+        return ""
+
+
 def _horizontal_covariance(
     d: np.ndarray, t: float, pose: PlatformPose, ground_sigma_m: float
 ) -> np.ndarray:
@@ -136,13 +174,15 @@ def geolocate(
     ground_below_home_m: float = 0.0,
     ground_sigma_m: float = 0.0,
     min_height_m: float = 0.0,
+    limits: FixLimits = FixLimits(),
 ) -> GeoFix:
     """Latitude/longitude of the ground seen at pixel ``(u, v)`` (see the module docstring).
 
     ``ground_below_home_m``: how far the ground plane lies below the autopilot's home (0: at
     home altitude); ``ground_sigma_m`` its 1-sigma uncertainty. ``min_height_m``: no fix when
-    the camera is lower than this above the plane. Without a fix ``lat``/``lon`` are None and
-    ``note`` says why.
+    the camera is lower than this above the plane; ``limits``: no fix when the view is too
+    grazing or the estimate too large. Without a fix ``lat``/``lon`` are None and ``note`` says
+    why.
     """
     uv = np.asarray(pixel_uv, dtype=float).reshape(1, 2)
     if not (pose.finite() and np.all(np.isfinite(uv)) and math.isfinite(ground_below_home_m)):
@@ -168,4 +208,6 @@ def geolocate(
         return _no_fix(depression, "geolocation not finite")
     plane = ("home altitude" if ground_below_home_m == 0.0
              else f"{ground_below_home_m:.1f} m below home")
-    return GeoFix(lat, lon, error, t, depression, f"ground plane at {plane}")
+    fix = GeoFix(lat, lon, error, t, depression, f"ground plane at {plane}")
+    refused = limits.refusal(fix, pose.attitude_sigma_rad)
+    return _no_fix(depression, refused) if refused else fix
