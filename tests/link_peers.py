@@ -93,7 +93,7 @@ class RawPeer:
             msg = self.conn.recv_match(blocking=True, timeout=0.01)
             if msg is not None and msg.get_type() != "BAD_DATA":
                 self.received.append(msg)
-                if msg.get_type() == "COMMAND_LONG":
+                if msg.get_type() in ("COMMAND_LONG", "COMMAND_INT"):
                     self._on_command(msg)
 
     def _on_command(self, msg: Any) -> None:

@@ -29,13 +29,15 @@ def _result(timestamp: float, boxes: list, scores: list, classes: list) -> Frame
 
 
 class ScriptedDetector:
-    """Returns ``script[n]`` (a list of ``(box_xyxy, score, class_id)``) on its n-th call."""
+    """Returns ``script[n]`` (a list of ``(box_xyxy, score, class_id)``) on its n-th call.
+    ``resets`` holds the number of calls made before each :meth:`reset`."""
 
     classes = CLASSES
 
     def __init__(self, script: list[list[tuple[tuple[float, ...], float, int]]]) -> None:
         self.script = script
         self.calls = 0
+        self.resets: list[int] = []
         self.vstmd = _Shift()
         self.per_stage_ms: dict[str, float] = {}
 
@@ -47,7 +49,9 @@ class ScriptedDetector:
                        [c for _, _, c in items])
 
     def reset(self) -> None:
-        """Nothing to forget: the script goes on with the next call."""
+        """Recorded (when, in calls) so that tests see it; the script goes on with the next
+        call."""
+        self.resets.append(self.calls)
 
 
 class BlobDetector:
