@@ -260,3 +260,15 @@ def test_scaled_boxes_keep_the_centre():
     boxes = np.array([[10.0, 20.0, 26.0, 36.0], [0.0, 0.0, 4.0, 8.0]], np.float32)
     np.testing.assert_allclose(scaled_boxes(boxes, 2.0),
                                [[2.0, 12.0, 34.0, 44.0], [-2.0, -4.0, 6.0, 12.0]])
+
+
+def test_frame_result_carries_the_camera_shift(head: MiteHead):
+    """The shift the motion front-end compensated comes with each frame's result: none on the
+    first frame, the given one when the caller knows it, the scene's own motion otherwise."""
+    frames, _ = _clip(4)
+    net = MiteNet(TorchHeadRuntime(head), ds=2, topn=5)
+    assert net.process(frames[0], 0.0).camera_shift == (0.0, 0.0)
+    assert net.process(frames[1], 1 / 30, shift_px=(3.0, -1.5)).camera_shift == (3.0, -1.5)
+    panned = np.roll(frames[1], (2, 6), axis=(0, 1))  # the whole scene 6 px right, 2 px down
+    shift = net.process(panned, 2 / 30).camera_shift
+    np.testing.assert_allclose(shift, (6.0, 2.0), atol=0.5)

@@ -73,12 +73,6 @@ TELEMETRY: dict[str, dict[str, float]] = {
 MATCH_PX = 24.0
 
 
-class _Shift:
-    """``vstmd.last_shift`` stand-in: the true ground shift of the last frame (or None)."""
-
-    last_shift: tuple[float, float] | None = None
-
-
 class OracleDetector:
     """MITE-Net's ``process`` interface answering with the simulator's truth for the frame the
     camera delivered last: every swimmer's box plus N(0, ``noise_px``) per edge, score 0.9.
@@ -97,7 +91,6 @@ class OracleDetector:
         self.noise_px = noise_px
         self.true_shift = true_shift
         self.rng = np.random.default_rng([seed, 7])
-        self.vstmd = _Shift()
         self.per_stage_ms: dict[str, float] = {}
         self.calls = 0
         self.boxes_reported = 0
@@ -120,10 +113,10 @@ class OracleDetector:
             boxes.append(b)
             classes.append(self.classes.index(a.category) if a.category in self.classes else 0)
         self.boxes_reported += len(boxes)
-        self.vstmd.last_shift = self._shift(truth.sim_time) if self.true_shift else None
+        shift = self._shift(truth.sim_time) if self.true_shift else None
         det = Detections(np.asarray(boxes, np.float32).reshape(-1, 4),
                          np.full(len(boxes), 0.9, np.float32), np.asarray(classes, np.int64))
-        return FrameResult(timestamp, det, Proposals(boxes=det.boxes.copy()), None)
+        return FrameResult(timestamp, det, Proposals(boxes=det.boxes.copy()), None, shift)
 
     def _shift(self, t: float) -> tuple[float, float] | None:
         """Where the ground point at the image centre of the previous frame moved in this one."""

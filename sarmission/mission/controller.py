@@ -48,7 +48,7 @@ from sarmission.alerts.model import Alert
 from sarmission.alerts.store import AlertStore
 from sarmission.alerts.thumbnail import crop_thumbnail
 from sarmission.geo.camera import CameraIntrinsics
-from sarmission.geo.geolocate import GeoFix, PlatformPose, geolocate
+from sarmission.geo.geolocate import FixLimits, GeoFix, PlatformPose, geolocate
 from sarmission.geo.ground_size import ground_extent_m
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
@@ -70,12 +70,9 @@ DRONE_COLOUR = (60, 140, 255)
 
 
 class Detector(Protocol):
-    """What the controller needs of a detector (:class:`~sarmission.perception.mitenet.MiteNet`).
+    """What the controller needs of a detector (:class:`~sarmission.perception.mitenet.MiteNet`);
+    its :class:`FrameResult` carries the frame's camera shift."""
 
-    ``vstmd.last_shift`` is the image shift of the last frame in full-resolution pixels.
-    """
-
-    vstmd: Any
     per_stage_ms: dict[str, float]
 
     @property
@@ -163,6 +160,8 @@ class MissionController:
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m
         self.min_height_m = mission.geolocation.min_height_m
+        self.fix_limits = FixLimits(max_off_nadir_deg=mission.geolocation.max_off_nadir_deg,
+                                    max_error_m=mission.geolocation.max_error_m)
         self._camera = mission.camera.intrinsics()
         self._intrinsics: CameraIntrinsics | None = None
         self._shape: tuple[int, int] | None = None
@@ -203,7 +202,7 @@ class MissionController:
             self._paused = False
         started = time.perf_counter()
         result = self.detector.process(frame, timestamp)
-        shift = getattr(self.detector.vstmd, "last_shift", None)
+        shift = result.camera_shift
         tracks = self.tracker.update(result.detections, frame_index, timestamp,
                                      camera_shift=shift)
         if shift is not None:
@@ -297,7 +296,8 @@ class MissionController:
             assert home is not None
             return self.ground_model.locate(centre, self._intrinsics, pose, home,
                                             self.min_height_m)
-        return geolocate(centre, self._intrinsics, pose, ground, min_height_m=self.min_height_m)
+        return geolocate(centre, self._intrinsics, pose, ground, min_height_m=self.min_height_m,
+                         limits=self.fix_limits)
 
     def _locate(self, track: TrackState, pose: PlatformPose | StaleTelemetry,
                 ) -> tuple[GeoFix | None, str]:

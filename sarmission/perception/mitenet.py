@@ -224,7 +224,8 @@ class MiteNet:
                              "rpn": (t3 - t2) * 1e3, "crops": (t4 - t3) * 1e3,
                              "head": (t5 - t4) * 1e3}
         return FrameResult(timestamp=float(timestamp), detections=detections,
-                           proposals=proposals, motion=motion)
+                           proposals=proposals, motion=motion,
+                           camera_shift=self.vstmd.last_shift)
 
     def _classify(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Best class probability, its class id and the box bins of every crop."""

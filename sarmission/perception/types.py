@@ -80,9 +80,12 @@ class Detections:
 
 @dataclass
 class FrameResult:
-    """Everything MITE-Net produced for one frame."""
+    """Everything MITE-Net produced for one frame. ``camera_shift`` is how far the scene moved
+    in the image since the previous frame (``(dx, dy)`` full-resolution pixels, content from
+    ``x`` to ``x + shift``), as the motion front-end compensated it; None when not known."""
 
     timestamp: float
     detections: Detections
     proposals: Proposals
     motion: MotionMaps
+    camera_shift: tuple[float, float] | None = None
