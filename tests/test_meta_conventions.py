@@ -162,3 +162,18 @@ def test_replay_gives_no_position_to_a_frame_looking_above_the_horizon(tmp_path,
     above = [line for line in alerts if "(frame 2," in line]
     assert above and all("position unknown: dataset meta: gimbal pitch -5 (depression) looks "
                          "above the horizon" in line for line in above), out
+
+
+def test_replay_refuses_positions_beyond_the_missions_off_nadir_limit(tmp_path, capsys):
+    # The centre looks 60 degrees off nadir and the clip's dots lie 51-76 degrees off it: the
+    # mission allows 50, then 89.
+    path = write_dataset(tmp_path, [30.0])
+    replay(path, "--set", "geolocation.max_off_nadir_deg=50")
+    out = capsys.readouterr().out
+    alerts = alert_lines(out)
+    assert alerts, out
+    assert all("position unknown: no ground fix: ray" in line
+               and "from straight down (a fix needs at most 50" in line for line in alerts), out
+    replay(path, "--set", "geolocation.max_off_nadir_deg=89")
+    alerts = alert_lines(capsys.readouterr().out)
+    assert alerts and all("±" in line for line in alerts), alerts

@@ -232,9 +232,13 @@ class ConfirmConfig:
 @dataclass
 class GeolocationConfig:
     """When a fix may be computed: only while the drone is at least ``min_height_m`` above the
-    ground plane (on the ground, or landing, everything in view is at the drone's own place)."""
+    ground plane (on the ground, or landing, everything in view is at the drone's own place),
+    and only for a ray at most ``max_off_nadir_deg`` from straight down with an error estimate
+    of at most ``max_error_m`` (grazing views: the alert says why it has no position)."""
 
     min_height_m: float = 5.0
+    max_off_nadir_deg: float = 85.0
+    max_error_m: float = 250.0
 
 
 @dataclass
@@ -473,6 +477,10 @@ def _validate(cfg: MissionConfig, origin: str) -> None:
                   "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1")
     if cfg.geolocation.min_height_m < 0:
         raise bad("[geolocation] min_height_m", "expected a number >= 0")
+    if not 0 < cfg.geolocation.max_off_nadir_deg <= 90:
+        raise bad("[geolocation] max_off_nadir_deg", "expected a number in (0, 90]")
+    if not cfg.geolocation.max_error_m > 0:
+        raise bad("[geolocation] max_error_m", "expected a positive number")
 
 
 def parse_override(text: str) -> tuple[str, Any]:
