@@ -29,10 +29,11 @@ def fly(label: str, seconds: float | None, overrides: list[str]) -> Path:
         cmd += ["--seconds", f"{seconds:g}"]
     for item in overrides:
         cmd += ["--set", item]
-    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=True)
-    figures = json.loads(done.stdout[done.stdout.index("{"):])
+    # The commit the flights start from: the tree may move on during the half hour they take.
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
                             capture_output=True, text=True).stdout.strip()
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=True)
+    figures = json.loads(done.stdout[done.stdout.index("{"):])
     figures["run"] = {"label": label, "commit": commit,
                       "command": "sarmission " + " ".join(cmd[3:])}
     SUITE_DIR.mkdir(parents=True, exist_ok=True)
