@@ -16,6 +16,11 @@ falls on far fewer pixels than at 4K. ``maritime_test`` is dense (about 12 targe
 per frame, like the paper's test split) at 90 m with a 75 degree lens, where head-only swimmers
 fall in the extremely tiny band (<= 64 px^2), head-and-shoulders in the tiny band and swimmers
 floating on their back in the small band.
+
+The ``maritime_oblique_*`` presets fly SeaDronesSee's views instead (its validation file's height
+and gimbal pitch p10 / p50 / p90 paired, as high flights there look further down): 10 m at 11
+degrees below the horizon (horizon and sky in view), 36 m at 36 and 60 m at 71, with boats beside
+swimmers; ``tools/sim_vs_real.py`` compares their distributions with the real file's.
 """
 
 from __future__ import annotations
@@ -38,13 +43,14 @@ class Preset:
 
 
 def _mission(name: str, rect: tuple[float, float, float, float], altitude: float, hfov: float,
-             home: tuple[float, float, float], speed: float = 10.0) -> MissionConfig:
+             home: tuple[float, float, float], speed: float = 10.0,
+             pitch_deg: float = -90.0) -> MissionConfig:
     return MissionConfig(
         area=AreaConfig(home_lat=home[0], home_lon=home[1], home_alt_m=home[2],
                         ground_alt_m=home[2], rectangle_m=rect, leg_spacing_m=60.0,
                         heading_deg=90.0),
         flight=FlightConfig(altitude_m=altitude, speed_m_s=speed, takeoff=False),
-        camera=CameraConfig(hfov_deg=hfov, mount_pitch_deg=-90.0, gimbal=True),
+        camera=CameraConfig(hfov_deg=hfov, mount_pitch_deg=pitch_deg, gimbal=True),
         name=name)
 
 
@@ -75,6 +81,46 @@ def _maritime(name: str, seed: int, altitude: float, hfov: float, sea_state: int
         n_debris=round(0.5 * n), n_glints=round(0.8 * n), head_only_fraction=0.25,
         floating_fraction=0.2, sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
     return Preset(name, scenario, _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0)))
+
+
+def oblique_view_m(altitude: float, hfov: float, pitch_deg: float, aspect: float = 9 / 16,
+                   cap_m: float = 200.0) -> tuple[float, float, float]:
+    """(near, far, area) of the sea an oblique camera sees: the bottom and top edges' ground
+    distances ``h / tan(depression -+ vfov/2)`` (``far`` capped at ``cap_m``, and ``cap_m`` when
+    the horizon is in view; negative ``near``: behind the drone) and the trapezoid between them,
+    each edge as wide as the frame at its slant range."""
+    half_h = math.radians(hfov) / 2
+    half_v = math.atan(math.tan(half_h) * aspect)
+    depression = math.radians(-pitch_deg)
+    top, bottom = depression - half_v, depression + half_v
+    far = cap_m if top <= math.radians(1.0) else min(cap_m, altitude / math.tan(top))
+    near = altitude / math.tan(bottom) if bottom < math.pi / 2 else -altitude * math.tan(
+        bottom - math.pi / 2)
+
+    def width(d: float) -> float:
+        return 2 * math.hypot(d, altitude) * math.tan(half_h)
+
+    return near, far, (far - near) * (width(near) + width(far)) / 2
+
+
+def _maritime_oblique(name: str, seed: int, altitude: float, pitch_deg: float, hfov: float,
+                      sea_state: int, per_frame: float, sun: tuple[float, float]) -> Preset:
+    """A maritime scene seen obliquely: the legs fly east and west with the camera looking
+    ahead, so targets are spread as far ahead (and beside) as it sees, about ``per_frame`` of
+    them in the sea a frame shows (:func:`oblique_view_m`, out to 200 m)."""
+    rect = (30.0, -150.0, 90.0, 150.0)
+    _, reach, area = oblique_view_m(altitude, hfov, pitch_deg)
+    half_n = reach * math.tan(math.radians(hfov) / 2) + altitude
+    strip = (rect[0] - half_n, rect[1] - reach, rect[2] + half_n, rect[3] + reach)
+    n = _count(per_frame, strip, area)
+    scenario = Scenario(
+        kind="maritime", seed=seed, area_ne=strip, sea_state=sea_state,
+        n_swimmers=round(0.65 * n), n_life_jacket=n - round(0.65 * n),
+        n_boats=max(1, round(0.25 * n)), n_birds=max(2, round(0.06 * n)),
+        n_debris=round(0.5 * n), n_glints=round(0.8 * n), head_only_fraction=0.25,
+        floating_fraction=0.2, sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
+    return Preset(name, scenario, _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0),
+                                           speed=5.0, pitch_deg=pitch_deg))
 
 
 def _urban(name: str, seed: int, altitude: float, hfov: float, per_frame: float,
@@ -114,6 +160,24 @@ def maritime_test() -> Preset:
     return _maritime("maritime_test", 3003, 90.0, 75.0, 3, 12.0, (230.0, 50.0))
 
 
+def maritime_oblique_low() -> Preset:
+    """10 m up, looking 11 degrees down (horizon and sky in view): SeaDronesSee's p10 view."""
+    return _maritime_oblique("maritime_oblique_low", 7007, 10.0, -11.0, 70.0, 2, 6.0,
+                             (200.0, 45.0))
+
+
+def maritime_oblique_mid() -> Preset:
+    """36 m up, looking 36 degrees down: SeaDronesSee's median height and pitch."""
+    return _maritime_oblique("maritime_oblique_mid", 7008, 36.0, -36.0, 70.0, 3, 6.0,
+                             (150.0, 35.0))
+
+
+def maritime_oblique_high() -> Preset:
+    """60 m up, looking 71 degrees down: SeaDronesSee's p90 height and pitch."""
+    return _maritime_oblique("maritime_oblique_high", 7009, 60.0, -71.0, 70.0, 3, 6.0,
+                             (250.0, 50.0))
+
+
 def urban_train() -> Preset:
     """City blocks at 60 m, about 6 pedestrians per frame."""
     return _urban("urban_train", 4004, 60.0, 70.0, 6.0, (160.0, 40.0))
@@ -131,7 +195,8 @@ def urban_test() -> Preset:
 
 PRESETS: dict[str, Callable[[], Preset]] = {
     f.__name__: f for f in (maritime_train, maritime_train_high, maritime_train_narrow,
-                            maritime_val, maritime_test,
+                            maritime_val, maritime_test, maritime_oblique_low,
+                            maritime_oblique_mid, maritime_oblique_high,
                             urban_train, urban_val, urban_test)
 }
 
