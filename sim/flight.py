@@ -29,8 +29,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from sarmission.geo.camera import CameraPose
-from sarmission.geo.frames import matrix_to_euler, rotation_ned_from_camera
+from sarmission.geo.frames import matrix_to_euler
 from sarmission.mission.config import MissionConfig
+from sim.truth_frames import camera_rotation
 
 GRAVITY = 9.80665
 DT = 0.02  # trajectory grid step (s)
@@ -69,7 +70,7 @@ class VehicleState:
 
     def camera_pose(self) -> CameraPose:
         """Camera pose (camera centre at the vehicle position; lever arm neglected)."""
-        r = rotation_ned_from_camera(self.vehicle_rpy, self.gimbal_rpy, self.gimbal_frame)
+        r = camera_rotation(self.vehicle_rpy, self.gimbal_rpy, self.gimbal_frame)
         return CameraPose(self.position_ned.copy(), r)
 
 

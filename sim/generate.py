@@ -32,11 +32,11 @@ from sarmission.data.coco_video import (
     write_coco_video,
 )
 from sarmission.data.meta_conventions import DEPRESSION, INFO_KEY
-from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mission.config import MissionConfig
 from sim.flight import Flight, VehicleState
 from sim.render import ObjectAnnotation, SceneRenderer
 from sim.scene import CATEGORIES, TARGET_CATEGORIES, Scenario
+from sim.truth_frames import ned_to_geodetic
 
 
 def frame_meta(state: VehicleState, home: tuple[float, float, float]) -> dict[str, float]:

@@ -28,7 +28,6 @@ from sarmission.geo.camera import (
     ground_to_image_homography,
     project_points,
 )
-from sarmission.geo.wgs84 import ned_to_geodetic
 from sim.ground import UrbanGround
 from sim.scene import (
     CATEGORIES,
@@ -42,6 +41,7 @@ from sim.scene import (
 from sim.sea import SeaSurface
 from sim.sensor import DetailOverlay
 from sim.sprites import draw_parts, tight_extent
+from sim.truth_frames import ned_to_geodetic
 
 
 @dataclass
