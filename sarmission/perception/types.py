@@ -26,6 +26,9 @@ class MotionMaps:
 
 #: :attr:`Proposals.source` values.
 MOTION, COLOUR = 0, 1
+#: The vSTMD pooling factors (power-saving mode): one source for the model, the mission file
+#: and the command line.
+VALID_DS = (1, 2, 4, 8)
 #: Share of the N proposals that come from the chromatic anomaly map by default
 #: (:class:`~sarmission.perception.rpn.TTMRPN`).
 DEFAULT_COLOUR_SHARE = 0.4

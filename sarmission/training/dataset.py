@@ -326,6 +326,8 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
 
 #: Modules whose code decides the cached crops and labels.
 RECIPE_MODULES = ("sarmission.perception.pyramid", "sarmission.perception.vstmd",
+                  "sarmission.perception.vstmd_params", "sarmission.perception.vstmd_kernels",
+                  "sarmission.perception.ego_motion",
                   "sarmission.perception.chroma", "sarmission.perception.rpn",
                   "sarmission.perception.crops", "sarmission.boxes",
                   "sarmission.training.sampling", "sarmission.training.dataset")
