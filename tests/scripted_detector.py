@@ -4,21 +4,12 @@ not what is under test: one replays a per-frame script, the other finds bright b
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import cv2
 import numpy as np
 
 from sarmission.perception.types import Detections, FrameResult, Proposals
 
 CLASSES = ("swimmer", "swimmer_with_life_jacket")
-
-
-@dataclass
-class _Shift:
-    """Stands in for vSTMD's ego-motion read-out: no shift known."""
-
-    last_shift: tuple[float, float] | None = None
 
 
 def _result(timestamp: float, boxes: list, scores: list, classes: list) -> FrameResult:
@@ -38,7 +29,6 @@ class ScriptedDetector:
         self.script = script
         self.calls = 0
         self.resets: list[int] = []
-        self.vstmd = _Shift()
         self.per_stage_ms: dict[str, float] = {}
 
     def process(self, frame_bgr: np.ndarray, timestamp: float,
@@ -62,7 +52,6 @@ class BlobDetector:
     def __init__(self, threshold: int = 200, min_area: int = 2) -> None:
         self.threshold = threshold
         self.min_area = min_area
-        self.vstmd = _Shift()
         self.per_stage_ms: dict[str, float] = {}
 
     def process(self, frame_bgr: np.ndarray, timestamp: float,
