@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 import onnx
 import pytest
+from conftest import free_udp_port
 from motion_scenes import moving_target, to_bgr
 
 from sarmission.cli import build_parser, main
@@ -147,7 +148,8 @@ def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
     index = 99  # no such /dev/video99 on a test machine
     assert not Path(f"/dev/video{index}").exists()
     done = subprocess.run(
-        [sys.executable, "-m", "sarmission.cli", "run", "--connect", "udp:127.0.0.1:14599",
+        [sys.executable, "-m", "sarmission.cli", "run", "--connect",
+         f"udp:127.0.0.1:{free_udp_port()}",
          "--camera", str(index), "--alerts-db", str(tmp_path / "alerts.db")],
         capture_output=True, text=True, timeout=120,
     )

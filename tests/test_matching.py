@@ -5,11 +5,12 @@ NWD > 0.5 exactly when d < 12.8 * ln 2 = 8.87 px.
 """
 
 import numpy as np
+from conftest import FIXTURES_DIR
 
 from sarmission.data import read_coco_video
 from sarmission.evaluation.matching import FrameBoxes, ground_truth_by_image, match_frame
 
-FIXTURE = "tests/fixtures/seadronessee_sample.json"
+FIXTURE = FIXTURES_DIR / "seadronessee_sample.json"
 
 
 def square(cx, cy=50.0, side=8.0):

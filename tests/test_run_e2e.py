@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 import run_scripted
+from conftest import free_udp_port
 from dot_scene import DotRenderer
 from scripted_detector import BlobDetector
 
@@ -47,12 +48,6 @@ OVERRIDES = {
 }
 SET_ARGS = [a for k, v in OVERRIDES.items() for a in ("--set", f"{k}={json.dumps(v)}")]
 REPEATS = load_mission().actions.statustext_repeats  # sends of each STATUSTEXT alert
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def mission_with(**extra):

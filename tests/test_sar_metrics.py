@@ -3,6 +3,7 @@
 import json
 
 import pytest
+from conftest import FIXTURES_DIR
 
 from sarmission.data import read_coco_video
 from sarmission.evaluation.matching import FrameBoxes
@@ -13,7 +14,7 @@ from sarmission.evaluation.sar_metrics import (
     sequences_from_dataset,
 )
 
-FIXTURE = "tests/fixtures/seadronessee_sample.json"
+FIXTURE = FIXTURES_DIR / "seadronessee_sample.json"
 X1, X2 = 50.0, 200.0  # track 1 and track 2 positions
 
 

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import copy
 import math
-import socket
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from conftest import free_udp_port
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sarmission.cli import main
@@ -30,12 +30,6 @@ from sim.vehicle import SimVehicle
 
 FPS = 10.0
 FRAMES = 20
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def angle_diff_deg(a: float, b: float) -> float:

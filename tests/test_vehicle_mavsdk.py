@@ -1,11 +1,11 @@
 """The MAVLink vehicle seen by MAVSDK (native in-process binding) over real UDP."""
 
 import math
-import socket
 import threading
 import time
 
 import pytest
+from conftest import free_udp_port
 
 from sarmission.mission.config import load_mission
 from sim.vehicle import SimVehicle
@@ -14,12 +14,6 @@ mavsdk = pytest.importorskip("mavsdk")
 from mavsdk import ComponentType, Configuration, ConnectionResult, Mavsdk  # noqa: E402
 from mavsdk.plugins.mission_raw import MissionItem, MissionRaw  # noqa: E402
 from mavsdk.plugins.telemetry import Telemetry  # noqa: E402
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def call_with_timeout(fn, timeout_s):

@@ -6,19 +6,13 @@ import socket
 import time
 
 import pytest
-from conftest import wait_until
+from conftest import free_udp_port, wait_until
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
 from sarmission.mavlink.connection import mavlink2_connection
 from sarmission.mission.config import load_mission
 from sim.vehicle import ARM_NO_HOME, SimVehicle
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -62,11 +56,14 @@ def link(mission):
     lk.close()
 
 
-def count_messages(conn, seconds):
+def collect_messages(conn, needed: dict[str, int], timeout: float = 60.0):
+    """Messages by type until each type in ``needed`` has arrived that many times (the
+    deadline only bounds a hang); counts and ``time_boot_ms`` stamps by type."""
     counts = collections.Counter()
     stamps = collections.defaultdict(list)
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    deadline = time.monotonic() + timeout
+    while any(counts[t] < n for t, n in needed.items()):
+        assert time.monotonic() < deadline, (needed, counts)
         msg = conn.recv_match(blocking=True, timeout=0.05)
         if msg is None:
             continue
@@ -77,19 +74,16 @@ def count_messages(conn, seconds):
 
 
 def test_telemetry_rates(link):
+    """Each stream's rate, read from the vehicle's own ``time_boot_ms`` stamps (how often the
+    receiver happens to be scheduled says nothing about the sender)."""
     link.recv("HEARTBEAT")
-    counts, stamps = count_messages(link.conn, 3.0)
-    for mtype, rate in [
-        ("GLOBAL_POSITION_INT", 10),
-        ("ATTITUDE", 20),
-        ("GIMBAL_DEVICE_ATTITUDE_STATUS", 5),
-        ("SYSTEM_TIME", 1),
-    ]:
-        assert counts[mtype] == pytest.approx(3.0 * rate, rel=0.3), (mtype, counts)
+    rates = {"GLOBAL_POSITION_INT": 10, "ATTITUDE": 20, "GIMBAL_DEVICE_ATTITUDE_STATUS": 5,
+             "SYSTEM_TIME": 1}
+    counts, stamps = collect_messages(
+        link.conn, {**{t: r * 3 for t, r in rates.items()}, "HEARTBEAT": 2, "HOME_POSITION": 1})
+    for mtype, rate in rates.items():
         dt = (stamps[mtype][-1] - stamps[mtype][0]) / 1000 / (len(stamps[mtype]) - 1)
-        assert 1 / dt == pytest.approx(rate, rel=0.05)
-    assert 2 <= counts["HEARTBEAT"] <= 4
-    assert counts["HOME_POSITION"] >= 1
+        assert 1 / dt == pytest.approx(rate, rel=0.05), mtype
     hb = link.recv("HEARTBEAT")
     assert (hb.type, hb.autopilot) == (M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA)
     g = link.recv("GIMBAL_DEVICE_ATTITUDE_STATUS")
@@ -307,7 +301,7 @@ def test_statustext_is_logged_and_kept(link, caplog):
 def test_stream_on_request_sends_only_heartbeat_until_asked(mission):
     link = Link(mission, stream_on_request=True)
     try:
-        counts, _ = count_messages(link.conn, 1.5)
+        counts, _ = collect_messages(link.conn, {"HEARTBEAT": 2})
         assert set(counts) == {"HEARTBEAT"}
         assert (
             link.command_long(
@@ -315,8 +309,9 @@ def test_stream_on_request_sends_only_heartbeat_until_asked(mission):
             )
             == 0
         )
-        counts, _ = count_messages(link.conn, 2.0)
-        assert counts["GLOBAL_POSITION_INT"] == pytest.approx(8, abs=2)
+        counts, stamps = collect_messages(link.conn, {"GLOBAL_POSITION_INT": 8})
+        position = stamps["GLOBAL_POSITION_INT"]
+        assert (position[-1] - position[0]) / (len(position) - 1) == pytest.approx(250, rel=0.05)
         assert counts["ATTITUDE"] == 0 and counts["GIMBAL_DEVICE_ATTITUDE_STATUS"] == 0
         assert (
             link.command_long(
@@ -324,8 +319,8 @@ def test_stream_on_request_sends_only_heartbeat_until_asked(mission):
             )
             == 0
         )
-        time.sleep(0.3)
-        counts, _ = count_messages(link.conn, 0.5)
+        collect_messages(link.conn, {"HEARTBEAT": 1})  # what was on its way has arrived
+        counts, _ = collect_messages(link.conn, {"HEARTBEAT": 2})
         assert counts["GLOBAL_POSITION_INT"] == 0
     finally:
         link.close()
