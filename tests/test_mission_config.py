@@ -1,11 +1,14 @@
 """Mission configuration: defaults, file and override precedence, clear errors."""
 
+import argparse
 from pathlib import Path
 
 import pytest
 
+from sarmission.commands.detector_options import add_detector_options
 from sarmission.errors import SarmissionError
 from sarmission.mission.config import MissionConfigError, load_mission, parse_override
+from sarmission.perception.vstmd import VSTMD
 
 MISSIONS = Path(__file__).resolve().parents[1] / "missions"
 
@@ -73,6 +76,11 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[lock]\nm = 6\nk = 5", "expected 1 <= m <= k"),
         ("[lock]\nmin_score = 1.2", "[lock] min_score"),
         ("[detector]\ncolour_share = 1.5", "[detector] colour_share"),
+        ("[detector]\nds = 3", "[detector] ds: expected one of 1, 2, 4, 8"),
+        ("[telemetry]\nlatency_s = -1", "[telemetry] latency_s: expected a number >= 0"),
+        ("[confirm]\nmin_size_m = 3.0", "[confirm] sizes/speed/score"),
+        ("[geolocation]\nmax_off_nadir_deg = 95", "[geolocation] max_off_nadir_deg"),
+        ("[actions]\nvisit_interval_s = -1", "[actions] visit_interval_s: expected a number >= 0"),
         ("[detector]\ncrop_scales = [1.0, -2.0]", "[detector] crop_scales"),
         ("[detector]\nrefine_threshold = 1.5", "[detector] refine_threshold"),
         ('[actions]\npolicy = ["alert", "dance"]', "unknown action 'dance'"),
@@ -101,3 +109,22 @@ def test_missing_file_and_bad_override(tmp_path):
     with pytest.raises(MissionConfigError, match=r"\[flight\] speed_m_s: expected number"):
         load_mission(None, ["flight.speed_m_s=fast"])
     assert parse_override("detector.ds = 4") == ("detector.ds", 4)
+
+
+@pytest.mark.parametrize("ds", range(10))
+def test_mission_file_model_and_command_line_accept_the_same_ds(ds: int) -> None:
+    """One set of pooling factors: what the mission file accepts, vSTMD and --ds accept too."""
+
+    def accepted(check) -> bool:
+        try:
+            check()
+        except (MissionConfigError, ValueError, argparse.ArgumentError):
+            return False
+        return True
+
+    parser = argparse.ArgumentParser(exit_on_error=False)
+    add_detector_options(parser)
+    by_file = accepted(lambda: load_mission(None, {"detector.ds": ds}))
+    by_model = accepted(lambda: VSTMD(ds=ds))
+    by_cli = accepted(lambda: parser.parse_args(["--ds", str(ds)]))
+    assert by_file == by_model == by_cli == (ds in (1, 2, 4, 8))

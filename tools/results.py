@@ -44,7 +44,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES, VALID_DS
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "docs" / "results.md"
@@ -899,8 +899,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.frames < 1 or args.sequences < 1:
         parser.error("--frames and --sequences must be at least 1")
-    if any(d not in (1, 2, 4, 8) for d in args.sweep_ds):
-        parser.error(f"--sweep-ds accepts 1, 2, 4, 8, got {args.sweep_ds}")
+    if any(d not in VALID_DS for d in args.sweep_ds):
+        parser.error(f"--sweep-ds accepts {', '.join(map(str, VALID_DS))}, got {args.sweep_ds}")
 
     if args.from_json is not None:
         results = json.loads(args.from_json.read_text())

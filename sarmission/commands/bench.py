@@ -12,7 +12,7 @@ from sarmission.commands.detector_options import (
     parse_crop_scales,
 )
 from sarmission.commands.progress import add_progress_option, progress_for
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES, VALID_DS
 
 
 def _int_list(text: str) -> list[int]:
@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "against decoding overlapped with MITE-Net, as detect runs. Each configuration runs in "
         "its own processes.",
     )
-    parser.add_argument("--ds", type=_int_list, default=[1, 2, 4, 8],
+    parser.add_argument("--ds", type=_int_list, default=list(VALID_DS),
                         help="down-sampling factors (default: 1,2,4,8)")
     parser.add_argument("--topn", type=_int_list, default=[10, 25, 50, 100],
                         help="proposal counts (default: 10,25,50,100)")
@@ -90,9 +90,9 @@ def run(args: argparse.Namespace) -> int:
     ds_values, topn_values, frames = args.ds, args.topn, args.frames
     if args.quick:
         ds_values, topn_values, frames = [2, 4], [25], 10
-    bad = [d for d in ds_values if d not in (1, 2, 4, 8)]
+    bad = [d for d in ds_values if d not in VALID_DS]
     if bad:
-        raise ValueError(f"--ds accepts 1, 2, 4 and 8, got {bad}")
+        raise ValueError(f"--ds accepts {', '.join(map(str, VALID_DS))}, got {bad}")
     if frames < 1 or min(topn_values) < 1:
         raise ValueError("--frames and --topn must be positive")
     width, height = args.size

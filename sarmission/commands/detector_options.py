@@ -9,6 +9,7 @@ from sarmission.perception.types import (
     DEFAULT_COLOUR_SHARE,
     DEFAULT_CROP_SCALES,
     MAX_CROP_SCALE,
+    VALID_DS,
 )
 
 if TYPE_CHECKING:
@@ -27,7 +28,7 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
                        help="head weights (.pt or .onnx); default: the shipped model")
     group.add_argument("--runtime", choices=("onnx", "torch"), default="onnx",
                        help="head runtime; onnxruntime is ~3x faster on CPU (default: %(default)s)")
-    group.add_argument("--ds", type=int, choices=(1, 2, 4, 8), default=DEFAULT_DS,
+    group.add_argument("--ds", type=int, choices=VALID_DS, default=DEFAULT_DS,
                        help="vSTMD down-sampling factor (default: %(default)s)")
     group.add_argument("--topn", type=int, default=DEFAULT_TOPN,
                        help="proposals per frame (default: %(default)s)")

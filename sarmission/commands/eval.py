@@ -29,10 +29,11 @@ from sarmission.commands.detector_options import (
     check_refine_threshold,
 )
 from sarmission.commands.progress import add_progress_option, bars_wanted
+from sarmission.perception.types import VALID_DS
 
 log = logging.getLogger(__name__)
 
-DS_CHOICES = (1, 2, 4, 8)
+DS_CHOICES = VALID_DS
 
 
 def _int_list(text: str) -> list[int]:
@@ -70,7 +71,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="evaluate only the first frames of each video")
     parser.add_argument("--sweep", action="store_true",
                         help="run MITE-Net for every ds x N of the grid (scalability table)")
-    parser.add_argument("--sweep-ds", type=_int_list, default=[1, 2, 4, 8],
+    parser.add_argument("--sweep-ds", type=_int_list, default=list(VALID_DS),
                         help="sweep down-sampling factors (default: 1,2,4,8)")
     parser.add_argument("--sweep-topn", type=_int_list, default=[10, 25, 50, 100],
                         help="sweep proposal counts (default: 10,25,50,100)")

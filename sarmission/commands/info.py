@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from sarmission.commands.bench import _size
+from sarmission.perception.types import VALID_DS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -17,7 +18,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--size", type=_size, default=(3840, 2160),
                         help="frame size WIDTHxHEIGHT (default: 3840x2160)")
-    parser.add_argument("--ds", type=int, choices=(1, 2, 4, 8), default=2)
+    parser.add_argument("--ds", type=int, choices=VALID_DS, default=2)
     parser.add_argument("--topn", type=int, default=25)
     parser.add_argument("--model", default=None,
                         help="head weights (default: the shipped model, else an untrained head)")

@@ -10,7 +10,7 @@ import argparse
 from pathlib import Path
 
 from sarmission.commands.progress import add_progress_option, bars_wanted
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE
+from sarmission.perception.types import DEFAULT_COLOUR_SHARE, VALID_DS
 
 _DEFAULT_CLASSES = "swimmer,swimmer_with_life_jacket"
 
@@ -39,7 +39,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="validate and save a moving average of the weights with this decay "
                              "per step, e.g. 0.999 (0 = the raw weights)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--ds", type=int, default=1, choices=(1, 2, 4, 8),
+    parser.add_argument("--ds", type=int, default=1, choices=VALID_DS,
                         help="vSTMD down-sampling factor for the training crops")
     parser.add_argument("--frame-stride", type=int, default=5,
                         help="cut crops at every k-th frame (all frames still go through vSTMD)")

@@ -37,13 +37,12 @@ from typing import Any
 
 from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
+from sarmission.mission.config_rules import ACTION_POLICIES as ACTION_POLICIES
+from sarmission.mission.config_rules import SECTION_RULES
 from sarmission.perception.types import (
     DEFAULT_COLOUR_SHARE,
     DEFAULT_CROP_SCALES,
-    MAX_CROP_SCALE,
 )
-
-ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
 
 
 class MissionConfigError(SarmissionError):
@@ -369,118 +368,13 @@ def _apply(cfg: MissionConfig, data: Mapping[str, Any], origin: str) -> None:
 
 
 def _validate(cfg: MissionConfig, origin: str) -> None:
-    def bad(key: str, msg: str) -> MissionConfigError:
-        return MissionConfigError(f"{origin}: {key}: {msg}")
-
-    a = cfg.area
-    if not -90.0 <= a.home_lat <= 90.0 or not -180.0 <= a.home_lon <= 180.0:
-        raise bad(
-            "[area] home_lat/home_lon",
-            "expected latitude in [-90, 90] and longitude in [-180, 180]",
-        )
-    shapes = [
-        s for s in ("rectangle_m", "polygon_m", "polygon_latlon") if getattr(a, s) is not None
-    ]
-    if len(shapes) > 1:
-        raise bad(
-            "[area]",
-            f"give only one of rectangle_m, polygon_m, polygon_latlon (got {', '.join(shapes)})",
-        )
-    if a.rectangle_m is not None:
-        r = a.rectangle_m
-        if len(r) != 4 or r[0] >= r[2] or r[1] >= r[3]:
-            raise bad(
-                "[area] rectangle_m",
-                "expected [north_min, east_min, north_max, east_max] with min < max",
-            )
-    for s in ("polygon_m", "polygon_latlon"):
-        poly = getattr(a, s)
-        if poly is not None and (len(poly) < 3 or any(len(p) != 2 for p in poly)):
-            raise bad(f"[area] {s}", "expected at least 3 points of 2 numbers each")
-    if a.leg_spacing_m <= 0:
-        raise bad("[area] leg_spacing_m", "expected a positive number")
-    f = cfg.flight
-    for key in (
-        "altitude_m",
-        "speed_m_s",
-        "climb_rate_m_s",
-        "max_accel_m_s2",
-        "max_lateral_accel_m_s2",
-    ):
-        if getattr(f, key) <= 0:
-            raise bad(f"[flight] {key}", "expected a positive number")
-    c = cfg.camera
-    if c.width <= 0 or c.height <= 0:
-        raise bad("[camera] width/height", "expected positive integers")
-    if not 0.0 < c.hfov_deg < 180.0:
-        raise bad("[camera] hfov_deg", "expected a number in (0, 180)")
-    if not -90.0 <= c.mount_pitch_deg <= 0.0:
-        raise bad("[camera] mount_pitch_deg", "expected -90 (nadir) .. 0 (horizon)")
-    if len(c.distortion) not in (0, 4, 5):
-        raise bad("[camera] distortion", "expected 0, 4 or 5 numbers (k1, k2, p1, p2[, k3])")
-    if c.fx is not None and c.fx <= 0 or c.fy is not None and c.fy <= 0:
-        raise bad("[camera] fx/fy", "expected positive focal lengths in pixels")
-    d = cfg.detector
-    if d.ds < 1:
-        raise bad("[detector] ds", "expected an integer >= 1")
-    if d.topn < 1:
-        raise bad("[detector] topn", "expected an integer >= 1")
-    if not 0.0 <= d.colour_share <= 1.0:
-        raise bad("[detector] colour_share", "expected a number in [0, 1]")
-    if not d.crop_scales or any(not 0.0 < s <= MAX_CROP_SCALE for s in d.crop_scales):
-        raise bad("[detector] crop_scales",
-                  f"expected a list of numbers in (0, {MAX_CROP_SCALE:g}]")
-    if not 0.0 <= d.score_threshold <= 1.0:
-        raise bad("[detector] score_threshold", "expected a number in [0, 1]")
-    if d.refine_threshold is not None and not 0.0 <= d.refine_threshold <= 1.0:
-        raise bad("[detector] refine_threshold", "expected a number in [0, 1]")
-    if not 0.0 <= cfg.lock.min_score <= 1.0:
-        raise bad("[lock] min_score", "expected a number in [0, 1]")
-    if not 1 <= cfg.lock.m <= cfg.lock.k:
-        raise bad("[lock] m/k", f"expected 1 <= m <= k, got m={cfg.lock.m}, k={cfg.lock.k}")
-    for p in cfg.actions.policy:
-        if p not in ACTION_POLICIES:
-            raise bad(
-                "[actions] policy",
-                f"unknown action '{p}' (expected any of {', '.join(ACTION_POLICIES)})",
-            )
-    if "loiter" in cfg.actions.policy and "mission" in cfg.actions.policy:
-        raise bad("[actions] policy", "loiter and mission both move the aircraft: choose one")
-    if cfg.actions.retries < 0 or cfg.actions.ack_timeout_s <= 0:
-        raise bad("[actions] retries/ack_timeout_s", "expected retries >= 0 and a positive timeout")
-    if not cfg.actions.roi_hold_s > 0:
-        raise bad("[actions] roi_hold_s", "expected a positive number of seconds")
-    if not 1 <= cfg.actions.statustext_repeats <= 20:
-        raise bad("[actions] statustext_repeats", "expected an integer from 1 to 20")
-    if not 0 < cfg.actions.statustext_repeat_interval_s <= 60:
-        raise bad("[actions] statustext_repeat_interval_s",
-                  "expected seconds above 0 and at most 60")
-    t = cfg.telemetry
-    for key in ("gnss_noise_m", "attitude_noise_deg", "latency_s"):
-        if getattr(t, key) < 0:
-            raise bad(f"[telemetry] {key}", "expected a number >= 0")
-    if t.stale_after_s <= 0 or t.gnss_noise_tau_s <= 0:
-        raise bad("[telemetry] stale_after_s/gnss_noise_tau_s", "expected positive numbers")
-    for key in ("max_error_m", "visit_loiter_s"):
-        if not getattr(cfg.actions, key) > 0:
-            raise bad(f"[actions] {key}", "expected a positive number")
-    for key in ("area_margin_m", "visit_interval_s", "visit_group_radius_m"):
-        if getattr(cfg.actions, key) < 0:
-            raise bad(f"[actions] {key}", "expected a number >= 0")
-    c = cfg.confirm
-    if c.min_sightings < 1 or not c.min_seen_s >= 0 or not c.give_up_s > c.min_seen_s:
-        raise bad("[confirm] min_sightings/min_seen_s/give_up_s",
-                  "expected min_sightings >= 1, min_seen_s >= 0 and give_up_s > min_seen_s")
-    if not 0 < c.min_size_m < c.max_size_m or c.max_speed_m_s < 0 or not 0 <= c.min_score <= 1 \
-            or not 0 <= c.min_seen_share <= 1:
-        raise bad("[confirm] sizes/speed/score",
-                  "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1")
-    if cfg.geolocation.min_height_m < 0:
-        raise bad("[geolocation] min_height_m", "expected a number >= 0")
-    if not 0 < cfg.geolocation.max_off_nadir_deg <= 90:
-        raise bad("[geolocation] max_off_nadir_deg", "expected a number in (0, 90]")
-    if not cfg.geolocation.max_error_m > 0:
-        raise bad("[geolocation] max_error_m", "expected a positive number")
+    """Raise for the first section that breaks its rule (:data:`SECTION_RULES`)."""
+    for section, rule in SECTION_RULES.items():
+        problem = rule(getattr(cfg, section))
+        if problem is not None:
+            key, expected = problem
+            where = f"[{section}] {key}" if key else f"[{section}]"
+            raise MissionConfigError(f"{origin}: {where}: {expected}")
 
 
 def parse_override(text: str) -> tuple[str, Any]:

@@ -1,0 +1,166 @@
+"""What makes each section of a mission file valid: one rule function per section.
+
+Each rule returns the first problem it finds as ``(key, what was expected)``, or None. The
+loader (:mod:`sarmission.mission.config`) runs them in :data:`SECTION_RULES` order and names
+the file and ``[section] key`` in its error. Sets of valid values come from the code that
+uses them (e.g. :data:`~sarmission.perception.types.VALID_DS`), so the file, the model and the
+command line accept the same values. Comparisons are written so that NaN fails them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from sarmission.perception.types import MAX_CROP_SCALE, VALID_DS
+
+if TYPE_CHECKING:
+    from sarmission.mission.config import (
+        ActionsConfig,
+        AreaConfig,
+        CameraConfig,
+        ConfirmConfig,
+        DetectorConfig,
+        FlightConfig,
+        GeolocationConfig,
+        LockConfig,
+        TelemetryConfig,
+    )
+
+ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
+
+Problem = tuple[str, str] | None
+
+
+def area_problem(a: AreaConfig) -> Problem:
+    if not -90.0 <= a.home_lat <= 90.0 or not -180.0 <= a.home_lon <= 180.0:
+        return "home_lat/home_lon", "expected latitude in [-90, 90] and longitude in [-180, 180]"
+    shapes = [s for s in ("rectangle_m", "polygon_m", "polygon_latlon")
+              if getattr(a, s) is not None]
+    if len(shapes) > 1:
+        return "", (f"give only one of rectangle_m, polygon_m, polygon_latlon "
+                    f"(got {', '.join(shapes)})")
+    r = a.rectangle_m
+    if r is not None and (len(r) != 4 or r[0] >= r[2] or r[1] >= r[3]):
+        return "rectangle_m", "expected [north_min, east_min, north_max, east_max] with min < max"
+    for s in ("polygon_m", "polygon_latlon"):
+        poly = getattr(a, s)
+        if poly is not None and (len(poly) < 3 or any(len(p) != 2 for p in poly)):
+            return s, "expected at least 3 points of 2 numbers each"
+    if a.leg_spacing_m <= 0:
+        return "leg_spacing_m", "expected a positive number"
+    return None
+
+
+def flight_problem(f: FlightConfig) -> Problem:
+    for key in ("altitude_m", "speed_m_s", "climb_rate_m_s", "max_accel_m_s2",
+                "max_lateral_accel_m_s2"):
+        if getattr(f, key) <= 0:
+            return key, "expected a positive number"
+    return None
+
+
+def camera_problem(c: CameraConfig) -> Problem:
+    if c.width <= 0 or c.height <= 0:
+        return "width/height", "expected positive integers"
+    if not 0.0 < c.hfov_deg < 180.0:
+        return "hfov_deg", "expected a number in (0, 180)"
+    if not -90.0 <= c.mount_pitch_deg <= 0.0:
+        return "mount_pitch_deg", "expected -90 (nadir) .. 0 (horizon)"
+    if len(c.distortion) not in (0, 4, 5):
+        return "distortion", "expected 0, 4 or 5 numbers (k1, k2, p1, p2[, k3])"
+    if c.fx is not None and c.fx <= 0 or c.fy is not None and c.fy <= 0:
+        return "fx/fy", "expected positive focal lengths in pixels"
+    return None
+
+
+def detector_problem(d: DetectorConfig) -> Problem:
+    if d.ds not in VALID_DS:
+        return "ds", f"expected one of {', '.join(map(str, VALID_DS))} (vSTMD pooling factor)"
+    if d.topn < 1:
+        return "topn", "expected an integer >= 1"
+    if not 0.0 <= d.colour_share <= 1.0:
+        return "colour_share", "expected a number in [0, 1]"
+    if not d.crop_scales or any(not 0.0 < s <= MAX_CROP_SCALE for s in d.crop_scales):
+        return "crop_scales", f"expected a list of numbers in (0, {MAX_CROP_SCALE:g}]"
+    if not 0.0 <= d.score_threshold <= 1.0:
+        return "score_threshold", "expected a number in [0, 1]"
+    if d.refine_threshold is not None and not 0.0 <= d.refine_threshold <= 1.0:
+        return "refine_threshold", "expected a number in [0, 1]"
+    return None
+
+
+def lock_problem(lock: LockConfig) -> Problem:
+    if not 0.0 <= lock.min_score <= 1.0:
+        return "min_score", "expected a number in [0, 1]"
+    if not 1 <= lock.m <= lock.k:
+        return "m/k", f"expected 1 <= m <= k, got m={lock.m}, k={lock.k}"
+    return None
+
+
+def actions_problem(a: ActionsConfig) -> Problem:
+    for p in a.policy:
+        if p not in ACTION_POLICIES:
+            return "policy", f"unknown action '{p}' (expected any of {', '.join(ACTION_POLICIES)})"
+    if "loiter" in a.policy and "mission" in a.policy:
+        return "policy", "loiter and mission both move the aircraft: choose one"
+    if a.retries < 0 or a.ack_timeout_s <= 0:
+        return "retries/ack_timeout_s", "expected retries >= 0 and a positive timeout"
+    if not a.roi_hold_s > 0:
+        return "roi_hold_s", "expected a positive number of seconds"
+    if not 1 <= a.statustext_repeats <= 20:
+        return "statustext_repeats", "expected an integer from 1 to 20"
+    if not 0 < a.statustext_repeat_interval_s <= 60:
+        return "statustext_repeat_interval_s", "expected seconds above 0 and at most 60"
+    for key in ("max_error_m", "visit_loiter_s"):
+        if not getattr(a, key) > 0:
+            return key, "expected a positive number"
+    for key in ("area_margin_m", "visit_interval_s", "visit_group_radius_m"):
+        if getattr(a, key) < 0:
+            return key, "expected a number >= 0"
+    return None
+
+
+def telemetry_problem(t: TelemetryConfig) -> Problem:
+    for key in ("gnss_noise_m", "attitude_noise_deg", "latency_s"):
+        if getattr(t, key) < 0:
+            return key, "expected a number >= 0"
+    if t.stale_after_s <= 0 or t.gnss_noise_tau_s <= 0:
+        return "stale_after_s/gnss_noise_tau_s", "expected positive numbers"
+    return None
+
+
+def confirm_problem(c: ConfirmConfig) -> Problem:
+    if c.min_sightings < 1 or not c.min_seen_s >= 0 or not c.give_up_s > c.min_seen_s:
+        return ("min_sightings/min_seen_s/give_up_s",
+                "expected min_sightings >= 1, min_seen_s >= 0 and give_up_s > min_seen_s")
+    if (not 0 < c.min_size_m < c.max_size_m or c.max_speed_m_s < 0
+            or not 0 <= c.min_score <= 1 or not 0 <= c.min_seen_share <= 1):
+        return ("sizes/speed/score",
+                "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1")
+    return None
+
+
+def geolocation_problem(g: GeolocationConfig) -> Problem:
+    if g.min_height_m < 0:
+        return "min_height_m", "expected a number >= 0"
+    if not 0 < g.max_off_nadir_deg <= 90:
+        return "max_off_nadir_deg", "expected a number in (0, 90]"
+    if not g.max_error_m > 0:
+        return "max_error_m", "expected a positive number"
+    return None
+
+
+#: Section name -> its rule, in the order they are checked. Sections without rules ([sim])
+#: only need values of the right type.
+SECTION_RULES: dict[str, Callable[[Any], Problem]] = {
+    "area": area_problem,
+    "flight": flight_problem,
+    "camera": camera_problem,
+    "detector": detector_problem,
+    "lock": lock_problem,
+    "actions": actions_problem,
+    "telemetry": telemetry_problem,
+    "confirm": confirm_problem,
+    "geolocation": geolocation_problem,
+}
