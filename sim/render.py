@@ -7,9 +7,10 @@ Pipeline for one frame (pinhole camera, no distortion):
    upsampled with ``cv2.resize``; full-resolution grain and sensor noise from
    :class:`sim.sensor.DetailOverlay`; sun-glint sparkles at sea.
 2. Objects, far to near (birds last): each is drawn in a small patch through the homography of its
-   own plane ``down = -height`` composed with its local-to-world transform.
-3. Annotations: the tight box of the projected outline of the object's ``in_box`` parts, clipped
-   to the frame; objects whose box lies wholly outside are dropped.
+   own plane ``down = -height`` composed with its local-to-world transform, then its upright
+   parts, if any, on a billboard facing the camera (:mod:`sim.billboard`).
+3. Annotations: the tight box of the projected outline of the object's ``in_box`` parts (flat and
+   upright), clipped to the frame; objects whose box lies wholly outside are dropped.
 
 Boxes are in COCO pixel-edge coordinates (the image spans ``[0, width] x [0, height]``; a point at
 camera pixel coordinate ``u`` - pixel centres at integers - lies at ``x = u + 0.5``).
@@ -28,11 +29,13 @@ from sarmission.geo.camera import (
     ground_to_image_homography,
     project_points,
 )
+from sim.billboard import billboard_for, billboard_homography, billboard_parts
 from sim.ground import UrbanGround
 from sim.scene import (
     CATEGORIES,
     TARGET_CATEGORIES,
     ObjectState,
+    Part,
     Scenario,
     SceneObject,
     World,
@@ -42,6 +45,7 @@ from sim.sea import SeaSurface
 from sim.sensor import DetailOverlay
 from sim.sprites import draw_parts, tight_extent
 from sim.truth_frames import ned_to_geodetic
+from sim.upright_world import build_upright_world
 
 
 @dataclass
@@ -71,7 +75,8 @@ class SceneRenderer:
     """Deterministic renderer of one :class:`Scenario` for one camera.
 
     ``home`` = ``(lat_deg, lon_deg, alt_m)`` of the NED origin adds lat/lon to the annotations.
-    ``world`` replaces the objects :func:`sim.scene.build_world` would place (hand-built scenes).
+    ``world`` replaces the objects :func:`sim.scene.build_world` (or, for ``figures =
+    "upright"``, :func:`sim.upright_world.build_upright_world`) would place (hand-built scenes).
     Expensive state (wave tiles, city texture, detail tiles) is built once here.
     """
 
@@ -84,7 +89,10 @@ class SceneRenderer:
         self.scenario = scenario
         self.intrinsics = intrinsics
         self.home = home
-        self.world = world if world is not None else build_world(scenario)
+        if world is None:
+            world = (build_upright_world(scenario) if scenario.figures == "upright"
+                     else build_world(scenario))
+        self.world = world
         self._objects = [o for o in self.world.objects if not o.static]
         self._static = [o.state_at(0.0) for o in self.world.objects if o.static]
         w, h = intrinsics.width, intrinsics.height
@@ -107,13 +115,18 @@ class SceneRenderer:
         h_ground = ground_to_image_homography(intr, pose)
         frame = self._background(t, pose, h_ground)
         states = [o.state_at(t) for o in self._in_view(t, pose)]
+        if self.scenario.figures == "upright":  # far to near, so near objects hide far ones
+            states.sort(key=lambda s: -float(np.linalg.norm(s.position_ned - pose.position_ned)))
         states.sort(key=lambda s: -s.position_ned[2] if s.position_ned[2] < 0 else 0.0)
         annotations = []
         for state, painted in [(s, True) for s in self._static] + [(s, False) for s in states]:
             h_obj = self._object_homography(pose, state)
+            upright = self._upright(pose, state)
             if not painted:
                 draw_parts(frame, h_obj, state.parts, state.visibility)
-            ann = self._annotate(state, h_obj)
+                if upright is not None:
+                    draw_parts(frame, *upright, state.visibility)
+            ann = self._annotate(state, h_obj, upright)
             if ann is not None:
                 annotations.append(ann)
         annotations.sort(key=lambda a: a.track_id)
@@ -159,8 +172,28 @@ class SceneRenderer:
                                              ground_down=float(state.position_ned[2]))
         return h_plane @ state.local_to_ne()
 
-    def _annotate(self, state: ObjectState, h_obj: np.ndarray) -> ObjectAnnotation | None:
+    def _upright(self, pose: CameraPose, state: ObjectState
+                 ) -> tuple[np.ndarray, list[Part]] | None:
+        """Billboard homography and parts of the object's upright parts (None without any)."""
+        if not state.upright:
+            return None
+        board = billboard_for(pose.position_ned, state.position_ned, state.heading)
+        if board is None:
+            return None
+        return (billboard_homography(self.intrinsics, pose, board),
+                billboard_parts(state.upright, board))
+
+    def _annotate(self, state: ObjectState, h_obj: np.ndarray,
+                  upright: tuple[np.ndarray, list[Part]] | None = None
+                  ) -> ObjectAnnotation | None:
         ext = tight_extent(h_obj, state.parts, state.visibility)
+        if upright is not None:
+            standing = tight_extent(*upright, state.visibility)
+            if ext is None or standing is None:
+                ext = standing if ext is None else ext
+            else:
+                ext = np.concatenate([np.minimum(ext[:2], standing[:2]),
+                                      np.maximum(ext[2:], standing[2:])])
         if ext is None:
             return None
         x0, y0, x1, y1 = (float(v) + 0.5 for v in ext)

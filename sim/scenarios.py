@@ -19,7 +19,9 @@ floating on their back in the small band.
 
 The ``maritime_oblique_*`` presets fly SeaDronesSee's views instead (its validation file's height
 and gimbal pitch p10 / p50 / p90 paired, as high flights there look further down): 10 m at 11
-degrees below the horizon (horizon and sky in view), 36 m at 36 and 60 m at 71, with boats beside
+degrees below the horizon (horizon and sky in view), 36 m at 36 and 60 m at 71. Their figures
+stand up out of the water (``figures = "upright"``) at real sizes, within the distances real
+footage shows people at, with the file's classes (boats, jetskis, buoys, life rings) beside
 swimmers; ``tools/sim_vs_real.py`` compares their distributions with the real file's.
 """
 
@@ -104,23 +106,36 @@ def oblique_view_m(altitude: float, hfov: float, pitch_deg: float, aspect: float
 
 
 def _maritime_oblique(name: str, seed: int, altitude: float, pitch_deg: float, hfov: float,
-                      sea_state: int, per_frame: float, sun: tuple[float, float]) -> Preset:
-    """A maritime scene seen obliquely: the legs fly east and west with the camera looking
-    ahead, so targets are spread as far ahead (and beside) as it sees, about ``per_frame`` of
-    them in the sea a frame shows (:func:`oblique_view_m`, out to 200 m)."""
-    rect = (30.0, -150.0, 90.0, 150.0)
-    _, reach, area = oblique_view_m(altitude, hfov, pitch_deg)
-    half_n = reach * math.tan(math.radians(hfov) / 2) + altitude
-    strip = (rect[0] - half_n, rect[1] - reach, rect[2] + half_n, rect[3] + reach)
+                      sea_state: int, per_frame: float, sun: tuple[float, float],
+                      reach_m: float) -> Preset:
+    """A maritime scene seen obliquely, the way real footage of swimmers is taken: the drone
+    works slowly (2 m/s) over a small box, two 20 m legs east and west 60 m apart with the
+    camera looking ahead, and objects lie within ``reach_m`` of the box all round, about
+    ``per_frame`` of them in the sea a frame shows (:func:`oblique_view_m`, out to ``reach_m``).
+    Figures stand up out of the water (``figures = "upright"``) and the class mix is
+    SeaDronesSee's: about 64 % swimmers, 23 % boats, 6 % buoys, 3 % jetskis and 3 % life rings
+    of what a frame shows (boats and jetskis loop across and beyond the area, so more are
+    placed than a frame shows); buoys are moored up to ``2 * reach_m`` further out.
+    """
+    rect = (30.0, -10.0, 90.0, 10.0)
+    _, _, area = oblique_view_m(altitude, hfov, pitch_deg, cap_m=reach_m)
+    strip = (rect[0] - reach_m, rect[1] - reach_m, rect[2] + reach_m, rect[3] + reach_m)
     n = _count(per_frame, strip, area)
+    swimmers = round(0.64 * n)
+    moorings = (strip[0] - 2 * reach_m, strip[1] - 2 * reach_m, strip[2] + 2 * reach_m,
+                strip[3] + 2 * reach_m)
+    spread = ((moorings[2] - moorings[0]) * (moorings[3] - moorings[1])
+              / ((strip[2] - strip[0]) * (strip[3] - strip[1])))
     scenario = Scenario(
         kind="maritime", seed=seed, area_ne=strip, sea_state=sea_state,
-        n_swimmers=round(0.65 * n), n_life_jacket=n - round(0.65 * n),
-        n_boats=max(1, round(0.25 * n)), n_birds=max(2, round(0.06 * n)),
-        n_debris=round(0.5 * n), n_glints=round(0.8 * n), head_only_fraction=0.25,
-        floating_fraction=0.2, sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
+        n_swimmers=round(0.8 * swimmers), n_life_jacket=swimmers - round(0.8 * swimmers),
+        n_boats=max(1, round(0.25 * n)), n_jetskis=max(1, round(0.06 * n)),
+        n_buoys=max(1, round(0.012 * n * spread)), buoy_area_ne=moorings,
+        n_life_rings=max(1, round(0.03 * n)),
+        n_birds=max(2, round(0.06 * n)), n_debris=round(0.3 * n), n_glints=round(0.5 * n),
+        sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1], figures="upright")
     return Preset(name, scenario, _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0),
-                                           speed=5.0, pitch_deg=pitch_deg))
+                                           speed=2.0, pitch_deg=pitch_deg))
 
 
 def _urban(name: str, seed: int, altitude: float, hfov: float, per_frame: float,
@@ -163,19 +178,19 @@ def maritime_test() -> Preset:
 def maritime_oblique_low() -> Preset:
     """10 m up, looking 11 degrees down (horizon and sky in view): SeaDronesSee's p10 view."""
     return _maritime_oblique("maritime_oblique_low", 7007, 10.0, -11.0, 70.0, 2, 6.0,
-                             (200.0, 45.0))
+                             (200.0, 45.0), 100.0)
 
 
 def maritime_oblique_mid() -> Preset:
     """36 m up, looking 36 degrees down: SeaDronesSee's median height and pitch."""
     return _maritime_oblique("maritime_oblique_mid", 7008, 36.0, -36.0, 70.0, 3, 6.0,
-                             (150.0, 35.0))
+                             (150.0, 35.0), 70.0)
 
 
 def maritime_oblique_high() -> Preset:
     """60 m up, looking 71 degrees down: SeaDronesSee's p90 height and pitch."""
     return _maritime_oblique("maritime_oblique_high", 7009, 60.0, -71.0, 70.0, 3, 6.0,
-                             (250.0, 50.0))
+                             (250.0, 50.0), 60.0)
 
 
 def urban_train() -> Preset:

@@ -44,6 +44,9 @@ CATEGORIES: dict[str, int] = {
     "sun_glint": 6,
     "person": 7,
     "car": 8,
+    "jetski": 9,
+    "buoy": 10,
+    "life_saving_appliances": 11,
 }
 #: Categories that are people to find. The maritime detector's classes are the first two;
 #: ``person`` is a person on land in urban scenes.
@@ -102,9 +105,39 @@ class Part:
         return replace(self, x=self.x + self.a * c, y=self.y + self.a * s, role="")
 
 
+@dataclass(frozen=True)
+class Upright:
+    """A part standing up from the object's plane (a head above the water, a hull's side, a
+    person on deck), seen from the side.
+
+    Its footprint is centred at object-local ``(x, y)`` metres with half-extents ``half_length``
+    along ``x`` and ``half_width`` along ``y``; it rises from ``bottom`` to ``top`` metres above
+    the plane. It is drawn as ``shape`` (``"ellipse"`` or ``"box"``) on a billboard facing the
+    camera (:mod:`sim.billboard`), as wide as its footprint looks from there. ``tilt`` leans it
+    about its foot (radians from vertical, towards the viewer's right); ``swing`` rocks the tilt
+    by that much over the object's ``period_s`` (a waving arm).
+    """
+
+    shape: str
+    x: float
+    y: float
+    half_length: float
+    half_width: float
+    bottom: float
+    top: float
+    bgr: BGR
+    opacity: float = 1.0
+    shade: float = 0.25
+    in_box: bool = True
+    tilt: float = 0.0
+    swing: float = 0.0
+    phase: float = 0.0
+
+
 @dataclass
 class ObjectState:
-    """An object at one instant: world position (NED, ``down = -height``), heading, parts."""
+    """An object at one instant: world position (NED, ``down = -height``), heading, parts
+    (flat, in its plane) and upright parts."""
 
     track_id: int
     category: str
@@ -112,6 +145,7 @@ class ObjectState:
     heading: float
     parts: list[Part]
     visibility: float
+    upright: list[Upright] = field(default_factory=list)
 
     def local_to_ne(self) -> np.ndarray:
         """3x3 matrix taking homogeneous local ``(x, y, 1)`` to ``(north, east, 1)``."""
@@ -149,6 +183,7 @@ class SceneObject:
     bob_period_s: float = 4.0
     phase: float = 0.0
     static: bool = False
+    upright: list[Upright] = field(default_factory=list)
 
     @property
     def is_target(self) -> bool:
@@ -184,8 +219,11 @@ class SceneObject:
     @functools.cached_property
     def radius_m(self) -> float:
         """Radius of a circle about the centre that holds every part in every pose."""
-        return max(math.hypot(p.x, p.y) + (2.0 if p.role in ("arm", "wing") else 1.0)
-                   * max(p.a, p.b) + abs(p.swing) for p in self.parts)
+        flat = (math.hypot(p.x, p.y) + (2.0 if p.role in ("arm", "wing") else 1.0)
+                * max(p.a, p.b) + abs(p.swing) for p in self.parts)
+        upright = (math.hypot(u.x, u.y) + max(u.half_length, u.half_width) + u.top
+                   for u in self.upright)
+        return max(*flat, *upright, 0.0)
 
     def _animate(self, part: Part, t: float) -> Part:
         cycle = 2 * math.pi * (t / self.period_s + self.phase) + part.phase
@@ -214,8 +252,11 @@ class SceneObject:
         if self.bob_depth > 0:
             wave = 0.5 + 0.5 * math.sin(2 * math.pi * (t / self.bob_period_s + self.phase))
             visibility = 1.0 - self.bob_depth * wave**3
+        upright = [u if not u.swing else replace(
+            u, tilt=u.tilt + u.swing * math.sin(2 * math.pi * (t / self.period_s + self.phase)
+                                                + u.phase), swing=0.0) for u in self.upright]
         return ObjectState(self.track_id, self.category, np.array([n, e, -self.height_m]),
-                           heading, parts, visibility)
+                           heading, parts, visibility, upright)
 
 
 @dataclass(frozen=True)
@@ -228,6 +269,13 @@ class Scenario:
     ``head_only_fraction`` show only a head (0.18-0.26 m), ``floating_fraction`` float on their
     back (body 1.3-1.8 m long). Life-jacket wearers float on their back in half the cases.
     Urban counts apply to ``kind == "urban"``, maritime ones to ``"maritime"``.
+
+    ``figures = "flat"`` lays every object flat on its plane (the look from straight down);
+    ``"upright"`` builds the world of :mod:`sim.upright_world` instead: heads and shoulders
+    out of the water, people standing on deck and on land, hulls and buoys with height, at the
+    sizes of real footage, plus ``n_jetskis``, ``n_buoys`` and ``n_life_rings`` (used only
+    there); buoys are moored over ``buoy_area_ne`` (default ``area_ne``), as they mark out
+    waters well beyond where people swim.
     """
 
     kind: str = "maritime"
@@ -250,10 +298,17 @@ class Scenario:
     wind_from_deg: float = 250.0
     sun_azimuth_deg: float = 200.0
     sun_elevation_deg: float = 45.0
+    figures: str = "flat"
+    n_jetskis: int = 0
+    n_buoys: int = 0
+    n_life_rings: int = 0
+    buoy_area_ne: tuple[float, float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in ("maritime", "urban"):
             raise ValueError(f"kind must be 'maritime' or 'urban', got {self.kind!r}")
+        if self.figures not in ("flat", "upright"):
+            raise ValueError(f"figures must be 'flat' or 'upright', got {self.figures!r}")
         if not 0 <= self.sea_state <= 6:
             raise ValueError(f"sea_state must be 0..6, got {self.sea_state}")
         n0, e0, n1, e1 = self.area_ne
@@ -314,13 +369,13 @@ class World:
     layout: UrbanLayout | None = None
 
 
-def _pick(rng: np.random.Generator, options: tuple[BGR, ...]) -> BGR:
+def pick_colour(rng: np.random.Generator, options: tuple[BGR, ...]) -> BGR:
     base = options[int(rng.integers(len(options)))]
     jitter = rng.normal(0.0, 8.0, 3)
     return tuple(float(np.clip(c + j, 0, 255)) for c, j in zip(base, jitter, strict=True))
 
 
-def _uniform_in(rng: np.random.Generator, area: tuple[float, float, float, float]
+def uniform_in(rng: np.random.Generator, area: tuple[float, float, float, float]
                 ) -> tuple[float, float]:
     n0, e0, n1, e1 = area
     return float(rng.uniform(n0, n1)), float(rng.uniform(e0, e1))
@@ -333,10 +388,10 @@ def swimmer_parts(rng: np.random.Generator, width: float, pose: str,
                   life_jacket: bool) -> list[Part]:
     """Parts of a swimmer. ``pose``: ``"head"`` (only the head shows), ``"tread"`` (head and
     shoulders, arms sweeping) or ``"float"`` (on the back, body ``width`` long)."""
-    skin = _pick(rng, SKIN)
-    cover = _pick(rng, SWIM_CAP) if rng.random() < 0.3 else _pick(rng, HAIR)
-    suit = _pick(rng, WETSUIT) if rng.random() < 0.6 else skin
-    jacket = _pick(rng, LIFE_JACKET)
+    skin = pick_colour(rng, SKIN)
+    cover = pick_colour(rng, SWIM_CAP) if rng.random() < 0.3 else pick_colour(rng, HAIR)
+    suit = pick_colour(rng, WETSUIT) if rng.random() < 0.6 else skin
+    jacket = pick_colour(rng, LIFE_JACKET)
     ripple = (225.0, 225.0, 215.0)
     parts: list[Part] = []
     if pose == "head":
@@ -361,7 +416,7 @@ def swimmer_parts(rng: np.random.Generator, width: float, pose: str,
         return parts
     length = width
     half = length / 2
-    torso = _pick(rng, CLOTHES) if not life_jacket else jacket
+    torso = pick_colour(rng, CLOTHES) if not life_jacket else jacket
     parts.append(Part("ellipse", 0.0, 0.0, 1.05 * half, 0.32, 0.0, ripple, 0.12, 0.0, False))
     parts.append(Part("ellipse", -0.55 * half, 0.0, 0.45 * half, 0.16, 0.0, suit, 0.35, 0.2))
     for side in (-1.0, 1.0):
@@ -379,8 +434,8 @@ def swimmer_parts(rng: np.random.Generator, width: float, pose: str,
 def boat_parts(rng: np.random.Generator, length: float, moving: bool) -> list[Part]:
     """Hull with a pointed bow, a console or cabin, and (when moving) a foam wake."""
     half, beam = length / 2, 0.19 * length
-    hull = _pick(rng, HULL)
-    cabin = _pick(rng, ((220, 220, 220), (70, 70, 75), (150, 150, 150)))
+    hull = pick_colour(rng, HULL)
+    cabin = pick_colour(rng, ((220, 220, 220), (70, 70, 75), (150, 150, 150)))
     parts: list[Part] = []
     foam = (235.0, 238.0, 235.0)
     if moving:
@@ -399,7 +454,7 @@ def boat_parts(rng: np.random.Generator, length: float, moving: bool) -> list[Pa
 def bird_parts(rng: np.random.Generator, span: float) -> list[Part]:
     """A gull seen from above: body, two flapping wings with dark tips."""
     body = (235.0, 235.0, 232.0)
-    wing = _pick(rng, ((175, 175, 170), (230, 230, 228), (95, 95, 90)))
+    wing = pick_colour(rng, ((175, 175, 170), (230, 230, 228), (95, 95, 90)))
     half = span / 2
     parts = [Part("ellipse", 0.0, 0.0, 0.2 * span, 0.05 * span, 0.0, body, 1.0, 0.2)]
     for side in (-1.0, 1.0):
@@ -418,14 +473,14 @@ def debris_parts(rng: np.random.Generator, size: float) -> list[Part]:
         parts.append(Part("ellipse" if rng.random() < 0.6 else "box",
                           float(rng.normal(0, 0.15 * size)), float(rng.normal(0, 0.15 * size)),
                           a, a * rng.uniform(0.3, 0.9), float(rng.uniform(0, math.pi)),
-                          _pick(rng, DEBRIS), float(rng.uniform(0.7, 1.0)), 0.2))
+                          pick_colour(rng, DEBRIS), float(rng.uniform(0.7, 1.0)), 0.2))
     return parts
 
 
 def car_parts(rng: np.random.Generator) -> list[Part]:
     """A car from above: body, dark windscreen and rear window, roof, shadow."""
     length, width = float(rng.uniform(3.9, 4.9)), float(rng.uniform(1.7, 1.95))
-    body = _pick(rng, CAR)
+    body = pick_colour(rng, CAR)
     roof = tuple(0.9 * c for c in body)
     glass = (40.0, 35.0, 30.0)
     return [
@@ -440,8 +495,8 @@ def car_parts(rng: np.random.Generator) -> list[Part]:
 def pedestrian_parts(rng: np.random.Generator) -> list[Part]:
     """A person from above: shadow, shoulders in clothing colour, head, swinging arms."""
     shoulders = float(rng.uniform(0.2, 0.26))
-    clothes = _pick(rng, CLOTHES)
-    hair = _pick(rng, HAIR)
+    clothes = pick_colour(rng, CLOTHES)
+    hair = pick_colour(rng, HAIR)
     return [
         Part("ellipse", -0.45, 0.3, 0.45, 0.14, 0.6, (15, 15, 15), 0.4, 0.0, False),
         Part("ellipse", 0.0, shoulders, 0.11, 0.045, 0.0, clothes, 0.9, 0.1, True, "limb", 0.15),
@@ -501,7 +556,7 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
             size = rng.uniform(max(sc.swimmer_width_m[0], 0.5), max(sc.swimmer_width_m[1], 0.7))
         objects.append(SceneObject(
             len(objects) + 1, "swimmer_with_life_jacket" if jacket else "swimmer",
-            _uniform_in(rng, sc.area_ne), float(rng.uniform(0, 2 * math.pi)),
+            uniform_in(rng, sc.area_ne), float(rng.uniform(0, 2 * math.pi)),
             swimmer_parts(rng, float(size), pose, jacket), drift(),
             wander_m=float(rng.uniform(0.2, 1.0)), wander_period_s=float(rng.uniform(30, 90)),
             turn_rate=float(rng.normal(0, 0.05)), period_s=float(rng.uniform(1.5, 3.0)),
@@ -513,7 +568,7 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
         length = float(rng.uniform(4.0, 10.0))
         heading = float(rng.uniform(0, 2 * math.pi))
         speed = float(rng.uniform(2.0, 8.0))
-        start = _loop_start(rng, sc.area_ne, heading, diag)
+        start = loop_start(rng, sc.area_ne, heading, diag)
         objects.append(SceneObject(
             len(objects) + 1, "boat", start, heading, boat_parts(rng, length, True),
             (speed * math.cos(heading), speed * math.sin(heading)), loop_m=diag + 200.0,
@@ -522,31 +577,31 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
         heading = float(rng.uniform(0, 2 * math.pi))
         speed = float(rng.uniform(8.0, 15.0))
         objects.append(SceneObject(
-            len(objects) + 1, "bird", _loop_start(rng, sc.area_ne, heading, diag), heading,
+            len(objects) + 1, "bird", loop_start(rng, sc.area_ne, heading, diag), heading,
             bird_parts(rng, float(rng.uniform(1.0, 1.5))),
             (speed * math.cos(heading), speed * math.sin(heading)),
             height_m=float(rng.uniform(5.0, 35.0)), loop_m=diag + 200.0,
             period_s=float(rng.uniform(0.25, 0.45)), phase=float(rng.random())))
     for _ in range(sc.n_debris):
         objects.append(SceneObject(
-            len(objects) + 1, "debris", _uniform_in(rng, sc.area_ne),
+            len(objects) + 1, "debris", uniform_in(rng, sc.area_ne),
             float(rng.uniform(0, 2 * math.pi)), debris_parts(rng, float(rng.uniform(0.2, 1.0))),
             drift(), wander_m=float(rng.uniform(0.1, 0.5)), turn_rate=float(rng.normal(0, 0.03)),
             bob_depth=float(min(0.6, 0.5 * bob)), bob_period_s=float(rng.uniform(3.0, 7.0)),
             phase=float(rng.random())))
     for _ in range(sc.n_glints):
         objects.append(SceneObject(
-            len(objects) + 1, "sun_glint", _uniform_in(rng, sc.area_ne),
+            len(objects) + 1, "sun_glint", uniform_in(rng, sc.area_ne),
             float(rng.uniform(0, 2 * math.pi)), glint_parts(rng, float(rng.uniform(0.08, 0.3))),
             drift(), period_s=float(rng.uniform(0.4, 2.0)), duty=float(rng.uniform(0.15, 0.4)),
             phase=float(rng.random())))
     return objects
 
 
-def _loop_start(rng: np.random.Generator, area: tuple[float, float, float, float],
+def loop_start(rng: np.random.Generator, area: tuple[float, float, float, float],
                 heading: float, diag: float) -> tuple[float, float]:
     """Start of a straight loop through a random point of ``area`` along ``heading``."""
-    pn, pe = _uniform_in(rng, area)
+    pn, pe = uniform_in(rng, area)
     back = diag / 2 + 100.0
     return pn - back * math.cos(heading), pe - back * math.sin(heading)
 
@@ -594,7 +649,7 @@ def _split_block(rng: np.random.Generator, layout: UrbanLayout,
             gap = float(rng.uniform(1.0, 4.0))
             layout.buildings.append(Building(
                 (bn0 + r * dn + gap, be0 + c * de + gap, bn0 + (r + 1) * dn - gap,
-                 be0 + (c + 1) * de - gap), _pick(rng, roofs), float(rng.uniform(6, 25))))
+                 be0 + (c + 1) * de - gap), pick_colour(rng, roofs), float(rng.uniform(6, 25))))
     if rng.random() < 0.5:
         layout.trees.append((float(rng.uniform(bn0, bn1)), float(rng.uniform(be0, be1)),
                              float(rng.uniform(1.5, 3.5))))
@@ -645,7 +700,7 @@ def _urban_objects(sc: Scenario, layout: UrbanLayout) -> list[SceneObject]:
     for _ in range(sc.n_pedestrians):
         speed = float(rng.uniform(0.7, 1.5))
         if layout.parks and rng.random() < 0.3:
-            start = _uniform_in(rng, layout.parks[int(rng.integers(len(layout.parks)))])
+            start = uniform_in(rng, layout.parks[int(rng.integers(len(layout.parks)))])
             heading = float(rng.uniform(0, 2 * math.pi))
         elif (rng.random() < 0.5 and north_roads) or not east_roads:
             rn = north_roads[int(rng.integers(len(north_roads)))] if north_roads else n0
