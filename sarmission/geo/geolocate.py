@@ -129,14 +129,20 @@ class FixLimits:
     max_error_m: float = math.inf
     horizon_sigmas: float = 3.0
 
-    def refusal(self, fix: GeoFix, attitude_sigma_rad: float) -> str:
-        """Why ``fix`` is refused, or "" when it stands."""
+    def refusal(self, fix: GeoFix, attitude_sigma_rad: float,
+                incidence_deg: float | None = None) -> str:
+        """Why ``fix`` is refused, or "" when it stands. ``incidence_deg``: the angle between the
+        ray and the surface it meets (None: the depression, for a level plane); within
+        ``horizon_sigmas`` pointing sigmas of grazing that surface the range is unbounded."""
         if not fix.ok or fix.error_m is None:
             return ""
         off_nadir = 90.0 - fix.depression_deg
         margin = math.degrees(self.horizon_sigmas * attitude_sigma_rad)
-        if fix.depression_deg < margin:
+        if incidence_deg is None and fix.depression_deg < margin:
             return (f"ray {fix.depression_deg:.1f} deg below the horizon, within "
+                    f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded")
+        if incidence_deg is not None and incidence_deg < margin:
+            return (f"ray {incidence_deg:.1f} deg from grazing the terrain, within "
                     f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded")
         if off_nadir > self.max_off_nadir_deg:
             return (f"ray {off_nadir:.1f} deg from straight down (a fix needs at most "

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from sarmission.geo.camera import CameraIntrinsics, pixel_rays
-from sarmission.geo.geolocate import GeoFix, PlatformPose
+from sarmission.geo.geolocate import FixLimits, GeoFix, PlatformPose
 from sarmission.geo.wgs84 import ned_to_geodetic
 
 __all__ = ["Dem", "DemError", "TerrainGround", "geolocate_terrain", "read_dem"]
@@ -169,6 +169,10 @@ def read_dem(path: str | Path, vertical_sigma_m: float | None = None) -> Dem:
     return read_geotiff(path, GEOTIFF_SIGMA_M if vertical_sigma_m is None else vertical_sigma_m)
 
 
+#: Limits when none are given: only the grazing margin (as :class:`FixLimits` defaults).
+DEFAULT_LIMITS = FixLimits()
+
+
 def _no_fix(depression: float, note: str) -> GeoFix:
     return GeoFix(None, None, None, None, depression, note)
 
@@ -199,13 +203,16 @@ def geolocate_terrain(
     home: tuple[float, float, float],
     min_height_m: float = 0.0,
     max_range_m: float = MAX_RANGE_M,
+    limits: FixLimits = DEFAULT_LIMITS,
 ) -> GeoFix:
     """Latitude/longitude of the terrain seen at pixel ``(u, v)`` (see the module docstring).
 
     ``home`` is the autopilot's ``(lat, lon, alt AMSL)``; with a non-finite altitude the DEM's
     height at home is used. No fix (``note`` says why) when the ray points above the horizon
     without meeting a hill, leaves the DEM, or the camera is less than ``min_height_m`` above
-    the terrain below it.
+    the terrain below it; nor when ``limits`` refuse it, as on the plane, except that the
+    grazing margin is taken from the terrain's surface where the ray meets it, not the horizon
+    (a ray level with the horizon meets a hillside at a bounded range).
     """
     uv = np.asarray(pixel_uv, dtype=float).reshape(1, 2)
     if not (pose.finite() and np.all(np.isfinite(uv))):
@@ -257,20 +264,27 @@ def geolocate_terrain(
     if not all(math.isfinite(v) for v in (lat, lon, error, t)):
         return _no_fix(depression, "geolocation not finite")
     slope = math.degrees(math.atan(math.hypot(dh_n, dh_e)))
-    return GeoFix(lat, lon, error, t, depression,
-                  f"terrain ({dem.source}, slope {slope:.0f} deg, camera from {anchor})")
+    fix = GeoFix(lat, lon, error, t, depression,
+                 f"terrain ({dem.source}, slope {slope:.0f} deg, camera from {anchor})")
+    incidence = math.degrees(math.asin(min(1.0, float(g @ d) / float(np.linalg.norm(g)))))
+    refused = limits.refusal(fix, pose.attitude_sigma_rad, incidence)
+    return _no_fix(depression, refused) if refused else fix
 
 
 class TerrainGround:
-    """The controller's ground model for a land search: fixes on ``dem`` instead of a plane."""
+    """The controller's ground model for a land search: fixes on ``dem`` instead of a plane,
+    refused by ``limits`` as plane fixes are (:func:`geolocate_terrain`)."""
 
-    def __init__(self, dem: Dem, max_range_m: float = MAX_RANGE_M) -> None:
+    def __init__(self, dem: Dem, max_range_m: float = MAX_RANGE_M,
+                 limits: FixLimits = DEFAULT_LIMITS) -> None:
         self.dem = dem
         self.max_range_m = max_range_m
+        self.limits = limits
 
     def locate(self, centre: tuple[float, float], intrinsics: CameraIntrinsics,
                pose: PlatformPose, home: tuple[float, float, float],
-               min_height_m: float) -> GeoFix:
-        """The fix of pixel ``centre`` (see :func:`geolocate_terrain`)."""
+               min_height_m: float, limits: FixLimits | None = None) -> GeoFix:
+        """The fix of pixel ``centre`` (see :func:`geolocate_terrain`); ``limits`` replace the
+        ground model's own for this fix."""
         return geolocate_terrain(centre, intrinsics, pose, self.dem, home, min_height_m,
-                                 self.max_range_m)
+                                 self.max_range_m, self.limits if limits is None else limits)
