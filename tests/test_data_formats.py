@@ -65,7 +65,7 @@ def test_sample_telemetry_v2_unit_keys(caplog):
         t = read_coco_video(FIXTURE).image(21).telemetry
     assert (t.latitude, t.longitude) == (47.6805, 9.2791)
     assert t.altitude == 52.4  # height_above_takeoff, not altitude above sea level
-    assert (t.gimbal_pitch, t.gimbal_roll, t.gimbal_heading) == (-90.0, 0.0, 12.0)
+    assert (t.gimbal_pitch, t.gimbal_roll, t.gimbal_heading) == (90.0, 0.0, 12.0)
     assert (t.compass_heading, t.speed, t.xspeed, t.zspeed) == (11.8, 4.2, 0.5, -0.1)
     assert t.yspeed is None  # "n/a" -> None with a warning
     assert "ySpeed(m/s)" in caplog.text
