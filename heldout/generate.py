@@ -3,7 +3,8 @@
 Output in ``out``: per clip ``<world>_<i>.mp4`` (H.264 at the clip's drone bitrate) or a folder
 ``<world>_<i>/NNNNNN.jpg``, and one ``<world>.json``: a video per clip, an image per frame with
 SeaDronesSee telemetry in ``meta``, an annotation per visible object with ``track_id``, ``bbox``,
-``area``, true ``gt_lat``/``gt_lon``, and ``visibility`` and ``is_target`` as extra keys::
+``area``, true ``gt_lat``/``gt_lon``, and as extra keys ``visibility``, ``is_target``,
+``posture`` and ``speed_m_s`` (over the ground: 0 for people who stay put)::
 
     python -m heldout.generate --world heldout_maritime --clips 2 --frames 60 --out /tmp/ho
 """
@@ -36,7 +37,8 @@ def _annotation(box: ObjectBox, ann_id: int, image_id: int, video_id: int) -> An
                       bbox=(x, y, w, h), track_id=box.track_id, video_id=video_id, area=w * h,
                       gt_lat=box.lat, gt_lon=box.lon,
                       extra={"visibility": round(box.visibility, 3),
-                             "is_target": box.is_target})
+                             "is_target": box.is_target, "posture": box.posture,
+                             "speed_m_s": round(box.speed_m_s, 2)})
 
 
 def render_world(name: str, clips: int, frames: int, out: str | Path,

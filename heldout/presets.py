@@ -94,6 +94,8 @@ def draw_clip(preset: WorldPreset, index: int, width: int, height: int,
     path = draw_path(rng, preset.altitude_m, preset.speed_m_s, preset.tilt_deg)
     sensor = _sensor(rng)
     area = _seen_area(lens, path, duration_s, margin_m=25.0)
+    gsd = path.altitude_m / lens.focal_px
+    footprint = width * height * gsd * gsd
     if preset.kind == "sea":
         sea_state = int(rng.choice(preset.sea_states))
         wind_from = float(rng.uniform(0, 360))
@@ -105,7 +107,7 @@ def draw_clip(preset: WorldPreset, index: int, width: int, height: int,
         trains = draw_trains(rng, sea_state, wind_from)
         c = math.radians(wind_from + 180.0)
         drift = float(rng.uniform(0.05, 0.4))
-        things = populate(rng, preset.population, area, water,
+        things = populate(rng, preset.population, area, footprint, water,
                           (drift * math.sin(c), drift * math.cos(c)))
         return ClipSpec(seed, "sea", lens, light, path, sensor, tuple(things), SEA_HOME,
                         sea_state=sea_state, trains=trains, sea=look)
@@ -118,25 +120,25 @@ def draw_clip(preset: WorldPreset, index: int, width: int, height: int,
                     road_width_m=float(rng.uniform(3, 6)),
                     lush_bgr=(0.04, float(rng.uniform(0.12, 0.18)), 0.07),
                     dry_bgr=(0.09, 0.20, float(rng.uniform(0.20, 0.28))))
-    things = populate(rng, preset.population, area, (0.0, 0.0, 0.0))
+    things = populate(rng, preset.population, area, footprint, (0.0, 0.0, 0.0))
     return ClipSpec(seed, "land", lens, light, path, sensor, tuple(things), LAND_HOME, land=land)
 
 
 def heldout_maritime() -> WorldPreset:
-    """Open sea, states 2-4, 60-110 m, nadir to 20 degrees oblique, about 6 people per frame."""
+    """Open sea, states 2-4, 75-120 m, nadir to 20 degrees oblique, about 6 people per frame."""
     return WorldPreset(
-        "heldout_maritime", "sea", 7731, (60.0, 110.0), (0.0, 8.0), (0.0, 20.0), (2, 3, 4),
+        "heldout_maritime", "sea", 7731, (75.0, 120.0), (0.0, 8.0), (0.0, 20.0), (2, 3, 4),
         (20.0, 65.0),
-        Population({"swimmer": 14.0, "swimmer_with_life_jacket": 8.0, "buoy": 3.0,
-                    "debris": 8.0, "bird": 3.0, "boat": 0.4}),
+        Population({"swimmer": 4.0, "swimmer_with_life_jacket": 2.5, "buoy": 0.8,
+                    "debris": 2.0, "bird": 0.8, "boat": 0.15}),
         heldout_maritime.__doc__ or "")
 
 
 def heldout_land() -> WorldPreset:
-    """Meadow, forest and a dirt road, 50-90 m, nadir to 20 degrees, about 5 people per frame."""
+    """Meadow, forest and a dirt road, 60-100 m, nadir to 20 degrees, about 5 people per frame."""
     return WorldPreset(
-        "heldout_land", "land", 7742, (50.0, 90.0), (0.0, 7.0), (0.0, 20.0), (), (15.0, 60.0),
-        Population({"person": 16.0, "rock": 10.0, "log": 5.0, "animal": 2.0, "bird": 1.0}),
+        "heldout_land", "land", 7742, (60.0, 100.0), (0.0, 7.0), (0.0, 20.0), (), (25.0, 60.0),
+        Population({"person": 5.0, "rock": 3.0, "log": 1.5, "animal": 0.5, "bird": 0.3}),
         heldout_land.__doc__ or "")
 
 

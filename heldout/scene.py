@@ -56,6 +56,8 @@ class ObjectBox:
     lat: float
     lon: float
     is_target: bool
+    posture: str
+    speed_m_s: float
 
 
 class ClipRenderer:
@@ -158,7 +160,8 @@ class ClipRenderer:
                 continue
             lat, lon = lat_lon(spec.home[0], spec.home[1], position[0], position[1])
             boxes.append(ObjectBox(thing.track_id, thing.category, found[0], found[1], lat, lon,
-                                   thing.category in TARGETS))
+                                   thing.category in TARGETS, thing.look.posture,
+                                   math.hypot(*thing.velocity)))
         exposure = spec.sensor.exposure_s
         centre = np.array([[lens.width / 2, lens.height / 2]])
         ground_now, _ = ground_points(lens, view, centre[:, 0], centre[:, 1])

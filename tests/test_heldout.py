@@ -67,6 +67,7 @@ def test_render_world_writes_coco_video_that_the_evaluation_reads(tmp_path: Path
         assert telemetry.latitude is not None and telemetry.altitude is not None
         assert telemetry.time == pytest.approx(1 / 30)
     for ann in dataset.annotations:
+        assert {"posture", "speed_m_s", "visibility", "is_target"} <= set(ann.extra)
         x, y, w, h = ann.bbox
         assert 0 <= x and 0 <= y and x + w <= 320 and y + h <= 184 and w > 0 and h > 0
 
