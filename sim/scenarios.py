@@ -175,6 +175,15 @@ def maritime_test() -> Preset:
     return _maritime("maritime_test", 3003, 90.0, 75.0, 3, 12.0, (230.0, 50.0))
 
 
+def maritime_oblique(altitude: float, depression_deg: float, seed: int = 7100,
+                     reach_m: float = 100.0) -> Preset:
+    """An oblique maritime view at any height and depression (degrees below the horizon), as the
+    ``maritime_oblique_*`` presets build theirs: for measuring across view angles."""
+    name = f"maritime_oblique_{altitude:g}m_{depression_deg:g}deg"
+    return _maritime_oblique(name, seed, altitude, -depression_deg, 70.0, 3, 6.0,
+                             (200.0, 45.0), reach_m)
+
+
 def maritime_oblique_low() -> Preset:
     """10 m up, looking 11 degrees down (horizon and sky in view): SeaDronesSee's p10 view."""
     return _maritime_oblique("maritime_oblique_low", 7007, 10.0, -11.0, 70.0, 2, 6.0,
