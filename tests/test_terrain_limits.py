@@ -94,3 +94,44 @@ def test_a_ray_skimming_a_slope_that_falls_away_is_refused(tmp_path: Path) -> No
     # With a tighter attitude sigma the same ray is far enough from grazing to stand.
     steady = PlatformPose(**{**pose.__dict__, "attitude_sigma_rad": math.radians(0.1)})
     assert geolocate_terrain(CENTRE, INTR, steady, dem, HOME).ok
+
+
+def test_the_mission_controller_gives_the_missions_limits_to_the_terrain(tmp_path: Path) -> None:
+    """A mission's [geolocation] limits reach fixes on a DEM as they reach plane fixes."""
+    from scripted_detector import ScriptedDetector
+    from test_controller import (
+        FPS,
+        confirm_at_lock,
+        filled_buffer,
+        run_frames,
+        script_3_of_5,
+        truth_latlon,
+    )
+
+    from sarmission.alerts.store import AlertStore
+    from sarmission.mission.config import load_mission
+    from sarmission.mission.controller import MissionController
+    from sarmission.mission.targets import distance_m
+
+    write_geotiff(tmp_path / "flat.tif", lambda n, e: np.full(n.shape, 200.0))
+    dem = read_dem(tmp_path / "flat.tif", vertical_sigma_m=2.0)
+    positions = {}
+    for max_error_m in (250.0, 0.05):
+        mission = load_mission(overrides={
+            "camera.width": 960, "camera.height": 540, "camera.hfov_deg": 30.0,
+            "name": "terrain_limits", "area.home_lat": LAT0, "area.home_lon": LON0,
+            "area.home_alt_m": 200.0,
+            "geolocation.max_error_m": max_error_m})
+        confirm_at_lock(mission)
+        n = 12
+        with AlertStore(tmp_path / f"alerts_{max_error_m}.db") as store:
+            ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
+                                    filled_buffer(mission, n / FPS), store,
+                                    console=lambda s: None, ground_model=TerrainGround(dem))
+            run_frames(ctl, n)
+            (alert,) = store.list()
+            positions[max_error_m] = (alert.position, alert.error_m, truth_latlon(mission))
+    kept, error_m, truth = positions[250.0]
+    assert kept is not None and distance_m(kept, truth) < 1.0 and 0.05 < error_m < 250.0
+    refused, _, _ = positions[0.05]
+    assert refused is None

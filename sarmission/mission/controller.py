@@ -295,7 +295,7 @@ class MissionController:
             home = self.telemetry.home
             assert home is not None
             return self.ground_model.locate(centre, self._intrinsics, pose, home,
-                                            self.min_height_m)
+                                            self.min_height_m, limits=self.fix_limits)
         return geolocate(centre, self._intrinsics, pose, ground, min_height_m=self.min_height_m,
                          limits=self.fix_limits)
 
