@@ -293,6 +293,9 @@ class Flight:
     ``state_at(t)`` gives the exact :class:`VehicleState` at ``t`` seconds after the start.
     """
 
+    #: It obeys DO_REPOSITION and ROI commands (see :class:`sim.flight_model.FlightModel`).
+    steerable = True
+
     def __init__(self, mission: MissionConfig, seed: int = 0, roi_slew_s: float = 1.0) -> None:
         self.mission = mission
         self.seed = seed

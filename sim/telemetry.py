@@ -30,7 +30,8 @@ from sarmission.geo.frames import (
 )
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mission.config import MissionConfig
-from sim.flight import Flight, VehicleState
+from sim.flight import VehicleState
+from sim.flight_model import FlightModel
 
 NOISE_RATE_HZ = 100.0
 _BLOCK = 4096
@@ -126,11 +127,12 @@ class _NoiseStream:
 
 
 class TelemetryModel:
-    """Noisy, delayed telemetry of a :class:`~sim.flight.Flight` plus exact truth for rendering."""
+    """Noisy, delayed telemetry of a flight (:class:`~sim.flight_model.FlightModel`) plus exact
+    truth for rendering."""
 
     def __init__(
         self,
-        flight: Flight,
+        flight: FlightModel,
         mission: MissionConfig | None = None,
         seed: int = 0,
         rates_hz: dict[str, float] | None = None,
