@@ -144,9 +144,11 @@ def _ground_model(args: argparse.Namespace) -> object | None:
 
 def run(args: argparse.Namespace) -> int:
     from sarmission.alerts.store import AlertStore
+    from sarmission.data.frames import Frame
     from sarmission.mission.controller import MissionController
     from sarmission.mission.live import telemetry_buffer
     from sarmission.mission.replay_telemetry import telemetry_source
+    from sarmission.mission.session_runner import SessionRunner
 
     mission = load_mission_from_args(args)
     path = Path(args.input)
@@ -192,19 +194,22 @@ def run(args: argparse.Namespace) -> int:
                                        else (lambda t: start_posix + t),
                                        console=bar.write,
                                        ground_model=ground_model)
-        started = time.monotonic()
-        n = 0
-        try:
+
+        def stamped() -> Iterator[Frame]:
+            """The footage up to --duration, each frame on the telemetry's clock and its meta
+            given to the buffer first."""
             for index, t, image, meta in frames:
-                if (limit is not None and n >= limit) or (
-                        args.duration is not None and t >= args.duration):
-                    break
+                if args.duration is not None and t >= args.duration:
+                    return
                 stamp = source.timestamp(t, names[index] if index < len(names) else None)
                 frame_times[index] = (t, stamp)
                 source.before(buffer, stamp, meta, mission.area.home)
-                controller.process(index, stamp, image)
-                n += 1
-                bar.update(1)
+                yield Frame(index, stamp, image)
+
+        started = time.monotonic()
+        try:
+            SessionRunner(controller, on_frame=lambda: bar.update(1)).run(
+                stamped(), max_frames=limit)
         finally:
             bar.close()
             wall = time.monotonic() - started

@@ -22,10 +22,11 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.store import AlertStore
+from sarmission.data.frames import Frame
 from sarmission.mavlink.commands import CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
 from sarmission.mavlink.telemetry import MESSAGE_TYPES, BootClock, TelemetryBuffer
@@ -33,6 +34,7 @@ from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.controller import Detector, MissionController
 from sarmission.mission.live_sources import LiveSource
+from sarmission.mission.session_runner import SessionRunner
 from sarmission.mission.visits import MoveGate
 from sarmission.viz.recorder import Recorder
 
@@ -112,8 +114,13 @@ class LiveSession:
         except BaseException:
             self._close_resources()
             raise
-        self.frames_read = 0
+        self.runner = SessionRunner(self.controller)
         self._link_was_ok = True
+
+    @property
+    def frames_read(self) -> int:
+        """Frames taken from the source so far."""
+        return self.runner.frames_read
 
     def _open(self, detector: Detector, url: str, signing_key: bytes | None,
               feed_address: tuple[str, int] | None, mission_id: str | None,
@@ -174,22 +181,14 @@ class LiveSession:
             duration_s: float | None = None) -> None:
         """Process frames until the source ends, ``max_frames`` were read, ``duration_s``
         passed or ``stop`` is set."""
-        deadline = None if duration_s is None else time.monotonic() + duration_s
-        while not (stop is not None and stop.is_set()):
-            if max_frames is not None and self.frames_read >= max_frames:
-                break
-            if deadline is not None and time.monotonic() >= deadline:
-                break
-            frame = self.source.read()
-            if frame is None:
-                self.console("frame source ended")
-                break
-            self.frames_read += 1
+        if self.runner.run(self._frames(), stop, max_frames, duration_s):
+            self.console("frame source ended")
+
+    def _frames(self) -> Iterator[Frame]:
+        """The source's frames, the link's state reported as each one arrives."""
+        while (frame := self.source.read()) is not None:
             self._watch_link()
-            if frame.image_bgr is None:
-                self.controller.skip(frame.index, "camera delivered no image")
-                continue
-            self.controller.process(frame.index, frame.timestamp_s, frame.image_bgr)
+            yield frame
 
     def _watch_link(self) -> None:
         assert self.link is not None
