@@ -29,9 +29,8 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from sarmission.geo.camera import CameraPose
-from sarmission.geo.frames import matrix_to_euler
 from sarmission.mission.config import MissionConfig
-from sim.truth_frames import camera_rotation
+from sim.truth_frames import camera_rotation, zyx_angles
 
 GRAVITY = 9.80665
 DT = 0.02  # trajectory grid step (s)
@@ -438,7 +437,7 @@ class Flight:
         x_b = np.cross(y_c, z_b)
         x_b /= np.linalg.norm(x_b)
         y_b = np.cross(z_b, x_b)
-        roll, pitch, yaw_out = matrix_to_euler(np.column_stack([x_b, y_b, z_b]))
+        roll, pitch, yaw_out = zyx_angles(np.column_stack([x_b, y_b, z_b]))
         return VehicleState(
             t=t,
             position_ned=pos,

@@ -18,9 +18,9 @@ import numpy as np
 from pymavlink import mavutil
 
 from sarmission.geo.camera import CameraPose
-from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import MissionConfig
 from sim.flight import Flight, VehicleState
+from sim.truth_frames import geodetic_to_ned
 
 
 class LogFlight(Flight):

@@ -49,9 +49,9 @@ from sarmission.data.coco_video import FrameTelemetry, VideoDataset
 from sarmission.data.meta_conventions import DEPRESSION, ConventionError, dataset_conventions
 from sarmission.data.sequence import sequence_images
 from sarmission.geo.camera import CameraPose
-from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import MissionConfig, load_mission
 from sim.flight import VehicleState
+from sim.truth_frames import geodetic_to_ned
 
 log = logging.getLogger(__name__)
 

@@ -18,20 +18,23 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sarmission.geo.camera import CameraPose
-from sarmission.geo.frames import (
-    GIMBAL_DEVICE_FLAGS_PITCH_LOCK,
-    GIMBAL_DEVICE_FLAGS_ROLL_LOCK,
-    GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME,
-    euler_to_matrix,
-    euler_to_quaternion,
-    matrix_to_euler,
-)
-from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mission.config import MissionConfig
 from sim.flight import VehicleState
 from sim.flight_model import FlightModel
+from sim.truth_frames import ned_to_geodetic, zyx_angles, zyx_quaternion, zyx_rotation
+
+#: How the gimbal reports its attitude: yaw relative to the vehicle's heading (with the heading
+#: as ``delta_yaw``, as ArduPilot's mounts do) or relative to north.
+GIMBAL_REPORTS = ("vehicle", "earth")
+_LOCKS = mavlink2.GIMBAL_DEVICE_FLAGS_ROLL_LOCK | mavlink2.GIMBAL_DEVICE_FLAGS_PITCH_LOCK
+_GIMBAL_FLAGS = {
+    "vehicle": _LOCKS | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME,
+    "earth": _LOCKS | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_LOCK
+    | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_IN_EARTH_FRAME,
+}
 
 NOISE_RATE_HZ = 100.0
 _BLOCK = 4096
@@ -75,8 +78,9 @@ class GimbalSample:
 
     ``q`` is ``(w, x, y, z)`` of the gimbal attitude in ``frame`` ("vehicle": roll/pitch relative
     to the horizon, yaw relative to the vehicle heading; flags ROLL_LOCK | PITCH_LOCK |
-    YAW_IN_VEHICLE_FRAME). ``delta_yaw`` is the vehicle yaw (rad) relating the vehicle frame to
-    the earth frame: ``q_earth = q(delta_yaw about z) * q``.
+    YAW_IN_VEHICLE_FRAME; "earth": yaw relative to north, flags ROLL_LOCK | PITCH_LOCK |
+    YAW_LOCK | YAW_IN_EARTH_FRAME). ``delta_yaw`` is the vehicle yaw (rad) relating the vehicle
+    frame to the earth frame: ``q_earth = q(delta_yaw about z) * q``.
     """
 
     t: float
@@ -136,7 +140,12 @@ class TelemetryModel:
         mission: MissionConfig | None = None,
         seed: int = 0,
         rates_hz: dict[str, float] | None = None,
+        gimbal_report: str = "vehicle",
     ) -> None:
+        if gimbal_report not in GIMBAL_REPORTS:
+            raise ValueError(f"gimbal_report must be one of {GIMBAL_REPORTS}, got "
+                             f"{gimbal_report!r}")
+        self.gimbal_report = gimbal_report
         self.flight = flight
         self.mission = mission or flight.mission
         self.seed = seed
@@ -188,8 +197,8 @@ class TelemetryModel:
         """
         s = self.flight.state_at(t)
         n = self._att.at(t)
-        r0 = euler_to_matrix(*self.flight.state_at(t - rate_dt / 2).vehicle_rpy)
-        r1 = euler_to_matrix(*self.flight.state_at(t + rate_dt / 2).vehicle_rpy)
+        r0 = zyx_rotation(*self.flight.state_at(t - rate_dt / 2).vehicle_rpy)
+        r1 = zyx_rotation(*self.flight.state_at(t + rate_dt / 2).vehicle_rpy)
         w = _log_so3(r0.T @ r1) / rate_dt if t >= rate_dt / 2 else np.zeros(3)
         yaw = (s.yaw + n[2] + math.pi) % (2 * math.pi) - math.pi
         return AttitudeSample(
@@ -209,18 +218,18 @@ class TelemetryModel:
         if s.gimbal_frame != "vehicle":
             return None
         n = self._gim.at(t)
-        roll, pitch, yaw = s.gimbal_roll + n[0], s.gimbal_pitch + n[1], s.gimbal_yaw + n[2]
-        q = euler_to_quaternion(roll, pitch, yaw)
+        rotation = zyx_rotation(s.gimbal_roll + n[0], s.gimbal_pitch + n[1], s.gimbal_yaw + n[2])
+        if self.gimbal_report == "earth":
+            rotation = zyx_rotation(0.0, 0.0, s.yaw) @ rotation
+        q = zyx_quaternion(*zyx_angles(rotation))
         # Report the canonical Euler triple of the noisy rotation (pitch stays within +-90 deg).
-        roll, pitch, yaw = matrix_to_euler(euler_to_matrix(roll, pitch, yaw))
+        roll, pitch, yaw = zyx_angles(rotation)
         return GimbalSample(
             t=t,
             t_available=t + self.latency_s,
             q=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
-            flags=GIMBAL_DEVICE_FLAGS_ROLL_LOCK
-            | GIMBAL_DEVICE_FLAGS_PITCH_LOCK
-            | GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME,
-            frame="vehicle",
+            flags=_GIMBAL_FLAGS[self.gimbal_report],
+            frame=self.gimbal_report,
             delta_yaw=s.yaw,
             roll=roll,
             pitch=pitch,

@@ -10,6 +10,8 @@ optical axis), OpenCV camera (x right, y down in the image, z forward).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pymap3d
 from scipy.spatial.transform import Rotation
@@ -24,6 +26,21 @@ _CAMERA_AXES_IN_GIMBAL = np.array([[0.0, 0.0, 1.0],
 def zyx_rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``R`` taking FRD vectors to NED for aerospace Euler angles (radians)."""
     return Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
+
+
+def zyx_quaternion(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``(w, x, y, z)`` with ``w >= 0`` of :func:`zyx_rotation` (MAVLink's order)."""
+    x, y, z, w = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_quat()
+    q = np.array([w, x, y, z])
+    return -q if q[0] < 0 else q
+
+
+def zyx_angles(r: np.ndarray) -> tuple[float, float, float]:
+    """``(roll, pitch, yaw)`` of an FRD -> NED matrix; at pitch +-90 deg roll is 0."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # "Gimbal lock detected": roll set to 0
+        yaw, pitch, roll = Rotation.from_matrix(np.asarray(r, dtype=float)).as_euler("ZYX")
+    return float(roll), float(pitch), float(yaw)
 
 
 def camera_rotation(vehicle_rpy: tuple[float, float, float],

@@ -1,6 +1,12 @@
 """tools/geolocation_accuracy.py: the live pipeline (simulated vehicle over UDP, MAVLink
 telemetry, tracker, lock, geolocation, alert store) with an oracle detector. With exact
-telemetry and the camera held at nadir (no ROI action slewing the gimbal), fixes are sub-metre."""
+telemetry and the camera held at nadir (no ROI action slewing the gimbal), fixes are sub-metre.
+
+The simulator's truth comes from ``sim.truth_frames`` (SciPy, pymap3d), not ``sarmission.geo``.
+Its gimbal reports yaw from north here: the legs run east-west, so the heading reaches the
+geolocation through the gimbal's quaternion and ``sarmission.geo``'s yaw rotation once. (Yaw
+relative to the heading plus ``delta_yaw`` would pass through ``rot_z`` twice, converted in and
+out of Euler angles, and a sign error there would cancel.)"""
 
 import importlib.util
 import sys
@@ -20,7 +26,7 @@ def load_tool():
 def test_exact_telemetry_gives_sub_metre_fixes(tmp_path):
     tool = load_tool()
     result = tool.measure(duration_s=15.0, telemetry="exact", policy=("alert",),
-                          workdir=tmp_path)
+                          workdir=tmp_path, gimbal_report="earth")
     assert result["swimmers_in_view"] >= 1
     assert result["alerted"] >= 1, result["console"]
     assert result["false_alerts"] == 0

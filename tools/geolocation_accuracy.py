@@ -25,7 +25,8 @@ Per run:
 Usage::
 
     python tools/geolocation_accuracy.py [--duration 40] [--size 960x540] [--hfov 35] [--seed 0]
-        [--telemetry exact|noisy|both] [--fps 15] [--box-noise 0.5] [--json]
+        [--telemetry exact|noisy|both] [--fps 15] [--box-noise 0.5]
+        [--gimbal-report vehicle|earth] [--json]
 
 Exact telemetry: gnss_noise_m = attitude_noise_deg = latency_s = 0. Noisy: gnss_noise_m = 2,
 attitude_noise_deg = 1, latency_s = 0.05 (mission overrides of ``[telemetry]``).
@@ -52,8 +53,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from sarmission.commands.demo import DEMO_MISSION, DEMO_OVERRIDES, free_udp_port  # noqa: E402
-from sarmission.commands.run import parse_size  # noqa: E402
+from sarmission.commands.cli_helpers import free_udp_port, parse_frame_size  # noqa: E402
+from sarmission.commands.demo import DEMO_MISSION, DEMO_OVERRIDES  # noqa: E402
 from sarmission.geo.camera import intersect_ground, pixel_rays, project_points  # noqa: E402
 from sarmission.mission.actions import ascii_statustext  # noqa: E402
 from sarmission.mission.config import MissionConfig, load_mission  # noqa: E402
@@ -263,8 +264,10 @@ def measure(duration_s: float = 40.0, size: tuple[int, int] = (960, 540), hfov: 
             seed: int = 0, telemetry: str = "exact", fps: float | None = 15.0,
             box_noise_px: float = 0.5, true_shift: bool = True,
             policy: tuple[str, ...] | None = None, workdir: str | Path | None = None,
-            console: Any = None) -> dict[str, Any]:
-    """One live run with the oracle detector; returns the measurements (see the module doc)."""
+            console: Any = None, gimbal_report: str = "vehicle") -> dict[str, Any]:
+    """One live run with the oracle detector; returns the measurements (see the module doc).
+    ``gimbal_report``: the simulated gimbal reports its yaw relative to the heading ("vehicle",
+    ArduPilot's way) or to north ("earth")."""
     from sarmission.mission.live import LiveSession
     from sim.camera import SimCamera, mission_scenario
     from sim.vehicle import SimVehicle
@@ -278,7 +281,7 @@ def measure(duration_s: float = 40.0, size: tuple[int, int] = (960, 540), hfov: 
         db = Path(tmp) / "alerts.db"
         port = free_udp_port()
         vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission, seed=seed,
-                             stream_on_request=True).start()
+                             stream_on_request=True, gimbal_report=gimbal_report).start()
         try:
             camera = SimCamera(vehicle, scenario=mission_scenario(vehicle, seed=seed),
                                size=size, fps=fps)
@@ -529,11 +532,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--policy", default="alert,roi",
                         help="action policy, comma-separated (default: %(default)s, the demo's; "
                         "roi slews the gimbal towards each alerted swimmer)")
+    parser.add_argument("--gimbal-report", choices=("vehicle", "earth"), default="vehicle",
+                        help="the gimbal's yaw relative to the heading or to north")
     parser.add_argument("--json", action="store_true", help="print JSON instead of Markdown")
     args = parser.parse_args(argv)
     import logging
     logging.getLogger("sim.vehicle").setLevel(logging.ERROR)  # one line per STATUSTEXT
-    size = parse_size(args.size)
+    size = parse_frame_size(args.size)
     configs = ["exact", "noisy"] if args.telemetry == "both" else [args.telemetry]
     results = []
     for config in configs:
@@ -541,7 +546,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"running {config} telemetry for {args.duration:g} s ...", flush=True)
         results.append(measure(args.duration, size, args.hfov, args.seed, config,
                                args.fps or None, args.box_noise, not args.no_shift,
-                               tuple(p.strip() for p in args.policy.split(",") if p.strip())))
+                               tuple(p.strip() for p in args.policy.split(",") if p.strip()),
+                               gimbal_report=args.gimbal_report))
     if args.json:
         print(json.dumps(results, indent=2))
     else:

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from sarmission.geo.wgs84 import geodetic_to_ned
 from sim.flight_model import FlightModel
+from sim.truth_frames import geodetic_to_ned
 from sim.vehicle.autopilot import COPTER_MODE_GUIDED, AutopilotState
 from sim.vehicle.link import VehicleLink
 from sim.vehicle.mission_server import MissionServer

@@ -45,7 +45,8 @@ class SimVehicle:
     planned one (e.g. :class:`sim.meta_flight.MetaFlight`); ``mission`` defaults to its mission.
     A flight whose ``steerable`` is False gets DO_REPOSITION and DO_SET_ROI_* answered with
     MAV_RESULT_DENIED. ``gps_fix_after_s`` / ``home_after_s``: ArduPilot's start (see
-    :mod:`sim.vehicle`); None: a fix and a home from the first message.
+    :mod:`sim.vehicle`); None: a fix and a home from the first message. ``gimbal_report``:
+    the gimbal's yaw relative to the heading ("vehicle") or to north ("earth").
     """
 
     def __init__(
@@ -61,6 +62,7 @@ class SimVehicle:
         flight: FlightModel | None = None,
         gps_fix_after_s: float | None = None,
         home_after_s: float | None = None,
+        gimbal_report: str = "vehicle",
     ) -> None:
         if speedup <= 0:
             raise ValueError("speedup must be positive")
@@ -72,7 +74,8 @@ class SimVehicle:
         self.seed = seed
         self.stream_on_request = stream_on_request
         self.flight: FlightModel = Flight(mission, seed=seed) if flight is None else flight
-        self.telemetry = TelemetryModel(self.flight, mission, seed=seed)
+        self.telemetry = TelemetryModel(self.flight, mission, seed=seed,
+                                        gimbal_report=gimbal_report)
         self.link = VehicleLink(listen_url, system_id, component_id, float(speedup))
         self.autopilot = AutopilotState(mission.area.home, mission.camera.gimbal,
                                         gps_fix_after_s, home_after_s)
