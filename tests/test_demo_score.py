@@ -7,7 +7,8 @@ import argparse
 import pytest
 
 from sarmission.alerts.model import Alert
-from sarmission.commands.demo import parse_actions, score
+from sarmission.commands.demo import parse_actions
+from sarmission.commands.truth_score import score
 from sim.camera import FrameTruth
 from sim.render import ObjectAnnotation
 

@@ -294,7 +294,7 @@ def test_cli_run_reports_a_bad_connection_string(tmp_path, capsys):
 
 @pytest.mark.parametrize("text", ["", "0" * 64])
 def test_signing_key_file_forms(tmp_path, text):
-    from sarmission.commands.run import read_signing_key
+    from sarmission.commands.live_options import read_signing_key
 
     path = tmp_path / "key"
     path.write_text(text)

@@ -24,7 +24,6 @@ import os
 import platform
 import re
 import shutil
-import socket
 import statistics
 import subprocess
 import sys
@@ -32,6 +31,8 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from sarmission.commands.cli_helpers import free_udp_port
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "benchmarks.md"
@@ -155,12 +156,6 @@ def supports(checkout: Path, command: str, option: str) -> bool:
     return option in done.stdout
 
 
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def crops_head(rows: list[dict]) -> dict[int, float]:
     return {row["topn"]: row["ms"]["crops"] + row["ms"]["head"] for row in rows}
 
@@ -214,7 +209,7 @@ def main() -> int:
                 run[label].loads.append(load1())
                 run[label].runs.append(measure(
                     [py, "-m", "sarmission.cli", "run", "--connect",
-                     f"udpin:127.0.0.1:{free_port()}", "--connect-timeout", "1", "--video",
+                     f"udpin:127.0.0.1:{free_udp_port()}", "--connect-timeout", "1", "--video",
                      str(clip), "--max-frames", str(args.run_frames), "--alerts-db",
                      str(Path(tmp) / "alerts.db")], checkout))
     imports = {label: json.loads(measure([py, "-c", IMPORT_COST], checkout).out)

@@ -25,21 +25,15 @@ from pathlib import Path
 
 import pymap3d
 
+from sarmission.commands.cli_helpers import free_udp_port
+
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def free_port() -> int:
-    import socket
-
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def run(checkout: Path, db: Path, seconds: float, kill: bool, log: Path) -> None:
     env = dict(os.environ, PYTHONPATH=str(checkout))
     cmd = [sys.executable, "-c", "import sys; from sarmission.cli import main; sys.exit(main())",
-           "run", "--connect", f"udpin:127.0.0.1:{free_port()}", "--sim", "--sim-size",
+           "run", "--connect", f"udpin:127.0.0.1:{free_udp_port()}", "--sim", "--sim-size",
            "960x540", "--sim-fps", "30", "--alerts-db", str(db), "--connect-timeout", "10"]
     if not kill:
         cmd += ["--duration", f"{seconds:g}"]

@@ -20,7 +20,6 @@ import argparse
 import os
 import resource
 import shutil
-import socket
 import statistics
 import subprocess
 import sys
@@ -34,14 +33,10 @@ sys.path.insert(0, str(ROOT / "tools"))
 
 from pipeline_benchmark import DOC, machine_busy_s, make_clip, write_section  # noqa: E402
 
+from sarmission.commands.cli_helpers import free_udp_port  # noqa: E402
+
 BEGIN_TAG = "stream_latency"
 CLIP_FPS = 30.0  # the rendered clip's rate: its telemetry is per frame of it
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def own_cpu_s() -> float:
@@ -90,7 +85,7 @@ def measure(clip: Path, annotations: Path) -> dict:
     detector = MiteNet(build_head_runtime(None, "onnx"), ds=d.ds, topn=d.topn,
                        score_threshold=d.score_threshold, colour_share=d.colour_share,
                        crop_scales=tuple(d.crop_scales), refine_threshold=d.refine_threshold)
-    port = free_port()
+    port = free_udp_port()
     url = f"udp://127.0.0.1:{port}"
     opened: dict[str, object] = {}
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from sarmission.commands.cli_helpers import parse_frame_size
 from sarmission.commands.detector_options import (
     add_refine_threshold_option,
     check_colour_share,
@@ -23,16 +24,6 @@ def _int_list(text: str) -> list[int]:
         raise argparse.ArgumentTypeError(message) from None
 
 
-def _size(text: str) -> tuple[int, int]:
-    try:
-        width, height = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
-    if width < 32 or height < 32:
-        raise argparse.ArgumentTypeError(f"frame size {text} is too small")
-    return width, height
-
-
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the ``bench`` sub-command."""
     parser = sub.add_parser(
@@ -49,7 +40,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="down-sampling factors (default: 1,2,4,8)")
     parser.add_argument("--topn", type=_int_list, default=[10, 25, 50, 100],
                         help="proposal counts (default: 10,25,50,100)")
-    parser.add_argument("--size", type=_size, default=(3840, 2160),
+    parser.add_argument("--size", type=parse_frame_size, default=(3840, 2160),
                         help="frame size WIDTHxHEIGHT (default: 3840x2160)")
     parser.add_argument("--frames", type=int, default=20,
                         help="timed frames per configuration, after 8 warm-up frames "

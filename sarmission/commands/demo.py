@@ -4,17 +4,15 @@ scored against the simulator's ground truth."""
 from __future__ import annotations
 
 import argparse
-import math
-import socket
 import time
-from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from sarmission.commands.cli_helpers import free_udp_port, parse_frame_size
 from sarmission.commands.detector_options import add_detector_options
+from sarmission.commands.truth_score import score
 
 if TYPE_CHECKING:
-    from sarmission.alerts.model import Alert
     from sarmission.mission.config import MissionConfig
 
 DEMO_MISSION = Path(__file__).resolve().parents[2] / "missions" / "maritime_demo.toml"
@@ -29,10 +27,6 @@ DEMO_OVERRIDES = {
 DEMO_ACTIONS = ("alert",)
 #: The demo's share of colour proposals (see add_parser).
 DEMO_COLOUR_SHARE = 0.0
-#: Alerts listed one by one in the summary (the rest are counted).
-MAX_LISTED = 25
-#: A detection is matched to the ground-truth person whose box centre is within this many px.
-MATCH_PX = 24.0
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -49,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         help="output folder for demo.rrd and alerts.db (default: %(default)s)")
     parser.add_argument("--duration", type=float, default=None,
                         help="seconds of flight (default: the whole shortened survey)")
-    parser.add_argument("--size", default="960x540",
+    parser.add_argument("--size", type=parse_frame_size, default="960x540",
                         help="frame size WxH (default: %(default)s)")
     parser.add_argument("--hfov", type=float, default=35.0,
                         help="horizontal field of view in degrees; narrow keeps swimmers about "
@@ -82,13 +76,6 @@ def parse_actions(text: str) -> tuple[str, ...]:
     return actions
 
 
-def free_udp_port() -> int:
-    """A UDP port on 127.0.0.1 that is free now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -> MissionConfig:
     """The maritime demo mission, shortened, with the demo's camera and detector settings."""
     from sarmission.mission.config import load_mission
@@ -104,73 +91,14 @@ def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -
     return load_mission(DEMO_MISSION if DEMO_MISSION.is_file() else None, overrides)
 
 
-def nearest(annotations: list[Any], cx: float, cy: float) -> Any:
-    """The annotation whose box centre is nearest ``(cx, cy)`` within :data:`MATCH_PX`, or None."""
-    best, best_d = None, MATCH_PX
-    for a in annotations:
-        x0, y0, x1, y1 = a.bbox_xyxy
-        d = math.hypot((x0 + x1) / 2 - 0.5 - cx, (y0 + y1) / 2 - 0.5 - cy)
-        if d <= best_d:
-            best, best_d = a, d
-    return best
-
-
-def score(alerts: list[Alert], camera: Any, min_frames: int) -> list[str]:
-    """Summary lines: people found vs in view, each alert's geolocation error, false alerts."""
-    from sarmission.mission.targets import distance_m
-
-    frames_seen: dict[int, int] = {}
-    for frame in camera.truth:
-        for a in frame.targets:
-            frames_seen[a.track_id] = frames_seen.get(a.track_id, 0) + 1
-    present = {tid for tid, n in frames_seen.items() if n >= min_frames}
-    lines, found, errors, duplicates = [], set(), [], 0
-    false_on: Counter[str] = Counter()
-    for alert in alerts:
-        cx, cy = alert.pixel_track[-1][1:] if alert.pixel_track else (math.nan, math.nan)
-        best = nearest(camera.targets_at(alert.frame_index), cx, cy)
-        if best is None:
-            other = nearest(camera.others_at(alert.frame_index), cx, cy)
-            on = other.category if other is not None else "open water"
-            false_on[on] += 1
-            lines.append(f"  target {alert.target_id}: FALSE ALERT ({alert.class_name} "
-                         f"{alert.score:.2f}, frame {alert.frame_index}, on {on})")
-            continue
-        tag = ""
-        if best.track_id in found:
-            duplicates += 1
-            tag = " (DUPLICATE of an earlier alert)"
-        found.add(best.track_id)
-        if alert.position is not None and best.lat is not None and best.lon is not None:
-            err = distance_m(alert.position, (best.lat, best.lon))
-            errors.append(err)
-            where = f"geolocation error {err:.1f} m (estimated {alert.error_m:.1f} m)"
-        else:
-            where = f"no position: {alert.position_note}"
-        lines.append(f"  target {alert.target_id}: {best.category} #{best.track_id}, {where}{tag}")
-    head = [f"people in view (>= {min_frames} frames): {len(present)}, found: "
-            f"{len(found & present)} of them" + (f" (+{len(found - present)} seen briefly)"
-                                                 if found - present else ""),
-            f"alerts: {len(alerts)}, false alerts: {sum(false_on.values())}"
-            + (" (on " + ", ".join(f"{what} {n}" for what, n in false_on.most_common()) + ")"
-               if false_on else "") + f", duplicates: {duplicates}"]
-    if errors:
-        head.append(f"geolocation error: mean {sum(errors) / len(errors):.1f} m, "
-                    f"max {max(errors):.1f} m over {len(errors)} alerts")
-    if len(lines) > MAX_LISTED:
-        lines = lines[:MAX_LISTED] + [f"  ... and {len(lines) - MAX_LISTED} more alerts"]
-    return head + lines
-
-
 def run(args: argparse.Namespace) -> int:
     from sarmission.commands.mission_options import build_detector
-    from sarmission.commands.run import parse_size
     from sarmission.mission.live import LiveSession
     from sarmission.viz.recorder import Recorder
     from sim.camera import SimCamera, mission_scenario
     from sim.vehicle import SimVehicle
 
-    size = parse_size(args.size)
+    size = args.size
     mission = demo_mission(size, args.hfov, args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from sarmission.commands.bench import _size
+from sarmission.commands.cli_helpers import parse_frame_size
 from sarmission.perception.types import VALID_DS
 
 
@@ -16,7 +16,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Print the head's parameter count and the FLOPs per frame of each stage "
         "(vSTMD, the rest of the RPN with the crops, the head) for the given frame size, ds and N.",
     )
-    parser.add_argument("--size", type=_size, default=(3840, 2160),
+    parser.add_argument("--size", type=parse_frame_size, default=(3840, 2160),
                         help="frame size WIDTHxHEIGHT (default: 3840x2160)")
     parser.add_argument("--ds", type=int, choices=VALID_DS, default=2)
     parser.add_argument("--topn", type=int, default=25)

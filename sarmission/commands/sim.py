@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from sarmission.commands.cli_helpers import parse_frame_size
 from sarmission.commands.progress import add_progress_option, bars_wanted
 
 if TYPE_CHECKING:
@@ -68,7 +69,8 @@ def add_generate_parser(sim_sub: argparse._SubParsersAction) -> None:
                      help="maritime, urban, or a preset: " + ", ".join(sorted(PRESETS))
                      + " (default: %(default)s = maritime_test)")
     gen.add_argument("--frames", type=int, default=300, help="frames to render (default: 300)")
-    gen.add_argument("--size", default="3840x2160", help="WIDTHxHEIGHT (default: %(default)s)")
+    gen.add_argument("--size", type=parse_frame_size, default="3840x2160",
+                     help="WIDTHxHEIGHT (default: %(default)s)")
     gen.add_argument("--seed", type=int, default=None,
                      help="world and flight seed (default: the preset's own)")
     gen.add_argument("--fps", type=float, default=30.0)
@@ -91,14 +93,13 @@ def add_generate_parser(sim_sub: argparse._SubParsersAction) -> None:
 
 
 def _run_generate(args: argparse.Namespace) -> int:
-    from sarmission.commands.bench import _size
     from sim.generate import generate_split
 
     name = {"maritime": "maritime_test", "urban": "urban_test"}.get(args.scenario, args.scenario)
     if args.frames < 1:
         raise ValueError(f"--frames must be at least 1, got {args.frames}")
     annotations = generate_split(
-        name, args.sequences, args.frames, args.out, size=_size(args.size), fps=args.fps,
+        name, args.sequences, args.frames, args.out, size=args.size, fps=args.fps,
         first_start_s=args.start, spacing_s=args.spacing, video=not args.images, seed=args.seed,
         progress=bars_wanted(args))
     print(f"wrote {args.sequences} x {args.frames} frames of {name} -> {annotations}")
@@ -118,8 +119,8 @@ def _run_generate(args: argparse.Namespace) -> int:
 
 def add_replay_parser(sim_sub: argparse._SubParsersAction) -> None:
     """Register ``sim replay``."""
+    from sarmission.commands.live_options import add_session_options
     from sarmission.commands.mission_options import add_mission_options
-    from sarmission.commands.run import add_session_options
 
     rep = sim_sub.add_parser(
         "replay",
@@ -159,9 +160,9 @@ def add_replay_parser(sim_sub: argparse._SubParsersAction) -> None:
 
 
 def _run_replay(args: argparse.Namespace) -> int:
-    from sarmission.commands.demo import score
+    from sarmission.commands.live_options import run_live, vehicle_url
     from sarmission.commands.mission_options import load_mission_from_args
-    from sarmission.commands.run import run_live, vehicle_url
+    from sarmission.commands.truth_score import score
     from sim.footage import FootageCamera, FootageRenderer
     from sim.meta_flight import MetaFlight, NoUsableMeta
     from sim.vehicle import SimVehicle

@@ -66,7 +66,7 @@ class Flown:
 def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: float,
         workdir: Path) -> Flown:
     """One scenario through the live pipeline (see :class:`Flown`)."""
-    from sarmission.commands.demo import free_udp_port
+    from sarmission.commands.cli_helpers import free_udp_port
     from sarmission.evaluation.alert_scoring import score_flight
     from sarmission.mission.live import LiveSession
     from sim.camera import SimCamera

@@ -1,0 +1,40 @@
+"""Small helpers several sub-commands share: the frame-size option and a free loopback port.
+
+One parser for every ``--size`` style option, so each command accepts the same sizes and says
+the same thing about a wrong one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import socket
+
+#: Smallest frame side the pipeline accepts (two 16 px proposal boxes).
+MIN_FRAME_SIDE = 32
+#: Largest frame side accepted: beyond 8K twice over a frame is a typing error, not a camera.
+MAX_FRAME_SIDE = 16384
+
+
+class FrameSizeError(ValueError, argparse.ArgumentTypeError):
+    """A frame size that cannot be read or used. A ValueError for callers and the CLI's error
+    line, an ArgumentTypeError so argparse prints its message as it is."""
+
+
+def parse_frame_size(text: str) -> tuple[int, int]:
+    """``"960x540"`` -> ``(960, 540)``; :class:`FrameSizeError` for anything else."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        width = height = 0
+    if not (MIN_FRAME_SIDE <= width <= MAX_FRAME_SIDE
+            and MIN_FRAME_SIDE <= height <= MAX_FRAME_SIDE):
+        raise FrameSizeError(f"expected a frame size WIDTHxHEIGHT with sides {MIN_FRAME_SIDE} "
+                             f"to {MAX_FRAME_SIDE} px (e.g. 960x540), got {text!r}")
+    return width, height
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that is free now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
