@@ -8,6 +8,14 @@ demo's 960x540 view; merged into one training file) and the validation split, tr
 
     python tools/train_default_model.py            # about 11 minutes on 2 CPU cores
     python tools/train_default_model.py --work /tmp/sarmission-train --epochs 30
+    python tools/train_default_model.py --val heldout --no-install
+
+The epoch is chosen on a validation split (``--val``): ``sim``, the simulator's ``maritime_val``
+(the shipped head's recipe), or ``heldout``, clips of the held-out worlds (:mod:`heldout`:
+``heldout_maritime`` and ``heldout_land``, people on land scored as ``swimmer``) from clip index
+:data:`HELDOUT_VAL_FIRST_CLIP` on. ``tools/heldout_eval.py`` tests on clips 0, 1, 2 ...; indices
+below :data:`HELDOUT_VAL_FIRST_CLIP` are kept for tests, so nothing is chosen on the simulator nor
+on a test clip.
 
 The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
 are copied into the package.
@@ -20,8 +28,11 @@ import shutil
 import sys
 from pathlib import Path
 
+from heldout.generate import render_world
+from heldout.presets import world
 from sarmission.cli import main as sarmission
 from sarmission.data.coco_video import read_coco_video, write_coco_video
+from sarmission.data.merge import merge_annotation_files
 from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
 from sim.generate import merge_datasets
 
@@ -30,6 +41,14 @@ from sim.generate import merge_datasets
 TRAIN_SPLITS = (("maritime_train", 6, 90, "3840x2160"), ("maritime_train_high", 4, 90, "3840x2160"),
                 ("maritime_train_narrow", 6, 90, "960x540"))
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
+#: Held-out validation: (world, clips, frames per clip), 1920x1080 frames with a 4K camera's
+#: ground sampling; clip indices from :data:`HELDOUT_VAL_FIRST_CLIP` on.
+HELDOUT_VAL = (("heldout_maritime", 2, 40), ("heldout_land", 2, 40))
+#: Held-out clip indices below this are test clips (``tools/heldout_eval.py``).
+HELDOUT_VAL_FIRST_CLIP = 100
+#: Land people are scored as the maritime head's ``swimmer`` class (as tools/heldout_eval.py
+#: scores them).
+HELDOUT_RENAME = {"person": "swimmer"}
 TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.02", "--seed", "0",
               "--frame-stride", "3", "--jitters", "4", "--ds", "1", "--select-from", "10"]
 
@@ -59,17 +78,51 @@ def render_training_set(work: Path) -> Path:
     return merged
 
 
+def heldout_val_seeds(splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> list[int]:
+    """Seeds of the held-out validation clips (a clip's seed is its world's seed * 1000 plus its
+    index, :func:`heldout.presets.draw_clip`)."""
+    return [world(name).seed * 1000 + HELDOUT_VAL_FIRST_CLIP + i
+            for name, clips, _ in splits for i in range(clips)]
+
+
+def render_heldout_val(work: Path,
+                       splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> Path:
+    """Render the held-out validation clips into ``work/heldout_val`` and merge them into one
+    annotation file there (people on land as ``swimmer``); skipped when that file exists."""
+    folder = work / "heldout_val"
+    merged = folder / "heldout_val.json"
+    if not merged.is_file():
+        parts = []
+        for name, clips, frames in splits:
+            path = folder / name / f"{name}.json"
+            if not path.is_file():
+                print(f"rendering held-out validation {name}: {clips} x {frames} frames",
+                      file=sys.stderr)
+                render_world(name, clips, frames, path.parent, first_clip=HELDOUT_VAL_FIRST_CLIP)
+            parts.append(path)
+        write_coco_video(merge_annotation_files(
+            parts, HELDOUT_RENAME, info={"worlds": [s[0] for s in splits],
+                                         "first_clip": HELDOUT_VAL_FIRST_CLIP}), merged)
+    return merged
+
+
 def main() -> int:
     """Render, train, export and copy the default model into the package."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, default=Path("/tmp/sarmission-default-model"),
                         help="folder for the rendered data, crop caches and checkpoints")
+    parser.add_argument("--val", choices=("sim", "heldout"), default="sim",
+                        help="validation split that picks the epoch: the simulator's maritime_val "
+                             "(the shipped head's recipe) or held-out clips (default: sim)")
     parser.add_argument("--no-install", action="store_true",
                         help="do not copy the result into sarmission/models")
     args, extra = parser.parse_known_args()
     args.work.mkdir(parents=True, exist_ok=True)
     train = render_training_set(args.work)
-    val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
+    if args.val == "heldout":
+        val = render_heldout_val(args.work)
+    else:
+        val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
     out = args.work / "mitenet_head.pt"
     code = sarmission(["train", "--train", str(train), "--val", str(val), "--out", str(out),
                        "--onnx", *TRAIN_ARGS, *extra])

@@ -1,0 +1,73 @@
+"""Merging annotation files from several folders and renderers into one training or validation
+set, and the held-out validation split of the training recipe."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+from synthetic_video import write_dataset
+
+from sarmission.data.coco_video import read_coco_video, write_coco_video
+from sarmission.data.merge import merge_annotation_files
+from sarmission.data.sequence import iter_sequence
+
+TOOL = Path(__file__).resolve().parents[1] / "tools" / "train_default_model.py"
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("merge_data")
+    return {"train": write_dataset(root / "a", n_videos=1, n_frames=4, seed=1),
+            "val": write_dataset(root / "b", n_videos=1, n_frames=5, seed=2)}
+
+
+def test_merge_unites_categories_by_name_and_paths(data, tmp_path) -> None:
+    """A land file whose people are ``person`` (and which also lists an unused ``swimmer``)
+    merges with a maritime one: people and swimmers are one ``swimmer`` category, paths still
+    resolve from another folder."""
+    land_doc = json.loads(Path(data["val"]).read_text())
+    names = {c["id"]: c["name"] for c in land_doc["categories"]}
+    swimmer_id = next(cid for cid, n in names.items() if n == "swimmer")
+    for category in land_doc["categories"]:
+        if category["id"] == swimmer_id:
+            category["name"] = "person"
+    land_doc["categories"].append({"id": 99, "name": "swimmer"})
+    land = Path(data["val"]).with_name("land.json")
+    land.write_text(json.dumps(land_doc))
+    merged = merge_annotation_files([data["train"], land], {"person": "swimmer"})
+    out = tmp_path / "elsewhere" / "merged.json"
+    out.parent.mkdir()
+    write_coco_video(merged, out)
+    again = read_coco_video(out)
+    by_name = {c.name: c.id for c in again.categories}
+    assert len(by_name) == len(again.categories)
+    assert "person" not in by_name and "swimmer" in by_name
+    first, second = (read_coco_video(p) for p in (data["train"], land))
+    assert len(again.videos) == 2 and len(again.images) == len(first.images) + len(second.images)
+    n_swimmers = sum(a.category_id == swimmer_id for a in first.annotations + second.annotations)
+    assert sum(a.category_id == by_name["swimmer"] for a in again.annotations) == n_swimmers
+    frames = [item.frame_bgr for video in again.videos
+              for item in iter_sequence(again, video.id)]
+    assert len(frames) == len(again.images)
+    assert len({im.id for im in again.images}) == len(again.images)
+
+
+def test_heldout_validation_clips_are_not_test_clips() -> None:
+    """The recipe's held-out validation seeds lie outside the clip indices kept for tests
+    (tools/heldout_eval.py renders clips 0, 1, 2 ... of each world)."""
+    spec = importlib.util.spec_from_file_location("sarmission_train_recipe_tool", TOOL)
+    tool = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = tool
+    spec.loader.exec_module(tool)
+    from heldout.presets import world
+
+    seeds = tool.heldout_val_seeds()
+    assert len(seeds) == sum(clips for _, clips, _ in tool.HELDOUT_VAL) == len(set(seeds))
+    test_seeds = {world(name).seed * 1000 + i for name, _, _ in tool.HELDOUT_VAL
+                  for i in range(tool.HELDOUT_VAL_FIRST_CLIP)}
+    assert not test_seeds & set(seeds)
+    assert tool.HELDOUT_VAL_FIRST_CLIP >= 50
