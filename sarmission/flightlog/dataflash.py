@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import statistics
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -109,36 +110,57 @@ def _take(builder: LogBuilder, state: _State, msg: Any) -> None:
         if msg.Name == "MNT1_TYPE":
             state.mount_type = int(msg.Value)
         return
-    if not hasattr(msg, "TimeUS"):
-        return
-    t = _t(msg)
-    if mtype == "GPS":
-        state.gps = (t, int(msg.Status))
-        if int(msg.Status) >= 3 and msg.GWk > 0:
-            state.utc_offsets.append(gps_to_posix(int(msg.GWk), float(msg.GMS)) - t)
-            state.gps_positions.append(msg)
-    elif mtype == "GPA":
-        h_acc = float(msg.HAcc)
-        state.h_acc = h_acc if math.isfinite(h_acc) and h_acc > 0 else None
-    elif mtype == "POS":
-        state.has_pos = True
-        if _fix_ok(builder, state, t):
-            builder.position(t, float(msg.Lat), float(msg.Lng), float(msg.RelHomeAlt),
-                             float(msg.Alt), state.h_acc)
-    elif mtype == "ATT":
-        builder.attitude_euler(t, math.radians(msg.Roll), math.radians(msg.Pitch),
-                               math.radians(msg.Yaw))
-    elif mtype == "MNT":
-        state.mounts.append(msg)  # its frame depends on MNT1_TYPE, which may come later
-    elif mtype in ("CAM", "TRIG"):
-        builder.trigger(t)
-    elif mtype == "ORGN":
-        where = (float(msg.Lat), float(msg.Lng), float(msg.Alt))
-        if int(msg.Type) == 1:
-            builder.log.home = where
-            builder.log.home_note = "home from ORGN (type 1)"
-        elif int(msg.Type) == 0:
-            state.origin = where
+    handler = _TIMED.get(mtype)
+    if handler is not None and hasattr(msg, "TimeUS"):
+        handler(builder, state, msg, _t(msg))
+
+
+def _gps(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    state.gps = (t, int(msg.Status))
+    if int(msg.Status) >= 3 and msg.GWk > 0:
+        state.utc_offsets.append(gps_to_posix(int(msg.GWk), float(msg.GMS)) - t)
+        state.gps_positions.append(msg)
+
+
+def _gpa(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    h_acc = float(msg.HAcc)
+    state.h_acc = h_acc if math.isfinite(h_acc) and h_acc > 0 else None
+
+
+def _pos(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    state.has_pos = True
+    if _fix_ok(builder, state, t):
+        builder.position(t, float(msg.Lat), float(msg.Lng), float(msg.RelHomeAlt),
+                         float(msg.Alt), state.h_acc)
+
+
+def _att(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    builder.attitude_euler(t, math.radians(msg.Roll), math.radians(msg.Pitch),
+                           math.radians(msg.Yaw))
+
+
+def _mnt(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    state.mounts.append(msg)  # its frame depends on MNT1_TYPE, which may come later
+
+
+def _trigger(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    builder.trigger(t)
+
+
+def _orgn(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
+    where = (float(msg.Lat), float(msg.Lng), float(msg.Alt))
+    if int(msg.Type) == 1:
+        builder.log.home = where
+        builder.log.home_note = "home from ORGN (type 1)"
+    elif int(msg.Type) == 0:
+        state.origin = where
+
+
+#: What each timed message adds to the log.
+_TIMED: dict[str, Callable[[LogBuilder, _State, Any, float], None]] = {
+    "GPS": _gps, "GPA": _gpa, "POS": _pos, "ATT": _att, "MNT": _mnt, "CAM": _trigger,
+    "TRIG": _trigger, "ORGN": _orgn,
+}
 
 
 def _fix_ok(builder: LogBuilder, state: _State, t: float) -> bool:

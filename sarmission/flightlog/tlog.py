@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import statistics
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -89,6 +90,14 @@ def read_tlog(path: str | Path) -> FlightLog:
     if state.rebooted:
         log.notes.append(f"{path.name}: the autopilot rebooted during the log; read up to the "
                          "reboot")
+    _place_in_utc(builder, state)
+    return builder.build()
+
+
+def _place_in_utc(builder: LogBuilder, state: _State) -> None:
+    """The log's UTC offset from SYSTEM_TIME, else from the arrival stamps; camera triggers,
+    stamped in UTC or on arrival, placed on the boot clock with it."""
+    log = builder.log
     if state.system_offsets:
         log.utc_offset_s = statistics.median(state.system_offsets)
         log.clock += ", UTC from the autopilot's SYSTEM_TIME"
@@ -100,7 +109,6 @@ def read_tlog(path: str | Path) -> FlightLog:
             builder.trigger(utc - log.utc_offset_s)
         for arrival in state.feedback_arrival:
             builder.trigger(arrival - log.utc_offset_s)
-    return builder.build()
 
 
 def _take(builder: LogBuilder, state: _State, msg: Any) -> None:
@@ -121,46 +129,68 @@ def _take(builder: LogBuilder, state: _State, msg: Any) -> None:
     if mtype == "HOME_POSITION":
         builder.log.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0)
         builder.log.home_note = "home from HOME_POSITION"
-        return
-    if mtype == "CAMERA_FEEDBACK":
-        if msg.time_usec > 0:
-            state.feedback_utc.append(msg.time_usec / 1e6)
-        elif math.isfinite(arrival):
-            state.feedback_arrival.append(arrival)
-        return
+    elif mtype == "CAMERA_FEEDBACK":
+        _camera_feedback(state, msg, arrival)
+    else:
+        boot_s = _boot_seconds(state, msg, arrival)
+        handler = _TIMED.get(mtype)
+        if boot_s is not None and handler is not None:
+            handler(builder, state, msg, boot_s)
+
+
+def _camera_feedback(state: _State, msg: Any, arrival: float) -> None:
+    if msg.time_usec > 0:
+        state.feedback_utc.append(msg.time_usec / 1e6)
+    elif math.isfinite(arrival):
+        state.feedback_arrival.append(arrival)
+
+
+def _boot_seconds(state: _State, msg: Any, arrival: float) -> float | None:
+    """The message's autopilot boot time in seconds; None (and ``state.rebooted``) when it goes
+    back by more than a second: the autopilot rebooted."""
     boot = getattr(msg, "time_boot_ms", None)
     if boot is None:  # GPS_RAW_INT: time_usec may be since boot or UNIX: take the newest boot
-        boot_s = state.last_boot
+        return state.last_boot
+    boot_s = boot / 1000.0
+    if boot_s < state.last_boot - 1.0:
+        state.rebooted = True
+        return None
+    state.last_boot = max(state.last_boot, boot_s)
+    if math.isfinite(arrival):
+        state.arrival_offsets.append(arrival - boot_s)
+    return boot_s
+
+
+def _system_time(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    if msg.time_unix_usec > 0:
+        state.system_offsets.append(msg.time_unix_usec / 1e6 - boot_s)
+
+
+def _gps_raw(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    h_acc = getattr(msg, "h_acc", 0)
+    state.gps = (boot_s if math.isfinite(boot_s) else None, int(msg.fix_type),
+                 h_acc / 1000.0 if 0 < h_acc < 0xFFFFFFFF else None)
+
+
+def _attitude(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    builder.attitude_euler(boot_s, msg.roll, msg.pitch, msg.yaw)
+
+
+def _attitude_quaternion(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    builder.attitude_quaternion(boot_s, (msg.q1, msg.q2, msg.q3, msg.q4))
+
+
+def _gimbal_status(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    frame = gimbal_frame_from_flags(int(msg.flags))
+    builder.gimbal_quaternion(boot_s, msg.q, frame)
+
+
+def _mount_orientation(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
+    roll, pitch = math.radians(msg.roll), math.radians(msg.pitch)
+    if math.isfinite(msg.yaw_absolute):
+        builder.gimbal_euler(boot_s, roll, pitch, math.radians(msg.yaw_absolute), "earth")
     else:
-        boot_s = boot / 1000.0
-        if boot_s < state.last_boot - 1.0:
-            state.rebooted = True
-            return
-        state.last_boot = max(state.last_boot, boot_s)
-        if math.isfinite(arrival):
-            state.arrival_offsets.append(arrival - boot_s)
-    if mtype == "SYSTEM_TIME":
-        if msg.time_unix_usec > 0:
-            state.system_offsets.append(msg.time_unix_usec / 1e6 - boot_s)
-    elif mtype == "GPS_RAW_INT":
-        h_acc = getattr(msg, "h_acc", 0)
-        state.gps = (boot_s if math.isfinite(boot_s) else None, int(msg.fix_type),
-                     h_acc / 1000.0 if 0 < h_acc < 0xFFFFFFFF else None)
-    elif mtype == "GLOBAL_POSITION_INT":
-        _position(builder, state, msg, boot_s)
-    elif mtype == "ATTITUDE":
-        builder.attitude_euler(boot_s, msg.roll, msg.pitch, msg.yaw)
-    elif mtype == "ATTITUDE_QUATERNION":
-        builder.attitude_quaternion(boot_s, (msg.q1, msg.q2, msg.q3, msg.q4))
-    elif mtype == "GIMBAL_DEVICE_ATTITUDE_STATUS":
-        frame = gimbal_frame_from_flags(int(msg.flags))
-        builder.gimbal_quaternion(boot_s, msg.q, frame)
-    elif mtype == "MOUNT_ORIENTATION":
-        roll, pitch = math.radians(msg.roll), math.radians(msg.pitch)
-        if math.isfinite(msg.yaw_absolute):
-            builder.gimbal_euler(boot_s, roll, pitch, math.radians(msg.yaw_absolute), "earth")
-        else:
-            builder.gimbal_euler(boot_s, roll, pitch, math.radians(msg.yaw), "vehicle")
+        builder.gimbal_euler(boot_s, roll, pitch, math.radians(msg.yaw), "vehicle")
 
 
 def _position(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
@@ -176,3 +206,15 @@ def _position(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> No
         return
     builder.position(boot_s, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0,
                      msg.alt / 1000.0, gps[2])
+
+
+#: What each message with a boot time adds to the log.
+_TIMED: dict[str, Callable[[LogBuilder, _State, Any, float], None]] = {
+    "SYSTEM_TIME": _system_time,
+    "GPS_RAW_INT": _gps_raw,
+    "GLOBAL_POSITION_INT": _position,
+    "ATTITUDE": _attitude,
+    "ATTITUDE_QUATERNION": _attitude_quaternion,
+    "GIMBAL_DEVICE_ATTITUDE_STATUS": _gimbal_status,
+    "MOUNT_ORIENTATION": _mount_orientation,
+}
