@@ -305,23 +305,33 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
     """Check ``value`` against annotation ``tp`` (int promotes to float); raise with ``where``."""
     origin = typing.get_origin(tp)
     if origin in (typing.Union, types.UnionType):
-        args = typing.get_args(tp)
-        if value is None and type(None) in args:
-            return None
-        for a in args:
-            if a is type(None):
-                continue
-            try:
-                return _coerce(value, a, where)
-            except MissionConfigError:
-                continue
-        raise MissionConfigError(f"{where}: expected {_type_name(tp)}, got {_describe(value)}")
+        return _coerce_union(value, tp, where)
     if origin in (list, tuple):
         if not isinstance(value, list | tuple):
             raise MissionConfigError(f"{where}: expected {_type_name(tp)}, got {_describe(value)}")
         inner = typing.get_args(tp)[0]
         items = [_coerce(v, inner, f"{where}[{i}]") for i, v in enumerate(value)]
         return tuple(items) if origin is tuple else items
+    return _coerce_scalar(value, tp, where)
+
+
+def _coerce_union(value: Any, tp: Any, where: str) -> Any:
+    """``value`` as the first member of the union ``tp`` that takes it (None where allowed)."""
+    args = typing.get_args(tp)
+    if value is None and type(None) in args:
+        return None
+    for a in args:
+        if a is type(None):
+            continue
+        try:
+            return _coerce(value, a, where)
+        except MissionConfigError:
+            continue
+    raise MissionConfigError(f"{where}: expected {_type_name(tp)}, got {_describe(value)}")
+
+
+def _coerce_scalar(value: Any, tp: Any, where: str) -> Any:
+    """``value`` as a finite float, an int, a bool or a str (no bool where a number is due)."""
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise MissionConfigError(f"{where}: expected number, got {_describe(value)}")
