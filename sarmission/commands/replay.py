@@ -142,6 +142,30 @@ def _ground_model(args: argparse.Namespace) -> object | None:
     return TerrainGround(dem)
 
 
+def _footage(args: argparse.Namespace, path: Path, counters: dict[str, int]
+             ) -> tuple[Iterator[ReplayFrame], int | None, bool, MetaConventions | str | None,
+                        Any]:
+    """The input's frames, their count, whether dataset meta places any, the meta conventions
+    (or why they cannot be read) and the file source (None for a dataset)."""
+    if path.suffix.lower() == ".json":
+        frames, total, with_meta, conventions = _dataset_frames(
+            path, args.video_id, args.fps, counters, args.meta_pitch)
+        return frames, total, with_meta, conventions, None
+    frames, count, file_source = _file_frames(path, args.fps)
+    return frames, count, False, None, file_source
+
+
+def _print_outcome(summary: str, unreadable: int, recorder: Any, alerts_db: str | None) -> None:
+    """The controller's summary and what the replay wrote."""
+    print(summary)
+    if unreadable:
+        print(f"unreadable frames skipped by the reader: {unreadable}")
+    if recorder is not None and recorder.path is not None:
+        print(f"wrote {recorder.path}")
+    if alerts_db:
+        print(f"alerts in {alerts_db}")
+
+
 def run(args: argparse.Namespace) -> int:
     from sarmission.alerts.store import AlertStore
     from sarmission.data.frames import Frame
@@ -155,14 +179,7 @@ def run(args: argparse.Namespace) -> int:
     if args.fps <= 0:
         raise ValueError(f"--fps must be positive, got {args.fps}")
     counters: dict[str, int] = {}
-    file_source = None
-    conventions = None
-    if path.suffix.lower() == ".json":
-        frames, total, with_meta, conventions = _dataset_frames(
-            path, args.video_id, args.fps, counters, args.meta_pitch)
-    else:
-        frames, total, file_source = _file_frames(path, args.fps)
-        with_meta = False
+    frames, total, with_meta, conventions, file_source = _footage(args, path, counters)
     names = _image_names(file_source)
     source = telemetry_source(
         args.telemetry, input_path=path, is_video=file_source is not None and not names,
@@ -217,13 +234,7 @@ def run(args: argparse.Namespace) -> int:
                 recorder.close()
             store.close()
         unreadable = counters.get("skipped", 0) + (file_source.skipped if file_source else 0)
-        print(controller.summary(wall))
-        if unreadable:
-            print(f"unreadable frames skipped by the reader: {unreadable}")
-        if recorder is not None and recorder.path is not None:
-            print(f"wrote {recorder.path}")
-        if args.alerts_db:
-            print(f"alerts in {args.alerts_db}")
+        _print_outcome(controller.summary(wall), unreadable, recorder, args.alerts_db)
         if args.report:
             _write_report(args, db_path, controller, source, frame_times, path)
     return 0
