@@ -330,24 +330,37 @@ class TelemetryBuffer:
         source = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         if mtype == "HOME_POSITION":
             self._take_home(msg)
-            return
-        if mtype == "GPS_RAW_INT":
-            self._gps = (now, int(msg.fix_type))
-            h_acc = getattr(msg, "h_acc", 0)
-            if 0 < h_acc < 0xFFFFFFFF:
-                self.gnss_sigma_m = h_acc / 1000.0
-            return
-        if mtype == "SYSTEM_TIME":
-            return
+        elif mtype == "GPS_RAW_INT":
+            self._take_gps(msg, now)
+        elif mtype != "SYSTEM_TIME":
+            t = self._sender_time(source, mtype, msg, now)
+            if t is None:
+                self._reject(mtype, "time_boot_ms off the sender's timeline")
+            else:
+                self._take_timed(mtype, msg, t, now, source)
+
+    def _take_gps(self, msg: Any, now: float) -> None:
+        """GPS_RAW_INT: the fix type (no position is believed without a fix) and its accuracy."""
+        self._gps = (now, int(msg.fix_type))
+        h_acc = getattr(msg, "h_acc", 0)
+        if 0 < h_acc < 0xFFFFFFFF:
+            self.gnss_sigma_m = h_acc / 1000.0
+
+    def _sender_time(self, source: tuple[int, int], mtype: str, msg: Any,
+                     now: float) -> float | None:
+        """The message's time on the local clock from the sender's boot clock (None when off
+        its timeline); a sender whose clock restarted has its samples forgotten."""
         with self._lock:
             clock = self._clock_for(source, mtype)
             reboots = clock.reboots
             t = clock.observe(msg.time_boot_ms / 1000.0, now)
             if clock.reboots != reboots:
                 self._forget_source(source, "its clock restarted (reboot)")
-        if t is None:
-            self._reject(mtype, "time_boot_ms off the sender's timeline")
-            return
+        return t
+
+    def _take_timed(self, mtype: str, msg: Any, t: float, now: float,
+                    source: tuple[int, int]) -> None:
+        """A position, attitude or gimbal message at local time ``t``."""
         if mtype == "GLOBAL_POSITION_INT":
             self._take_position(msg, t, now)
         elif mtype == "ATTITUDE":
@@ -357,20 +370,29 @@ class TelemetryBuffer:
             self._series_source["attitude"] = source
             self.push_attitude_quaternion(t, (msg.q1, msg.q2, msg.q3, msg.q4))
         elif mtype == "GIMBAL_DEVICE_ATTITUDE_STATUS":
-            q = np.asarray(msg.q, dtype=float)
-            frame = gimbal_frame_from_flags(int(msg.flags))
-            if frame == "vehicle" and math.isfinite(msg.delta_yaw):
-                q = matrix_to_quaternion(rot_z(msg.delta_yaw) @ quaternion_to_matrix(q))
-                frame = "earth"
-            self._series_source["gimbal"] = source
-            self.push_gimbal(t, q, frame)
+            self._take_gimbal_status(msg, t, source)
         elif mtype == "MOUNT_ORIENTATION":
-            roll, pitch = math.radians(msg.roll), math.radians(msg.pitch)
-            self._series_source["gimbal"] = source
-            if math.isfinite(msg.yaw_absolute):
-                self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw_absolute)), "earth")
-            else:
-                self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw)), "vehicle")
+            self._take_mount(msg, t, source)
+
+    def _take_gimbal_status(self, msg: Any, t: float, source: tuple[int, int]) -> None:
+        """GIMBAL_DEVICE_ATTITUDE_STATUS; a vehicle-frame attitude with its delta_yaw is turned
+        into the earth frame."""
+        q = np.asarray(msg.q, dtype=float)
+        frame = gimbal_frame_from_flags(int(msg.flags))
+        if frame == "vehicle" and math.isfinite(msg.delta_yaw):
+            q = matrix_to_quaternion(rot_z(msg.delta_yaw) @ quaternion_to_matrix(q))
+            frame = "earth"
+        self._series_source["gimbal"] = source
+        self.push_gimbal(t, q, frame)
+
+    def _take_mount(self, msg: Any, t: float, source: tuple[int, int]) -> None:
+        """MOUNT_ORIENTATION: yaw from north when it is given, else relative to the vehicle."""
+        roll, pitch = math.radians(msg.roll), math.radians(msg.pitch)
+        self._series_source["gimbal"] = source
+        if math.isfinite(msg.yaw_absolute):
+            self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw_absolute)), "earth")
+        else:
+            self.push_gimbal(t, (roll, pitch, math.radians(msg.yaw)), "vehicle")
 
     def _reject(self, mtype: str, reason: str) -> None:
         """Count a rejected message under its reason with the numbers left out (so a sender
