@@ -60,7 +60,7 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
@@ -107,10 +107,6 @@ _PARAMS: dict[str, frozenset[str]] = {
     "/alerts.jsonl": frozenset(("since", "follow")),
     "/api/map": frozenset(("mission", "since")),
 }
-_GET_PATHS = frozenset(
-    ("/", "/events", "/api/alerts", "/api/map", "/alerts.jsonl", "/alerts.geojson",
-     "/alerts.kml", "/healthz")
-)
 #: How often a waiting stream checks for shutdown and client disconnects (seconds).
 _TICK_S = 0.5
 #: SSE comment sent when idle, so proxies keep the stream open.
@@ -442,67 +438,85 @@ class _Handler(BaseHTTPRequestHandler):
             self._error(HTTPStatus(exc.status), str(exc))
 
     def _route_get(self, path: str, params: dict[str, str], credential: Credential) -> None:
-        if path == "/":
-            headers = {"Content-Security-Policy": _PAGE_CSP}
-            if credential is Credential.QUERY and self.feed.guard is not None:
-                headers["Set-Cookie"] = self.feed.guard.set_cookie()
-            self._send(HTTPStatus.OK, PAGE_HTML.encode(), "text/html; charset=utf-8", headers)
-        elif path == "/events":
-            self._stream(self._events, checked.last_event_id(self.headers))
-        elif path == "/api/alerts":
-            alerts = self.store.list(checked.since(params))
-            self._json(HTTPStatus.OK, [a.to_json_dict() for a in alerts])
-        elif path == "/api/map":
-            mission, since = checked.mission(params), checked.since(params)
-            self._json(HTTPStatus.OK, map_document(self.store, mission, since))
+        route = _GET_ROUTES.get(path)
+        if route is not None:
+            route(self, params, credential)
         elif m := _ALERT.match(path):
-            alert = self.store.get(m.group(1))
-            if alert is None:
-                self._error(HTTPStatus.NOT_FOUND, f"no alert {m.group(1)}")
-            else:
-                self._json(HTTPStatus.OK, alert.to_json_dict())
-        elif path == "/alerts.jsonl":
-            since, follow = checked.since(params), checked.follow(params)
-            if follow:
-                self._stream(self._jsonl, since, True)
-            else:
-                self._jsonl(since, False)
-        elif path == "/alerts.geojson":
-            self._send(
-                HTTPStatus.OK,
-                alerts_geojson_bytes(self.store.list()),
-                "application/geo+json",
-                {"Content-Disposition": 'inline; filename="alerts.geojson"'},
-            )
-        elif path == "/alerts.kml":
-            self._send(
-                HTTPStatus.OK,
-                alerts_kml(self.store.list()),
-                "application/vnd.google-earth.kml+xml",
-                {"Content-Disposition": 'attachment; filename="alerts.kml"'},
-            )
+            self._get_alert(m.group(1))
         elif m := _THUMB.match(path):
-            alert = self.store.get(m.group(1))
-            if alert is None or not alert.thumbnail:
-                self._error(HTTPStatus.NOT_FOUND, f"no thumbnail for alert {m.group(1)}")
-            else:
-                self._send(HTTPStatus.OK, alert.thumbnail, "image/jpeg")
-        elif path == "/healthz":
-            self._json(
-                HTTPStatus.OK,
-                {
-                    "ok": True,
-                    "alerts": self.store.count(),
-                    "last_event": self.store.last_event_seq(),
-                    "time": time.time(),
-                    "connections": self.feed.connections.held,
-                    "streams": self.feed.streams.held,
-                },
-            )
+            self._get_thumbnail(m.group(1))
         elif m := _CHANGE.match(path):
             self._error(HTTPStatus.METHOD_NOT_ALLOWED, f"use POST to {m.group(2)}")
         else:
             self._error(HTTPStatus.NOT_FOUND, "not found")
+
+    # -- GET routes (see _GET_ROUTES) -----------------------------------------------------------
+    def _get_page(self, params: dict[str, str], credential: Credential) -> None:
+        headers = {"Content-Security-Policy": _PAGE_CSP}
+        if credential is Credential.QUERY and self.feed.guard is not None:
+            headers["Set-Cookie"] = self.feed.guard.set_cookie()
+        self._send(HTTPStatus.OK, PAGE_HTML.encode(), "text/html; charset=utf-8", headers)
+
+    def _get_events(self, params: dict[str, str], credential: Credential) -> None:
+        self._stream(self._events, checked.last_event_id(self.headers))
+
+    def _get_alerts(self, params: dict[str, str], credential: Credential) -> None:
+        alerts = self.store.list(checked.since(params))
+        self._json(HTTPStatus.OK, [a.to_json_dict() for a in alerts])
+
+    def _get_map(self, params: dict[str, str], credential: Credential) -> None:
+        mission, since = checked.mission(params), checked.since(params)
+        self._json(HTTPStatus.OK, map_document(self.store, mission, since))
+
+    def _get_jsonl(self, params: dict[str, str], credential: Credential) -> None:
+        since, follow = checked.since(params), checked.follow(params)
+        if follow:
+            self._stream(self._jsonl, since, True)
+        else:
+            self._jsonl(since, False)
+
+    def _get_geojson(self, params: dict[str, str], credential: Credential) -> None:
+        self._send(
+            HTTPStatus.OK,
+            alerts_geojson_bytes(self.store.list()),
+            "application/geo+json",
+            {"Content-Disposition": 'inline; filename="alerts.geojson"'},
+        )
+
+    def _get_kml(self, params: dict[str, str], credential: Credential) -> None:
+        self._send(
+            HTTPStatus.OK,
+            alerts_kml(self.store.list()),
+            "application/vnd.google-earth.kml+xml",
+            {"Content-Disposition": 'attachment; filename="alerts.kml"'},
+        )
+
+    def _get_health(self, params: dict[str, str], credential: Credential) -> None:
+        self._json(
+            HTTPStatus.OK,
+            {
+                "ok": True,
+                "alerts": self.store.count(),
+                "last_event": self.store.last_event_seq(),
+                "time": time.time(),
+                "connections": self.feed.connections.held,
+                "streams": self.feed.streams.held,
+            },
+        )
+
+    def _get_alert(self, alert_id: str) -> None:
+        alert = self.store.get(alert_id)
+        if alert is None:
+            self._error(HTTPStatus.NOT_FOUND, f"no alert {alert_id}")
+        else:
+            self._json(HTTPStatus.OK, alert.to_json_dict())
+
+    def _get_thumbnail(self, alert_id: str) -> None:
+        alert = self.store.get(alert_id)
+        if alert is None or not alert.thumbnail:
+            self._error(HTTPStatus.NOT_FOUND, f"no thumbnail for alert {alert_id}")
+        else:
+            self._send(HTTPStatus.OK, alert.thumbnail, "image/jpeg")
 
     def do_POST(self) -> None:
         url = urlsplit(self.path)
@@ -638,5 +652,18 @@ def _redact(text: str) -> str:
     return _TOKEN_IN_TARGET.sub(r"\1***", text)
 
 
+#: The GET routes of fixed paths (alerts and thumbnails by id are matched by pattern).
+_GET_ROUTES: dict[str, Callable[[_Handler, dict[str, str], Credential], None]] = {
+    "/": _Handler._get_page,
+    "/events": _Handler._get_events,
+    "/api/alerts": _Handler._get_alerts,
+    "/api/map": _Handler._get_map,
+    "/alerts.jsonl": _Handler._get_jsonl,
+    "/alerts.geojson": _Handler._get_geojson,
+    "/alerts.kml": _Handler._get_kml,
+    "/healthz": _Handler._get_health,
+}
+
+
 def _is_get_route(path: str) -> bool:
-    return path in _GET_PATHS or bool(_ALERT.match(path) or _THUMB.match(path))
+    return path in _GET_ROUTES or bool(_ALERT.match(path) or _THUMB.match(path))
