@@ -135,9 +135,9 @@ def heldout_maritime() -> WorldPreset:
 
 
 def heldout_land() -> WorldPreset:
-    """Meadow, forest and a dirt road, 60-100 m, nadir to 20 degrees, about 5 people per frame."""
+    """Meadow, forest and a dirt road, 75-120 m, nadir to 20 degrees, about 5 people per frame."""
     return WorldPreset(
-        "heldout_land", "land", 7742, (60.0, 100.0), (0.0, 7.0), (0.0, 20.0), (), (25.0, 60.0),
+        "heldout_land", "land", 7742, (75.0, 120.0), (0.0, 7.0), (0.0, 20.0), (), (25.0, 60.0),
         Population({"person": 5.0, "rock": 3.0, "log": 1.5, "animal": 0.5, "bird": 0.3}),
         heldout_land.__doc__ or "")
 

@@ -111,8 +111,9 @@ def test_targets_are_boxed_where_they_are_drawn() -> None:
     assert diff[far].max() == 0  # nothing drawn away from the annotated people
 
 
-def test_fully_visible_people_span_the_tiny_target_sizes() -> None:
-    spec = draw_clip(world("heldout_maritime"), 1, 1920, 1080, 1.0)
+@pytest.mark.parametrize("name, clip", [("heldout_maritime", 1), ("heldout_land", 0)])
+def test_fully_visible_people_span_the_tiny_target_sizes(name: str, clip: int) -> None:
+    spec = draw_clip(world(name), clip, 1920, 1080, 1.0)
     _, boxes = ClipRenderer(spec).render(0.0, np.random.default_rng(0))
     sides = [max(b.bbox[2], b.bbox[3]) for b in boxes if b.is_target and b.visibility == 1.0]
     assert sides and 4 <= min(sides) and max(sides) <= 64
