@@ -190,62 +190,86 @@ class MissionController:
         if reason:
             self._skip(frame_index, reason)
             return []
-        if self.actions is not None:
-            self.actions.tick()  # camera back to the survey view once an ROI has been held
-            if self.actions.search_paused():
-                self.stats.paused += 1
-                self._paused = True
-                return []
-        if self._paused:  # the camera is back: motion and tracks start afresh
-            self.detector.reset()
-            self.tracker.drop_tracks()
-            self._paused = False
+        if self._search_paused():
+            return []
         started = time.perf_counter()
-        result = self.detector.process(frame, timestamp)
-        shift = result.camera_shift
-        tracks = self.tracker.update(result.detections, frame_index, timestamp,
-                                     camera_shift=shift)
-        if shift is not None:
-            self._scene_offset += shift
-        scene = np.tile(self._scene_offset, 2)
-        self.stats.frames += 1
-        self.stats.detections += len(result.detections)
-        self.stats.stage_ms.update(self.detector.per_stage_ms)
-
-        pose: PlatformPose | StaleTelemetry | None = None
-        alerts: list[Alert] = []
-        changed: list[Target] = []
-        for track in tracks:
-            if not track.locked or track.misses:
-                continue
-            if pose is None:
-                pose = self.telemetry.lookup(timestamp)
-            fix, note = self._locate(track, pose)
-            target, is_new = self.registry.observe(track.track_id, track.class_id, track.score,
-                                                   timestamp, fix, note, box=track.box - scene)
-            changed.append(target)
-            self._sighting(target, track, timestamp, pose, fix)
-            if track.just_locked:
-                self.stats.locks += 1
-                if is_new:
-                    self._candidate(target, track, frame, frame_index, pose, fix)
-                else:
-                    self.stats.merged_tracks += 1
-                    log.info("track %d joined target %d", track.track_id, target.target_id)
-            if target.position is None and target.target_id in self._unplaced:
-                self._remember_sighting(target.target_id, track)
-            if target.position is not None and target.target_id in self._unplaced:
-                self._attach_position(target, track.track_id, frame_index)
+        result, tracks, scene = self._detect_and_track(frame, frame_index, timestamp)
+        pose, changed = self._observe_locked(tracks, frame, frame_index, timestamp, scene)
         self._place_from_buffer(frame_index)
         self._record_drone(timestamp, pose)
-        for promotion in self.candidates.review(timestamp) + self.candidates.operator_decisions():
-            alerts.append(self._confirm(promotion, frame_index, timestamp))
+        promotions = self.candidates.review(timestamp) + self.candidates.operator_decisions()
+        alerts = [self._confirm(promotion, frame_index, timestamp) for promotion in promotions]
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:
                 pose = self.telemetry.lookup(timestamp)
             self._record(frame_index, timestamp, frame, result, tracks, pose, changed)
         return alerts
+
+    def _search_paused(self) -> bool:
+        """Whether the search is paused while the camera holds an ROI; when it resumes, motion
+        and tracks start afresh."""
+        if self.actions is not None:
+            self.actions.tick()  # camera back to the survey view once an ROI has been held
+            if self.actions.search_paused():
+                self.stats.paused += 1
+                self._paused = True
+                return True
+        if self._paused:  # the camera is back: motion and tracks start afresh
+            self.detector.reset()
+            self.tracker.drop_tracks()
+            self._paused = False
+        return False
+
+    def _detect_and_track(self, frame: Any, frame_index: int, timestamp: float
+                          ) -> tuple[FrameResult, list[TrackState], np.ndarray]:
+        """Detections of the frame, the tracks they update, and the scene offset (the camera's
+        accumulated shift, as a box offset)."""
+        result = self.detector.process(frame, timestamp)
+        shift = result.camera_shift
+        tracks = self.tracker.update(result.detections, frame_index, timestamp,
+                                     camera_shift=shift)
+        if shift is not None:
+            self._scene_offset += shift
+        self.stats.frames += 1
+        self.stats.detections += len(result.detections)
+        self.stats.stage_ms.update(self.detector.per_stage_ms)
+        return result, tracks, np.tile(self._scene_offset, 2)
+
+    def _observe_locked(self, tracks: list[TrackState], frame: Any, frame_index: int,
+                        timestamp: float, scene: np.ndarray
+                        ) -> tuple[PlatformPose | StaleTelemetry | None, list[Target]]:
+        """Locate every locked track seen in this frame and update its target; returns the pose
+        (looked up only when a track needs it) and the targets changed."""
+        pose: PlatformPose | StaleTelemetry | None = None
+        changed: list[Target] = []
+        for track in tracks:
+            if not track.locked or track.misses:
+                continue
+            if pose is None:
+                pose = self.telemetry.lookup(timestamp)
+            changed.append(self._observe_track(track, frame, frame_index, timestamp, pose,
+                                               scene))
+        return pose, changed
+
+    def _observe_track(self, track: TrackState, frame: Any, frame_index: int, timestamp: float,
+                       pose: PlatformPose | StaleTelemetry, scene: np.ndarray) -> Target:
+        fix, note = self._locate(track, pose)
+        target, is_new = self.registry.observe(track.track_id, track.class_id, track.score,
+                                               timestamp, fix, note, box=track.box - scene)
+        self._sighting(target, track, timestamp, pose, fix)
+        if track.just_locked:
+            self.stats.locks += 1
+            if is_new:
+                self._candidate(target, track, frame, frame_index, pose, fix)
+            else:
+                self.stats.merged_tracks += 1
+                log.info("track %d joined target %d", track.track_id, target.target_id)
+        if target.position is None and target.target_id in self._unplaced:
+            self._remember_sighting(target.target_id, track)
+        if target.position is not None and target.target_id in self._unplaced:
+            self._attach_position(target, track.track_id, frame_index)
+        return target
 
     def skip(self, frame_index: int, reason: str) -> None:
         """Count a frame the source could not deliver (e.g. a read failure)."""
