@@ -99,11 +99,19 @@ def lock_problem(lock: LockConfig) -> Problem:
 
 
 def actions_problem(a: ActionsConfig) -> Problem:
-    for p in a.policy:
+    return _policy_problem(a.policy) or _action_limits_problem(a)
+
+
+def _policy_problem(policy: list[str]) -> Problem:
+    for p in policy:
         if p not in ACTION_POLICIES:
             return "policy", f"unknown action '{p}' (expected any of {', '.join(ACTION_POLICIES)})"
-    if "loiter" in a.policy and "mission" in a.policy:
+    if "loiter" in policy and "mission" in policy:
         return "policy", "loiter and mission both move the aircraft: choose one"
+    return None
+
+
+def _action_limits_problem(a: ActionsConfig) -> Problem:
     if a.retries < 0 or a.ack_timeout_s <= 0:
         return "retries/ack_timeout_s", "expected retries >= 0 and a positive timeout"
     if not a.roi_hold_s > 0:
