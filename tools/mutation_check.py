@@ -137,6 +137,10 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             parser.error(f"unknown mutants: {', '.join(unknown)}")
         chosen = [m for m in MUTANTS if m.name in args.only]
+    missing = sorted({t for m in chosen for t in m.tests if not (ROOT / t).is_file()})
+    if missing or not all(m.tests for m in chosen):
+        # pytest without test files would run the whole suite
+        parser.error(f"every mutant needs test files that exist; missing: {', '.join(missing)}")
     tree = Path(tempfile.mkdtemp(prefix="sarmission-mutants-"))
     try:
         copy = tree / "tree"
