@@ -17,6 +17,13 @@ The epoch is chosen on a validation split (``--val``): ``sim``, the simulator's 
 below :data:`HELDOUT_VAL_FIRST_CLIP` are kept for tests, so nothing is chosen on the simulator nor
 on a test clip.
 
+``--presets broad`` adds more of the simulator's presets to the training set (:data:`BROAD_SPLITS`:
+``urban_train``, people on land trained as ``swimmer``, and the oblique maritime presets); other
+options go to ``sarmission train`` as they are, e.g. crop-level domain randomisation::
+
+    python tools/train_default_model.py --val heldout --presets broad --randomise all \
+        --background-negatives 8 --no-install
+
 The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
 are copied into the package.
 """
@@ -40,6 +47,9 @@ from sim.generate import merge_datasets
 #: training settings.
 TRAIN_SPLITS = (("maritime_train", 6, 90, "3840x2160"), ("maritime_train_high", 4, 90, "3840x2160"),
                 ("maritime_train_narrow", 6, 90, "960x540"))
+#: Added to :data:`TRAIN_SPLITS` by ``--presets broad``.
+BROAD_SPLITS = (("urban_train", 4, 90, "3840x2160"), ("maritime_oblique_mid", 3, 90, "3840x2160"),
+                ("maritime_oblique_high", 3, 90, "3840x2160"))
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 #: Held-out validation: (world, clips, frames per clip), 1920x1080 frames with a 4K camera's
 #: ground sampling; clip indices from :data:`HELDOUT_VAL_FIRST_CLIP` on.
@@ -74,6 +84,19 @@ def render_training_set(work: Path) -> Path:
     if not merged.is_file():
         parts = [read_coco_video(render(folder, split)) for split in TRAIN_SPLITS]
         write_coco_video(merge_datasets(parts, info={"presets": [s[0] for s in TRAIN_SPLITS]}),
+                         merged)
+    return merged
+
+
+def render_broad_training_set(work: Path) -> Path:
+    """The maritime training set plus :data:`BROAD_SPLITS`, merged by category name (people on
+    land as ``swimmer``) into ``work/broad_train_mix.json``."""
+    merged = work / "broad_train_mix.json"
+    if not merged.is_file():
+        parts = [render_training_set(work)]
+        parts += [render(work / split[0], split) for split in BROAD_SPLITS]
+        names = [s[0] for s in TRAIN_SPLITS + BROAD_SPLITS]
+        write_coco_video(merge_annotation_files(parts, HELDOUT_RENAME, info={"presets": names}),
                          merged)
     return merged
 
@@ -114,11 +137,16 @@ def main() -> int:
     parser.add_argument("--val", choices=("sim", "heldout"), default="sim",
                         help="validation split that picks the epoch: the simulator's maritime_val "
                              "(the shipped head's recipe) or held-out clips (default: sim)")
+    parser.add_argument("--presets", choices=("maritime", "broad"), default="maritime",
+                        help="training presets: the maritime ones (the shipped head's recipe) or "
+                             "those plus urban_train and the oblique maritime presets "
+                             "(default: maritime)")
     parser.add_argument("--no-install", action="store_true",
                         help="do not copy the result into sarmission/models")
     args, extra = parser.parse_known_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    train = render_training_set(args.work)
+    train = (render_broad_training_set(args.work) if args.presets == "broad"
+             else render_training_set(args.work))
     if args.val == "heldout":
         val = render_heldout_val(args.work)
     else:

@@ -47,6 +47,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--jitter-shift", type=float, default=0.5,
                         help="largest centre shift of a jittered box per axis, as a fraction of "
                              "its side (the RPN's boxes land up to about half a side off)")
+    parser.add_argument("--background-negatives", type=int, default=0,
+                        help="negatives cut per training frame at random places away from the "
+                             "targets (0 = only the RPN's proposals)")
+    parser.add_argument("--randomise", default="none",
+                        help="crop-level domain randomisation: comma-separated transforms of "
+                             "tone, white_balance, hue, blur, noise, blocks, geometry; 'all' or "
+                             "'none'")
+    parser.add_argument("--randomise-p", type=float, default=0.5,
+                        help="share of the crops each randomisation transform changes")
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
     parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
                         help="share of the proposals taken from colour anomalies (0 = motion "
@@ -69,6 +78,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def config_from_args(args: argparse.Namespace):
     """The :class:`~sarmission.training.train.TrainConfig` the arguments describe."""
     from sarmission.training.dataset import CropSettings
+    from sarmission.training.randomise import Randomisation
     from sarmission.training.train import TrainConfig
 
     classes = tuple(c.strip() for c in args.classes.split(",") if c.strip())
@@ -83,11 +93,14 @@ def config_from_args(args: argparse.Namespace):
                          colour_share=args.colour_share,
                          frame_stride=args.frame_stride, pos_nwd=args.pos_nwd,
                          jitters_per_gt=args.jitters,
-                         jitter_shift=args.jitter_shift, seed=args.seed)
+                         jitter_shift=args.jitter_shift,
+                         background_negatives=args.background_negatives, seed=args.seed)
     return TrainConfig(train=args.train, val=args.val, out=args.out, epochs=args.epochs,
                        batch_size=args.batch_size, lr=args.lr, optimizer=args.optimizer,
                        select_from=args.select_from, ema_decay=args.ema_decay,
-                       seed=args.seed, crops=crops, cache_dir=args.cache_dir,
+                       seed=args.seed, crops=crops,
+                       randomise=Randomisation.parse(args.randomise, args.randomise_p),
+                       cache_dir=args.cache_dir,
                        resume=args.resume, num_threads=args.threads,
                        progress=bars_wanted(args))
 

@@ -19,6 +19,12 @@ frames before it responds) the frame yields:
   when ``R`` is zero there. The default shift, half a side (±8 px for 16-px boxes), spans the
   offsets of the RPN's own boxes on targets (its peak on the trailing edge, the 0.3 S forward
   shift); with a quarter side the head learned centred targets only (docs/experiments.md).
+* **Background negatives** (training only, ``background_negatives > 0``): that many squares of side
+  ``box_size`` at uniformly drawn places of the frame, each further than NWD 0.1 from every target
+  GT box (the first that qualify of four times as many drawn places), labelled negative and cut
+  like the jittered GT, with the RPN-like polarity there. The RPN shows the head only the
+  frame's 25 most salient spots; these show it the rest of the background (water, land,
+  clutter) too.
 
 Targets: annotations of the categories that map to a head class
 (:func:`sarmission.evaluation.report.target_category_map`: normalised name equal to a class or an
@@ -79,7 +85,8 @@ class CropSettings:
 
     ``target_size`` ``None`` keeps the vSTMD default; ``topn``, ``box_size`` and
     ``colour_share`` are the RPN's N, S and share of colour proposals; ``jitters_per_gt`` 0
-    disables GT jittering (validation); ``crop_dtype`` is
+    disables GT jittering (validation), ``background_negatives`` 0 the background negatives (the
+    default, and validation); ``crop_dtype`` is
     ``"float16"`` or ``"float32"``.
     """
 
@@ -95,6 +102,7 @@ class CropSettings:
     jitters_per_gt: int = 4
     jitter_scale: float = 0.2
     jitter_shift: float = 0.5
+    background_negatives: int = 0
     seed: int = 0
     crop_dtype: str = "float16"
 
@@ -102,8 +110,10 @@ class CropSettings:
         """Raise ``ValueError`` for settings that cannot build a dataset."""
         if not self.classes:
             raise ValueError("at least one class is needed")
-        if self.frame_stride < 1 or self.warmup_frames < 0 or self.jitters_per_gt < 0:
-            raise ValueError("frame_stride must be >= 1, warmup_frames and jitters_per_gt >= 0")
+        if (self.frame_stride < 1 or self.warmup_frames < 0 or self.jitters_per_gt < 0
+                or self.background_negatives < 0):
+            raise ValueError("frame_stride must be >= 1, warmup_frames, jitters_per_gt and "
+                             "background_negatives >= 0")
         if not 0.0 <= self.colour_share <= 1.0:
             raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
         if not 0.0 < self.pos_nwd <= 1.0:
@@ -224,6 +234,27 @@ def _target_gt(dataset: VideoDataset, mapping: dict[int, int]) -> dict[int, tupl
     return result
 
 
+#: Background negatives lie further than this NWD from every target GT box.
+BACKGROUND_MAX_NWD = 0.1
+
+
+def background_boxes(shape: tuple[int, int], gt_boxes: np.ndarray, count: int, side: float,
+                     rng: np.random.Generator, tries: int = 4) -> np.ndarray:
+    """Up to ``count`` squares of ``side`` inside a frame of ``shape`` (height, width), each
+    further than :data:`BACKGROUND_MAX_NWD` from every box of ``gt_boxes`` ``[M, 4]`` (module
+    docstring); ``[K, 4]`` xyxy float64, ``K <= count``."""
+    height, width = shape
+    half = side / 2
+    if count <= 0 or width < side or height < side:
+        return np.zeros((0, 4))
+    n = count * tries
+    centres = np.stack([rng.uniform(half, width - half, n), rng.uniform(half, height - half, n)],
+                       axis=1)
+    boxes = np.concatenate([centres - half, centres + half], axis=1)
+    near = assign_by_nwd(boxes, gt_boxes, BACKGROUND_MAX_NWD).positive
+    return boxes[~near][:count]
+
+
 def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple,
                    settings: CropSettings, rng: np.random.Generator) -> dict[str, Tensor]:
     """Crops, labels, targets and boxes of one sampled frame (RPN samples, then jittered GT)."""
@@ -250,6 +281,17 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
         crops.append(motion_enhanced_crops(frame, motion, jboxes, polarity, sampling_ratio=1))
         all_labels.append(gt_classes[src])
         jittered.append(np.ones(len(src), bool))
+    if settings.background_negatives:
+        bboxes = background_boxes(frame.shape[:2], gt_boxes, settings.background_negatives,
+                                  settings.box_size, rng)
+        if len(bboxes):
+            centres = (bboxes[:, :2] + bboxes[:, 2:]) / 2
+            polarity = polarity_near(motion, centres, settings.box_size)
+            boxes.append(bboxes)
+            targets.append(np.zeros((len(bboxes), 4)))
+            crops.append(motion_enhanced_crops(frame, motion, bboxes, polarity, sampling_ratio=1))
+            all_labels.append(np.full(len(bboxes), -1, np.int64))
+            jittered.append(np.zeros(len(bboxes), bool))
     dtype = getattr(torch, settings.crop_dtype)
     return {
         "crops": torch.from_numpy(np.concatenate(crops)).to(dtype),

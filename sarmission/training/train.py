@@ -4,7 +4,10 @@ Per epoch the training crops are visited in a permutation drawn from
 ``numpy.random.default_rng([seed, epoch])`` (so a resumed run sees the same order), in batches of
 ``batch_size``. With ``augment`` each crop gets one of the 8 symmetries of the square (rotations
 by 90 degrees and a mirror; a nadir view has no preferred orientation), drawn from the same
-generator, and its ``l, t, r, b`` targets are permuted to match. The loss is
+generator, and its ``l, t, r, b`` targets are permuted to match. With ``randomise`` naming
+transforms, crop-level domain randomisation
+(:func:`~sarmission.training.randomise.randomise_crops`) follows, drawn from
+``numpy.random.default_rng([seed, epoch, 1])``. The loss is
 :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
 
 Learning rate per optimiser step ``i`` of ``T`` (``W`` warm-up steps, one epoch at most)::
@@ -21,7 +24,8 @@ more smoothly but finds no more and raises more false alarms (docs/experiments.m
 for recipes whose validation F2 is too noisy to pick from.
 
 Validation (after every epoch): the head runs on the validation crops (the real RPN proposals of
-every validation frame after the warm-up, whatever ``frame_stride`` the training crops use: a
+every validation frame after the warm-up, whatever ``frame_stride`` the training crops use, with
+no background negatives and crop seed 0, so that runs of any seed share one validation cache: a
 sparse validation set makes the F2 that selects the checkpoint swing by tens of percent between
 epochs; no jittering), boxes are decoded with
 :func:`~sarmission.perception.head.ltrb_to_boxes`, detections with score > ``score_threshold``
@@ -60,6 +64,7 @@ from sarmission.perception.mitenet import nms_xyxy
 from sarmission.perception.runtime import save_head_checkpoint
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
 from sarmission.training.losses import LossWeights, head_loss
+from sarmission.training.randomise import Randomisation, randomise_crops
 
 STATE_FORMAT = "sarmission.train_state"
 STATE_VERSION = 2
@@ -96,6 +101,7 @@ class TrainConfig:
     ema_decay: float = 0.0
     seed: int = 0
     augment: bool = True
+    randomise: Randomisation = field(default_factory=Randomisation)
     crops: CropSettings = field(default_factory=CropSettings)
     loss: LossWeights = field(default_factory=LossWeights)
     score_threshold: float = 0.5
@@ -122,6 +128,7 @@ class TrainConfig:
             raise ValueError(f"min_lr_ratio must be in [0, 1], got {self.min_lr_ratio}")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
+        self.randomise.validate()
         self.crops.validate()
 
     def fingerprint(self) -> dict:
@@ -130,6 +137,8 @@ class TrainConfig:
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
         d["crops"] = self.crops.to_dict()
+        d["randomise"] = {"transforms": list(self.randomise.transforms),
+                          "probability": self.randomise.probability}
         return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
 
 
@@ -288,6 +297,7 @@ def _train_epoch(model: MiteHead, optimizer: torch.optim.Optimizer, data: CropSe
     rng = np.random.default_rng([config.seed, epoch])
     order = torch.from_numpy(rng.permutation(n))
     ops = torch.from_numpy(rng.integers(0, 8, size=n))
+    randomising = np.random.default_rng([config.seed, epoch, 1])
     steps = math.ceil(n / config.batch_size)
     scale_all = data.scale
     sums = dict.fromkeys(("loss", "cls", "nwd", "dfl"), 0.0)
@@ -300,6 +310,9 @@ def _train_epoch(model: MiteHead, optimizer: torch.optim.Optimizer, data: CropSe
         crops, target, scale = data.crops[idx].float(), data.target_ltrb[idx], scale_all[idx]
         if config.augment:
             crops, target, scale = dihedral(crops, target, scale, ops[idx])
+        if config.randomise.transforms:
+            crops, target = randomise_crops(crops, target, data.labels[idx], config.randomise,
+                                            randomising)
         cls_logits, bins, ltrb = model.forward_with_bins(crops)
         terms = head_loss(cls_logits, bins, ltrb, data.labels[idx], target, scale, config.loss)
         optimizer.zero_grad(set_to_none=True)
@@ -328,8 +341,9 @@ def train(config: TrainConfig) -> TrainResult:
     t0 = time.perf_counter()
     train_set, _ = load_crop_set(config.train, config.crops, cache_dir, config.progress,
                                  "train crops")
-    val_set, _ = load_crop_set(config.val, replace(config.crops, jitters_per_gt=0, frame_stride=1),
-                               cache_dir, config.progress, "val crops")
+    val_settings = replace(config.crops, jitters_per_gt=0, background_negatives=0,
+                           frame_stride=1, seed=0)
+    val_set, _ = load_crop_set(config.val, val_settings, cache_dir, config.progress, "val crops")
     if not (train_set.labels >= 0).any():
         raise ValueError(f"{config.train}: no positive training crop (no target GT boxes in "
                          "the sampled frames)")

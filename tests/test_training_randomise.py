@@ -1,0 +1,109 @@
+"""Training beyond one renderer: background negatives and randomised crops in the training loop."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from synthetic_video import write_dataset
+
+from sarmission.boxes import nwd_matrix
+from sarmission.commands import train as train_command
+from sarmission.data.coco_video import read_coco_video
+from sarmission.data.sequence import iter_sequence
+from sarmission.training.dataset import (
+    BACKGROUND_MAX_NWD,
+    CropSettings,
+    background_boxes,
+    load_crop_set,
+)
+from sarmission.training.randomise import TRANSFORMS, Randomisation
+from sarmission.training.train import TrainConfig, train
+
+torch.set_num_threads(2)
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("randomise_data")
+    return {"train": write_dataset(root / "train", n_videos=1, n_frames=12, seed=1),
+            "val": write_dataset(root / "val", n_videos=1, n_frames=12, seed=2),
+            "cache": root / "cache"}
+
+
+def test_background_boxes_are_seeded_inside_the_frame_and_away_from_targets() -> None:
+    gt = np.array([[100.0, 100.0, 110.0, 112.0], [300.0, 50.0, 306.0, 58.0]])
+    a = background_boxes((240, 400), gt, 50, 16.0, np.random.default_rng(4))
+    b = background_boxes((240, 400), gt, 50, 16.0, np.random.default_rng(4))
+    assert np.array_equal(a, b) and 40 <= len(a) <= 50
+    assert np.allclose(a[:, 2] - a[:, 0], 16) and np.allclose(a[:, 3] - a[:, 1], 16)
+    assert a[:, :2].min() >= 0 and a[:, 2].max() <= 400 and a[:, 3].max() <= 240
+    assert nwd_matrix(a, gt).max() < BACKGROUND_MAX_NWD
+    # a frame covered by one target leaves no room for background negatives
+    assert len(background_boxes((32, 32), np.array([[8.0, 8.0, 24.0, 24.0]]), 5, 16.0,
+                                np.random.default_rng(0))) == 0
+
+
+def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
+    plain = CropSettings(frame_stride=3, jitters_per_gt=2)
+    extra = CropSettings(frame_stride=3, jitters_per_gt=2, background_negatives=6)
+    base, _ = load_crop_set(data["train"], plain, data["cache"], progress=False)
+    more, _ = load_crop_set(data["train"], extra, data["cache"], progress=False)
+    frames = len(base.frame_ids)
+    added = len(more) - len(base)
+    assert 0 < added <= 6 * frames and added >= 4 * frames
+    assert int((more.labels >= 0).sum()) == int((base.labels >= 0).sum())
+    new = more.labels == -1
+    assert int(new.sum()) - int((base.labels == -1).sum()) == added
+    assert torch.all(more.target_ltrb[new] == 0)
+    # the crops are cut at those places: same colour as the frame's pixels there (16-px box)
+    dataset = read_coco_video(data["train"])
+    frame_id = int(more.frame_ids[0])
+    rows = torch.nonzero(more.image_ids == frame_id).flatten()
+    last = int(rows[-1])  # the frame's last crop is a background negative
+    assert int(more.labels[last]) == -1 and not bool(more.jittered[last])
+    x1, y1 = (int(round(v)) for v in more.boxes[last, :2].tolist())
+    for item in iter_sequence(dataset, dataset.videos[0].id):
+        if item.image.id == frame_id:
+            pixels = item.frame_bgr[y1:y1 + 16, x1:x1 + 16, ::-1].astype(np.float32) / 255
+            break
+    crop = more.crops[last, :3].float().permute(1, 2, 0).numpy()
+    assert np.abs(crop.mean(axis=(0, 1)) - pixels.mean(axis=(0, 1))).max() < 0.05
+
+
+def _config(data: dict[str, Path], out: Path, **kw) -> TrainConfig:
+    base = {"epochs": 2, "batch_size": 32, "cache_dir": data["cache"], "progress": False,
+            "crops": CropSettings(frame_stride=3, jitters_per_gt=2)}
+    return TrainConfig(train=data["train"], val=data["val"], out=out, **(base | kw))
+
+
+def test_randomised_training_is_deterministic_and_differs_from_plain(data, tmp_path) -> None:
+    every = Randomisation(TRANSFORMS, 0.5)
+    a = train(_config(data, tmp_path / "a" / "h.pt", randomise=every))
+    b = train(_config(data, tmp_path / "b" / "h.pt", randomise=every))
+    plain = train(_config(data, tmp_path / "c" / "h.pt"))
+    wa, wb, wp = (torch.load(r.state, weights_only=True)["model"] for r in (a, b, plain))
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    assert not torch.equal(wa["stem.0.0.weight"], wp["stem.0.0.weight"])
+    # resuming with other randomisation is refused
+    changed = _config(data, tmp_path / "a" / "h.pt", randomise=Randomisation(("tone",), 0.5),
+                      resume=True, epochs=2)
+    with pytest.raises(ValueError, match="randomise"):
+        train(changed)
+
+
+def test_cli_options_reach_the_config(data, tmp_path) -> None:
+    parser = argparse.ArgumentParser()
+    train_command.add_parser(parser.add_subparsers())
+    args = parser.parse_args(["train", "--train", str(data["train"]), "--val", str(data["val"]),
+                              "--out", str(tmp_path / "m.pt"), "--randomise", "blur,noise",
+                              "--randomise-p", "0.3", "--background-negatives", "8"])
+    config = train_command.config_from_args(args)
+    assert config.randomise == Randomisation(("blur", "noise"), 0.3)
+    assert config.crops.background_negatives == 8
+    args.randomise = "glitter"
+    with pytest.raises(ValueError, match="glitter"):
+        train_command.config_from_args(args)
