@@ -45,9 +45,11 @@ class Look:
 
 def draw_look(rng: np.random.Generator, kind: str, water: BGR) -> Look:
     """A random appearance for an object of ``kind``."""
-    pick = lambda options: options[int(rng.integers(len(options)))]  # noqa: E731
+    def pick(options: tuple[BGR, ...]) -> BGR:
+        return options[int(rng.integers(len(options)))]
+
     if kind in ("swimmer", "swimmer_with_life_jacket"):
-        posture = str(rng.choice(["head", "upright", "upright", "back", "crawl"],))
+        posture = str(rng.choice(["head", "upright", "upright", "back", "crawl"]))
         head = pick(CAPS) if rng.random() < 0.3 else pick(HAIR)
         colours = (pick(SKIN), head, pick(CLOTHES), pick(VESTS), water)
         submersion = float(rng.uniform(0.25, 0.65))

@@ -51,6 +51,8 @@ def render_world(name: str, clips: int, frames: int, out: str | Path,
     """
     if clips < 1 or frames < 1:
         raise ValueError(f"need at least one clip and one frame, got {clips} x {frames}")
+    if not fps > 0:
+        raise ValueError(f"fps must be positive, got {fps}")
     preset = world(name)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from heldout.bodies import shapes_at
 from heldout.camera import Lens, View, block_centres, block_step, ground_points, project, rays
 from heldout.geodesy import lat_lon
 from heldout.land import LandLook, land_reflectance
@@ -124,8 +125,6 @@ class ClipRenderer:
 
     def _shapes(self, thing: Thing, t: float, heading: float, position: tuple[float, ...]
                 ) -> list[Shape]:
-        from heldout.bodies import shapes_at
-
         spec = self.spec
         lifted = 0.0
         if spec.trains is not None and position[2] == 0.0:

@@ -43,9 +43,9 @@ class Thing:
 
 @dataclass(frozen=True)
 class Population:
-    """How many of each kind per 10,000 m^2 of the area a clip sees."""
+    """How many of each kind, on average, in one camera footprint."""
 
-    density: dict[str, float]
+    per_frame: dict[str, float]
 
 
 def _motion(rng: np.random.Generator, kind: str, posture: str, current: tuple[float, float]
@@ -78,14 +78,16 @@ def _motion(rng: np.random.Generator, kind: str, posture: str, current: tuple[fl
 
 
 def populate(rng: np.random.Generator, population: Population,
-             area: tuple[float, float, float, float], water: tuple[float, float, float],
-             current: tuple[float, float] = (0.0, 0.0)) -> list[Thing]:
-    """Objects scattered uniformly over ``area`` (east0, north0, east1, north1)."""
+             area: tuple[float, float, float, float], footprint_m2: float,
+             water: tuple[float, float, float], current: tuple[float, float] = (0.0, 0.0)
+             ) -> list[Thing]:
+    """Objects scattered uniformly over ``area`` (east0, north0, east1, north1), as many as
+    ``population`` asks for per ``footprint_m2`` of it."""
     e0, n0, e1, n1 = area
-    size = (e1 - e0) * (n1 - n0) / 1e4
+    footprints = (e1 - e0) * (n1 - n0) / footprint_m2
     things: list[Thing] = []
-    for kind, per_hectare in population.density.items():
-        for _ in range(int(rng.poisson(per_hectare * size))):
+    for kind, per_frame in population.per_frame.items():
+        for _ in range(int(rng.poisson(per_frame * footprints))):
             look = draw_look(rng, kind, water)
             velocity, heading, turn, height = _motion(rng, kind, look.posture, current)
             start = (float(rng.uniform(e0, e1)), float(rng.uniform(n0, n1)), height)

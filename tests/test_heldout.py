@@ -139,3 +139,5 @@ def test_command_line_rejects_an_unknown_world_with_one_line(capsys) -> None:
     assert "invalid choice" in capsys.readouterr().err
     assert generate_main(["--clips", "0", "--out", "/tmp/never-written"]) == 2
     assert "at least one clip" in capsys.readouterr().err
+    assert generate_main(["--fps", "0", "--out", "/tmp/never-written"]) == 2
+    assert "fps must be positive" in capsys.readouterr().err
