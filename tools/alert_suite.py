@@ -1,6 +1,6 @@
 """The scenario suite's figures in docs: fly it under a label, then render every label's figures.
 
-    python tools/alert_suite.py fly LABEL [--seconds S] [--set SECTION.KEY=VALUE ...]
+    python tools/alert_suite.py fly LABEL [--seconds S] [--set SECTION.KEY=VALUE ...] [--note TEXT]
     python tools/alert_suite.py render          # docs/alert_suite.md from docs/suite/*.json
 
 ``fly`` runs ``sarmission sim score --json`` (the real pipeline over MAVLink, 30 frames/s in
@@ -23,7 +23,7 @@ SUITE_DIR = ROOT / "docs" / "suite"
 PAGE = ROOT / "docs" / "alert_suite.md"
 
 
-def fly(label: str, seconds: float | None, overrides: list[str]) -> Path:
+def fly(label: str, seconds: float | None, overrides: list[str], note: str = "") -> Path:
     cmd = [sys.executable, "-m", "sarmission.cli", "sim", "score", "--json"]
     if seconds:
         cmd += ["--seconds", f"{seconds:g}"]
@@ -34,7 +34,7 @@ def fly(label: str, seconds: float | None, overrides: list[str]) -> Path:
                             capture_output=True, text=True).stdout.strip()
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=True)
     figures = json.loads(done.stdout[done.stdout.index("{"):])
-    figures["run"] = {"label": label, "commit": commit,
+    figures["run"] = {"label": label, "commit": commit, "note": note,
                       "command": "sarmission " + " ".join(cmd[3:])}
     SUITE_DIR.mkdir(parents=True, exist_ok=True)
     out = SUITE_DIR / f"{label}.json"
@@ -64,12 +64,23 @@ def render() -> str:
              "(seeds 7101-7108, none seen in training or used to choose thresholds), 960x540 "
              "at 30 frames/s in real time through the simulated vehicle over MAVLink. A person "
              "is *in view* when seen for 3 s or more; an alert is *false* when no person was "
-             "under it; time to alert runs from a person's first frame to the confirmation.",
+             "under it; time to alert runs from a person's first frame to the confirmation. "
+             "The flights run in real time, so a busy machine films fewer frames: a person near "
+             "the 3 s line can be in view in one run and not in another.",
              ""]
-    for path in sorted(SUITE_DIR.glob("*.json")):
-        figures = json.loads(path.read_text())
+    runs = [json.loads(path.read_text()) for path in sorted(SUITE_DIR.glob("*.json"))]
+    lines += ["| run | what | people in view | found | false alerts | false per hour | "
+              "time to alert p50 / p90 s | geolocation error p50 / p95 m |",
+              "|---|---|---|---|---|---|---|---|"]
+    for figures in runs:
         run = figures.get("run", {})
-        lines += [f"## {run.get('label', path.stem)}", "",
+        row = _row(f"{run.get('label', '?')} | {run.get('note', '')}", figures["suite"])
+        lines.append(row.replace(f" | {figures['suite']['flight_s'] / 60:.1f} | ", " | ", 1))
+    lines.append("")
+    for figures in runs:
+        run = figures.get("run", {})
+        lines += [f"## {run.get('label', '?')}", "",
+                  *([run["note"], ""] if run.get("note") else []),
                   f"`{run.get('command', '?')}` at {run.get('commit', '?')}", "",
                   "| scenario | flight min | people in view | found | false alerts | false per "
                   "hour | time to alert p50 / p90 s | geolocation error p50 / p95 m |",
@@ -102,10 +113,11 @@ def main() -> int:
     run.add_argument("label")
     run.add_argument("--seconds", type=float, default=None)
     run.add_argument("--set", dest="overrides", action="append", default=[])
+    run.add_argument("--note", default="", help="what this run is, for the page")
     sub.add_parser("render")
     args = parser.parse_args()
     if args.what == "fly":
-        print(f"wrote {fly(args.label, args.seconds, args.overrides)}")
+        print(f"wrote {fly(args.label, args.seconds, args.overrides, args.note)}")
     PAGE.write_text(render())
     print(f"wrote {PAGE}")
     return 0
