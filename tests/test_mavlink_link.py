@@ -53,11 +53,16 @@ def test_detects_autopilot_requests_streams_and_buffers_pose(ardupilot):
     assert link.autopilot == (1, 1) and link.link_ok
     buf = TelemetryBuffer(stale_after_s=0.5)
     link.subscribe(buf.handle_message, MESSAGE_TYPES)
-    time.sleep(0.5)
-    assert buf.newest_time("position") is None  # ArduPilot: nothing until asked
+    heartbeats = []
+    link.subscribe(lambda msg, arrival: heartbeats.append(msg), {"HEARTBEAT"})
+    # ArduPilot: nothing until asked, however many heartbeats (1 Hz) have come meanwhile
+    assert wait_until(lambda: len(heartbeats) >= 2, 10.0)
+    assert buf.newest_time("position") is None
+    assert vehicle.sent_counts.get("GLOBAL_POSITION_INT", 0) == 0
     assert link.request_streams(STREAMS) == {k: M.MAV_RESULT_ACCEPTED for k in STREAMS}
-    assert wait_until(lambda: buf.pose_at(time.monotonic() - 0.1) is not None, 2.0)
-    time.sleep(0.5)
+    # a pose 0.2 s back needs samples on both sides of it, the gimbal's (5 Hz) among them
+    assert wait_until(lambda: buf.pose_at(time.monotonic() - 0.2) is not None
+                      and buf.newest_time("gimbal") is not None, 10.0)
     now = time.monotonic()
     sim_now = vehicle.sim_time()
     pose = buf.pose_at(now - 0.2)
@@ -94,9 +99,8 @@ def test_statustext_command_and_mission_upload(ardupilot):
     assert cmd.command == M.MAV_CMD_DO_REPOSITION and cmd.is_int
     assert cmd.params[1] == 1 and math.isnan(cmd.params[3]) and cmd.params[0] == -1
     d0 = np.linalg.norm(start[:2] - target)
-    time.sleep(2.5)
-    d1 = np.linalg.norm(vehicle.truth_state().position_ned[:2] - target)
-    assert d1 < d0 - 8.0  # flying towards the target
+    assert wait_until(  # flying towards the target
+        lambda: np.linalg.norm(vehicle.truth_state().position_ned[:2] - target) < d0 - 8.0, 20.0)
 
     assert sender.set_roi(lat, lon, 0.0).accepted
     items = [
@@ -175,13 +179,30 @@ def test_command_without_ack_retries_then_fails():
         assert not res.accepted and res.attempts == 0 and "no autopilot" in res.error
 
 
+class _WatchedLink:
+    """The link, counting how often the outbox's workers ask whether it is up."""
+
+    def __init__(self, link) -> None:
+        self._link = link
+        self.checks = 0
+
+    @property
+    def link_ok(self) -> bool:
+        self.checks += 1
+        return self._link.link_ok
+
+    def __getattr__(self, name):
+        return getattr(self._link, name)
+
+
 def test_outbox_delivers_after_link_loss(ardupilot):
     """Commands are acknowledged, STATUSTEXTs only sent (``repeats`` times, never called
     delivered); both wait out a silent autopilot and go once it is back."""
     vehicle, link = ardupilot
+    watched = _WatchedLink(link)
     delivered, sent = [], []
     outbox = Outbox(
-        CommandSender(link, retries=1, ack_timeout_s=0.5),
+        CommandSender(watched, retries=1, ack_timeout_s=0.5),
         on_delivered=lambda action, result: delivered.append((action.key, result)),
         on_sent=lambda action, result: sent.append((action.key, action.attempts)),
         statustext_repeats=2,
@@ -195,8 +216,10 @@ def test_outbox_delivers_after_link_loss(ardupilot):
         assert wait_until(lambda: not link.link_ok, 3.0)
         outbox.submit(StatusText("ALERT during loss"), key="a2")
         outbox.submit(Reposition(54.1705, 7.8905, 40.0), key="r1")
-        time.sleep(1.5)
-        assert [a.key for a in outbox.pending()] == ["a2", "r1"]
+        # both workers find the link down again and again (each asks only with work to do)
+        checks = watched.checks
+        assert wait_until(lambda: watched.checks >= checks + 10, 10.0)
+        assert [(a.key, a.attempts) for a in outbox.pending()] == [("a2", 0), ("r1", 0)]
         n_before = len(vehicle.statustexts)
         vehicle.start()  # back on the same port
         assert wait_until(lambda: not outbox.pending(), 8.0), outbox.pending()

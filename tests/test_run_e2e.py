@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 import run_scripted
-from conftest import free_udp_port
+from conftest import free_udp_port, wait_until
 from dot_scene import DotRenderer
 from scripted_detector import BlobDetector
 
@@ -188,10 +188,15 @@ def test_alert_during_link_loss_is_delivered_after(tmp_path):
         session, _ = session_for(mission, vehicle, port, tmp_path / "alerts.db", [(20.0, 10.0)],
                                  lines)
 
+        def locked() -> bool:
+            return any(line.startswith("CANDIDATE target 1") for line in list(lines))
+
         def outage() -> None:
-            time.sleep(1.5)
+            # silent once the session believes the autopilot's telemetry, before the lock
+            wait_until(lambda: session.telemetry.newest_time("position") is not None
+                       or locked(), 15.0)
             vehicle.stop()
-            time.sleep(10.0)
+            wait_until(locked, 15.0)  # the lock comes while the autopilot is silent
             vehicle.start()  # same port; its clock restarts like a rebooted autopilot
 
         cut = threading.Thread(target=outage)
