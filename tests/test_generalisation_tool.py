@@ -1,0 +1,99 @@
+"""``tools/generalisation_study.py``: heads sharing one vSTMD pass detect what each would alone,
+and the page is a pure function of the measured numbers."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from synthetic_video import write_dataset
+
+from sarmission.data.coco_video import read_coco_video
+from sarmission.evaluation.run_model import run_mitenet
+from sarmission.perception.head import HeadConfig, MiteHead
+from sarmission.perception.mitenet import MiteNet
+from sarmission.perception.runtime import TorchHeadRuntime
+
+TOOL = Path(__file__).resolve().parents[1] / "tools" / "generalisation_study.py"
+
+
+@pytest.fixture(scope="module")
+def tool():
+    spec = importlib.util.spec_from_file_location("sarmission_generalisation_tool", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _head(seed: int) -> TorchHeadRuntime:
+    torch.manual_seed(seed)
+    head = MiteHead(HeadConfig()).eval()
+    with torch.no_grad():  # a bias that lets some crops score above the threshold
+        for module in head.modules():
+            if isinstance(module, torch.nn.Linear) and module.out_features == 2:
+                module.bias.fill_(1.0)
+    return TorchHeadRuntime(head)
+
+
+def test_shared_pass_detects_what_each_head_detects_alone(tool, tmp_path) -> None:
+    dataset = read_coco_video(write_dataset(tmp_path / "d", n_videos=2, n_frames=6, seed=3))
+    heads = {"a": _head(0), "b": _head(1)}
+    shared = tool.run_heads(heads, dataset)
+    total = 0
+    for name, head in heads.items():
+        alone = run_mitenet(MiteNet(head, ds=2, topn=25, score_threshold=0.3), dataset,
+                            progress=False)
+        assert list(alone.detections) == list(shared[name].detections)
+        for image_id, det in alone.detections.items():
+            other = shared[name].detections[image_id]
+            np.testing.assert_array_equal(det.boxes, other.boxes)
+            np.testing.assert_array_equal(det.scores, other.scores)
+            np.testing.assert_array_equal(det.class_ids, other.class_ids)
+            total += len(det.boxes)
+    assert total > 0
+    assert any(not np.array_equal(shared["a"].detections[i].scores,
+                                  shared["b"].detections[i].scores) for i in shared["a"].detections)
+
+
+def _split(ssr, far, r05):
+    return {"ssr": ssr, "far_det": far, "head_r05": r05, "head_r01": r05, "rpn_r01": 0.8,
+            "locked": 3, "lockable": 4}
+
+
+def test_page_reports_mean_and_range_over_seeds(tool) -> None:
+    runs = {}
+    for seed, (own, sea) in enumerate(((90.0, 10.0), (80.0, 30.0), (100.0, None))):
+        runs[f"baseline/seed{seed}"] = {
+            "variant": "baseline", "seed": seed, "checkpoint": "x", "best_epoch": 7,
+            "val_f2": 0.25, "train_crops": 5000, "train_s": 120.0,
+            "test": {"maritime_test": _split(own, 20.0, 0.5),
+                     "heldout_maritime": _split(sea, 90.0, 0.1),
+                     "heldout_land": _split(5.0, 99.0, 0.0)}}
+    results = {
+        "command": "python tools/generalisation_study.py --seeds 0,1,2",
+        "generated": "2026-01-01T00:00:00+00:00", "wall_s": 600.0, "machine": {"nproc": 2},
+        "settings": {"seeds": [0, 1, 2], "variants": ["baseline"],
+                     "train": {"epochs": 20, "select_from": 5, "batch_size": 64, "lr": 0.02,
+                               "frame_stride": 3, "jitters_per_gt": 4, "ds": 1},
+                     "test_frames": 40, "test_clips": {"maritime_test": 2}},
+        "variants": {"baseline": {"description": "maritime", "presets": [["maritime_train", 3,
+                                                                          40, "3840x2160"]],
+                                  "randomise": "none", "background_negatives": 0}},
+        "runs": runs, "shipped": {"maritime_test": _split(93.9, 12.0, 0.72),
+                                  "heldout_maritime": _split(16.7, 98.0, 0.04),
+                                  "heldout_land": _split(38.5, 97.0, 0.06)}}
+    md = tool.render_section(results)
+    assert md.startswith(tool.BEGIN) and md.endswith(tool.END)
+    assert "| `baseline` | 3 | 90.0 (80.0-100.0) | 20.0 (20.0-20.0) | 0.50 (0.50-0.50) " \
+           "| 20.0 (10.0-30.0) |" in md
+    assert "| 93.9 | 12.0 | 0.72 |" in md
+    assert "`python tools/generalisation_study.py --seeds 0,1,2`" in md
+    assert "| `baseline/seed2` | 7 | 0.250 | 5000 | 2.0 | 3/4 | 3/4 | 3/4 | 100.0 | 20.0 " \
+           "| 0.50 | — |" in md
+    assert tool.spread([None, None]) is None
+    assert tool.spread([1.0, 3.0, None]) == (2.0, 1.0, 3.0)
