@@ -25,8 +25,6 @@ DEMO_OVERRIDES = {
 }
 #: What the demo does with a confirmed target by default (see add_parser).
 DEMO_ACTIONS = ("alert",)
-#: The demo's share of colour proposals (see add_parser).
-DEMO_COLOUR_SHARE = 0.0
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -59,9 +57,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(point the camera at it for [actions] roi_hold_s, the search paused "
                         "meanwhile), loiter, mission (default: alert)")
     add_detector_options(parser)
-    # Motion proposals only by default: in this narrow 960x540 view the colour proposals find
-    # a few more people but raise far more false alerts (docs/experiments.md).
-    parser.set_defaults(func=run, colour_share=DEMO_COLOUR_SHARE)
+    parser.set_defaults(func=run)
 
 
 def parse_actions(text: str) -> tuple[str, ...]:
