@@ -20,6 +20,7 @@ import numpy as np
 
 from sarmission.geo.camera import CameraIntrinsics, CameraPose
 from sim.scene import Part, Upright
+from sim.truth_camera import plane_homography
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,4 @@ def billboard_parts(uprights: list[Upright], board: Billboard) -> list[Part]:
 def billboard_homography(intr: CameraIntrinsics, pose: CameraPose,
                          board: Billboard) -> np.ndarray:
     """3x3 map from billboard metres ``(x, y, 1)`` to pixels ``(u w, v w, w)``."""
-    m = pose.rotation_ned_from_camera.T
-    return intr.matrix() @ np.column_stack([m @ board.right_ned, m @ board.up_ned,
-                                            m @ (board.centre_ned - pose.position_ned)])
+    return plane_homography(intr, pose, board.centre_ned, board.right_ned, board.up_ned)

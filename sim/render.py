@@ -23,12 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from sarmission.geo.camera import (
-    CameraIntrinsics,
-    CameraPose,
-    ground_to_image_homography,
-    project_points,
-)
+from sarmission.geo.camera import CameraIntrinsics, CameraPose
 from sim.billboard import billboard_for, billboard_homography, billboard_parts
 from sim.ground import UrbanGround
 from sim.scene import (
@@ -44,6 +39,7 @@ from sim.scene import (
 from sim.sea import SeaSurface
 from sim.sensor import DetailOverlay
 from sim.sprites import draw_parts, tight_extent
+from sim.truth_camera import ground_homography, project
 from sim.truth_frames import ned_to_geodetic
 from sim.upright_world import build_upright_world
 
@@ -112,7 +108,7 @@ class SceneRenderer:
     def render(self, t: float, pose: CameraPose) -> tuple[np.ndarray, list[ObjectAnnotation]]:
         """Frame (BGR uint8, H x W x 3) and annotations at time ``t`` seen from ``pose``."""
         intr = self.intrinsics
-        h_ground = ground_to_image_homography(intr, pose)
+        h_ground = ground_homography(intr, pose)
         frame = self._background(t, pose, h_ground)
         states = [o.state_at(t) for o in self._in_view(t, pose)]
         if self.scenario.figures == "upright":  # far to near, so near objects hide far ones
@@ -144,7 +140,7 @@ class SceneRenderer:
             return []
         centres = np.array([o.position_at(t) for o in self._objects])
         radii = np.array([o.radius_m for o in self._objects])
-        uv, in_front = project_points(self.intrinsics, pose, centres)
+        uv, in_front = project(self.intrinsics, pose, centres)
         depth = (centres - pose.position_ned) @ pose.rotation_ned_from_camera[:, 2]
         reach = radii * self.intrinsics.fx / np.maximum(depth, 1e-6) + 4.0
         w, h = self.intrinsics.width, self.intrinsics.height
@@ -168,8 +164,8 @@ class SceneRenderer:
         return frame
 
     def _object_homography(self, pose: CameraPose, state: ObjectState) -> np.ndarray:
-        h_plane = ground_to_image_homography(self.intrinsics, pose,
-                                             ground_down=float(state.position_ned[2]))
+        h_plane = ground_homography(self.intrinsics, pose,
+                                    ground_down=float(state.position_ned[2]))
         return h_plane @ state.local_to_ne()
 
     def _upright(self, pose: CameraPose, state: ObjectState

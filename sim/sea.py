@@ -27,9 +27,10 @@ import math
 import cv2
 import numpy as np
 
-from sarmission.geo.camera import CameraIntrinsics, CameraPose, pixel_rays
+from sarmission.geo.camera import CameraIntrinsics, CameraPose
 from sim.kernels import compose_sea
 from sim.scene import Scenario
+from sim.truth_camera import rays
 
 GRAVITY = 9.81
 #: Wind speed (m/s) at 10 m for each Douglas sea state 0..6.
@@ -157,7 +158,7 @@ class SeaSurface:
         us = np.linspace(-0.5, intr.width - 0.5, gw)
         vs = np.linspace(-0.5, intr.height - 0.5, gh)
         uu, vv = np.meshgrid(us, vs)
-        d = pixel_rays(intr, pose, np.stack([uu.ravel(), vv.ravel()], axis=1))
+        d = rays(intr, pose, np.stack([uu.ravel(), vv.ravel()], axis=1))
         cos_view = np.clip(d[:, 2], 0.0, 1.0)
         mirror = d * np.array([1.0, 1.0, -1.0])
         cos2b = np.clip(mirror @ self.sun, -1.0, 1.0)  # cos of twice the facet tilt

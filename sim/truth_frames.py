@@ -5,7 +5,8 @@ The simulator is the truth that geolocation is tested against, so it must not sh
 together and go unseen. Rotations come from SciPy's ``Rotation`` (aerospace ZYX Euler: yaw about
 down, then pitch about the new right axis, then roll about the new forward axis), positions from
 pymap3d directly. Conventions are MAVLink's: NED world, FRD body and gimbal (gimbal x is the
-optical axis), OpenCV camera (x right, y down in the image, z forward).
+optical axis), OpenCV camera (x right, y down in the image, z forward). Projection through
+the camera is :mod:`sim.truth_camera`'s.
 """
 
 from __future__ import annotations
