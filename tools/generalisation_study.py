@@ -15,8 +15,9 @@ Variants (:data:`VARIANTS`):
 * ``randomised``: the same data, crop-level domain randomisation of every transform
   (:mod:`sarmission.training.randomise`, half the crops each) and 8 background negatives per
   training frame.
-* ``broad``: ``randomised`` plus more of the simulator's presets: ``urban_train`` (people on land,
-  trained as ``swimmer``), ``maritime_oblique_mid`` and ``maritime_oblique_high``.
+* ``more_presets``: more of the simulator's presets: ``urban_train`` (people on land, trained as
+  ``swimmer``), ``maritime_oblique_mid`` and ``maritime_oblique_high``, no randomisation.
+* ``broad``: both, ``randomised`` on the ``more_presets`` data.
 
 Test (the clips and seeds of ``tools/heldout_eval.py``, rendered with its functions):
 ``maritime_test`` (own renderer, 2 x 40 frames), ``heldout_maritime`` (3 x 40) and
@@ -92,6 +93,9 @@ VARIANTS: dict[str, Variant] = {v.name: v for v in (
             "maritime training presets, no randomisation"),
     Variant("randomised", MARITIME_PARTS, "all", 8,
             "maritime presets, every randomisation (p 0.5), 8 background negatives per frame"),
+    Variant("more_presets", MARITIME_PARTS + EXTRA_PARTS, "none", 0,
+            "maritime presets plus urban_train (people as swimmer) and the oblique maritime "
+            "presets, no randomisation"),
     Variant("broad", MARITIME_PARTS + EXTRA_PARTS, "all", 8,
             "randomised, plus urban_train (people as swimmer) and the oblique maritime presets"),
 )}
@@ -191,15 +195,16 @@ def figures(report: Mapping[str, Any]) -> dict[str, Any]:
             "rpn_r01": mr["rpn"]["R@0.1"]}
 
 
-def test_splits(work: Path) -> dict[str, Path]:
-    """Render the test clips with tools/heldout_eval.py's functions; split name -> annotations."""
+def test_splits(folder: Path) -> dict[str, Path]:
+    """Render the test clips into ``folder`` with tools/heldout_eval.py's functions (a render
+    already there with the right clip and frame counts is reused); split name -> annotations."""
     heldout_eval = _tool("heldout_eval")
-    folder = work / "test"
     folder.mkdir(parents=True, exist_ok=True)
-    land = heldout_eval.render_heldout(folder, "heldout_land", LAND_CLIPS, TEST_FRAMES)
-    return {"maritime_test": heldout_eval.render_own(folder, OWN_CLIPS, TEST_FRAMES),
+    reused: list[str] = []
+    land = heldout_eval.render_heldout(folder, "heldout_land", LAND_CLIPS, TEST_FRAMES, reused)
+    return {"maritime_test": heldout_eval.render_own(folder, OWN_CLIPS, TEST_FRAMES, reused),
             "heldout_maritime": heldout_eval.render_heldout(folder, "heldout_maritime",
-                                                            SEA_CLIPS, TEST_FRAMES),
+                                                            SEA_CLIPS, TEST_FRAMES, reused),
             "heldout_land": heldout_eval.persons_as_swimmers(land)}
 
 
@@ -246,7 +251,7 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
             _save(work, {**(previous or {}), "runs": runs})
     if args.train_only:
         return {**(previous or {}), "runs": runs}
-    splits = test_splits(work)
+    splits = test_splits(Path(args.test_work) if args.test_work else work / "test")
     checkpoints: dict[str, str | None] = {"shipped": None}
     checkpoints |= {key: run["checkpoint"] for key, run in runs.items()
                     if run["variant"] in args.variants and run["seed"] in args.seeds}
@@ -261,6 +266,7 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
         "machine": {"nproc": os.cpu_count(), "python": platform.python_version(),
                     "platform": platform.platform()},
         "settings": {"seeds": list(args.seeds), "variants": list(args.variants),
+                     "test_work": str(args.test_work or work / "test"),
                      "train": TRAIN_SETTINGS, "test_frames": TEST_FRAMES,
                      "test_clips": {"maritime_test": OWN_CLIPS, "heldout_maritime": SEA_CLIPS,
                                     "heldout_land": LAND_CLIPS}},
@@ -386,6 +392,9 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"comma-separated, of {', '.join(VARIANTS)} (default: all)")
     parser.add_argument("--seeds", type=lambda t: [int(v) for v in _list(t)],
                         default=list(SEEDS), help="training seeds (default: 0,1,2)")
+    parser.add_argument("--test-work", default=None,
+                        help="folder of the test renders (default: <work>/test); renders of "
+                             "another version of heldout/ go in a folder of their own")
     parser.add_argument("--train-only", action="store_true",
                         help="train the missing runs, test nothing, leave the page alone")
     parser.add_argument("--doc", default=str(DEFAULT_DOC), help="Markdown file to update")
