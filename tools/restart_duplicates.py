@@ -45,10 +45,14 @@ def run(checkout: Path, db: Path, seconds: float, kill: bool, log: Path) -> None
         proc.wait(timeout=seconds + 120)
 
 
-def alerts(db: Path) -> list[tuple[float, float, float]]:
+def alerts(db: Path) -> list[tuple[float, float, float, bool]]:
+    """(lock time, lat, lon, confirmed) of every stored row with a position; a store from
+    before alert tiers has every row confirmed."""
     with sqlite3.connect(db) as conn:
-        rows = conn.execute("SELECT lock_time, lat, lon FROM alerts ORDER BY seq").fetchall()
-    return [(t, lat, lon) for t, lat, lon in rows if lat is not None]
+        columns = {row[1] for row in conn.execute("PRAGMA table_info(alerts)")}
+        tier = "tier = 'confirmed'" if "tier" in columns else "1"
+        rows = conn.execute(f"SELECT lock_time, lat, lon, {tier} FROM alerts ORDER BY seq")
+        return [(t, lat, lon, bool(c)) for t, lat, lon, c in rows if lat is not None]
 
 
 def metres(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -57,16 +61,22 @@ def metres(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 
 def measure(checkout: Path, first: float, second: float, near: float,
-            work: Path) -> tuple[int, int, int]:
+            work: Path) -> tuple[int, int, int, int, int, int]:
+    """Rows before the kill, after the restart, and after it within ``near`` of a row before:
+    all rows (candidates included), then confirmed alerts only."""
     db, log = work / "alerts.db", work / "run.log"
     run(checkout, db, first, kill=True, log=log)
     before = alerts(db)
     restart = time.time()
     run(checkout, db, second, kill=False, log=log)
     after = [a for a in alerts(db) if a[0] >= restart]
-    again = sum(1 for a in after
-                if any(metres(a[1:], b[1:]) <= near for b in before))
-    return len(before), len(after), again
+    def again(now: list, earlier: list) -> int:
+        return sum(1 for a in now if any(metres(a[1:3], b[1:3]) <= near for b in earlier))
+
+    confirmed_before = [a for a in before if a[3]]
+    confirmed_after = [a for a in after if a[3]]
+    return (len(before), len(after), again(after, before), len(confirmed_before),
+            len(confirmed_after), again(confirmed_after, confirmed_before))
 
 
 def main() -> int:
@@ -79,17 +89,17 @@ def main() -> int:
                         help="metres within which a new alert is the same person again")
     parser.add_argument("--repeats", type=int, default=1)
     args = parser.parse_args()
-    print("| sarmission | run | alerts before the kill | alerts after the restart | "
-          f"of them within {args.near:g} m of an earlier alert |")
-    print("|---|---|---|---|---|")
+    print("| sarmission | run | rows before the kill | rows after the restart | of them within "
+          f"{args.near:g} m of an earlier row | confirmed before | confirmed after | of them "
+          f"within {args.near:g} m of an earlier confirmed alert |")
+    print("|---|---|---|---|---|---|---|---|")
     for checkout in [c.resolve() for c in (args.checkout or [ROOT])]:
         rev = subprocess.run(["git", "-C", str(checkout), "rev-parse", "--short", "HEAD"],
                              capture_output=True, text=True).stdout.strip()
         for k in range(args.repeats):
             with tempfile.TemporaryDirectory(prefix="restart-") as tmp:
-                before, after, again = measure(checkout, args.first, args.second, args.near,
-                                               Path(tmp))
-            print(f"| {rev} | {k + 1} | {before} | {after} | {again} |", flush=True)
+                figures = measure(checkout, args.first, args.second, args.near, Path(tmp))
+            print(f"| {rev} | {k + 1} | " + " | ".join(map(str, figures)) + " |", flush=True)
     return 0
 
 
