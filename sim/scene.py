@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -528,6 +529,35 @@ def build_world(scenario: Scenario) -> World:
     return World(scenario, _urban_objects(scenario, layout), layout)
 
 
+def add_birds_debris_glints(objects: list[SceneObject], rng: np.random.Generator,
+                            sc: Scenario, diag: float, bob: float,
+                            drift: Callable[[], tuple[float, float]]) -> None:
+    """Append the scenario's birds, floating debris and sun glints to ``objects`` (shared by
+    every maritime world, in this order, so a seed draws the same scene)."""
+    for _ in range(sc.n_birds):
+        heading = float(rng.uniform(0, 2 * math.pi))
+        speed = float(rng.uniform(8.0, 15.0))
+        objects.append(SceneObject(
+            len(objects) + 1, "bird", loop_start(rng, sc.area_ne, heading, diag), heading,
+            bird_parts(rng, float(rng.uniform(1.0, 1.5))),
+            (speed * math.cos(heading), speed * math.sin(heading)),
+            height_m=float(rng.uniform(5.0, 35.0)), loop_m=diag + 200.0,
+            period_s=float(rng.uniform(0.25, 0.45)), phase=float(rng.random())))
+    for _ in range(sc.n_debris):
+        objects.append(SceneObject(
+            len(objects) + 1, "debris", uniform_in(rng, sc.area_ne),
+            float(rng.uniform(0, 2 * math.pi)), debris_parts(rng, float(rng.uniform(0.2, 1.0))),
+            drift(), wander_m=float(rng.uniform(0.1, 0.5)), turn_rate=float(rng.normal(0, 0.03)),
+            bob_depth=float(min(0.6, 0.5 * bob)), bob_period_s=float(rng.uniform(3.0, 7.0)),
+            phase=float(rng.random())))
+    for _ in range(sc.n_glints):
+        objects.append(SceneObject(
+            len(objects) + 1, "sun_glint", uniform_in(rng, sc.area_ne),
+            float(rng.uniform(0, 2 * math.pi)), glint_parts(rng, float(rng.uniform(0.08, 0.3))),
+            drift(), period_s=float(rng.uniform(0.4, 2.0)), duty=float(rng.uniform(0.15, 0.4)),
+            phase=float(rng.random())))
+
+
 def _maritime_objects(sc: Scenario) -> list[SceneObject]:
     rng = np.random.default_rng([sc.seed, 1])
     drift_dir = math.radians(sc.wind_from_deg + 180.0 + rng.normal(0, 25))
@@ -573,28 +603,7 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
             len(objects) + 1, "boat", start, heading, boat_parts(rng, length, True),
             (speed * math.cos(heading), speed * math.sin(heading)), loop_m=diag + 200.0,
             phase=float(rng.random())))
-    for _ in range(sc.n_birds):
-        heading = float(rng.uniform(0, 2 * math.pi))
-        speed = float(rng.uniform(8.0, 15.0))
-        objects.append(SceneObject(
-            len(objects) + 1, "bird", loop_start(rng, sc.area_ne, heading, diag), heading,
-            bird_parts(rng, float(rng.uniform(1.0, 1.5))),
-            (speed * math.cos(heading), speed * math.sin(heading)),
-            height_m=float(rng.uniform(5.0, 35.0)), loop_m=diag + 200.0,
-            period_s=float(rng.uniform(0.25, 0.45)), phase=float(rng.random())))
-    for _ in range(sc.n_debris):
-        objects.append(SceneObject(
-            len(objects) + 1, "debris", uniform_in(rng, sc.area_ne),
-            float(rng.uniform(0, 2 * math.pi)), debris_parts(rng, float(rng.uniform(0.2, 1.0))),
-            drift(), wander_m=float(rng.uniform(0.1, 0.5)), turn_rate=float(rng.normal(0, 0.03)),
-            bob_depth=float(min(0.6, 0.5 * bob)), bob_period_s=float(rng.uniform(3.0, 7.0)),
-            phase=float(rng.random())))
-    for _ in range(sc.n_glints):
-        objects.append(SceneObject(
-            len(objects) + 1, "sun_glint", uniform_in(rng, sc.area_ne),
-            float(rng.uniform(0, 2 * math.pi)), glint_parts(rng, float(rng.uniform(0.08, 0.3))),
-            drift(), period_s=float(rng.uniform(0.4, 2.0)), duty=float(rng.uniform(0.15, 0.4)),
-            phase=float(rng.random())))
+    add_birds_debris_glints(objects, rng, sc, diag, bob, drift)
     return objects
 
 
