@@ -367,17 +367,6 @@ def render_section(results: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_doc(section: str, path: Path) -> None:
-    """Replace the generated section of ``path`` (or create the file around it)."""
-    text = path.read_text() if path.is_file() else (
-        "# Generalisation beyond the simulator\n\n" + BEGIN + "\n" + END + "\n")
-    if BEGIN not in text or END not in text:
-        text = text.rstrip("\n") + "\n\n" + BEGIN + "\n" + END + "\n"
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    path.write_text(head + section + tail)
-
-
 def _list(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
@@ -413,7 +402,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"results: {_save(Path(args.work), results)}", file=sys.stderr)
         if args.train_only:
             return 0
-    write_doc(render_section(results), Path(args.doc))
+    _tool("heldout_eval").write_doc(render_section(results), Path(args.doc),
+                                    "# Generalisation beyond the simulator", BEGIN, END)
     print(f"wrote {args.doc}", file=sys.stderr)
     return 0
 

@@ -307,14 +307,16 @@ def render_section(results: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_doc(section: str, path: Path) -> None:
-    """Replace the generated section of ``path`` (or create the file around it)."""
+def write_doc(section: str, path: Path, title: str = "# Held-out validation",
+              begin: str = BEGIN, end: str = END) -> None:
+    """Replace the section of ``path`` between ``begin`` and ``end`` (or create the file, headed
+    ``title``, around it); ``section`` holds the markers itself."""
     text = path.read_text() if path.is_file() else (
-        "# Held-out validation\n\n" + BEGIN + "\n" + END + "\n")
-    if BEGIN not in text or END not in text:
-        text = text.rstrip("\n") + "\n\n" + BEGIN + "\n" + END + "\n"
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
+        title + "\n\n" + begin + "\n" + end + "\n")
+    if begin not in text or end not in text:
+        text = text.rstrip("\n") + "\n\n" + begin + "\n" + end + "\n"
+    head, rest = text.split(begin, 1)
+    _, tail = rest.split(end, 1)
     path.write_text(head + section + tail)
 
 
