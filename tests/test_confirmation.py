@@ -86,3 +86,21 @@ def test_clutter_seen_in_few_of_the_frames_is_discarded():
     steady = evidence_of(every[::2])
     steady.frames = len(every)
     assert assess(steady, 102.0, RULE).verdict == "confirm"
+
+
+def labelled(labels):
+    """The standing person's sightings, the head's class of each taken from ``labels`` in turn."""
+    return [Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, labels[i % len(labels)])
+            for i, s in enumerate(sightings())]
+
+
+@pytest.mark.parametrize(("labels", "verdict"), [
+    (["boat"], "discard"), (["swimmer", "jetski"], "discard"),  # half called an object
+    (["swimmer", "buoy", "swimmer"], "confirm"), (["life_saving_appliances"], "confirm"),
+    ([""], "confirm"),  # class unknown: taken for a person
+])
+def test_a_target_the_head_calls_an_object_is_discarded(labels, verdict):
+    found = assess(evidence_of(labelled(labels)), 101.5, RULE)
+    assert found.verdict == verdict, found
+    if verdict == "discard":
+        assert found.reason.startswith(f"called {labels[-1]} in "), found

@@ -152,3 +152,44 @@ def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
         assert run(ctl, 20) == []
         assert ctl.stats.suppressed == 1 and ctl.stats.candidates == []
         assert store.count() == 1
+
+
+class ObjectsDetector(ScriptedDetector):
+    """The scripted detector with the maritime head's classes (boats, buoys, life rings)."""
+
+    classes = ("swimmer", "swimmer_with_life_jacket", "boat", "jetski", "buoy",
+               "life_saving_appliances")
+
+
+def test_a_target_the_head_calls_a_boat_is_never_alerted(tmp_path, mission):
+    script = [[(box_at(10.0, -5.0, 60.0), 0.9, 2)]] * 20
+    actions = Announced()
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ObjectsDetector(script), flight(3.0), store,
+                                actions=actions, console=lambda s: None)
+        assert run(ctl, 20) == [] and actions.alerts == []
+        assert ctl.stats.candidates == [] and ctl.stats.objects == 1
+        assert "calls an object (never alerted): 1" in ctl.summary()
+
+
+def test_a_target_first_called_a_boat_becomes_a_candidate_once_it_is_a_person(tmp_path,
+                                                                            mission):
+    box = box_at(10.0, -5.0, 60.0)
+    script = [[(box, 0.9, 2)]] * 3 + [[(box, 0.9, 0)]] * 27
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ObjectsDetector(script), flight(4.0), store,
+                                actions=Announced(), console=lambda s: None)
+        (alert,) = run(ctl, 30)
+        assert alert.class_name == "swimmer"
+        (candidate,) = ctl.stats.candidates
+        assert candidate.frame_index > 3
+
+
+def test_a_life_ring_is_its_own_kind_of_alert(tmp_path, mission):
+    script = [[(box_at(10.0, -5.0, 60.0), 0.9, 5)]] * 20
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = MissionController(mission, ObjectsDetector(script), flight(3.0), store,
+                                actions=Announced(), console=lambda s: None)
+        (alert,) = run(ctl, 20)
+        assert alert.class_name == "life_saving_appliances"
+        assert "life_saving_appliances" in store.get(alert.alert_id).class_name

@@ -104,6 +104,10 @@ def test_cli_options_reach_the_config(data, tmp_path) -> None:
     config = train_command.config_from_args(args)
     assert config.randomise == Randomisation(("blur", "noise"), 0.3)
     assert config.crops.background_negatives == 8
+    assert config.crops.classes == ("swimmer", "swimmer_with_life_jacket")
+    args.classes = "maritime"
+    assert train_command.config_from_args(args).crops.classes[2:] == (
+        "boat", "jetski", "buoy", "life_saving_appliances")
     args.randomise = "glitter"
     with pytest.raises(ValueError, match="glitter"):
         train_command.config_from_args(args)

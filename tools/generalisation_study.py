@@ -18,6 +18,9 @@ Variants (:data:`VARIANTS`):
 * ``more_presets``: more of the simulator's presets: ``urban_train`` (people on land, trained as
   ``swimmer``), ``maritime_oblique_mid`` and ``maritime_oblique_high``, no randomisation.
 * ``broad``: both, ``randomised`` on the ``more_presets`` data.
+* ``broad_classes``: ``broad`` with the maritime head's object classes
+  (:data:`sarmission.perception.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
+  life-saving appliances learnt as classes of their own instead of background).
 
 Test (the clips and seeds of ``tools/heldout_eval.py``, rendered with its functions):
 ``maritime_test`` (own renderer, 2 x 40 frames), ``heldout_maritime`` (3 x 40) and
@@ -54,6 +57,9 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from sarmission.perception.class_roles import MARITIME_CLASSES
+from sarmission.perception.head_config import DEFAULT_CLASSES
+
 REPO = Path(__file__).resolve().parents[1]
 TOOLS = Path(__file__).resolve().parent
 DEFAULT_DOC = REPO / "docs" / "generalisation.md"
@@ -86,6 +92,7 @@ class Variant:
     randomise: str
     background_negatives: int
     description: str
+    classes: tuple[str, ...] = DEFAULT_CLASSES
 
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in (
@@ -98,6 +105,9 @@ VARIANTS: dict[str, Variant] = {v.name: v for v in (
             "presets, no randomisation"),
     Variant("broad", MARITIME_PARTS + EXTRA_PARTS, "all", 8,
             "randomised, plus urban_train (people as swimmer) and the oblique maritime presets"),
+    Variant("broad_classes", MARITIME_PARTS + EXTRA_PARTS, "all", 8,
+            "broad, with boats, jetskis, buoys and life-saving appliances as classes of their "
+            "own", MARITIME_CLASSES),
 )}
 
 
@@ -134,7 +144,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
 
     s = TRAIN_SETTINGS
     out = work / "runs" / variant.name / f"seed{seed}" / "head.pt"
-    crops = CropSettings(ds=s["ds"], frame_stride=s["frame_stride"],
+    crops = CropSettings(classes=variant.classes, ds=s["ds"], frame_stride=s["frame_stride"],
                          jitters_per_gt=s["jitters_per_gt"],
                          background_negatives=variant.background_negatives, seed=0)
     config = TrainConfig(train=train, val=val, out=out, epochs=s["epochs"],
@@ -222,9 +232,9 @@ def evaluate_heads(checkpoints: Mapping[str, str | None], splits: Mapping[str, P
     for split, path in splits.items():
         print(f"testing {len(heads)} heads on {split}", file=sys.stderr)
         dataset = read_coco_video(path)
-        classes = next(iter(heads.values())).classes
         for name, run in run_heads(heads, dataset).items():
-            report = evaluate_detections(dataset, run.detections, classes, run.proposals,
+            report = evaluate_detections(dataset, run.detections, heads[name].classes,
+                                         run.proposals,
                                          image_ids=run.image_ids, m=3, k=5, score_thr=0.5,
                                          nwd_thr=0.5)
             out[name][split] = figures(report)
@@ -273,7 +283,8 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
         "variants": {n: {"description": VARIANTS[n].description,
                          "presets": [list(p) for p in VARIANTS[n].parts],
                          "randomise": VARIANTS[n].randomise,
-                         "background_negatives": VARIANTS[n].background_negatives}
+                         "background_negatives": VARIANTS[n].background_negatives,
+                         "classes": list(VARIANTS[n].classes)}
                      for n in args.variants},
         "runs": runs, "shipped": tests["shipped"]}
 

@@ -169,14 +169,14 @@ def _evaluate_file(args: argparse.Namespace, dataset: Any,
 
 def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: str,
                     metric_options: dict[str, Any]) -> dict[str, Any]:
-    from sarmission.evaluation.report import evaluate_detections, target_category_map
+    from sarmission.evaluation.report import evaluate_detections, person_category_map
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet
 
     net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
                   ego_motion=args.ego_motion, colour_share=args.colour_share,
                   crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
-    target_category_map(dataset.categories, net.classes)  # fail before running, not after
+    person_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
     if not run.frame_ms:
         raise ValueError(f"{args.annotations}: none of the {run.skipped} frames could be read")

@@ -63,7 +63,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--pos-nwd", type=float, default=0.4,
                         help="NWD at or above which a proposal is positive")
     parser.add_argument("--classes", default=_DEFAULT_CLASSES,
-                        help="comma-separated head classes (index = class id)")
+                        help="comma-separated head classes (index = class id), or 'maritime': "
+                             "the swimmers, boats, jetskis, buoys and life-saving appliances "
+                             "of SeaDronesSee (classes that are no person are never alerted)")
     parser.add_argument("--cache-dir", type=Path, default=None,
                         help="crop cache folder (default: <out folder>/.crop_cache)")
     parser.add_argument("--resume", action="store_true",
@@ -77,11 +79,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def config_from_args(args: argparse.Namespace):
     """The :class:`~sarmission.training.train.TrainConfig` the arguments describe."""
+    from sarmission.perception.class_roles import MARITIME_CLASSES
     from sarmission.training.dataset import CropSettings
     from sarmission.training.randomise import Randomisation
     from sarmission.training.train import TrainConfig
 
-    classes = tuple(c.strip() for c in args.classes.split(",") if c.strip())
+    classes = (MARITIME_CLASSES if args.classes.strip() == "maritime"
+               else tuple(c.strip() for c in args.classes.split(",") if c.strip()))
     if not classes:
         raise ValueError("--classes must name at least one class")
     for flag, path in (("--train", args.train), ("--val", args.val)):

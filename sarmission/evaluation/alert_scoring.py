@@ -13,7 +13,9 @@ An alert is matched to the person whose box centre lies nearest its last pixel p
 washed over by a wave has no box in that frame), to the person whose true position within
 ``window_s`` of the lock lies within ``max(match_m, 3 x the alert's error)`` of the alert's
 position. Neither makes it a false alert, named after the distractor under it ("open water"
-when none). A person is *in view*
+when none), unless it is an appliance alert (its class a life-saving appliance,
+:mod:`sarmission.perception.class_roles`) over a life-saving appliance: that is an appliance
+found, counted apart. A person is *in view*
 when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least ``min_view_s``;
 the time to alert runs from their first frame to the confirmation.
 """
@@ -31,6 +33,7 @@ import numpy as np
 
 from sarmission.evaluation.reliability import reliability_table
 from sarmission.geo.wgs84 import geodetic_to_ned
+from sarmission.perception.class_roles import role_of
 
 #: A detection is the person whose box centre is within this many pixels.
 MATCH_PX = 24.0
@@ -51,6 +54,7 @@ class FlightScore:
     alerts: int = 0
     false_alerts: int = 0
     duplicates: int = 0
+    appliances_found: int = 0  # appliance alerts over a life-saving appliance
     false_on: Counter[str] = field(default_factory=Counter)
     time_to_alert_s: list[float] = field(default_factory=list)
     geo_error_m: list[float] = field(default_factory=list)
@@ -62,7 +66,7 @@ class FlightScore:
     def add(self, other: FlightScore) -> None:
         """Fold another flight's figures into this one."""
         for name in ("flight_s", "people_in_view", "found", "found_briefly_seen", "alerts",
-                     "false_alerts", "duplicates"):
+                     "false_alerts", "duplicates", "appliances_found"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.false_on.update(other.false_on)
         self.time_to_alert_s += other.time_to_alert_s
@@ -92,6 +96,7 @@ class FlightScore:
             "false_per_hour": _round(self.false_per_hour, 2),
             "false_on": dict(self.false_on.most_common()),
             "duplicates": self.duplicates,
+            "appliances_found": self.appliances_found,
             "time_to_alert_s": {"p50": _pct(self.time_to_alert_s, 50),
                                 "p90": _pct(self.time_to_alert_s, 90)},
             "geo_error_m": {"p50": _pct(self.geo_error_m, 50),
@@ -196,6 +201,10 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
             person = _by_position(frames, alert.frame_index, alert, window_s, match_m)
         if person is None:
             other = None if frame is None else nearest(frame.others, cx, cy, match_px)
+            if (other is not None and role_of(alert.class_name) == "appliance"
+                    and role_of(other.category) == "appliance"):
+                out.appliances_found += 1
+                continue
             out.false_alerts += 1
             out.false_on[other.category if other is not None else "open water"] += 1
             continue

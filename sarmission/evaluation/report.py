@@ -4,13 +4,15 @@
 detector was run here, its per-image RPN proposals) into one JSON-serialisable dict;
 :func:`format_report` renders it as fixed-width text tables in the layout of the paper's tables.
 
-Ground truth: only the detector's target categories count. A dataset category is a target when
-its name, normalised (lower case, every run of other characters than letters and digits becomes
-``_``), equals a class name of the head or an alias in :data:`CATEGORY_ALIASES` (SeaDronesSee
+Ground truth: only the people among the detector's classes count. A dataset category is a
+target when its name, normalised (lower case, every run of other characters than letters and
+digits becomes ``_``), equals a head class that is a person
+(:mod:`sarmission.perception.class_roles`) or an alias in :data:`CATEGORY_ALIASES` (SeaDronesSee
 MOT calls a swimmer with a life jacket a ``floater``). Annotations of every other category (boats,
-buoys, ``ignored`` regions, people on boats) are left out of the ground truth, so detections on
-them count as false alarms. Each target category maps to one head class, and class-aware metrics
-compare that class with the detection's.
+buoys, ``ignored`` regions, people on boats) are left out of the ground truth, and so are the
+detections of a head's other classes (a head that names boats reports its boats apart): a
+person-class detection on a boat is a false alarm. Each target category maps to one head class,
+and class-aware metrics compare that class with the detection's.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from sarmission.data.coco_video import Category, VideoDataset
 from sarmission.evaluation import box_metrics, sar_metrics
 from sarmission.evaluation.matching import FrameBoxes, ground_truth_by_image, match_frame
 from sarmission.evaluation.reliability import format_reliability, reliability_table
+from sarmission.perception.class_roles import person_class_ids
 
 #: Normalised dataset category names that mean a head class although they are spelled otherwise.
 CATEGORY_ALIASES: dict[str, str] = {
@@ -41,9 +44,10 @@ MODULE_RECALL_THRESHOLDS: tuple[float, ...] = (0.1, 0.5)
 REPORT_DEFINITIONS: dict[str, str] = {
     "target_categories": (
         "GT = annotations of the dataset categories whose normalised name (lower case, other "
-        "characters than letters/digits -> '_') is a head class or an alias of one "
-        "(floater -> swimmer_with_life_jacket); crowd annotations and other categories are "
-        "left out, so detections on them are false alarms."),
+        "characters than letters/digits -> '_') is a head class that is a person, or an alias "
+        "of one (floater -> swimmer_with_life_jacket); crowd annotations and other categories "
+        "are left out, so person detections on them are false alarms; detections of the "
+        "head's other classes (boat, buoy, ...) are left out."),
     "evaluated_frames": (
         "The dataset's images, or only those the detector processed (frames it could not "
         "read and frames past --max-frames are left out of every metric)."),
@@ -80,6 +84,31 @@ def target_category_map(categories: Sequence[Category], classes: Sequence[str]) 
         raise ValueError(f"no annotation category is one of the detector's classes "
                          f"{list(classes)} (dataset categories: {names})")
     return mapping
+
+
+def person_category_map(categories: Sequence[Category], classes: Sequence[str]
+                        ) -> dict[int, int]:
+    """:func:`target_category_map` restricted to the head classes that are people.
+
+    Raises ``ValueError`` when no category of the dataset is a person class of the head.
+    """
+    mapping = target_category_map(categories, classes)
+    people = set(person_class_ids(classes).tolist())
+    kept = {cid: k for cid, k in mapping.items() if k in people}
+    if not kept:
+        named = ", ".join(classes[k] for k in sorted(set(mapping.values())))
+        raise ValueError(f"no annotation category is a person class of the detector "
+                         f"(only {named})")
+    return kept
+
+
+def people_only(boxes: FrameBoxes, person_ids: np.ndarray) -> FrameBoxes:
+    """The boxes whose class is one of ``person_ids``."""
+    keep = np.isin(boxes.class_ids, person_ids)
+    if keep.all():
+        return boxes
+    return FrameBoxes(boxes.boxes[keep], boxes.scores[keep], boxes.class_ids[keep],
+                      boxes.ids[keep])
 
 
 def detections_from_results(records: Sequence[Mapping[str, Any]], dataset: VideoDataset,
@@ -158,11 +187,12 @@ def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBox
     """
     if not 1 <= m <= k:
         raise ValueError(f"need 1 <= m <= k, got m={m}, k={k}")
-    mapping = target_category_map(dataset.categories, classes)
+    mapping = person_category_map(dataset.categories, classes)
     if image_ids is not None:
         dataset = subset(dataset, image_ids)
     evaluated = {image.id for image in dataset.images}
-    detections = {i: d for i, d in detections.items() if i in evaluated}
+    people = person_class_ids(classes)
+    detections = {i: people_only(d, people) for i, d in detections.items() if i in evaluated}
     targets = sorted(mapping)
 
     sar = sar_metrics.evaluate_sar(

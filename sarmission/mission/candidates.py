@@ -59,13 +59,15 @@ class CandidateBook:
 
     # -- evidence ----------------------------------------------------------------------------
     def sighting(self, target_id: int, t: float, lat: float | None, lon: float | None,
-                 error_m: float | None, size_m: float | None, score: float) -> None:
-        """One frame's sighting of a target (``lat`` None: no fix this frame)."""
+                 error_m: float | None, size_m: float | None, score: float,
+                 label: str = "") -> None:
+        """One frame's sighting of a target (``lat`` None: no fix this frame; ``label`` the
+        head's class for it, empty when unknown)."""
         evidence = self.evidence.setdefault(target_id, TargetEvidence())
         if lat is None or lon is None or error_m is None:
             evidence.note_unplaced(t)
         else:
-            evidence.add(Sighting(t, lat, lon, error_m, size_m, score))
+            evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label))
 
     def suppressing(self, position: tuple[float, float] | None
                     ) -> tuple[float, float, float] | None:
@@ -130,7 +132,7 @@ class CandidateBook:
 
 def _kind(reason: str) -> str:
     """A discard reason without its figures, for counting."""
-    for word in ("no person", "moves", "score", "not confirmed", "never placed"):
+    for word in ("no person", "moves", "score", "called", "not confirmed", "never placed"):
         if word in reason:
             return word
     return reason

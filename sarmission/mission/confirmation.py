@@ -11,7 +11,10 @@ the frames processed since its first sighting (a person stays in view; clutter f
 - its size on the ground fits a person: the median over sightings of the box's larger ground
   extent lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck centimetres);
 - the head's scores of its sightings agree: their mean is at least ``min_score`` (a few lucky
-  crops do not make a person).
+  crops do not make a person);
+- the head calls it a person (or a life-saving appliance) in most of its sightings: a target
+  called a boat, jetski or buoy in at least half of them is discarded
+  (:mod:`sarmission.perception.class_roles`).
 
 A candidate that clearly fails (too large, too fast or too faint over ``min_sightings``) is
 discarded with the reason; one not confirmed within ``give_up_s`` of its first sighting is
@@ -25,6 +28,7 @@ fit's residuals (at least each fix's own error), so a few noisy fixes cannot fak
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -32,6 +36,7 @@ import numpy as np
 
 from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import ConfirmConfig
+from sarmission.perception.class_roles import role_of
 
 Verdict = Literal["confirm", "wait", "discard"]
 
@@ -39,7 +44,8 @@ Verdict = Literal["confirm", "wait", "discard"]
 @dataclass(frozen=True)
 class Sighting:
     """One frame's evidence of a target: capture time, fix, its 1-sigma error, the box's larger
-    extent on the ground (metres; None when it could not be measured) and the head's score."""
+    extent on the ground (metres; None when it could not be measured), the head's score and
+    its class name (empty: unknown, taken for a person)."""
 
     t: float
     lat: float
@@ -47,6 +53,7 @@ class Sighting:
     error_m: float
     size_m: float | None
     score: float
+    label: str = ""
 
 
 @dataclass(frozen=True)
@@ -148,6 +155,11 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     figures = dict(seen_s=seen, sightings=len(sightings), seen_share=share, speed_m_s=speed,
                    size_m=size, score=score)
     enough = len(sightings) >= rule.min_sightings
+    objects = Counter(s.label for s in sightings if s.label and role_of(s.label) == "object")
+    if enough and 2 * sum(objects.values()) >= len(sightings):
+        name, _ = objects.most_common(1)[0]
+        return Assessment("discard", f"called {name} in {sum(objects.values())} of "
+                                     f"{len(sightings)} sightings", **figures)
     if enough and size is not None and not rule.min_size_m <= size <= rule.max_size_m:
         return Assessment("discard", f"{size:.2f} m on the ground is no person "
                                      f"({rule.min_size_m:g}-{rule.max_size_m:g} m)", **figures)

@@ -56,6 +56,7 @@ from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
+from sarmission.perception.class_roles import role_of_id
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
@@ -97,6 +98,7 @@ class ControllerStats:
     # each confirmed alert with the frame and capture time it was confirmed at
     confirmed: list[tuple[Alert, int, float]] = field(default_factory=list)
     suppressed: int = 0  # new targets inside a zone the operator dismissed
+    objects: int = 0  # locked targets the head calls an object (boat, buoy): never alerted
     located_later: int = 0
     unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
     merged_tracks: int = 0
@@ -168,6 +170,7 @@ class MissionController:
         self._t0: float | None = None
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
+        self._objects: set[int] = set()  # targets locked but called an object (not alerted)
         # target id -> (capture time, box centre) of its sightings, to place it from buffered
         # telemetry once the autopilot's state allows a fix
         self._unplaced_sightings: dict[int, list[tuple[float, float, float]]] = {}
@@ -265,6 +268,8 @@ class MissionController:
             else:
                 self.stats.merged_tracks += 1
                 log.info("track %d joined target %d", track.track_id, target.target_id)
+        elif target.target_id in self._objects:  # called an object so far: is it still?
+            self._candidate(target, track, frame, frame_index, pose, fix)
         if target.position is None and target.target_id in self._unplaced:
             self._remember_sighting(target.target_id, track)
         if target.position is not None and target.target_id in self._unplaced:
@@ -382,8 +387,8 @@ class MissionController:
     # -- candidates and alerts ---------------------------------------------------------------
     def _sighting(self, target: Target, track: TrackState, timestamp: float,
                   pose: PlatformPose | StaleTelemetry, fix: GeoFix | None) -> None:
-        """This frame's evidence of ``target``: the track's fix, box size on the ground and the
-        head's score of the detection it took."""
+        """This frame's evidence of ``target``: the track's fix, box size on the ground, the
+        head's score of the detection it took and the track's class."""
         if fix is None or not fix.ok or not isinstance(pose, PlatformPose):
             self.candidates.sighting(target.target_id, timestamp, None, None, None, None,
                                      track.last_score)
@@ -391,13 +396,25 @@ class MissionController:
         ground = self._ground_below_home()
         assert self._intrinsics is not None and ground is not None
         size = ground_extent_m(track.raw_box, self._intrinsics, pose, ground)
+        classes = self.detector.classes
+        label = classes[track.class_id] if 0 <= track.class_id < len(classes) else ""
         self.candidates.sighting(target.target_id, timestamp, fix.lat, fix.lon, fix.error_m,
-                                 size, track.last_score)
+                                 size, track.last_score, label)
 
     def _candidate(self, target: Target, track: TrackState, frame: np.ndarray,
                    frame_index: int, pose: PlatformPose | StaleTelemetry,
                    fix: GeoFix | None) -> None:
-        """A new target's lock: a candidate alert for the operator (not the autopilot)."""
+        """A new target's lock: a candidate alert for the operator (not the autopilot). A target
+        the head calls an object (its majority class: boat, buoy) waits in ``_objects`` and
+        becomes a candidate only once its majority class is a person or an appliance."""
+        if role_of_id(self.detector.classes, target.class_id) == "object":
+            if target.target_id not in self._objects:
+                self._objects.add(target.target_id)
+                self.stats.objects += 1
+                log.info("target %d is a %s: not alerted", target.target_id,
+                         self.detector.classes[target.class_id])
+            return
+        self._objects.discard(target.target_id)
         target.announced = True
         zone = self.candidates.suppressing(target.position)
         if zone is not None:
@@ -438,7 +455,8 @@ class MissionController:
         box = track.box
         centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
         classes = self.detector.classes
-        class_name = classes[track.class_id] if 0 <= track.class_id < len(classes) else "target"
+        class_id = target.class_id if target.class_id >= 0 else track.class_id
+        class_name = classes[class_id] if 0 <= class_id < len(classes) else "target"
         placed = fix is not None and fix.ok
         return Alert(
             mission_id=self.mission_id,
@@ -544,6 +562,8 @@ class MissionController:
                 f"{n} ({why})" for why, n in book.discarded.most_common()) or "0")
                 + f"; still unconfirmed: {len(book.candidates)}"
                 + (f"; in dismissed zones: {s.suppressed}" if s.suppressed else ""))
+        if s.objects:
+            lines.append(f"locked targets the head calls an object (never alerted): {s.objects}")
         if s.unplaced:
             lines.append("alerted without a position: " + ", ".join(
                 f"{n} ({why})" for why, n in s.unplaced.most_common()))

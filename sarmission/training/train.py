@@ -29,8 +29,9 @@ no background negatives and crop seed 0, so that runs of any seed share one vali
 sparse validation set makes the F2 that selects the checkpoint swing by tens of percent between
 epochs; no jittering), boxes are decoded with
 :func:`~sarmission.perception.head.ltrb_to_boxes`, detections with score > ``score_threshold``
-(score = largest class probability, class = its index) go through the inference NMS and are
-scored against all target GT boxes of those frames with
+(score = largest class probability, class = its index) go through the inference NMS and those of
+the person classes (:mod:`sarmission.perception.class_roles`: a head may name boats too) are
+scored against the person GT boxes of those frames with
 :func:`sarmission.evaluation.box_metrics.evaluate_boxes` (class-aware; F2 of band ``all`` at
 NWD 0.5, the threshold a detection must clear to count in the search metrics; the mean over NWD
 0.5:0.95 is dominated by sub-pixel localisation of 16-px boxes and picked an epoch-1 head on the
@@ -59,6 +60,7 @@ from torch import Tensor
 
 from sarmission.evaluation.box_metrics import evaluate_boxes
 from sarmission.evaluation.matching import FrameBoxes
+from sarmission.perception.class_roles import person_class_ids
 from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
 from sarmission.perception.mitenet import nms_xyxy
 from sarmission.perception.runtime import save_head_checkpoint
@@ -251,12 +253,15 @@ def validate_f2(model: MiteHead, val: CropSet, score_threshold: float = 0.5,
     detections, truth = {}, {}
     gt_images, gt_boxes = val.gt_image_ids.numpy(), val.gt_boxes.numpy()
     gt_classes = val.gt_classes.numpy()
+    people = person_class_ids(model.config.classes)
+    person_detection, person_gt = np.isin(classes, people), np.isin(gt_classes, people)
     for image_id in val.frame_ids.tolist():
-        keep = np.flatnonzero((image_ids == image_id) & (scores > score_threshold))
+        keep = np.flatnonzero((image_ids == image_id) & (scores > score_threshold)
+                              & person_detection)
         if nms_iou is not None and keep.size > 1:
             keep = keep[nms_xyxy(boxes[keep], scores[keep], nms_iou)]
         detections[image_id] = FrameBoxes.of(boxes[keep], scores[keep], classes[keep])
-        g = gt_images == image_id
+        g = (gt_images == image_id) & person_gt
         truth[image_id] = FrameBoxes.of(gt_boxes[g], class_ids=gt_classes[g])
     band = evaluate_boxes(truth, detections, nwd_thresholds=SELECTION_NWD,
                           score_thr=score_threshold).bands["all"]
