@@ -199,3 +199,14 @@ def test_thumbnail_is_a_jpeg_crop_centred_on_the_target() -> None:
     assert centre[2] > 150 > corner[2]  # the red-ish swimmer is in the middle
     edge = cv2.imdecode(np.frombuffer(crop_thumbnail(frame, (0, 0), 32, 32), np.uint8), 1)
     assert edge[:12, :12].max() < 20  # outside the frame is black
+
+
+def test_a_life_ring_alert_reads_as_one_and_is_no_casualty() -> None:
+    ring = make_alert(2, class_name="life_saving_appliances", position=(-35.362912, 149.165234),
+                      score=0.8, error_m=3.0, alert_id="1" * 32)
+    assert ring.statustext() == f"{ring.short_id} SAR life ring 0.80 -35.36291,149.16523 ±3m"
+    event = ET.fromstring(alert_to_cot(ring, now=1_700_000_010.0))
+    assert event.get("type") == "b-m-p-s-m" != COT_TYPE
+    assert event.find("detail/contact").get("callsign") == "SAR T2 life ring"
+    swimmer = ET.fromstring(alert_to_cot(make_alert(3, position=(LAT, LON)), now=1.0))
+    assert swimmer.get("type") == COT_TYPE

@@ -4,15 +4,15 @@ read, and what each does with a head that names boats, buoys and life rings."""
 import numpy as np
 import pytest
 
-from sarmission.data.coco_video import Annotation, Category, ImageRecord, Video, VideoDataset
-from sarmission.evaluation.matching import FrameBoxes
-from sarmission.evaluation.report import evaluate_detections, person_category_map
-from sarmission.perception.class_roles import (
+from sarmission.class_roles import (
     MARITIME_CLASSES,
     person_class_ids,
     role_of,
     role_of_id,
 )
+from sarmission.data.coco_video import Annotation, Category, ImageRecord, Video, VideoDataset
+from sarmission.evaluation.matching import FrameBoxes
+from sarmission.evaluation.report import evaluate_detections, person_category_map
 
 
 @pytest.mark.parametrize(("name", "role"), [

@@ -2,7 +2,9 @@
 
 Each alert with a position becomes an event of type ``b-r-f-h-c`` ("casualty / CASEVAC
 request", drawn by ATAK as a casualty marker), the closest standard CoT type for "a person in
-distress here"; ``a-h-G`` would mark a hostile ground unit, which is wrong for rescue.
+distress here"; ``a-h-G`` would mark a hostile ground unit, which is wrong for rescue. A
+life-saving appliance (:mod:`sarmission.class_roles`) is no casualty: it becomes a plain spot
+marker (``b-m-p-s-m``) named "life ring".
 ``how="m-g"`` says it is machine generated. The uid is stable per target
 (:attr:`Alert.cot_uid`), so a re-sent event updates the same marker. ``point`` carries the
 position at full precision, ``ce`` the horizontal error radius in metres, ``hae`` the height
@@ -21,9 +23,12 @@ import xml.etree.ElementTree as ET
 from urllib.parse import urlsplit
 
 from sarmission.alerts.model import Alert, plain_decimal, utc_iso
+from sarmission.class_roles import role_of, short_label
 from sarmission.errors import SarmissionError
 
 COT_TYPE = "b-r-f-h-c"
+#: A life-saving appliance seen without a person: a plain spot marker, not a casualty.
+COT_TYPE_APPLIANCE = "b-m-p-s-m"
 COT_HOW = "m-g"
 #: CoT's value for "unknown" in ``hae``, ``ce`` and ``le``.
 COT_UNKNOWN = 9999999.0
@@ -46,7 +51,7 @@ def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 
         {
             "version": "2.0",
             "uid": alert.cot_uid,
-            "type": COT_TYPE,
+            "type": COT_TYPE_APPLIANCE if role_of(alert.class_name) == "appliance" else COT_TYPE,
             "how": COT_HOW,
             "time": utc_iso(now),
             "start": utc_iso(alert.lock_time),
@@ -65,10 +70,11 @@ def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 
         },
     )
     detail = ET.SubElement(event, "detail")
-    ET.SubElement(detail, "contact", {"callsign": f"SAR T{alert.target_id} {alert.class_name}"})
+    label = short_label(alert.class_name)
+    ET.SubElement(detail, "contact", {"callsign": f"SAR T{alert.target_id} {label}"})
     remarks = ET.SubElement(detail, "remarks")
     remarks.text = (
-        f"{alert.class_name} score {alert.score:.2f}, target {alert.target_id}, "
+        f"{label} score {alert.score:.2f}, target {alert.target_id}, "
         f"mission {alert.mission_id}, locked {utc_iso(alert.lock_time)}, "
         f"error {alert.format_error() or 'unknown'}, alert {alert.alert_id}"
     )

@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, Literal
 
+from sarmission.class_roles import short_label
+
 #: STATUSTEXT's ``text`` field holds 50 bytes.
 STATUSTEXT_MAX_BYTES = 50
 
@@ -253,7 +255,8 @@ class Alert:
             error = ""
         tail += error
         room = STATUSTEXT_MAX_BYTES - len(head.encode()) - 1 - len(tail.encode())
-        name = self.class_name.encode()[: max(room, 0)].decode(errors="ignore").strip()
+        label = short_label(self.class_name).encode()
+        name = label[: max(room, 0)].decode(errors="ignore").strip()
         text = f"{head} {name}{tail}" if name else f"{head}{tail}"
         return text.encode()[:STATUSTEXT_MAX_BYTES].decode(errors="ignore")
 

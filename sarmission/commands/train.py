@@ -79,7 +79,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def config_from_args(args: argparse.Namespace):
     """The :class:`~sarmission.training.train.TrainConfig` the arguments describe."""
-    from sarmission.perception.class_roles import MARITIME_CLASSES
+    from sarmission.class_roles import MARITIME_CLASSES
     from sarmission.training.dataset import CropSettings
     from sarmission.training.randomise import Randomisation
     from sarmission.training.train import TrainConfig

@@ -14,7 +14,7 @@ washed over by a wave has no box in that frame), to the person whose true positi
 ``window_s`` of the lock lies within ``max(match_m, 3 x the alert's error)`` of the alert's
 position. Neither makes it a false alert, named after the distractor under it ("open water"
 when none), unless it is an appliance alert (its class a life-saving appliance,
-:mod:`sarmission.perception.class_roles`) over a life-saving appliance: that is an appliance
+:mod:`sarmission.class_roles`) over a life-saving appliance: that is an appliance
 found, counted apart. A person is *in view*
 when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least ``min_view_s``;
 the time to alert runs from their first frame to the confirmation.
@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
+from sarmission.class_roles import role_of
 from sarmission.evaluation.reliability import reliability_table
 from sarmission.geo.wgs84 import geodetic_to_ned
-from sarmission.perception.class_roles import role_of
 
 #: A detection is the person whose box centre is within this many pixels.
 MATCH_PX = 24.0

@@ -7,7 +7,7 @@ detector was run here, its per-image RPN proposals) into one JSON-serialisable d
 Ground truth: only the people among the detector's classes count. A dataset category is a
 target when its name, normalised (lower case, every run of other characters than letters and
 digits becomes ``_``), equals a head class that is a person
-(:mod:`sarmission.perception.class_roles`) or an alias in :data:`CATEGORY_ALIASES` (SeaDronesSee
+(:mod:`sarmission.class_roles`) or an alias in :data:`CATEGORY_ALIASES` (SeaDronesSee
 MOT calls a swimmer with a life jacket a ``floater``). Annotations of every other category (boats,
 buoys, ``ignored`` regions, people on boats) are left out of the ground truth, and so are the
 detections of a head's other classes (a head that names boats reports its boats apart): a
@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from sarmission.boxes import SIZE_BANDS, xywh_to_xyxy
+from sarmission.class_roles import person_class_ids
 from sarmission.data.coco_video import Category, VideoDataset
 from sarmission.evaluation import box_metrics, sar_metrics
 from sarmission.evaluation.matching import FrameBoxes, ground_truth_by_image, match_frame
 from sarmission.evaluation.reliability import format_reliability, reliability_table
-from sarmission.perception.class_roles import person_class_ids
 
 #: Normalised dataset category names that mean a head class although they are spelled otherwise.
 CATEGORY_ALIASES: dict[str, str] = {

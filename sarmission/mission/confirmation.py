@@ -14,7 +14,7 @@ the frames processed since its first sighting (a person stays in view; clutter f
   crops do not make a person);
 - the head calls it a person (or a life-saving appliance) in most of its sightings: a target
   called a boat, jetski or buoy in at least half of them is discarded
-  (:mod:`sarmission.perception.class_roles`).
+  (:mod:`sarmission.class_roles`).
 
 A candidate that clearly fails (too large, too fast or too faint over ``min_sightings``) is
 discarded with the reason; one not confirmed within ``give_up_s`` of its first sighting is
@@ -34,9 +34,9 @@ from typing import Literal
 
 import numpy as np
 
+from sarmission.class_roles import role_of
 from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import ConfirmConfig
-from sarmission.perception.class_roles import role_of
 
 Verdict = Literal["confirm", "wait", "discard"]
 

@@ -47,6 +47,7 @@ import numpy as np
 from sarmission.alerts.model import Alert
 from sarmission.alerts.store import AlertStore
 from sarmission.alerts.thumbnail import crop_thumbnail
+from sarmission.class_roles import role_of_id
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.geo.geolocate import FixLimits, GeoFix, PlatformPose, geolocate
 from sarmission.geo.ground_size import ground_extent_m
@@ -56,7 +57,6 @@ from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
-from sarmission.perception.class_roles import role_of_id
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder

@@ -30,7 +30,7 @@ sparse validation set makes the F2 that selects the checkpoint swing by tens of 
 epochs; no jittering), boxes are decoded with
 :func:`~sarmission.perception.head.ltrb_to_boxes`, detections with score > ``score_threshold``
 (score = largest class probability, class = its index) go through the inference NMS and those of
-the person classes (:mod:`sarmission.perception.class_roles`: a head may name boats too) are
+the person classes (:mod:`sarmission.class_roles`: a head may name boats too) are
 scored against the person GT boxes of those frames with
 :func:`sarmission.evaluation.box_metrics.evaluate_boxes` (class-aware; F2 of band ``all`` at
 NWD 0.5, the threshold a detection must clear to count in the search metrics; the mean over NWD
@@ -58,9 +58,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from sarmission.class_roles import person_class_ids
 from sarmission.evaluation.box_metrics import evaluate_boxes
 from sarmission.evaluation.matching import FrameBoxes
-from sarmission.perception.class_roles import person_class_ids
 from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
 from sarmission.perception.mitenet import nms_xyxy
 from sarmission.perception.runtime import save_head_checkpoint

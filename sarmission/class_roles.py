@@ -62,6 +62,16 @@ def person_class_ids(classes: Sequence[str]) -> np.ndarray:
     return np.array([i for i, c in enumerate(classes) if role_of(c) == "person"], np.int64)
 
 
+#: Names an operator reads on a 50-byte STATUSTEXT and a map marker, where the class name is long.
+SHORT_LABELS: dict[str, str] = {"life_saving_appliances": "life ring",
+                                "life_saving_appliance": "life ring"}
+
+
+def short_label(name: str) -> str:
+    """The class's name as an operator reads it (``life_saving_appliances`` -> ``life ring``)."""
+    return SHORT_LABELS.get(normalise_class(name), name)
+
+
 def role_of_id(classes: Sequence[str], class_id: int) -> Role:
     """The role of class ``class_id`` of ``classes`` (an id outside them: a person)."""
     return role_of(classes[class_id]) if 0 <= class_id < len(classes) else "person"
