@@ -29,14 +29,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sarmission.data.coco_video import VideoDataset, read_coco_video  # noqa: E402
-from sarmission.evaluation.matching import FrameBoxes, match_frame  # noqa: E402
-from sarmission.evaluation.report import people_only  # noqa: E402
-from sarmission.perception.class_roles import (  # noqa: E402
+from sarmission.class_roles import (  # noqa: E402
     normalise_class,
     person_class_ids,
     role_of,
 )
+from sarmission.data.coco_video import VideoDataset, read_coco_video  # noqa: E402
+from sarmission.evaluation.matching import FrameBoxes, match_frame  # noqa: E402
+from sarmission.evaluation.report import people_only  # noqa: E402
 
 OUT = ROOT / "docs" / "class_confusion.md"
 PRESETS = ("maritime_oblique_low", "maritime_oblique_mid", "maritime_oblique_high")

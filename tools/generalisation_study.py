@@ -19,7 +19,7 @@ Variants (:data:`VARIANTS`):
   ``swimmer``), ``maritime_oblique_mid`` and ``maritime_oblique_high``, no randomisation.
 * ``broad``: both, ``randomised`` on the ``more_presets`` data.
 * ``broad_classes``: ``broad`` with the maritime head's object classes
-  (:data:`sarmission.perception.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
+  (:data:`sarmission.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
   life-saving appliances learnt as classes of their own instead of background).
 
 Test (the clips and seeds of ``tools/heldout_eval.py``, rendered with its functions):
@@ -57,7 +57,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from sarmission.perception.class_roles import MARITIME_CLASSES
+from sarmission.class_roles import MARITIME_CLASSES
 from sarmission.perception.head_config import DEFAULT_CLASSES
 
 REPO = Path(__file__).resolve().parents[1]
