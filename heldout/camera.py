@@ -41,8 +41,7 @@ class View:
 
     def rotation(self) -> np.ndarray:
         """3x3 matrix whose columns are the camera's right, down and forward axes in ENU."""
-        psi, tau, rho = (math.radians(a) for a in (self.heading_deg, self.tilt_deg,
-                                                    self.roll_deg))
+        psi, tau, rho = (math.radians(a) for a in (self.heading_deg, self.tilt_deg, self.roll_deg))
         ahead = np.array([math.sin(psi), math.cos(psi), 0.0])
         right = np.array([math.cos(psi), -math.sin(psi), 0.0])
         up = np.array([0.0, 0.0, 1.0])
@@ -59,8 +58,9 @@ def project(lens: Lens, view: View, points: np.ndarray) -> tuple[np.ndarray, np.
     depth = cam[:, 2]
     safe = np.where(depth > 1e-6, depth, np.nan)
     f = lens.focal_px
-    uv = np.stack([lens.width / 2 + f * cam[:, 0] / safe,
-                   lens.height / 2 + f * cam[:, 1] / safe], axis=1)
+    uv = np.stack(
+        [lens.width / 2 + f * cam[:, 0] / safe, lens.height / 2 + f * cam[:, 1] / safe], axis=1
+    )
     return uv, depth
 
 
@@ -74,8 +74,9 @@ def rays(lens: Lens, view: View, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return world / np.linalg.norm(world, axis=-1, keepdims=True)
 
 
-def ground_points(lens: Lens, view: View, u: np.ndarray, v: np.ndarray,
-                  height: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def ground_points(
+    lens: Lens, view: View, u: np.ndarray, v: np.ndarray, height: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Where the rays through ``u, v`` meet the plane ``z = height``: (east, north) ``[..., 2]``
     and the ray length in metres; NaN where a ray does not reach the plane."""
     d = rays(lens, view, u, v)

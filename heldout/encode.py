@@ -18,27 +18,62 @@ class H264Writer:
     (20-60 Mbit/s).
     """
 
-    def __init__(self, path: Path, width: int, height: int, fps: float,
-                 bits_per_pixel: float) -> None:
+    def __init__(
+        self, path: Path, width: int, height: int, fps: float, bits_per_pixel: float
+    ) -> None:
         ffmpeg = shutil.which("ffmpeg")
         if ffmpeg is None:
-            raise OSError("ffmpeg is not installed: it is needed to write H.264 video "
-                          "(or write JPEG images instead)")
+            raise OSError(
+                "ffmpeg is not installed: it is needed to write H.264 video "
+                "(or write JPEG images instead)"
+            )
         self.path = path
         self.size = (width, height)
         bitrate = int(bits_per_pixel * width * height * fps)
         self._proc = subprocess.Popen(
-            [ffmpeg, "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24",
-             "-s", f"{width}x{height}", "-r", f"{fps:g}", "-i", "-", "-c:v", "libx264",
-             "-preset", "veryfast", "-b:v", str(bitrate), "-maxrate", str(bitrate),
-             "-bufsize", str(bitrate), "-g", str(max(1, int(round(fps)))), "-pix_fmt",
-             "yuv420p", "-threads", "1", str(path)],
-            stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+            [
+                ffmpeg,
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "bgr24",
+                "-s",
+                f"{width}x{height}",
+                "-r",
+                f"{fps:g}",
+                "-i",
+                "-",
+                "-c:v",
+                "libx264",
+                "-preset",
+                "veryfast",
+                "-b:v",
+                str(bitrate),
+                "-maxrate",
+                str(bitrate),
+                "-bufsize",
+                str(bitrate),
+                "-g",
+                str(max(1, int(round(fps)))),
+                "-pix_fmt",
+                "yuv420p",
+                "-threads",
+                "1",
+                str(path),
+            ],
+            stdin=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
 
     def write(self, frame: np.ndarray) -> None:
         if frame.shape[:2] != self.size[::-1]:
-            raise ValueError(f"frame {frame.shape[1]}x{frame.shape[0]} does not match the "
-                             f"video's {self.size[0]}x{self.size[1]}")
+            raise ValueError(
+                f"frame {frame.shape[1]}x{frame.shape[0]} does not match the "
+                f"video's {self.size[0]}x{self.size[1]}"
+            )
         assert self._proc.stdin is not None
         self._proc.stdin.write(np.ascontiguousarray(frame).tobytes())
 

@@ -33,17 +33,36 @@ from sarmission.data.coco_video import (
 
 def _annotation(box: ObjectBox, ann_id: int, image_id: int, video_id: int) -> Annotation:
     x, y, w, h = box.bbox
-    return Annotation(id=ann_id, image_id=image_id, category_id=CATEGORIES[box.category],
-                      bbox=(x, y, w, h), track_id=box.track_id, video_id=video_id, area=w * h,
-                      gt_lat=box.lat, gt_lon=box.lon,
-                      extra={"visibility": round(box.visibility, 3),
-                             "is_target": box.is_target, "posture": box.posture,
-                             "speed_m_s": round(box.speed_m_s, 2)})
+    return Annotation(
+        id=ann_id,
+        image_id=image_id,
+        category_id=CATEGORIES[box.category],
+        bbox=(x, y, w, h),
+        track_id=box.track_id,
+        video_id=video_id,
+        area=w * h,
+        gt_lat=box.lat,
+        gt_lon=box.lon,
+        extra={
+            "visibility": round(box.visibility, 3),
+            "is_target": box.is_target,
+            "posture": box.posture,
+            "speed_m_s": round(box.speed_m_s, 2),
+        },
+    )
 
 
-def render_world(name: str, clips: int, frames: int, out: str | Path,
-                 size: tuple[int, int] = (1920, 1080), fps: float = 30.0, images: bool = False,
-                 first_clip: int = 0, progress: bool = False) -> Path:
+def render_world(
+    name: str,
+    clips: int,
+    frames: int,
+    out: str | Path,
+    size: tuple[int, int] = (1920, 1080),
+    fps: float = 30.0,
+    images: bool = False,
+    first_clip: int = 0,
+    progress: bool = False,
+) -> Path:
     """Render ``clips`` clips of ``frames`` frames of the world ``name``; returns the JSON path.
 
     Clip ``i`` is drawn from the world's seed and ``first_clip + i``: the same arguments render
@@ -66,19 +85,24 @@ def render_world(name: str, clips: int, frames: int, out: str | Path,
         renderer = ClipRenderer(spec)
         clip_name = f"{name}_{index:02d}"
         rng = np.random.default_rng([spec.seed, 1])
-        extra: dict[str, object] = {"width": width, "height": height, "fps": fps,
-                                    "seed": spec.seed, "kind": spec.kind,
-                                    "sea_state": spec.sea_state,
-                                    "altitude_m": round(spec.path.altitude_m, 2),
-                                    "tilt_deg": round(spec.path.tilt_deg, 2),
-                                    "speed_m_s": round(spec.path.speed_m_s, 2)}
+        extra: dict[str, object] = {
+            "width": width,
+            "height": height,
+            "fps": fps,
+            "seed": spec.seed,
+            "kind": spec.kind,
+            "sea_state": spec.sea_state,
+            "altitude_m": round(spec.path.altitude_m, 2),
+            "tilt_deg": round(spec.path.tilt_deg, 2),
+            "speed_m_s": round(spec.path.speed_m_s, 2),
+        }
         if images:
-            writer: H264Writer | JpegWriter = JpegWriter(out / clip_name,
-                                                         int(rng.integers(70, 93)))
+            writer: H264Writer | JpegWriter = JpegWriter(out / clip_name, int(rng.integers(70, 93)))
         else:
             extra["file_name"] = f"{clip_name}.mp4"
-            writer = H264Writer(out / f"{clip_name}.mp4", width, height, fps,
-                                float(rng.uniform(0.08, 0.25)))
+            writer = H264Writer(
+                out / f"{clip_name}.mp4", width, height, fps, float(rng.uniform(0.08, 0.25))
+            )
         video_id = len(videos) + 1
         videos.append(Video(video_id, clip_name, extra))
         try:
@@ -87,26 +111,43 @@ def render_world(name: str, clips: int, frames: int, out: str | Path,
                 frame, boxes = renderer.render(t, rng)
                 writer.write(frame)
                 image_id = len(image_records) + 1
-                image_records.append(ImageRecord(
-                    id=image_id, file_name=f"{clip_name}/{i:06d}.jpg", height=height,
-                    width=width, video_id=video_id, frame_index=i,
-                    meta=spec.path.meta(t, spec.home)))
+                image_records.append(
+                    ImageRecord(
+                        id=image_id,
+                        file_name=f"{clip_name}/{i:06d}.jpg",
+                        height=height,
+                        width=width,
+                        video_id=video_id,
+                        frame_index=i,
+                        meta=spec.path.meta(t, spec.home),
+                    )
+                )
                 for box in boxes:
-                    annotations.append(_annotation(box, len(annotations) + 1, image_id,
-                                                   video_id))
+                    annotations.append(_annotation(box, len(annotations) + 1, image_id, video_id))
                 if progress:
                     print(f"\r{clip_name}: frame {i + 1}/{frames}", end="", file=sys.stderr)
         finally:
             writer.close()
         if progress:
             print(file=sys.stderr)
-    categories = [Category(cid, cname, "person" if cname in TARGETS else "object")
-                  for cname, cid in CATEGORIES.items()]
-    dataset = VideoDataset(videos=videos, images=image_records, annotations=annotations,
-                           categories=categories,
-                           info={"description": f"held-out {preset.kind} world {name}",
-                                 "world": name, "seed": preset.seed, "clips": clips,
-                                 "first_clip": first_clip, "fps": fps})
+    categories = [
+        Category(cid, cname, "person" if cname in TARGETS else "object")
+        for cname, cid in CATEGORIES.items()
+    ]
+    dataset = VideoDataset(
+        videos=videos,
+        images=image_records,
+        annotations=annotations,
+        categories=categories,
+        info={
+            "description": f"held-out {preset.kind} world {name}",
+            "world": name,
+            "seed": preset.seed,
+            "clips": clips,
+            "first_clip": first_clip,
+            "fps": fps,
+        },
+    )
     path = out / f"{name}.json"
     write_coco_video(dataset, path)
     return path
@@ -123,23 +164,37 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m heldout.generate", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="python -m heldout.generate",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--world", default="heldout_maritime", choices=sorted(WORLDS))
     parser.add_argument("--clips", type=int, default=2)
     parser.add_argument("--frames", type=int, default=60)
-    parser.add_argument("--first-clip", type=int, default=0,
-                        help="index of the first clip (default: %(default)s)")
-    parser.add_argument("--size", type=_size, default=(1920, 1080),
-                        help="WIDTHxHEIGHT (default: 1920x1080)")
+    parser.add_argument(
+        "--first-clip", type=int, default=0, help="index of the first clip (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--size", type=_size, default=(1920, 1080), help="WIDTHxHEIGHT (default: 1920x1080)"
+    )
     parser.add_argument("--fps", type=float, default=30.0)
     parser.add_argument("--images", action="store_true", help="JPEG folders instead of MP4")
     parser.add_argument("--out", required=True)
     parser.add_argument("--progress", action="store_true")
     args = parser.parse_args(argv)
     try:
-        path = render_world(args.world, args.clips, args.frames, args.out, args.size, args.fps,
-                            args.images, args.first_clip, args.progress)
+        path = render_world(
+            args.world,
+            args.clips,
+            args.frames,
+            args.out,
+            args.size,
+            args.fps,
+            args.images,
+            args.first_clip,
+            args.progress,
+        )
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

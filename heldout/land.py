@@ -33,8 +33,9 @@ def _smoothstep(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return s * s * (3 - 2 * s)
 
 
-def land_reflectance(east: np.ndarray, north: np.ndarray, look: LandLook,
-                     sun_azimuth_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def land_reflectance(
+    east: np.ndarray, north: np.ndarray, look: LandLook, sun_azimuth_deg: float
+) -> tuple[np.ndarray, np.ndarray]:
     """BGR reflectance ``[..., 3]`` of the ground and how lit it is (0..1, shade of crowns)."""
     seed = look.seed
     field = fractal_noise(east, north, 14.0, seed, octaves=3)
@@ -44,22 +45,24 @@ def land_reflectance(east: np.ndarray, north: np.ndarray, look: LandLook,
     colour = colour * (0.8 + 0.4 * grass)[..., None]
 
     edge = 0.5 + 0.3 * (0.5 - look.forest_share)  # the noise sits around 0.5 +- 0.15
-    forest = _smoothstep(fractal_noise(east, north, 45.0, seed + 23, octaves=2),
-                         edge - 0.03, edge + 0.03)
+    forest = _smoothstep(
+        fractal_noise(east, north, 45.0, seed + 23, octaves=2), edge - 0.03, edge + 0.03
+    )
     az = math.radians(sun_azimuth_deg)
     crowns = value_noise(east, north, 2.2, seed + 31)
-    towards_sun = value_noise(east - 0.7 * math.sin(az), north - 0.7 * math.cos(az), 2.2,
-                              seed + 31)
+    towards_sun = value_noise(east - 0.7 * math.sin(az), north - 0.7 * math.cos(az), 2.2, seed + 31)
     lit_crown = np.clip(0.55 + 2.0 * (crowns - towards_sun), 0.1, 1.0) * _smoothstep(
-        crowns, 0.2, 0.4)
+        crowns, 0.2, 0.4
+    )
     canopy = np.array((0.025, 0.075, 0.035), np.float32) * (0.7 + 0.6 * crowns)[..., None]
     colour = colour * (1 - forest[..., None]) + canopy * forest[..., None]
     light = 1.0 - forest * (1.0 - lit_crown)
 
     h = math.radians(look.road_heading_deg)
     along = east * math.sin(h) + north * math.cos(h)
-    across = east * math.cos(h) - north * math.sin(h) - look.road_offset_m - 6.0 * np.sin(
-        along / 40.0)
+    across = (
+        east * math.cos(h) - north * math.sin(h) - look.road_offset_m - 6.0 * np.sin(along / 40.0)
+    )
     road = _smoothstep(look.road_width_m / 2 - np.abs(across), -0.2, 0.3)
     ruts = 1.0 - 0.25 * _smoothstep(0.3 - np.abs(np.abs(across) - 0.8), 0.0, 0.2)
     gravel = value_noise(east, north, 0.08, seed + 41)

@@ -53,22 +53,33 @@ def vignette(width: int, height: int, strength: float) -> np.ndarray:
     """Relative illumination ``[H, W]``: 1 at the centre, ``1 - strength`` in the corners."""
     yy, xx = np.ogrid[:height, :width]
     r2 = ((xx + 0.5 - width / 2) ** 2 + (yy + 0.5 - height / 2) ** 2) / (
-        (width / 2) ** 2 + (height / 2) ** 2)
+        (width / 2) ** 2 + (height / 2) ** 2
+    )
     return (1.0 - strength * r2).astype(np.float32)
 
 
-def develop(radiance: np.ndarray, gain: np.ndarray, sensor: Sensor,
-            streak_px: tuple[float, float], rng: np.random.Generator) -> np.ndarray:
+def develop(
+    radiance: np.ndarray,
+    gain: np.ndarray,
+    sensor: Sensor,
+    streak_px: tuple[float, float],
+    rng: np.random.Generator,
+) -> np.ndarray:
     """BGR ``uint8`` frame of a linear ``radiance`` image; ``gain`` is exposure x vignette per
     pixel ``[H, W]``."""
-    exposed = cv2.filter2D(radiance * gain[..., None], -1,
-                           blur_kernel(sensor.blur_sigma_px, streak_px),
-                           borderType=cv2.BORDER_REFLECT)
+    exposed = cv2.filter2D(
+        radiance * gain[..., None],
+        -1,
+        blur_kernel(sensor.blur_sigma_px, streak_px),
+        borderType=cv2.BORDER_REFLECT,
+    )
     levels = np.linspace(0.0, _TONE_RANGE, _TONE_STEPS + 1, dtype=np.float32)
     toned = np.power(levels / (1.0 + 0.35 * levels), 1 / 2.2)
-    sigma = np.sqrt(sensor.shot_noise * toned + sensor.read_noise ** 2)
-    index = (np.minimum(np.maximum(exposed, 0.0), _TONE_RANGE) * (_TONE_STEPS / _TONE_RANGE)
-             + 0.5).astype(np.int32)
-    noisy = (toned * 255.0)[index] + sigma[index] * rng.standard_normal(index.shape,
-                                                                        dtype=np.float32)
+    sigma = np.sqrt(sensor.shot_noise * toned + sensor.read_noise**2)
+    index = (
+        np.minimum(np.maximum(exposed, 0.0), _TONE_RANGE) * (_TONE_STEPS / _TONE_RANGE) + 0.5
+    ).astype(np.int32)
+    noisy = (toned * 255.0)[index] + sigma[index] * rng.standard_normal(
+        index.shape, dtype=np.float32
+    )
     return np.clip(noisy + 0.5, 0, 255).astype(np.uint8)

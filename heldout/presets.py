@@ -55,24 +55,29 @@ def _light(rng: np.random.Generator, elevation: tuple[float, float], kind: str) 
     return Light(
         sun_azimuth_deg=float(rng.uniform(0, 360)),
         sun_elevation_deg=float(rng.uniform(*elevation)),
-        sun_radiance=float(rng.uniform(2.0, 3.5)) if kind == "sea" else float(
-            rng.uniform(1.2, 2.0)),
+        sun_radiance=float(rng.uniform(2.0, 3.5))
+        if kind == "sea"
+        else float(rng.uniform(1.2, 2.0)),
         zenith_bgr=(float(rng.uniform(0.30, 0.45)), 0.20, 0.08),
         horizon_bgr=(0.55, 0.52, 0.48),
         haze_bgr=(grey * 1.08, grey, grey * 0.94),
-        visibility_m=float(np.exp(rng.uniform(math.log(1500), math.log(20000)))))
+        visibility_m=float(np.exp(rng.uniform(math.log(1500), math.log(20000)))),
+    )
 
 
 def _sensor(rng: np.random.Generator) -> Sensor:
-    return Sensor(blur_sigma_px=float(rng.uniform(0.5, 1.0)),
-                  exposure_s=float(rng.choice([1 / 1000, 1 / 500, 1 / 250, 1 / 120])),
-                  shot_noise=float(rng.uniform(2.0, 12.0)), read_noise=float(rng.uniform(0.8,
-                                                                                        2.5)),
-                  vignette=float(rng.uniform(0.05, 0.3)))
+    return Sensor(
+        blur_sigma_px=float(rng.uniform(0.5, 1.0)),
+        exposure_s=float(rng.choice([1 / 1000, 1 / 500, 1 / 250, 1 / 120])),
+        shot_noise=float(rng.uniform(2.0, 12.0)),
+        read_noise=float(rng.uniform(0.8, 2.5)),
+        vignette=float(rng.uniform(0.05, 0.3)),
+    )
 
 
-def _seen_area(lens: Lens, path, duration_s: float, margin_m: float
-               ) -> tuple[float, float, float, float]:
+def _seen_area(
+    lens: Lens, path, duration_s: float, margin_m: float
+) -> tuple[float, float, float, float]:
     corners_u = np.array([0.0, lens.width, 0.0, lens.width])
     corners_v = np.array([0.0, 0.0, lens.height, lens.height])
     pts = []
@@ -80,12 +85,17 @@ def _seen_area(lens: Lens, path, duration_s: float, margin_m: float
         ground, _ = ground_points(lens, path.view(float(t)), corners_u, corners_v)
         pts.append(ground)
     pts = np.concatenate(pts)
-    return (float(np.nanmin(pts[:, 0])) - margin_m, float(np.nanmin(pts[:, 1])) - margin_m,
-            float(np.nanmax(pts[:, 0])) + margin_m, float(np.nanmax(pts[:, 1])) + margin_m)
+    return (
+        float(np.nanmin(pts[:, 0])) - margin_m,
+        float(np.nanmin(pts[:, 1])) - margin_m,
+        float(np.nanmax(pts[:, 0])) + margin_m,
+        float(np.nanmax(pts[:, 1])) + margin_m,
+    )
 
 
-def draw_clip(preset: WorldPreset, index: int, width: int, height: int,
-              duration_s: float) -> ClipSpec:
+def draw_clip(
+    preset: WorldPreset, index: int, width: int, height: int, duration_s: float
+) -> ClipSpec:
     """Clip ``index`` of ``preset``: every choice from ``preset.seed`` and ``index``."""
     seed = preset.seed * 1000 + index
     rng = np.random.default_rng(seed)
@@ -101,25 +111,50 @@ def draw_clip(preset: WorldPreset, index: int, width: int, height: int,
         wind_from = float(rng.uniform(0, 360))
         water = WATER_BODIES[str(rng.choice(sorted(WATER_BODIES)))]
         hs = SEA_STATES[sea_state][0]
-        look = SeaLook(water_bgr=water, facet_variance=SEA_STATES[sea_state][2],
-                       whitecap_height_m=0.55 * hs + 0.15, foam_cover=0.08 * sea_state,
-                       wind_to_deg=wind_from + 180.0, seed=seed)
+        look = SeaLook(
+            water_bgr=water,
+            facet_variance=SEA_STATES[sea_state][2],
+            whitecap_height_m=0.55 * hs + 0.15,
+            foam_cover=0.08 * sea_state,
+            wind_to_deg=wind_from + 180.0,
+            seed=seed,
+        )
         trains = draw_trains(rng, sea_state, wind_from)
         c = math.radians(wind_from + 180.0)
         drift = float(rng.uniform(0.05, 0.4))
-        things = populate(rng, preset.population, area, footprint, water,
-                          (drift * math.sin(c), drift * math.cos(c)))
-        return ClipSpec(seed, "sea", lens, light, path, sensor, tuple(things), SEA_HOME,
-                        sea_state=sea_state, trains=trains, sea=look)
+        things = populate(
+            rng,
+            preset.population,
+            area,
+            footprint,
+            water,
+            (drift * math.sin(c), drift * math.cos(c)),
+        )
+        return ClipSpec(
+            seed,
+            "sea",
+            lens,
+            light,
+            path,
+            sensor,
+            tuple(things),
+            SEA_HOME,
+            sea_state=sea_state,
+            trains=trains,
+            sea=look,
+        )
     road_heading = float(rng.uniform(0, 180))
     h = math.radians(road_heading)
     start_across = path.start[0] * math.cos(h) - path.start[1] * math.sin(h)
-    land = LandLook(seed=seed, forest_share=float(rng.uniform(0.15, 0.5)),
-                    road_heading_deg=road_heading,
-                    road_offset_m=start_across + float(rng.uniform(-15, 15)),
-                    road_width_m=float(rng.uniform(3, 6)),
-                    lush_bgr=(0.04, float(rng.uniform(0.12, 0.18)), 0.07),
-                    dry_bgr=(0.09, 0.20, float(rng.uniform(0.20, 0.28))))
+    land = LandLook(
+        seed=seed,
+        forest_share=float(rng.uniform(0.15, 0.5)),
+        road_heading_deg=road_heading,
+        road_offset_m=start_across + float(rng.uniform(-15, 15)),
+        road_width_m=float(rng.uniform(3, 6)),
+        lush_bgr=(0.04, float(rng.uniform(0.12, 0.18)), 0.07),
+        dry_bgr=(0.09, 0.20, float(rng.uniform(0.20, 0.28))),
+    )
     things = populate(rng, preset.population, area, footprint, (0.0, 0.0, 0.0))
     return ClipSpec(seed, "land", lens, light, path, sensor, tuple(things), LAND_HOME, land=land)
 
@@ -127,23 +162,48 @@ def draw_clip(preset: WorldPreset, index: int, width: int, height: int,
 def heldout_maritime() -> WorldPreset:
     """Open sea, states 2-4, 75-120 m, nadir to 20 degrees oblique, about 6 people per frame."""
     return WorldPreset(
-        "heldout_maritime", "sea", 7731, (75.0, 120.0), (0.0, 8.0), (0.0, 20.0), (2, 3, 4),
+        "heldout_maritime",
+        "sea",
+        7731,
+        (75.0, 120.0),
+        (0.0, 8.0),
+        (0.0, 20.0),
+        (2, 3, 4),
         (20.0, 65.0),
-        Population({"swimmer": 4.0, "swimmer_with_life_jacket": 2.5, "buoy": 0.8,
-                    "debris": 2.0, "bird": 0.8, "boat": 0.15}),
-        heldout_maritime.__doc__ or "")
+        Population(
+            {
+                "swimmer": 4.0,
+                "swimmer_with_life_jacket": 2.5,
+                "buoy": 0.8,
+                "debris": 2.0,
+                "bird": 0.8,
+                "boat": 0.15,
+            }
+        ),
+        heldout_maritime.__doc__ or "",
+    )
 
 
 def heldout_land() -> WorldPreset:
     """Meadow, forest and a dirt road, 75-120 m, nadir to 20 degrees, about 5 people per frame."""
     return WorldPreset(
-        "heldout_land", "land", 7742, (75.0, 120.0), (0.0, 7.0), (0.0, 20.0), (), (25.0, 60.0),
+        "heldout_land",
+        "land",
+        7742,
+        (75.0, 120.0),
+        (0.0, 7.0),
+        (0.0, 20.0),
+        (),
+        (25.0, 60.0),
         Population({"person": 5.0, "rock": 3.0, "log": 1.5, "animal": 0.5, "bird": 0.3}),
-        heldout_land.__doc__ or "")
+        heldout_land.__doc__ or "",
+    )
 
 
 WORLDS: dict[str, Callable[[], WorldPreset]] = {
-    "heldout_maritime": heldout_maritime, "heldout_land": heldout_land}
+    "heldout_maritime": heldout_maritime,
+    "heldout_land": heldout_land,
+}
 
 
 def world(name: str) -> WorldPreset:

@@ -29,8 +29,9 @@ class Patch:
     solid: np.ndarray
 
 
-def object_to_image(lens: Lens, view: View, anchor: Sequence[float], yaw_deg: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def object_to_image(
+    lens: Lens, view: View, anchor: Sequence[float], yaw_deg: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Image position of ``anchor`` (ENU) and the 2x2 map of object metres to pixel offsets."""
     uv, depth = project(lens, view, np.asarray([anchor], np.float64))
     jac = ground_jacobian(lens, view, np.asarray(anchor, np.float64))
@@ -39,8 +40,9 @@ def object_to_image(lens: Lens, view: View, anchor: Sequence[float], yaw_deg: fl
     return uv[0], jac @ body_to_enu
 
 
-def draw_shapes(lens: Lens, view: View, anchor: Sequence[float], yaw_deg: float,
-                shapes: Sequence[Shape]) -> Patch | None:
+def draw_shapes(
+    lens: Lens, view: View, anchor: Sequence[float], yaw_deg: float, shapes: Sequence[Shape]
+) -> Patch | None:
     """Rasterise ``shapes`` placed at ``anchor`` facing ``yaw_deg``; ``None`` when off-image.
 
     Small patches get 4 x 4 samples per pixel, large ones (whole boats) fewer.
@@ -72,8 +74,10 @@ def draw_shapes(lens: Lens, view: View, anchor: Sequence[float], yaw_deg: float,
         if shape.solid:
             solid = solid + a * (1 - solid)
     h, w = y1 - y0, x1 - x0
+
     def pool(x: np.ndarray) -> np.ndarray:
         return x.reshape(h, supersample, w, supersample, *x.shape[2:]).mean(axis=(1, 3))
+
     return Patch(x0, y0, pool(colour), pool(alpha), pool(solid))
 
 
@@ -89,8 +93,9 @@ def composite(frame: np.ndarray, patch: Patch) -> None:
     frame[fy0:fy1, fx0:fx1] = frame[fy0:fy1, fx0:fx1] * (1 - a) + patch.colour[py, px]
 
 
-def solid_box(patch: Patch, width: int, height: int, threshold: float = 1 / 3
-              ) -> tuple[tuple[float, float, float, float], float] | None:
+def solid_box(
+    patch: Patch, width: int, height: int, threshold: float = 1 / 3
+) -> tuple[tuple[float, float, float, float], float] | None:
     """COCO box ``(x, y, w, h)`` of the pixels the object covers by at least ``threshold``,
     clipped to the frame, and the share of its coverage inside the frame; ``None`` if none."""
     total = float(patch.solid.sum())
@@ -103,7 +108,8 @@ def solid_box(patch: Patch, width: int, height: int, threshold: float = 1 / 3
         return None
     xs, ys = xs[keep], ys[keep]
     h, w = patch.solid.shape
-    inside = patch.solid[max(0, -patch.y0):min(h, height - patch.y0),
-                         max(0, -patch.x0):min(w, width - patch.x0)].sum()
+    inside = patch.solid[
+        max(0, -patch.y0) : min(h, height - patch.y0), max(0, -patch.x0) : min(w, width - patch.x0)
+    ].sum()
     x0, y0 = float(xs.min()), float(ys.min())
     return (x0, y0, float(xs.max()) + 1 - x0, float(ys.max()) + 1 - y0), float(inside) / total

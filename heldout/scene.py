@@ -67,8 +67,9 @@ class ClipRenderer:
     def __init__(self, spec: ClipSpec) -> None:
         self.spec = spec
         self.step = block_step(spec.lens)
-        self._gain = self._auto_exposure() * vignette(spec.lens.width, spec.lens.height,
-                                                      spec.sensor.vignette)
+        self._gain = self._auto_exposure() * vignette(
+            spec.lens.width, spec.lens.height, spec.sensor.vignette
+        )
 
     def _auto_exposure(self) -> float:
         """Gain that puts the background's median luminance of the first frame at mid-grey."""
@@ -81,8 +82,7 @@ class ClipRenderer:
         u, v = block_centres(lens, self.step)
         ground, ranges = ground_points(lens, view, u, v)
         dirs = rays(lens, view, u, v)
-        values = [ground[..., 0], ground[..., 1], ranges, dirs[..., 0], dirs[..., 1],
-                  dirs[..., 2]]
+        values = [ground[..., 0], ground[..., 1], ranges, dirs[..., 0], dirs[..., 1], dirs[..., 2]]
         if full:
             values = [upsample(x, lens.width, lens.height) for x in values]
         east, north, ranges, dx, dy, dz = values
@@ -95,42 +95,61 @@ class ClipRenderer:
             assert spec.trains is not None and spec.sea is not None
             lens = spec.lens
             cell = view.position[2] / lens.focal_px * (1.0 if full else self.step)
-            grid = grid_covering(east[::4, ::4], north[::4, ::4], view.heading_deg, cell,
-                                 int(2.5 * east.size))
+            grid = grid_covering(
+                east[::4, ::4], north[::4, ::4], view.heading_deg, cell, int(2.5 * east.size)
+            )
             height, slope_e, slope_n = surface_on_grid(spec.trains, grid, t)
             ge, gn = grid.world()
             foam = foam_pattern(ge, gn, spec.sea, t)
             stack = np.dstack([height, slope_e, slope_n, foam]).astype(np.float32)
             col, row = grid.index_of(east, north)
-            looked_up = cv2.remap(stack, col.astype(np.float32), row.astype(np.float32),
-                                  cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-            return shade_sea(looked_up[..., 0], looked_up[..., 1], looked_up[..., 2],
-                             looked_up[..., 3], dirs, ranges, spec.light, spec.sea)
+            looked_up = cv2.remap(
+                stack,
+                col.astype(np.float32),
+                row.astype(np.float32),
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REFLECT,
+            )
+            return shade_sea(
+                looked_up[..., 0],
+                looked_up[..., 1],
+                looked_up[..., 2],
+                looked_up[..., 3],
+                dirs,
+                ranges,
+                spec.light,
+                spec.sea,
+            )
         assert spec.land is not None
         if full:  # the ground texture at half resolution, looked up bilinearly
             half = (east.shape[1] // 2, east.shape[0] // 2)
             reflectance, lit = land_reflectance(
                 cv2.resize(east, half, interpolation=cv2.INTER_LINEAR),
-                cv2.resize(north, half, interpolation=cv2.INTER_LINEAR), spec.land,
-                spec.light.sun_azimuth_deg)
+                cv2.resize(north, half, interpolation=cv2.INTER_LINEAR),
+                spec.land,
+                spec.light.sun_azimuth_deg,
+            )
             reflectance = cv2.resize(reflectance, east.shape[::-1], interpolation=cv2.INTER_LINEAR)
             lit = cv2.resize(lit, east.shape[::-1], interpolation=cv2.INTER_LINEAR)
         else:
-            reflectance, lit = land_reflectance(east, north, spec.land,
-                                                spec.light.sun_azimuth_deg)
+            reflectance, lit = land_reflectance(east, north, spec.land, spec.light.sun_azimuth_deg)
         sun = max(math.sin(math.radians(spec.light.sun_elevation_deg)), 0.05)
         radiance = reflectance * (spec.light.sun_radiance * sun * lit + 0.35)[..., None]
         veil = (1.0 - np.exp(-ranges / spec.light.visibility_m)).astype(np.float32)[..., None]
         return radiance * (1 - veil) + np.array(spec.light.haze_bgr, np.float32) * veil
 
-    def _shapes(self, thing: Thing, t: float, heading: float, position: tuple[float, ...]
-                ) -> list[Shape]:
+    def _shapes(
+        self, thing: Thing, t: float, heading: float, position: tuple[float, ...]
+    ) -> list[Shape]:
         spec = self.spec
         lifted = 0.0
         if spec.trains is not None and position[2] == 0.0:
             hs = SEA_STATES[spec.sea_state][0]
-            lifted = float(np.clip(spec.trains.height_at(position[0], position[1], t)
-                                   / max(hs / 2, 0.05), -1, 1))
+            lifted = float(
+                np.clip(
+                    spec.trains.height_at(position[0], position[1], t) / max(hs / 2, 0.05), -1, 1
+                )
+            )
         sun_in_body = spec.light.sun_azimuth_deg - heading
         return shapes_at(thing.look, t, lifted, sun_in_body, spec.light.sun_elevation_deg)
 
@@ -146,11 +165,13 @@ class ClipRenderer:
         margin = 0.3 * lens.width
         boxes: list[ObjectBox] = []
         for (thing, position, heading), (u, v), d in zip(placed, uv, depth, strict=True):
-            if not (d > 0 and -margin < u < lens.width + margin
-                    and -margin < v < lens.height + margin):
+            if not (
+                d > 0 and -margin < u < lens.width + margin and -margin < v < lens.height + margin
+            ):
                 continue
-            patch = draw_shapes(lens, view, position, heading,
-                                self._shapes(thing, t, heading, position))
+            patch = draw_shapes(
+                lens, view, position, heading, self._shapes(thing, t, heading, position)
+            )
             if patch is None:
                 continue
             composite(radiance, patch)
@@ -158,9 +179,19 @@ class ClipRenderer:
             if found is None or found[1] < MIN_VISIBLE_SHARE:
                 continue
             lat, lon = lat_lon(spec.home[0], spec.home[1], position[0], position[1])
-            boxes.append(ObjectBox(thing.track_id, thing.category, found[0], found[1], lat, lon,
-                                   thing.category in TARGETS, thing.look.posture,
-                                   math.hypot(*thing.velocity)))
+            boxes.append(
+                ObjectBox(
+                    thing.track_id,
+                    thing.category,
+                    found[0],
+                    found[1],
+                    lat,
+                    lon,
+                    thing.category in TARGETS,
+                    thing.look.posture,
+                    math.hypot(*thing.velocity),
+                )
+            )
         exposure = spec.sensor.exposure_s
         centre = np.array([[lens.width / 2, lens.height / 2]])
         ground_now, _ = ground_points(lens, view, centre[:, 0], centre[:, 1])

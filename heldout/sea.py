@@ -19,8 +19,10 @@ WATER_INDEX = 1.34
 
 #: Water body colours (linear BGR): deep ocean, coastal green, turbid brown.
 WATER_BODIES: dict[str, tuple[float, float, float]] = {
-    "ocean": (0.075, 0.035, 0.010), "coastal": (0.055, 0.060, 0.020),
-    "turbid": (0.040, 0.060, 0.060)}
+    "ocean": (0.075, 0.035, 0.010),
+    "coastal": (0.055, 0.060, 0.020),
+    "turbid": (0.040, 0.060, 0.060),
+}
 
 
 @dataclass(frozen=True)
@@ -83,9 +85,16 @@ def foam_pattern(east: np.ndarray, north: np.ndarray, look: SeaLook, t: float) -
     return np.clip(patches * 1.6 - 0.55, 0, 1) * (0.45 + 0.55 * streaks)
 
 
-def shade_sea(height: np.ndarray, slope_e: np.ndarray, slope_n: np.ndarray, foam: np.ndarray,
-              view_dirs: np.ndarray, ranges: np.ndarray, light: Light, look: SeaLook
-              ) -> np.ndarray:
+def shade_sea(
+    height: np.ndarray,
+    slope_e: np.ndarray,
+    slope_n: np.ndarray,
+    foam: np.ndarray,
+    view_dirs: np.ndarray,
+    ranges: np.ndarray,
+    light: Light,
+    look: SeaLook,
+) -> np.ndarray:
     """Linear BGR radiance ``[H, W, 3]`` of the sea; ``view_dirs`` are the camera's rays
     (pointing down to the surface), ``ranges`` their lengths in metres."""
     norm = 1.0 / np.sqrt(1.0 + slope_e * slope_e + slope_n * slope_n)
@@ -103,22 +112,24 @@ def shade_sea(height: np.ndarray, slope_e: np.ndarray, slope_n: np.ndarray, foam
     m2 = look.facet_variance
     facets = np.exp((cos_d2 - 1.0) / (cos_d2 * m2)) / (math.pi * m2 * cos_d2 * cos_d2)
     half_cos = np.sqrt(h_len2) * 0.5  # cosine of the angle between the view and the half vector
-    glint = np.minimum(light.sun_radiance * fresnel_lookup(half_cos) * facets
-                       / (4 * cos_v * sun[2]), 40.0)
+    glint = np.minimum(
+        light.sun_radiance * fresnel_lookup(half_cos) * facets / (4 * cos_v * sun[2]), 40.0
+    )
 
-    crest = np.minimum(np.maximum((height - look.whitecap_height_m)
-                                  / max(look.whitecap_height_m, 0.05), 0.0), 1.0)
+    crest = np.minimum(
+        np.maximum((height - look.whitecap_height_m) / max(look.whitecap_height_m, 0.05), 0.0), 1.0
+    )
     patchy = np.maximum(foam, 0.0)
     streaks = look.foam_cover * np.maximum(foam - 0.6, 0.0) * 2.5
     cover = np.minimum(crest * 1.5 * patchy + streaks, 1.0)
     veil = 1.0 - np.exp(-ranges / light.visibility_m).astype(np.float32)
     # light scattered up through the facets that face the sun, and through thin crests
     facing = (nx * sun[0] + ny * sun[1]) * (4.0 / max(math.hypot(sun[0], sun[1]), 0.2))
-    swell = (1.0 + 0.8 * np.minimum(np.maximum(height, -0.5), 1.0)) * np.maximum(
-        1.0 + facing, 0.3)
+    swell = (1.0 + 0.8 * np.minimum(np.maximum(height, -0.5), 1.0)) * np.maximum(1.0 + facing, 0.3)
     channels = []
-    for c, glint_tint, foam_tint in zip(range(3), (0.92, 0.98, 1.0), (0.95, 0.97, 1.0),
-                                        strict=True):
+    for c, glint_tint, foam_tint in zip(
+        range(3), (0.92, 0.98, 1.0), (0.95, 0.97, 1.0), strict=True
+    ):
         sky = light.horizon_bgr[c] + (light.zenith_bgr[c] - light.horizon_bgr[c]) * sky_mix
         water = look.water_bgr[c] * swell
         value = water + reflectance * (sky - water) + glint_tint * glint

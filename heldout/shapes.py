@@ -48,7 +48,7 @@ class Capsule:
         ex, ey = bx - ax, by - ay
         length2 = max(ex * ex + ey * ey, 1e-12)
         s = np.clip(((x - ax) * ex + (y - ay) * ey) / length2, 0.0, 1.0)
-        return (x - ax - s * ex) ** 2 + (y - ay - s * ey) ** 2 <= self.radius ** 2
+        return (x - ax - s * ex) ** 2 + (y - ay - s * ey) ** 2 <= self.radius**2
 
     def reach(self) -> float:
         return float(max(np.hypot(*self.start), np.hypot(*self.end)) + self.radius)

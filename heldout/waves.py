@@ -17,8 +17,12 @@ GRAVITY = 9.81
 
 #: Sea state -> (significant wave height m, peak wavelength m, sub-pixel slope variance).
 SEA_STATES: dict[int, tuple[float, float, float]] = {
-    1: (0.1, 4.0, 0.004), 2: (0.3, 9.0, 0.010), 3: (0.8, 22.0, 0.020),
-    4: (1.6, 40.0, 0.032), 5: (2.8, 60.0, 0.045)}
+    1: (0.1, 4.0, 0.004),
+    2: (0.3, 9.0, 0.010),
+    3: (0.8, 22.0, 0.020),
+    4: (1.6, 40.0, 0.032),
+    5: (2.8, 60.0, 0.045),
+}
 
 
 @dataclass(frozen=True)
@@ -37,26 +41,36 @@ class WaveTrains:
         return float(np.sum(self.amplitude * np.cos(arg)))
 
 
-def draw_trains(rng: np.random.Generator, sea_state: int, wind_from_deg: float,
-                count: int = 40, shortest_m: float = 0.12, spread_kappa: float = 4.0
-                ) -> WaveTrains:
+def draw_trains(
+    rng: np.random.Generator,
+    sea_state: int,
+    wind_from_deg: float,
+    count: int = 40,
+    shortest_m: float = 0.12,
+    spread_kappa: float = 4.0,
+) -> WaveTrains:
     """Trains for ``sea_state`` (1-5) with the wind blowing from ``wind_from_deg``."""
     if sea_state not in SEA_STATES:
         raise ValueError(f"sea state must be one of {sorted(SEA_STATES)}, got {sea_state}")
     hs, peak_m, _ = SEA_STATES[sea_state]
     k_peak = 2 * math.pi / peak_m
-    log_k = np.linspace(math.log(2 * math.pi / (1.6 * peak_m)),
-                        math.log(2 * math.pi / shortest_m), count)
+    log_k = np.linspace(
+        math.log(2 * math.pi / (1.6 * peak_m)), math.log(2 * math.pi / shortest_m), count
+    )
     log_k += rng.uniform(-0.5, 0.5, count) * (log_k[1] - log_k[0])
     kmag = np.exp(log_k)
-    density = kmag ** -3.5 * np.exp(-1.25 * (k_peak / kmag) ** 2)
+    density = kmag**-3.5 * np.exp(-1.25 * (k_peak / kmag) ** 2)
     energy = density * kmag  # per unit log k
     amplitude = np.sqrt(energy / energy.sum()) * hs / (4 * math.sqrt(0.5))
     towards = math.radians(wind_from_deg + 180.0)
     direction = towards + rng.vonmises(0.0, spread_kappa, count)
     k = np.stack([kmag * np.sin(direction), kmag * np.cos(direction)], axis=1)
-    return WaveTrains(k=k, amplitude=amplitude, omega=np.sqrt(GRAVITY * kmag),
-                      phase=rng.uniform(0, 2 * math.pi, count))
+    return WaveTrains(
+        k=k,
+        amplitude=amplitude,
+        omega=np.sqrt(GRAVITY * kmag),
+        phase=rng.uniform(0, 2 * math.pi, count),
+    )
 
 
 @dataclass(frozen=True)
@@ -82,12 +96,15 @@ class GroundGrid:
     def index_of(self, east: np.ndarray, north: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Fractional (column, row) of world points."""
         de, dn = east - self.origin[0], north - self.origin[1]
-        return ((de * self.across[0] + dn * self.across[1]) / self.cell,
-                (de * self.along[0] + dn * self.along[1]) / self.cell)
+        return (
+            (de * self.across[0] + dn * self.across[1]) / self.cell,
+            (de * self.along[0] + dn * self.along[1]) / self.cell,
+        )
 
 
-def grid_covering(east: np.ndarray, north: np.ndarray, heading_deg: float, cell: float,
-                  max_cells: int) -> GroundGrid:
+def grid_covering(
+    east: np.ndarray, north: np.ndarray, heading_deg: float, cell: float, max_cells: int
+) -> GroundGrid:
     """The grid aligned with ``heading_deg`` that covers the given world points, its cell
     enlarged if needed so it holds at most ``max_cells`` cells."""
     psi = math.radians(heading_deg)
@@ -103,8 +120,9 @@ def grid_covering(east: np.ndarray, north: np.ndarray, heading_deg: float, cell:
     return GroundGrid(origin=origin, across=across, along=along, cell=cell, rows=rows, cols=cols)
 
 
-def surface_on_grid(trains: WaveTrains, grid: GroundGrid, t: float
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def surface_on_grid(
+    trains: WaveTrains, grid: GroundGrid, t: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Height and east/north slopes of the surface at every grid cell (float32 ``[rows, cols]``).
 
     Trains finer than two cells are left out (they would alias); the sub-pixel slope variance of
@@ -119,8 +137,14 @@ def surface_on_grid(trains: WaveTrains, grid: GroundGrid, t: float
     k_across = k @ grid.across
     rows = np.exp(1j * np.outer(np.arange(grid.rows) * grid.cell, k_along)).astype(np.complex64)
     cols = np.exp(1j * np.outer(k_across, np.arange(grid.cols) * grid.cell))
-    right = np.concatenate([weight[:, None] * cols, (1j * k[:, 0] * weight)[:, None] * cols,
-                            (1j * k[:, 1] * weight)[:, None] * cols], axis=1).astype(np.complex64)
+    right = np.concatenate(
+        [
+            weight[:, None] * cols,
+            (1j * k[:, 0] * weight)[:, None] * cols,
+            (1j * k[:, 1] * weight)[:, None] * cols,
+        ],
+        axis=1,
+    ).astype(np.complex64)
     field = (rows @ right).real
     n = grid.cols
-    return field[:, :n], field[:, n:2 * n], field[:, 2 * n:]
+    return field[:, :n], field[:, n : 2 * n], field[:, 2 * n :]

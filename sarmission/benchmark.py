@@ -127,21 +127,42 @@ def _memory_pass(image: np.ndarray) -> float:
     return (time.perf_counter() - start) * 1e3
 
 
-def _mitenet(ds: int, topn: int, model: str | None, runtime: str, ego_motion: str,
-             colour_share: float, crop_scales: tuple[float, ...],
-             refine_threshold: float | None):
+def _mitenet(
+    ds: int,
+    topn: int,
+    model: str | None,
+    runtime: str,
+    ego_motion: str,
+    colour_share: float,
+    crop_scales: tuple[float, ...],
+    refine_threshold: float | None,
+):
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
-    return MiteNet(build_head_runtime(model, runtime), ds=ds, topn=topn, ego_motion=ego_motion,
-                   colour_share=colour_share, crop_scales=crop_scales,
-                   refine_threshold=refine_threshold)
+    return MiteNet(
+        build_head_runtime(model, runtime),
+        ds=ds,
+        topn=topn,
+        ego_motion=ego_motion,
+        colour_share=colour_share,
+        crop_scales=crop_scales,
+        refine_threshold=refine_threshold,
+    )
 
 
-def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
-                   model: str | None, runtime: str, ego_motion: str = "estimate",
-                   colour_share: float = DEFAULT_COLOUR_SHARE,
-                   crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-                   refine_threshold: float | None = None) -> BenchRow:
+def measure_config(
+    ds: int,
+    topn: int,
+    width: int,
+    height: int,
+    frames: int,
+    model: str | None,
+    runtime: str,
+    ego_motion: str = "estimate",
+    colour_share: float = DEFAULT_COLOUR_SHARE,
+    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+    refine_threshold: float | None = None,
+) -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures).
 
     The memory pass runs on each frame right before MiteNet does, so both see the same caches,
@@ -151,8 +172,9 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
 
     apply_thread_plan()
     images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
-    net = _mitenet(ds, topn, model, runtime, ego_motion, colour_share, crop_scales,
-                   refine_threshold)
+    net = _mitenet(
+        ds, topn, model, runtime, ego_motion, colour_share, crop_scales, refine_threshold
+    )
     stage_ms: dict[str, list[float]] = {stage: [] for stage in STAGES}
     totals, proposals, memory_pass = [], [], []
     for i, image in enumerate(images):
@@ -172,14 +194,22 @@ def measure_config(ds: int, topn: int, width: int, height: int, frames: int,
     total = _median(totals)
     reference = _median(memory_pass)
     return BenchRow(
-        ds=ds, topn=topn, ego_motion=ego_motion, width=width, height=height, frames=len(totals),
+        ds=ds,
+        topn=topn,
+        ego_motion=ego_motion,
+        width=width,
+        height=height,
+        frames=len(totals),
         ms={stage: round(_median(v), 3) for stage, v in stage_ms.items()},
-        total_ms=round(total, 3), fps=round(1e3 / total, 2),
-        memory_pass_ms=round(reference, 3), ratio_to_memory_pass=round(total / reference, 2),
+        total_ms=round(total, 3),
+        fps=round(1e3 / total, 2),
+        memory_pass_ms=round(reference, 3),
+        ratio_to_memory_pass=round(total / reference, 2),
         gflops={k: round(v / 1e9, 4) for k, v in flops["flops"].items()},
         peak_rss_mb=peak,
         proposals_per_frame=round(float(np.mean(proposals)), 1),
-        colour_share=colour_share, crop_scales=tuple(crop_scales),
+        colour_share=colour_share,
+        crop_scales=tuple(crop_scales),
         refine_threshold=net.refine_threshold,
     )
 
@@ -195,11 +225,40 @@ def encode_clip(width: int, height: int, frames: int, folder: str | Path) -> Pat
     if ffmpeg is not None:
         path = folder / "bench_h264.mp4"
         encoder = subprocess.Popen(
-            [ffmpeg, "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24", "-s",
-             f"{width}x{height}", "-r", "30", "-i", "-", "-c:v", "libx264", "-preset",
-             "veryfast", "-b:v", CLIP_BITRATE, "-maxrate", CLIP_BITRATE, "-bufsize", "200M",
-             "-pix_fmt", "yuv420p", "-g", "30", str(path)],
-            stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+            [
+                ffmpeg,
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "bgr24",
+                "-s",
+                f"{width}x{height}",
+                "-r",
+                "30",
+                "-i",
+                "-",
+                "-c:v",
+                "libx264",
+                "-preset",
+                "veryfast",
+                "-b:v",
+                CLIP_BITRATE,
+                "-maxrate",
+                CLIP_BITRATE,
+                "-bufsize",
+                "200M",
+                "-pix_fmt",
+                "yuv420p",
+                "-g",
+                "30",
+                str(path),
+            ],
+            stdin=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         assert encoder.stdin is not None
         try:
             for image in images:
@@ -216,11 +275,18 @@ def encode_clip(width: int, height: int, frames: int, folder: str | Path) -> Pat
     return path
 
 
-def measure_clip(ds: int, topn: int, clip: str | Path, model: str | None, runtime: str,
-                 ego_motion: str = "estimate", colour_share: float = DEFAULT_COLOUR_SHARE,
-                 crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-                 refine_threshold: float | None = None,
-                 repeats: int = CLIP_REPEATS) -> ClipRow:
+def measure_clip(
+    ds: int,
+    topn: int,
+    clip: str | Path,
+    model: str | None,
+    runtime: str,
+    ego_motion: str = "estimate",
+    colour_share: float = DEFAULT_COLOUR_SHARE,
+    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+    refine_threshold: float | None = None,
+    repeats: int = CLIP_REPEATS,
+) -> ClipRow:
     """Alternate plain decoding passes and end-to-end passes (decoding one frame ahead in its
     own thread, as ``detect`` does) over ``clip``; call it in a fresh process."""
     import cv2
@@ -231,8 +297,9 @@ def measure_clip(ds: int, topn: int, clip: str | Path, model: str | None, runtim
 
     apply_thread_plan()
     source = VideoFileSource(Path(clip))
-    net = _mitenet(ds, topn, model, runtime, ego_motion, colour_share, crop_scales,
-                   refine_threshold)
+    net = _mitenet(
+        ds, topn, model, runtime, ego_motion, colour_share, crop_scales, refine_threshold
+    )
     for i, frame in enumerate(source):  # warm-up: JIT caches, allocator, onnxruntime
         net.process(frame.image_bgr, frame.timestamp_s)
         if i + 1 >= WARMUP_FRAMES:
@@ -260,16 +327,27 @@ def measure_clip(ds: int, topn: int, clip: str | Path, model: str | None, runtim
     capture.release()
     codec = "".join(chr((fourcc >> 8 * k) & 0xFF) for k in range(4)).strip() or "?"
     decode_ms, total_ms = _median(decode), _median(total)
-    return ClipRow(codec=codec, frames=count, decode_ms=round(decode_ms, 2),
-                   detect_ms=round(_median(detect), 2), total_ms=round(total_ms, 2),
-                   fps=round(1e3 / total_ms, 2), ratio=round(total_ms / decode_ms, 2),
-                   cpu_ms=round(_median(cpu), 2), peak_rss_mb=_peak_rss_mb())
+    return ClipRow(
+        codec=codec,
+        frames=count,
+        decode_ms=round(decode_ms, 2),
+        detect_ms=round(_median(detect), 2),
+        total_ms=round(total_ms, 2),
+        fps=round(1e3 / total_ms, 2),
+        ratio=round(total_ms / decode_ms, 2),
+        cpu_ms=round(_median(cpu), 2),
+        peak_rss_mb=_peak_rss_mb(),
+    )
 
 
-def _settings_argv(colour_share: float, crop_scales: tuple[float, ...],
-                   refine_threshold: float | None) -> list[str]:
-    return [repr(colour_share), ",".join(repr(v) for v in crop_scales),
-            "" if refine_threshold is None else repr(refine_threshold)]
+def _settings_argv(
+    colour_share: float, crop_scales: tuple[float, ...], refine_threshold: float | None
+) -> list[str]:
+    return [
+        repr(colour_share),
+        ",".join(repr(v) for v in crop_scales),
+        "" if refine_threshold is None else repr(refine_threshold),
+    ]
 
 
 def _run_worker(argv: list[str], what: str) -> dict:
@@ -280,21 +358,30 @@ def _run_worker(argv: list[str], what: str) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: int,
-              frames: int, model: str | None, runtime: str, ego_motion: str = "estimate",
-              on_row: Callable[[BenchRow], None] | None = None,
-              colour_share: float = DEFAULT_COLOUR_SHARE,
-              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-              refine_threshold: float | None = None, clip: str | Path | None = None
-              ) -> list[BenchRow]:
+def run_sweep(
+    ds_values: list[int],
+    topn_values: list[int],
+    width: int,
+    height: int,
+    frames: int,
+    model: str | None,
+    runtime: str,
+    ego_motion: str = "estimate",
+    on_row: Callable[[BenchRow], None] | None = None,
+    colour_share: float = DEFAULT_COLOUR_SHARE,
+    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+    refine_threshold: float | None = None,
+    clip: str | Path | None = None,
+) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process (and, with ``clip``, its end-to-end
     passes over that video in another) and collect the rows; ``on_row`` sees each."""
     settings = _settings_argv(colour_share, crop_scales, refine_threshold)
     rows = []
     for ds, topn in [(ds, n) for ds in ds_values for n in topn_values]:
         common = [str(ds), str(topn), model or "", runtime, ego_motion, *settings]
-        row = _run_worker(["memory", *common, str(width), str(height), str(frames)],
-                          f"ds={ds} N={topn}")
+        row = _run_worker(
+            ["memory", *common, str(width), str(height), str(frames)], f"ds={ds} N={topn}"
+        )
         row["crop_scales"] = tuple(row["crop_scales"])
         if clip is not None:
             row["clip"] = _run_worker(["clip", *common, str(clip)], f"ds={ds} N={topn} on {clip}")
@@ -306,9 +393,11 @@ def run_sweep(ds_values: list[int], topn_values: list[int], width: int, height: 
 
 def format_table(rows: list[BenchRow]) -> str:
     """Render the rows as a fixed-width text table."""
-    header = (f"{'ds':>2} {'N':>4} {'vstmd':>7} {'colour':>6} {'rpn':>6} {'crops':>6} {'head':>6} "
-              f"{'total':>7} {'FPS':>6} {'mem':>6} {'ratio':>6} {'GFLOPs':>7} {'RSS MB':>7} "
-              f"{'props':>6}")
+    header = (
+        f"{'ds':>2} {'N':>4} {'vstmd':>7} {'colour':>6} {'rpn':>6} {'crops':>6} {'head':>6} "
+        f"{'total':>7} {'FPS':>6} {'mem':>6} {'ratio':>6} {'GFLOPs':>7} {'RSS MB':>7} "
+        f"{'props':>6}"
+    )
     lines = [header, "-" * len(header)]
     for r in rows:
         lines.append(
@@ -317,16 +406,23 @@ def format_table(rows: list[BenchRow]) -> str:
             f"{r.ms['crops']:>6.2f} {r.ms['head']:>6.2f} {r.total_ms:>7.2f} {r.fps:>6.1f} "
             f"{r.memory_pass_ms:>6.2f} {r.ratio_to_memory_pass:>6.1f} "
             f"{r.gflops.get('total', float('nan')):>7.4f} {r.peak_rss_mb:>7.0f} "
-            f"{r.proposals_per_frame:>6.1f}")
-    lines.append("times in ms (medians per frame); mem = plain memory pass (BGR copy + grayscale) "
-                 "on each frame just before MITE-Net; ratio = total / mem")
+            f"{r.proposals_per_frame:>6.1f}"
+        )
+    lines.append(
+        "times in ms (medians per frame); mem = plain memory pass (BGR copy + grayscale) "
+        "on each frame just before MITE-Net; ratio = total / mem"
+    )
     if rows:
         scales = ",".join(f"{v:g}" for v in rows[0].crop_scales)
-        lines.append(f"ego-motion compensation: {rows[0].ego_motion}; colour share "
-                     f"{rows[0].colour_share:g}; crop scales {scales}"
-                     + (f" (further scales from first-crop score {rows[0].refine_threshold:g})"
-                        if len(rows[0].crop_scales) > 1 and rows[0].refine_threshold is not None
-                        else ""))
+        lines.append(
+            f"ego-motion compensation: {rows[0].ego_motion}; colour share "
+            f"{rows[0].colour_share:g}; crop scales {scales}"
+            + (
+                f" (further scales from first-crop score {rows[0].refine_threshold:g})"
+                if len(rows[0].crop_scales) > 1 and rows[0].refine_threshold is not None
+                else ""
+            )
+        )
     clip_rows = [r for r in rows if r.clip]
     if clip_rows:
         lines += ["", _clip_table(clip_rows)]
@@ -335,20 +431,29 @@ def format_table(rows: list[BenchRow]) -> str:
 
 def _clip_table(rows: list[BenchRow]) -> str:
     """End-to-end rows: decoding alone, then decoding overlapped with MiteNet."""
-    header = (f"{'ds':>2} {'N':>4} {'decode':>7} {'detect':>7} {'total':>7} {'FPS':>6} "
-              f"{'ratio':>6} {'CPU':>7} {'RSS MB':>7}")
-    lines = [f"end to end on an encoded clip ({rows[0].clip['codec']}, "
-             f"{rows[0].width}x{rows[0].height}, {rows[0].clip['frames']} frames):", header,
-             "-" * len(header)]
+    header = (
+        f"{'ds':>2} {'N':>4} {'decode':>7} {'detect':>7} {'total':>7} {'FPS':>6} "
+        f"{'ratio':>6} {'CPU':>7} {'RSS MB':>7}"
+    )
+    lines = [
+        f"end to end on an encoded clip ({rows[0].clip['codec']}, "
+        f"{rows[0].width}x{rows[0].height}, {rows[0].clip['frames']} frames):",
+        header,
+        "-" * len(header),
+    ]
     for r in rows:
         c = r.clip
-        lines.append(f"{r.ds:>2} {r.topn:>4} {c['decode_ms']:>7.1f} {c['detect_ms']:>7.1f} "
-                     f"{c['total_ms']:>7.1f} {c['fps']:>6.1f} {c['ratio']:>6.2f} "
-                     f"{c['cpu_ms']:>7.1f} {c['peak_rss_mb']:>7.0f}")
-    lines.append("decode = plain decoding pass; detect = MiteNet while decoding runs in its own "
-                 "thread; total = that pass per frame; ratio = total / decode; CPU = CPU time "
-                 "per frame, all threads; passes alternate, medians of "
-                 f"{CLIP_REPEATS}")
+        lines.append(
+            f"{r.ds:>2} {r.topn:>4} {c['decode_ms']:>7.1f} {c['detect_ms']:>7.1f} "
+            f"{c['total_ms']:>7.1f} {c['fps']:>6.1f} {c['ratio']:>6.2f} "
+            f"{c['cpu_ms']:>7.1f} {c['peak_rss_mb']:>7.0f}"
+        )
+    lines.append(
+        "decode = plain decoding pass; detect = MiteNet while decoding runs in its own "
+        "thread; total = that pass per frame; ratio = total / decode; CPU = CPU time "
+        "per frame, all threads; passes alternate, medians of "
+        f"{CLIP_REPEATS}"
+    )
     return "\n".join(lines)
 
 
@@ -365,11 +470,13 @@ def _worker(argv: list[str]) -> None:
     settings = (ego_motion, colour_share, crop_scales, refine_threshold)
     if mode == "memory":
         width, height, frames = (int(v) for v in argv[9:12])
-        row = asdict(measure_config(int(ds), int(topn), width, height, frames, model or None,
-                                    runtime, *settings))
+        row = asdict(
+            measure_config(
+                int(ds), int(topn), width, height, frames, model or None, runtime, *settings
+            )
+        )
     else:
-        row = asdict(measure_clip(int(ds), int(topn), argv[9], model or None, runtime,
-                                  *settings))
+        row = asdict(measure_clip(int(ds), int(topn), argv[9], model or None, runtime, *settings))
     print(json.dumps(row))
 
 

@@ -36,8 +36,9 @@ def cxcywh_to_xyxy(boxes: np.ndarray) -> np.ndarray:
     """Convert ``[..., 4]`` centre-size boxes to corner boxes."""
     b = np.asarray(boxes, dtype=np.float64)
     half_w, half_h = b[..., 2] / 2, b[..., 3] / 2
-    return np.stack([b[..., 0] - half_w, b[..., 1] - half_h, b[..., 0] + half_w,
-                     b[..., 1] + half_h], axis=-1)
+    return np.stack(
+        [b[..., 0] - half_w, b[..., 1] - half_h, b[..., 0] + half_w, b[..., 1] + half_h], axis=-1
+    )
 
 
 def xywh_to_xyxy(boxes: np.ndarray) -> np.ndarray:
@@ -66,21 +67,29 @@ def size_band(area: float) -> str:
     return "larger"
 
 
-def nwd_matrix(a_xyxy: np.ndarray, b_xyxy: np.ndarray,
-               constant: float = NWD_CONSTANT) -> np.ndarray:
+def nwd_matrix(
+    a_xyxy: np.ndarray, b_xyxy: np.ndarray, constant: float = NWD_CONSTANT
+) -> np.ndarray:
     """Pairwise NWD similarity in [0, 1] between ``M`` boxes and ``N`` boxes → ``[M, N]``."""
     a = xyxy_to_cxcywh(np.asarray(a_xyxy, dtype=np.float64).reshape(-1, 4))
     b = xyxy_to_cxcywh(np.asarray(b_xyxy, dtype=np.float64).reshape(-1, 4))
-    d2 = ((a[:, None, 0] - b[None, :, 0]) ** 2 + (a[:, None, 1] - b[None, :, 1]) ** 2
-          + ((a[:, None, 2] - b[None, :, 2]) ** 2 + (a[:, None, 3] - b[None, :, 3]) ** 2) / 4.0)
+    d2 = (
+        (a[:, None, 0] - b[None, :, 0]) ** 2
+        + (a[:, None, 1] - b[None, :, 1]) ** 2
+        + ((a[:, None, 2] - b[None, :, 2]) ** 2 + (a[:, None, 3] - b[None, :, 3]) ** 2) / 4.0
+    )
     return np.exp(-np.sqrt(d2) / constant)
 
 
-def nwd_pairwise(a_xyxy: np.ndarray, b_xyxy: np.ndarray,
-                 constant: float = NWD_CONSTANT) -> np.ndarray:
+def nwd_pairwise(
+    a_xyxy: np.ndarray, b_xyxy: np.ndarray, constant: float = NWD_CONSTANT
+) -> np.ndarray:
     """Element-wise NWD between two aligned ``[N, 4]`` box arrays → ``[N]``."""
     a = xyxy_to_cxcywh(np.asarray(a_xyxy, dtype=np.float64).reshape(-1, 4))
     b = xyxy_to_cxcywh(np.asarray(b_xyxy, dtype=np.float64).reshape(-1, 4))
-    d2 = ((a[:, 0] - b[:, 0]) ** 2 + (a[:, 1] - b[:, 1]) ** 2
-          + ((a[:, 2] - b[:, 2]) ** 2 + (a[:, 3] - b[:, 3]) ** 2) / 4.0)
+    d2 = (
+        (a[:, 0] - b[:, 0]) ** 2
+        + (a[:, 1] - b[:, 1]) ** 2
+        + ((a[:, 2] - b[:, 2]) ** 2 + (a[:, 3] - b[:, 3]) ** 2) / 4.0
+    )
     return np.exp(-np.sqrt(d2) / constant)

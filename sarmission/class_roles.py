@@ -22,19 +22,28 @@ import numpy as np
 Role = Literal["person", "appliance", "object"]
 
 #: Classes that are people to find.
-PERSON_CLASSES: frozenset[str] = frozenset({
-    "swimmer", "swimmer_with_life_jacket", "person", "floater", "swimmer_with_lifejacket"})
+PERSON_CLASSES: frozenset[str] = frozenset(
+    {"swimmer", "swimmer_with_life_jacket", "person", "floater", "swimmer_with_lifejacket"}
+)
 #: Life-saving appliances (life rings, life rafts): worth their own alert.
-APPLIANCE_CLASSES: frozenset[str] = frozenset({
-    "life_saving_appliances", "life_saving_appliance", "life_ring", "lifebuoy", "life_raft"})
+APPLIANCE_CLASSES: frozenset[str] = frozenset(
+    {"life_saving_appliances", "life_saving_appliance", "life_ring", "lifebuoy", "life_raft"}
+)
 #: Things a search meets that are neither (never alerted).
-OBJECT_CLASSES: frozenset[str] = frozenset({
-    "boat", "jetski", "buoy", "bird", "debris", "sun_glint", "car", "vehicle", "animal"})
+OBJECT_CLASSES: frozenset[str] = frozenset(
+    {"boat", "jetski", "buoy", "bird", "debris", "sun_glint", "car", "vehicle", "animal"}
+)
 
 #: The maritime head's classes: the people first (class ids 0 and 1 as in every earlier head),
 #: then what SeaDronesSee annotates beside them.
-MARITIME_CLASSES: tuple[str, ...] = ("swimmer", "swimmer_with_life_jacket", "boat", "jetski",
-                                     "buoy", "life_saving_appliances")
+MARITIME_CLASSES: tuple[str, ...] = (
+    "swimmer",
+    "swimmer_with_life_jacket",
+    "boat",
+    "jetski",
+    "buoy",
+    "life_saving_appliances",
+)
 
 
 def normalise_class(name: str) -> str:
@@ -63,8 +72,10 @@ def person_class_ids(classes: Sequence[str]) -> np.ndarray:
 
 
 #: Names an operator reads on a 50-byte STATUSTEXT and a map marker, where the class name is long.
-SHORT_LABELS: dict[str, str] = {"life_saving_appliances": "life ring",
-                                "life_saving_appliance": "life ring"}
+SHORT_LABELS: dict[str, str] = {
+    "life_saving_appliances": "life ring",
+    "life_saving_appliance": "life ring",
+}
 
 
 def short_label(name: str) -> str:

@@ -17,9 +17,13 @@ from collections.abc import Callable, Hashable
 class RateLimitedLog:
     """Counts events by key; logs at most one line per key every ``interval_s`` seconds."""
 
-    def __init__(self, logger: logging.Logger, interval_s: float = 5.0,
-                 level: int = logging.WARNING,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        logger: logging.Logger,
+        interval_s: float = 5.0,
+        level: int = logging.WARNING,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.logger = logger
         self.interval_s = interval_s
         self.level = level

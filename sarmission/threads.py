@@ -55,8 +55,14 @@ def available_cores() -> int:
 def plan_for(cores: int) -> ThreadPlan:
     """The plan for ``cores`` cores (module docstring)."""
     cores = max(1, int(cores))
-    return ThreadPlan(cores=cores, decode=min(cores, 4), opencv=min(cores, max(2, cores // 2)),
-                      onnx=min(cores, 2), numba=cores, torch=cores)
+    return ThreadPlan(
+        cores=cores,
+        decode=min(cores, 4),
+        opencv=min(cores, max(2, cores // 2)),
+        onnx=min(cores, 2),
+        numba=cores,
+        torch=cores,
+    )
 
 
 _applied: ThreadPlan | None = None

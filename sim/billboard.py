@@ -40,8 +40,9 @@ class Billboard:
     right_local: tuple[float, float]
 
 
-def billboard_for(camera_ned: np.ndarray, centre_ned: np.ndarray,
-                  heading: float) -> Billboard | None:
+def billboard_for(
+    camera_ned: np.ndarray, centre_ned: np.ndarray, heading: float
+) -> Billboard | None:
     """The billboard of an object at ``centre_ned`` with ``heading`` (radians from north) seen
     from ``camera_ned``; None when the camera is straight above it (no upright part shows)."""
     line = np.asarray(centre_ned, float) - np.asarray(camera_ned, float)
@@ -56,8 +57,14 @@ def billboard_for(camera_ned: np.ndarray, centre_ned: np.ndarray,
     cos_depression = float(np.linalg.norm(across))
     c, s = math.cos(heading), math.sin(heading)
     right_local = (right[0] * c + right[1] * s, -right[0] * s + right[1] * c)
-    return Billboard(np.asarray(centre_ned, float), right, across / cos_depression,
-                     cos_depression, float(sight[2]), right_local)
+    return Billboard(
+        np.asarray(centre_ned, float),
+        right,
+        across / cos_depression,
+        cos_depression,
+        float(sight[2]),
+        right_local,
+    )
 
 
 def billboard_parts(uprights: list[Upright], board: Billboard) -> list[Part]:
@@ -77,18 +84,40 @@ def billboard_parts(uprights: list[Upright], board: Billboard) -> list[Part]:
             depth = abs(u.half_length * fx) + abs(u.half_width * fy)
         foot = (u.x * fx + u.y * fy - depth) * board.sin_depression + k * u.bottom
         if u.tilt == 0.0:
-            parts.append(Part(u.shape, across, foot + k * height / 2, half, k * height / 2,
-                              0.0, u.bgr, u.opacity, u.shade, u.in_box))
+            parts.append(
+                Part(
+                    u.shape,
+                    across,
+                    foot + k * height / 2,
+                    half,
+                    k * height / 2,
+                    0.0,
+                    u.bgr,
+                    u.opacity,
+                    u.shade,
+                    u.in_box,
+                )
+            )
             continue
         # A leaning limb: from its foot along (sin tilt, cos tilt), heights compressed by k.
         st, ct = math.sin(u.tilt), math.cos(u.tilt)
-        parts.append(Part("ellipse", across + height / 2 * st, foot + k * height / 2 * ct,
-                          height / 2 * math.hypot(st, k * ct), u.half_width,
-                          math.atan2(k * ct, st), u.bgr, u.opacity, u.shade, u.in_box))
+        parts.append(
+            Part(
+                "ellipse",
+                across + height / 2 * st,
+                foot + k * height / 2 * ct,
+                height / 2 * math.hypot(st, k * ct),
+                u.half_width,
+                math.atan2(k * ct, st),
+                u.bgr,
+                u.opacity,
+                u.shade,
+                u.in_box,
+            )
+        )
     return parts
 
 
-def billboard_homography(intr: CameraIntrinsics, pose: CameraPose,
-                         board: Billboard) -> np.ndarray:
+def billboard_homography(intr: CameraIntrinsics, pose: CameraPose, board: Billboard) -> np.ndarray:
     """3x3 map from billboard metres ``(x, y, 1)`` to pixels ``(u w, v w, w)``."""
     return plane_homography(intr, pose, board.centre_ned, board.right_ned, board.up_ned)

@@ -47,10 +47,19 @@ class FrameTruth:
 def mission_scenario(vehicle: SimVehicle, seed: int | None = None, **kwargs: object) -> Scenario:
     """A maritime scenario over the vehicle's search area (its bounding box in NED metres)."""
     pts = np.asarray(vehicle.mission.area.polygon_ne(), dtype=float)
-    area = (float(pts[:, 0].min()), float(pts[:, 1].min()), float(pts[:, 0].max()),
-            float(pts[:, 1].max()))
-    return Scenario(kind="maritime", seed=vehicle.seed if seed is None else seed, area_ne=area,
-                    wind_from_deg=vehicle.mission.sim.wind_from_deg, **kwargs)
+    area = (
+        float(pts[:, 0].min()),
+        float(pts[:, 1].min()),
+        float(pts[:, 0].max()),
+        float(pts[:, 1].max()),
+    )
+    return Scenario(
+        kind="maritime",
+        seed=vehicle.seed if seed is None else seed,
+        area_ne=area,
+        wind_from_deg=vehicle.mission.sim.wind_from_deg,
+        **kwargs,
+    )
 
 
 class SimCamera:
@@ -65,9 +74,15 @@ class SimCamera:
         corrupt_every: deliver every n-th frame truncated (0: never).
     """
 
-    def __init__(self, vehicle: SimVehicle, renderer: Renderer | None = None,
-                 scenario: Scenario | None = None, size: tuple[int, int] | None = None,
-                 fps: float | None = None, corrupt_every: int = 0) -> None:
+    def __init__(
+        self,
+        vehicle: SimVehicle,
+        renderer: Renderer | None = None,
+        scenario: Scenario | None = None,
+        size: tuple[int, int] | None = None,
+        fps: float | None = None,
+        corrupt_every: int = 0,
+    ) -> None:
         if fps is not None and fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
         if corrupt_every < 0:
@@ -76,8 +91,9 @@ class SimCamera:
         camera = vehicle.mission.camera.intrinsics()
         self.intrinsics: CameraIntrinsics = camera if size is None else camera.scaled(*size)
         if renderer is None:
-            renderer = SceneRenderer(scenario or mission_scenario(vehicle), self.intrinsics,
-                                     home=vehicle.home)
+            renderer = SceneRenderer(
+                scenario or mission_scenario(vehicle), self.intrinsics, home=vehicle.home
+            )
         self.renderer = renderer
         self.fps = fps
         self.corrupt_every = corrupt_every
@@ -99,8 +115,14 @@ class SimCamera:
         image, annotations = self.renderer.render(t, self.vehicle.camera_pose(t))
         index = self._count
         self._count += 1
-        self.truth.append(FrameTruth(index, t, [a for a in annotations if a.is_target],
-                                     [a for a in annotations if not a.is_target]))
+        self.truth.append(
+            FrameTruth(
+                index,
+                t,
+                [a for a in annotations if a.is_target],
+                [a for a in annotations if not a.is_target],
+            )
+        )
         if self.corrupt_every and (index + 1) % self.corrupt_every == 0:
             self.corrupted += 1
             image = image[: image.shape[0] // 2]

@@ -62,8 +62,9 @@ def is_annotation_file(path: str | Path) -> bool:
     return p.suffix.lower() == ".json" and p.is_file()
 
 
-def to_object_annotation(ann: Annotation, category: str, supercategory: str | None
-                         ) -> ObjectAnnotation:
+def to_object_annotation(
+    ann: Annotation, category: str, supercategory: str | None
+) -> ObjectAnnotation:
     """A COCO box as the simulator's annotation (what a run's scoring reads)."""
     x, y, w, h = ann.bbox
     extra = ann.extra or {}
@@ -71,8 +72,11 @@ def to_object_annotation(ann: Annotation, category: str, supercategory: str | No
     if not isinstance(is_target, bool):
         is_target = category in TARGET_CATEGORIES or supercategory == "person"
     ned = extra.get("position_ned")
-    position = (tuple(float(v) for v in ned) if isinstance(ned, list) and len(ned) == 3
-                else (math.nan, math.nan, math.nan))
+    position = (
+        tuple(float(v) for v in ned)
+        if isinstance(ned, list) and len(ned) == 3
+        else (math.nan, math.nan, math.nan)
+    )
     visibility = extra.get("visibility")
     return ObjectAnnotation(
         track_id=ann.track_id if ann.track_id is not None else -ann.id,
@@ -178,9 +182,15 @@ class FootageRenderer:
         start_s: time ``t`` at which the first frame is shown.
     """
 
-    def __init__(self, path_or_dataset: str | Path | VideoDataset, fps: float | None = None,
-                 annotations: str | Path | VideoDataset | None = None,
-                 video_id: int | None = None, loop: bool = False, start_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        path_or_dataset: str | Path | VideoDataset,
+        fps: float | None = None,
+        annotations: str | Path | VideoDataset | None = None,
+        video_id: int | None = None,
+        loop: bool = False,
+        start_s: float = 0.0,
+    ) -> None:
         from sim.meta_flight import dataset_fps
 
         if fps is not None and fps <= 0:
@@ -214,17 +224,19 @@ class FootageRenderer:
             for k, im in enumerate(images):
                 index = im.frame_index if im.frame_index is not None else k
                 position[im.id] = index
-                self._gt[index] = [to_object_annotation(a, *names.get(a.category_id, ("?", None)))
-                                   for a in by_image.get(im.id, [])]
+                self._gt[index] = [
+                    to_object_annotation(a, *names.get(a.category_id, ("?", None)))
+                    for a in by_image.get(im.id, [])
+                ]
             if footage is None:
                 footage = video_file(dataset, video_id) if video_id is not None else None
                 if footage is None:
                     files = [dataset.image_path(im) for im in images]
                     if images[0].frame_index not in (None, 0):
-                        log.info("video %s starts at frame_index %s", video_id,
-                                 images[0].frame_index)
-                    self._gt = {k: self._gt.get(position[im.id], []) for k, im in
-                                enumerate(images)}
+                        log.info(
+                            "video %s starts at frame_index %s", video_id, images[0].frame_index
+                        )
+                    self._gt = {k: self._gt.get(position[im.id], []) for k, im in enumerate(images)}
                     self._frames = _FileFrames(files)
         if footage is not None:
             if not footage.exists():
@@ -265,15 +277,17 @@ class FootageRenderer:
             return self._cache[index]
         image = self._frames.get(index)
         if image is None:
-            raise EndOfFootage(f"frame {index} is past the end of the footage "
-                               f"({self._frames.length} frames)")
+            raise EndOfFootage(
+                f"frame {index} is past the end of the footage ({self._frames.length} frames)"
+            )
         self._cache[index] = image
         while len(self._cache) > CACHE_FRAMES:
             self._cache.popitem(last=False)
         return image
 
-    def render(self, t: float, pose: CameraPose | None = None
-               ) -> tuple[np.ndarray, list[ObjectAnnotation]]:
+    def render(
+        self, t: float, pose: CameraPose | None = None
+    ) -> tuple[np.ndarray, list[ObjectAnnotation]]:
         """The frame shown at ``t`` and its annotations ([] without ground truth)."""
         index = self.index_at(t)
         try:

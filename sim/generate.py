@@ -63,19 +63,37 @@ def frame_meta(state: VehicleState, home: tuple[float, float, float]) -> dict[st
 def _coco_annotation(ann: ObjectAnnotation, ann_id: int, image_id: int) -> Annotation:
     x0, y0, x1, y1 = ann.bbox_xyxy
     return Annotation(
-        id=ann_id, image_id=image_id, category_id=ann.category_id,
+        id=ann_id,
+        image_id=image_id,
+        category_id=ann.category_id,
         bbox=(round(x0, 3), round(y0, 3), round(x1 - x0, 3), round(y1 - y0, 3)),
-        track_id=ann.track_id, video_id=1, area=round(ann.area, 3), gt_lat=ann.lat,
+        track_id=ann.track_id,
+        video_id=1,
+        area=round(ann.area, 3),
+        gt_lat=ann.lat,
         gt_lon=ann.lon,
-        extra={"visibility": round(ann.visibility, 3), "is_target": ann.is_target,
-               "position_ned": [round(v, 3) for v in ann.position_ned]})
+        extra={
+            "visibility": round(ann.visibility, 3),
+            "is_target": ann.is_target,
+            "position_ned": [round(v, 3) for v in ann.position_ned],
+        },
+    )
 
 
-def generate_sequence(scenario: Scenario, mission_or_flight: MissionConfig | Flight, frames: int,
-                      size: tuple[int, int] = (3840, 2160), seed: int = 0,
-                      out_dir: str | Path = ".", fps: float = 30.0, video: bool = True,
-                      progress: bool = True, name: str | None = None, start_s: float = 0.0,
-                      image_ext: str = ".jpg") -> Path:
+def generate_sequence(
+    scenario: Scenario,
+    mission_or_flight: MissionConfig | Flight,
+    frames: int,
+    size: tuple[int, int] = (3840, 2160),
+    seed: int = 0,
+    out_dir: str | Path = ".",
+    fps: float = 30.0,
+    video: bool = True,
+    progress: bool = True,
+    name: str | None = None,
+    start_s: float = 0.0,
+    image_ext: str = ".jpg",
+) -> Path:
     """Render ``frames`` frames at ``fps`` from ``start_s`` seconds into the flight.
 
     ``mission_or_flight`` is a :class:`MissionConfig` (flown by :class:`Flight` with ``seed``) or
@@ -98,8 +116,9 @@ def generate_sequence(scenario: Scenario, mission_or_flight: MissionConfig | Fli
     writer = None
     if video:
         video_extra["file_name"] = f"{name}.mp4"
-        writer = cv2.VideoWriter(str(out / f"{name}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), fps,
-                                 (width, height))
+        writer = cv2.VideoWriter(
+            str(out / f"{name}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), fps, (width, height)
+        )
         if not writer.isOpened():
             raise OSError(f"cannot open a video writer for {out / f'{name}.mp4'}")
     else:
@@ -116,21 +135,41 @@ def generate_sequence(scenario: Scenario, mission_or_flight: MissionConfig | Fli
                 writer.write(frame)
             elif not cv2.imwrite(str(out / file_name), frame):
                 raise OSError(f"cannot write {out / file_name}")
-            images.append(ImageRecord(id=i + 1, file_name=file_name, height=height, width=width,
-                                      video_id=1, frame_index=i, meta=frame_meta(state, home)))
+            images.append(
+                ImageRecord(
+                    id=i + 1,
+                    file_name=file_name,
+                    height=height,
+                    width=width,
+                    video_id=1,
+                    frame_index=i,
+                    meta=frame_meta(state, home),
+                )
+            )
             for ann in anns:
                 annotations.append(_coco_annotation(ann, len(annotations) + 1, i + 1))
     finally:
         if writer is not None:
             writer.release()
-    categories = [Category(cid, cname, "person" if cname in TARGET_CATEGORIES else "object")
-                  for cname, cid in CATEGORIES.items()]
+    categories = [
+        Category(cid, cname, "person" if cname in TARGET_CATEGORIES else "object")
+        for cname, cid in CATEGORIES.items()
+    ]
     dataset = VideoDataset(
-        videos=[Video(1, name, video_extra)], images=images, annotations=annotations,
+        videos=[Video(1, name, video_extra)],
+        images=images,
+        annotations=annotations,
         categories=categories,
-        info={"description": f"sarmission synthetic {scenario.kind} scene", "seed": scenario.seed,
-              "sea_state": scenario.sea_state, "fps": fps, "start_s": start_s,
-              "home": list(home), INFO_KEY: {"gimbal_pitch": DEPRESSION}})
+        info={
+            "description": f"sarmission synthetic {scenario.kind} scene",
+            "seed": scenario.seed,
+            "sea_state": scenario.sea_state,
+            "fps": fps,
+            "start_s": start_s,
+            "home": list(home),
+            INFO_KEY: {"gimbal_pitch": DEPRESSION},
+        },
+    )
     path = out / f"{name}.json"
     write_coco_video(dataset, path)
     return path
@@ -151,20 +190,41 @@ def merge_datasets(datasets: list[VideoDataset], info: dict | None = None) -> Vi
         video_ids = {v.id: len(videos) + i + 1 for i, v in enumerate(dataset.videos)}
         image_ids = {im.id: len(images) + i + 1 for i, im in enumerate(dataset.images)}
         videos += [dataclasses.replace(v, id=video_ids[v.id]) for v in dataset.videos]
-        images += [dataclasses.replace(im, id=image_ids[im.id], video_id=video_ids[im.video_id])
-                   for im in dataset.images]
-        annotations += [dataclasses.replace(a, id=len(annotations) + i + 1,
-                                            image_id=image_ids[a.image_id],
-                                            video_id=video_ids.get(a.video_id, a.video_id))
-                        for i, a in enumerate(dataset.annotations)]
-    return VideoDataset(videos=videos, images=images, annotations=annotations,
-                        categories=datasets[0].categories, info=info or datasets[0].info)
+        images += [
+            dataclasses.replace(im, id=image_ids[im.id], video_id=video_ids[im.video_id])
+            for im in dataset.images
+        ]
+        annotations += [
+            dataclasses.replace(
+                a,
+                id=len(annotations) + i + 1,
+                image_id=image_ids[a.image_id],
+                video_id=video_ids.get(a.video_id, a.video_id),
+            )
+            for i, a in enumerate(dataset.annotations)
+        ]
+    return VideoDataset(
+        videos=videos,
+        images=images,
+        annotations=annotations,
+        categories=datasets[0].categories,
+        info=info or datasets[0].info,
+    )
 
 
-def generate_split(preset_name: str, sequences: int, frames: int, out_dir: str | Path,
-                   size: tuple[int, int] = (3840, 2160), fps: float = 30.0,
-                   first_start_s: float = 5.0, spacing_s: float = 15.0, video: bool = True,
-                   progress: bool = True, seed: int | None = None) -> Path:
+def generate_split(
+    preset_name: str,
+    sequences: int,
+    frames: int,
+    out_dir: str | Path,
+    size: tuple[int, int] = (3840, 2160),
+    fps: float = 30.0,
+    first_start_s: float = 5.0,
+    spacing_s: float = 15.0,
+    video: bool = True,
+    progress: bool = True,
+    seed: int | None = None,
+) -> Path:
     """Render ``sequences`` clips of a preset along its flight and merge them into one file.
 
     Clip ``i`` starts ``first_start_s + i * spacing_s`` seconds into the flight (the world and the
@@ -181,14 +241,24 @@ def generate_split(preset_name: str, sequences: int, frames: int, out_dir: str |
     out = Path(out_dir)
     parts = []
     for i in range(sequences):
-        path = generate_sequence(scenario, chosen.mission, frames, size=size,
-                                 seed=scenario.seed, out_dir=out, fps=fps, video=video,
-                                 progress=progress, name=f"{preset_name}_{i:02d}",
-                                 start_s=first_start_s + i * spacing_s)
+        path = generate_sequence(
+            scenario,
+            chosen.mission,
+            frames,
+            size=size,
+            seed=scenario.seed,
+            out_dir=out,
+            fps=fps,
+            video=video,
+            progress=progress,
+            name=f"{preset_name}_{i:02d}",
+            start_s=first_start_s + i * spacing_s,
+        )
         parts.append(read_coco_video(path))
         path.unlink()
-    merged = merge_datasets(parts, info={**parts[0].info, "preset": preset_name,
-                                         "sequences": sequences})
+    merged = merge_datasets(
+        parts, info={**parts[0].info, "preset": preset_name, "sequences": sequences}
+    )
     path = out / f"{preset_name}.json"
     write_coco_video(merged, path)
     return path

@@ -55,11 +55,13 @@ class UrbanGround:
     def texel_from_ground(self) -> np.ndarray:
         """3x3 matrix taking homogeneous ground ``(north, east, 1)`` to texel ``(col, row, 1)``."""
         s = self.texel_m
-        return np.array([[0.0, 1 / s, -self.east_left / s], [-1 / s, 0.0, self.north_top / s],
-                         [0.0, 0.0, 1.0]])
+        return np.array(
+            [[0.0, 1 / s, -self.east_left / s], [-1 / s, 0.0, self.north_top / s], [0.0, 0.0, 1.0]]
+        )
 
-    def _rect(self, img: np.ndarray, rect: tuple[float, float, float, float],
-              bgr: tuple[float, ...]) -> None:
+    def _rect(
+        self, img: np.ndarray, rect: tuple[float, float, float, float], bgr: tuple[float, ...]
+    ) -> None:
         n0, e0, n1, e1 = rect
         c0, r0 = self.texel(n1, e0)
         c1, r1 = self.texel(n0, e1)
@@ -114,7 +116,7 @@ class UrbanGround:
             c, r = self.texel(tn + away[0] * 4 * per_m, te + away[1] * 4 * per_m)
             cv2.circle(shadow, (int(c), int(r)), int(tr / self.texel_m), 255, -1)
         shadow = cv2.GaussianBlur(shadow, (0, 0), 0.3 / self.texel_m)
-        img = (img.astype(np.float32) * (1.0 - 0.5 * shadow[..., None] / 255.0))
+        img = img.astype(np.float32) * (1.0 - 0.5 * shadow[..., None] / 255.0)
         img = img.astype(np.uint8)
         for b in layout.buildings:
             n0, e0, n1, e1 = b.rect
@@ -122,16 +124,27 @@ class UrbanGround:
             self._rect(img, b.rect, edge)
             self._rect(img, (n0 + 0.4, e0 + 0.4, n1 - 0.4, e1 - 0.4), b.roof_bgr)
             for _ in range(int(rng.integers(0, 4))):
-                un, ue = rng.uniform(n0 + 1, max(n0 + 1.1, n1 - 3)), rng.uniform(
-                    e0 + 1, max(e0 + 1.1, e1 - 3))
-                self._rect(img, (un, ue, un + rng.uniform(1, 2.5), ue + rng.uniform(1, 2.5)),
-                           (150, 152, 155))
+                un, ue = (
+                    rng.uniform(n0 + 1, max(n0 + 1.1, n1 - 3)),
+                    rng.uniform(e0 + 1, max(e0 + 1.1, e1 - 3)),
+                )
+                self._rect(
+                    img,
+                    (un, ue, un + rng.uniform(1, 2.5), ue + rng.uniform(1, 2.5)),
+                    (150, 152, 155),
+                )
         for tn, te, tr in layout.trees:
             c, r = self.texel(tn, te)
             rad = int(tr / self.texel_m)
             cv2.circle(img, (int(c), int(r)), rad, TREE, -1, cv2.LINE_AA)
-            cv2.circle(img, (int(c - 0.25 * rad), int(r - 0.25 * rad)), int(0.55 * rad),
-                       (48, 98, 60), -1, cv2.LINE_AA)
+            cv2.circle(
+                img,
+                (int(c - 0.25 * rad), int(r - 0.25 * rad)),
+                int(0.55 * rad),
+                (48, 98, 60),
+                -1,
+                cv2.LINE_AA,
+            )
         grain = rng.standard_normal((rows // 4 + 1, cols // 4 + 1)).astype(np.float32)
         grain = cv2.resize(grain, (cols, rows), interpolation=cv2.INTER_LINEAR)
         img = np.clip(img.astype(np.float32) * (1.0 + 0.06 * grain[..., None]), 0, 255)
@@ -143,8 +156,13 @@ class UrbanGround:
 
     def _paint_object(self, img: np.ndarray, obj: SceneObject) -> None:
         state = obj.state_at(0.0)
-        draw_parts(img, self.texel_from_ground() @ state.local_to_ne(), state.parts,
-                   state.visibility, blur_px=0.0)
+        draw_parts(
+            img,
+            self.texel_from_ground() @ state.local_to_ne(),
+            state.parts,
+            state.visibility,
+            blur_px=0.0,
+        )
 
     # -- per frame -----------------------------------------------------------------------
     def render(self, h_ground: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -160,6 +178,11 @@ class UrbanGround:
         scale = np.diag([2.0**-level, 2.0**-level, 1.0])
         scale[:2, 2] = 0.5 * 2.0**-level - 0.5
         m = h @ np.linalg.inv(scale)
-        half_img = cv2.warpPerspective(self._levels[level], m, (half_w, half_h),
-                                       flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        half_img = cv2.warpPerspective(
+            self._levels[level],
+            m,
+            (half_w, half_h),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REFLECT,
+        )
         return cv2.resize(half_img, (width, height), interpolation=cv2.INTER_LINEAR)

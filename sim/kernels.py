@@ -11,14 +11,37 @@ import numba
 import numpy as np
 
 #: Columns of the part table given to :func:`rasterize_parts`.
-PART_COLUMNS = ("is_box", "x", "y", "a", "b", "cos", "sin", "b_", "g", "r", "alpha", "shade",
-                "radius")
+PART_COLUMNS = (
+    "is_box",
+    "x",
+    "y",
+    "a",
+    "b",
+    "cos",
+    "sin",
+    "b_",
+    "g",
+    "r",
+    "alpha",
+    "shade",
+    "radius",
+)
 
 
 @numba.njit(cache=True, nogil=True, fastmath=True, parallel=True)
-def compose_sea(layers: np.ndarray, weights: np.ndarray, glint: np.ndarray, fresnel: np.ndarray,
-                sea: np.ndarray, water: np.ndarray, sky: np.ndarray, gain: float,
-                foam_threshold: float, bias: float, out: np.ndarray) -> None:
+def compose_sea(
+    layers: np.ndarray,
+    weights: np.ndarray,
+    glint: np.ndarray,
+    fresnel: np.ndarray,
+    sea: np.ndarray,
+    water: np.ndarray,
+    sky: np.ndarray,
+    gain: float,
+    foam_threshold: float,
+    bias: float,
+    out: np.ndarray,
+) -> None:
     """Sea colour from warped wave layers ``layers`` [L, H, W, 3] uint8 (slope, height, foam
     texture, each 128-centred with unit std = 40) into ``out`` [H, W, 3] uint8.
 
@@ -59,8 +82,9 @@ def compose_sea(layers: np.ndarray, weights: np.ndarray, glint: np.ndarray, fres
 
 
 @numba.njit(cache=True, nogil=True, fastmath=True)
-def rasterize_parts(patch: np.ndarray, hinv: np.ndarray, u0: int, v0: int, parts: np.ndarray,
-                    metres_per_px: float) -> None:
+def rasterize_parts(
+    patch: np.ndarray, hinv: np.ndarray, u0: int, v0: int, parts: np.ndarray, metres_per_px: float
+) -> None:
     """Blend parts (rows of :data:`PART_COLUMNS`) over ``patch`` [h, w, 3] float32 in place.
 
     Pixel ``(u0 + j, v0 + i)`` maps to local metres through ``hinv``; a part covers it by

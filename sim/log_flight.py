@@ -31,14 +31,17 @@ class LogFlight(Flight):
     the ground); the returned :attr:`mission` is ``mission`` with that home.
     """
 
-    def __init__(self, path: str | Path, mission: MissionConfig,  # noqa: D107
-                 home: tuple[float, float, float] | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        mission: MissionConfig,  # noqa: D107
+        home: tuple[float, float, float] | None = None,
+    ) -> None:
         # Flight.__init__ is not called: it would plan a survey this flight does not fly.
         reader = mavutil.mavlink_connection(str(path))
         rows = []
         while (msg := reader.recv_match(type="SIM")) is not None:
-            rows.append((msg.TimeUS / 1e6, msg.Lat, msg.Lng, msg.Alt, msg.Roll, msg.Pitch,
-                         msg.Yaw))
+            rows.append((msg.TimeUS / 1e6, msg.Lat, msg.Lng, msg.Alt, msg.Roll, msg.Pitch, msg.Yaw))
         if len(rows) < 2:
             raise ValueError(f"{path}: no SIM messages (not an ArduPilot SITL log)")
         data = np.array(rows, dtype=float)
@@ -51,8 +54,11 @@ class LogFlight(Flight):
         self.rpy = np.radians(data[:, 4:7])
         self.rpy[:, 2] = np.unwrap(self.rpy[:, 2])
         self.mission = dataclasses.replace(
-            mission, area=dataclasses.replace(mission.area, home_lat=home[0], home_lon=home[1],
-                                              home_alt_m=home[2]))
+            mission,
+            area=dataclasses.replace(
+                mission.area, home_lat=home[0], home_lon=home[1], home_alt_m=home[2]
+            ),
+        )
         self.survey_duration = float(self.times[-1])
         self._mount = math.radians(mission.camera.mount_pitch_deg)
 
@@ -66,10 +72,20 @@ class LogFlight(Flight):
         vel = (self.position_ned[j] - self.position_ned[i]) / (self.times[j] - self.times[i])
         roll, pitch, yaw = self.rpy[i] * (1 - f) + self.rpy[j] * f
         yaw = (yaw + math.pi) % (2 * math.pi) - math.pi
-        return VehicleState(t=t, position_ned=pos, velocity_ned=vel, acceleration_ned=np.zeros(3),
-                            roll=float(roll), pitch=float(pitch), yaw=float(yaw),
-                            gimbal_roll=0.0, gimbal_pitch=self._mount, gimbal_yaw=0.0,
-                            gimbal_frame="body", wind_ned=np.zeros(3))
+        return VehicleState(
+            t=t,
+            position_ned=pos,
+            velocity_ned=vel,
+            acceleration_ned=np.zeros(3),
+            roll=float(roll),
+            pitch=float(pitch),
+            yaw=float(yaw),
+            gimbal_roll=0.0,
+            gimbal_pitch=self._mount,
+            gimbal_yaw=0.0,
+            gimbal_frame="body",
+            wind_ned=np.zeros(3),
+        )
 
     def camera_pose_at(self, t: float) -> CameraPose:
         """Camera pose at log time ``t``."""

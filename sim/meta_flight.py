@@ -63,8 +63,10 @@ class NoUsableMeta(ValueError):
 def dataset_fps(dataset: VideoDataset, video_id: int | None) -> float | None:
     """The frame rate an annotation file declares for a video (video entry, then ``info``)."""
     video = next((v for v in dataset.videos if v.id == video_id), None)
-    for value in ((video.extra.get("fps") if video is not None else None),
-                  dataset.info.get("fps") if isinstance(dataset.info, dict) else None):
+    for value in (
+        (video.extra.get("fps") if video is not None else None),
+        dataset.info.get("fps") if isinstance(dataset.info, dict) else None,
+    ):
         try:
             fps = float(value) if value is not None else 0.0
         except (TypeError, ValueError):
@@ -74,14 +76,16 @@ def dataset_fps(dataset: VideoDataset, video_id: int | None) -> float | None:
     return None
 
 
-def _fill(times: np.ndarray, values: list[float | None], period: float | None = None
-          ) -> np.ndarray | None:
+def _fill(
+    times: np.ndarray, values: list[float | None], period: float | None = None
+) -> np.ndarray | None:
     """Values at every frame time, missing ones interpolated (None when none is known).
 
     With ``period`` (360 for headings in degrees) the known values are unwrapped first, so the
     result is continuous (not wrapped back into range)."""
-    known = [(t, v) for t, v in zip(times, values, strict=True)
-             if v is not None and math.isfinite(v)]
+    known = [
+        (t, v) for t, v in zip(times, values, strict=True) if v is not None and math.isfinite(v)
+    ]
     if not known:
         return None
     kt = np.array([k[0] for k in known])
@@ -91,14 +95,18 @@ def _fill(times: np.ndarray, values: list[float | None], period: float | None = 
     return np.interp(times, kt, kv)
 
 
-def _frame_times(indices: np.ndarray, meta: list[FrameTelemetry], fps: float,
-                 use_meta_time: bool) -> tuple[np.ndarray, str]:
+def _frame_times(
+    indices: np.ndarray, meta: list[FrameTelemetry], fps: float, use_meta_time: bool
+) -> tuple[np.ndarray, str]:
     """Footage time of each frame (first frame at 0) and how it was found."""
     by_index = indices / fps - indices[0] / fps
     if not use_meta_time:
         return by_index, "frame index / fps"
-    known = [(float(i), m.time) for i, m in zip(indices, meta, strict=True)
-             if m.time is not None and math.isfinite(m.time)]
+    known = [
+        (float(i), m.time)
+        for i, m in zip(indices, meta, strict=True)
+        if m.time is not None and math.isfinite(m.time)
+    ]
     if len(known) < 2:
         return by_index, "frame index / fps (no usable meta time)"
     ki = np.array([k[0] for k in known])
@@ -134,11 +142,17 @@ class MetaFlight:
 
     steerable = False
 
-    def __init__(self, dataset: VideoDataset, video_id: int | None = None,
-                 home: tuple[float, float, float] | None = None,
-                 mission: MissionConfig | None = None, fps: float | None = None,
-                 use_meta_time: bool = True, loop: bool = False,
-                 start_s: float | None = 0.0) -> None:
+    def __init__(
+        self,
+        dataset: VideoDataset,
+        video_id: int | None = None,
+        home: tuple[float, float, float] | None = None,
+        mission: MissionConfig | None = None,
+        fps: float | None = None,
+        use_meta_time: bool = True,
+        loop: bool = False,
+        start_s: float | None = 0.0,
+    ) -> None:
         base = mission if mission is not None else load_mission(None)
         images = sequence_images(dataset, video_id)
         if not images:
@@ -147,8 +161,9 @@ class MetaFlight:
         if self.fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
         meta = [im.telemetry for im in images]
-        indices = np.array([im.frame_index if im.frame_index is not None else k
-                            for k, im in enumerate(images)])
+        indices = np.array(
+            [im.frame_index if im.frame_index is not None else k for k, im in enumerate(images)]
+        )
         self.frame_indices = indices
         self.times, self.time_source = _frame_times(indices, meta, self.fps, use_meta_time)
         t = self.times
@@ -156,8 +171,11 @@ class MetaFlight:
         lon = _fill(t, [m.longitude for m in meta])
         alt = _fill(t, [m.altitude for m in meta])
         if lat is None or lon is None or alt is None:
-            missing = [n for n, v in (("latitude", lat), ("longitude", lon), ("altitude", alt))
-                       if v is None]
+            missing = [
+                n
+                for n, v in (("latitude", lat), ("longitude", lon), ("altitude", alt))
+                if v is None
+            ]
             raise NoUsableMeta(f"video {video_id}: no frame has {', '.join(missing)} in its meta")
         compass = _fill(t, [m.compass_heading for m in meta], 360.0)
         gimbal_heading = _fill(t, [m.gimbal_heading for m in meta], 360.0)
@@ -166,8 +184,9 @@ class MetaFlight:
         except ConventionError as exc:
             raise NoUsableMeta(f"video {video_id}: {exc}") from exc
         sign = -1.0 if conventions.pitch == DEPRESSION else 1.0
-        gimbal_pitch = _fill(t, [None if m.gimbal_pitch is None else sign * m.gimbal_pitch
-                                 for m in meta])
+        gimbal_pitch = _fill(
+            t, [None if m.gimbal_pitch is None else sign * m.gimbal_pitch for m in meta]
+        )
         gimbal_roll = _fill(t, [m.gimbal_roll for m in meta])
         if compass is None:  # no compass: face where the camera looks (else north)
             compass = gimbal_heading if gimbal_heading is not None else np.zeros(len(t))
@@ -180,11 +199,11 @@ class MetaFlight:
         gimbal = base.camera.gimbal or gimbal_pitch is not None
         self.mission = dataclasses.replace(
             base,
-            area=dataclasses.replace(base.area, home_lat=self.home[0], home_lon=self.home[1],
-                                     home_alt_m=self.home[2]),
+            area=dataclasses.replace(
+                base.area, home_lat=self.home[0], home_lon=self.home[1], home_alt_m=self.home[2]
+            ),
             camera=dataclasses.replace(base.camera, gimbal=gimbal),
-            telemetry=dataclasses.replace(base.telemetry, gnss_noise_m=0.0,
-                                          attitude_noise_deg=0.0),
+            telemetry=dataclasses.replace(base.telemetry, gnss_noise_m=0.0, attitude_noise_deg=0.0),
         )
         # Full conversion (not just -altitude for down) so that position -> lat/lon round-trips.
         ned = geodetic_to_ned(lat, lon, self.home[2] + alt, *self.home)
@@ -192,10 +211,10 @@ class MetaFlight:
         self._yaw = np.radians(compass)
         self._gimbal_yaw = np.radians(gimbal_heading - compass)
         mount = math.radians(base.camera.mount_pitch_deg)
-        self._gimbal_pitch = (np.radians(gimbal_pitch) if gimbal_pitch is not None
-                              else np.full(len(t), mount))
-        self._gimbal_roll = (np.radians(gimbal_roll) if gimbal_roll is not None
-                             else np.zeros(len(t)))
+        self._gimbal_pitch = (
+            np.radians(gimbal_pitch) if gimbal_pitch is not None else np.full(len(t), mount)
+        )
+        self._gimbal_roll = np.radians(gimbal_roll) if gimbal_roll is not None else np.zeros(len(t))
         self._gimbal_frame = "vehicle" if gimbal else "body"
         self.frame_count = int(indices[-1] - indices[0]) + 1
         self.loop = loop
@@ -203,9 +222,11 @@ class MetaFlight:
         #: Footage time of the last frame (the flight holds its state afterwards).
         self.survey_duration = float(t[-1])
         self.start_s = start_s
-        self.note = (f"footage telemetry: {len(images)} frames over {t[-1]:.1f} s "
-                     f"(timed by {self.time_source}), home {self.home[0]:.6f}, "
-                     f"{self.home[1]:.6f}")
+        self.note = (
+            f"footage telemetry: {len(images)} frames over {t[-1]:.1f} s "
+            f"(timed by {self.time_source}), home {self.home[0]:.6f}, "
+            f"{self.home[1]:.6f}"
+        )
 
     # -- replay clock ---------------------------------------------------------------------------
     def start_at(self, sim_time: float) -> None:

@@ -76,18 +76,26 @@ class SceneRenderer:
     Expensive state (wave tiles, city texture, detail tiles) is built once here.
     """
 
-    def __init__(self, scenario: Scenario, intrinsics: CameraIntrinsics,
-                 home: tuple[float, float, float] | None = None,
-                 world: World | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        intrinsics: CameraIntrinsics,
+        home: tuple[float, float, float] | None = None,
+        world: World | None = None,
+    ) -> None:
         if intrinsics.distortion and any(intrinsics.distortion):
-            raise ValueError("SceneRenderer renders an ideal pinhole camera; distortion is "
-                             "not supported")
+            raise ValueError(
+                "SceneRenderer renders an ideal pinhole camera; distortion is not supported"
+            )
         self.scenario = scenario
         self.intrinsics = intrinsics
         self.home = home
         if world is None:
-            world = (build_upright_world(scenario) if scenario.figures == "upright"
-                     else build_world(scenario))
+            world = (
+                build_upright_world(scenario)
+                if scenario.figures == "upright"
+                else build_world(scenario)
+            )
         self.world = world
         self._objects = [o for o in self.world.objects if not o.static]
         self._static = [o.state_at(0.0) for o in self.world.objects if o.static]
@@ -97,13 +105,20 @@ class SceneRenderer:
         if scenario.kind == "maritime":
             self.sea = SeaSurface(scenario)
             ss = scenario.sea_state
-            self.detail = DetailOverlay(w, h, scenario.seed, grain_std=2.0 + 0.6 * ss,
-                                        noise_std=1.6, grain_tint=(1.0, 0.95, 0.8),
-                                        drift_px_s=(3.0, 2.0))
+            self.detail = DetailOverlay(
+                w,
+                h,
+                scenario.seed,
+                grain_std=2.0 + 0.6 * ss,
+                noise_std=1.6,
+                grain_tint=(1.0, 0.95, 0.8),
+                drift_px_s=(3.0, 2.0),
+            )
         else:
             self.ground = UrbanGround(self.world)
-            self.detail = DetailOverlay(w, h, scenario.seed, grain_std=2.5, noise_std=1.6,
-                                        grain_sigma_px=0.6)
+            self.detail = DetailOverlay(
+                w, h, scenario.seed, grain_std=2.5, noise_std=1.6, grain_sigma_px=0.6
+            )
 
     def render(self, t: float, pose: CameraPose) -> tuple[np.ndarray, list[ObjectAnnotation]]:
         """Frame (BGR uint8, H x W x 3) and annotations at time ``t`` seen from ``pose``."""
@@ -129,8 +144,7 @@ class SceneRenderer:
         if self.home is not None and annotations:
             ned = np.array([a.position_ned for a in annotations])
             lat, lon, _ = ned_to_geodetic(ned[:, 0], ned[:, 1], ned[:, 2], *self.home)
-            for a, la, lo in zip(annotations, np.atleast_1d(lat), np.atleast_1d(lon),
-                                 strict=True):
+            for a, la, lo in zip(annotations, np.atleast_1d(lat), np.atleast_1d(lon), strict=True):
                 a.lat, a.lon = float(la), float(lo)
         return frame, annotations
 
@@ -145,8 +159,13 @@ class SceneRenderer:
         reach = radii * self.intrinsics.fx / np.maximum(depth, 1e-6) + 4.0
         w, h = self.intrinsics.width, self.intrinsics.height
         with np.errstate(invalid="ignore"):
-            keep = (in_front & (uv[:, 0] > -reach) & (uv[:, 0] < w + reach)
-                    & (uv[:, 1] > -reach) & (uv[:, 1] < h + reach))
+            keep = (
+                in_front
+                & (uv[:, 0] > -reach)
+                & (uv[:, 0] < w + reach)
+                & (uv[:, 1] > -reach)
+                & (uv[:, 1] < h + reach)
+            )
         return [o for o, k in zip(self._objects, keep, strict=True) if k]
 
     def _background(self, t: float, pose: CameraPose, h_ground: np.ndarray) -> np.ndarray:
@@ -164,32 +183,38 @@ class SceneRenderer:
         return frame
 
     def _object_homography(self, pose: CameraPose, state: ObjectState) -> np.ndarray:
-        h_plane = ground_homography(self.intrinsics, pose,
-                                    ground_down=float(state.position_ned[2]))
+        h_plane = ground_homography(self.intrinsics, pose, ground_down=float(state.position_ned[2]))
         return h_plane @ state.local_to_ne()
 
-    def _upright(self, pose: CameraPose, state: ObjectState
-                 ) -> tuple[np.ndarray, list[Part]] | None:
+    def _upright(
+        self, pose: CameraPose, state: ObjectState
+    ) -> tuple[np.ndarray, list[Part]] | None:
         """Billboard homography and parts of the object's upright parts (None without any)."""
         if not state.upright:
             return None
         board = billboard_for(pose.position_ned, state.position_ned, state.heading)
         if board is None:
             return None
-        return (billboard_homography(self.intrinsics, pose, board),
-                billboard_parts(state.upright, board))
+        return (
+            billboard_homography(self.intrinsics, pose, board),
+            billboard_parts(state.upright, board),
+        )
 
-    def _annotate(self, state: ObjectState, h_obj: np.ndarray,
-                  upright: tuple[np.ndarray, list[Part]] | None = None
-                  ) -> ObjectAnnotation | None:
+    def _annotate(
+        self,
+        state: ObjectState,
+        h_obj: np.ndarray,
+        upright: tuple[np.ndarray, list[Part]] | None = None,
+    ) -> ObjectAnnotation | None:
         ext = tight_extent(h_obj, state.parts, state.visibility)
         if upright is not None:
             standing = tight_extent(*upright, state.visibility)
             if ext is None or standing is None:
                 ext = standing if ext is None else ext
             else:
-                ext = np.concatenate([np.minimum(ext[:2], standing[:2]),
-                                      np.maximum(ext[2:], standing[2:])])
+                ext = np.concatenate(
+                    [np.minimum(ext[:2], standing[:2]), np.maximum(ext[2:], standing[2:])]
+                )
         if ext is None:
             return None
         x0, y0, x1, y1 = (float(v) + 0.5 for v in ext)
@@ -201,9 +226,15 @@ class SceneRenderer:
         area = (cx1 - cx0) * (cy1 - cy0)
         pos = tuple(float(v) for v in state.position_ned)
         return ObjectAnnotation(
-            state.track_id, state.category, CATEGORIES[state.category],
-            state.category in TARGET_CATEGORIES, (cx0, cy0, cx1, cy1), area,
-            float(state.visibility) * area / full, pos)
+            state.track_id,
+            state.category,
+            CATEGORIES[state.category],
+            state.category in TARGET_CATEGORIES,
+            (cx0, cy0, cx1, cy1),
+            area,
+            float(state.visibility) * area / full,
+            pos,
+        )
 
 
 def _ground_origin_px(h_ground: np.ndarray, intr: CameraIntrinsics) -> tuple[float, float]:

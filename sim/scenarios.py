@@ -44,20 +44,34 @@ class Preset:
     mission: MissionConfig
 
 
-def _mission(name: str, rect: tuple[float, float, float, float], altitude: float, hfov: float,
-             home: tuple[float, float, float], speed: float = 10.0,
-             pitch_deg: float = -90.0) -> MissionConfig:
+def _mission(
+    name: str,
+    rect: tuple[float, float, float, float],
+    altitude: float,
+    hfov: float,
+    home: tuple[float, float, float],
+    speed: float = 10.0,
+    pitch_deg: float = -90.0,
+) -> MissionConfig:
     return MissionConfig(
-        area=AreaConfig(home_lat=home[0], home_lon=home[1], home_alt_m=home[2],
-                        ground_alt_m=home[2], rectangle_m=rect, leg_spacing_m=60.0,
-                        heading_deg=90.0),
+        area=AreaConfig(
+            home_lat=home[0],
+            home_lon=home[1],
+            home_alt_m=home[2],
+            ground_alt_m=home[2],
+            rectangle_m=rect,
+            leg_spacing_m=60.0,
+            heading_deg=90.0,
+        ),
         flight=FlightConfig(altitude_m=altitude, speed_m_s=speed, takeoff=False),
         camera=CameraConfig(hfov_deg=hfov, mount_pitch_deg=pitch_deg, gimbal=True),
-        name=name)
+        name=name,
+    )
 
 
-def _strip(rect: tuple[float, float, float, float], altitude: float, hfov: float
-           ) -> tuple[tuple[float, float, float, float], float]:
+def _strip(
+    rect: tuple[float, float, float, float], altitude: float, hfov: float
+) -> tuple[tuple[float, float, float, float], float]:
     """Area the legs see (rect widened by half a 3840x2160 footprint) and the footprint area."""
     gsd = altitude / (1920.0 / math.tan(math.radians(hfov) / 2))
     half_e, half_n = 1920 * gsd, 1080 * gsd
@@ -71,22 +85,40 @@ def _count(per_frame: float, strip: tuple[float, float, float, float], footprint
     return max(1, round(per_frame * (n1 - n0) * (e1 - e0) / footprint))
 
 
-def _maritime(name: str, seed: int, altitude: float, hfov: float, sea_state: int,
-              per_frame: float, sun: tuple[float, float]) -> Preset:
+def _maritime(
+    name: str,
+    seed: int,
+    altitude: float,
+    hfov: float,
+    sea_state: int,
+    per_frame: float,
+    sun: tuple[float, float],
+) -> Preset:
     rect = (30.0, -150.0, 90.0, 150.0)  # two legs, at north 30 and 90
     strip, footprint = _strip(rect, altitude, hfov)
     n = _count(per_frame, strip, footprint)
     scenario = Scenario(
-        kind="maritime", seed=seed, area_ne=strip, sea_state=sea_state,
-        n_swimmers=round(0.65 * n), n_life_jacket=n - round(0.65 * n),
-        n_boats=max(1, round(0.04 * n)), n_birds=max(2, round(0.06 * n)),
-        n_debris=round(0.5 * n), n_glints=round(0.8 * n), head_only_fraction=0.25,
-        floating_fraction=0.2, sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
+        kind="maritime",
+        seed=seed,
+        area_ne=strip,
+        sea_state=sea_state,
+        n_swimmers=round(0.65 * n),
+        n_life_jacket=n - round(0.65 * n),
+        n_boats=max(1, round(0.04 * n)),
+        n_birds=max(2, round(0.06 * n)),
+        n_debris=round(0.5 * n),
+        n_glints=round(0.8 * n),
+        head_only_fraction=0.25,
+        floating_fraction=0.2,
+        sun_azimuth_deg=sun[0],
+        sun_elevation_deg=sun[1],
+    )
     return Preset(name, scenario, _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0)))
 
 
-def oblique_view_m(altitude: float, hfov: float, pitch_deg: float, aspect: float = 9 / 16,
-                   cap_m: float = 200.0) -> tuple[float, float, float]:
+def oblique_view_m(
+    altitude: float, hfov: float, pitch_deg: float, aspect: float = 9 / 16, cap_m: float = 200.0
+) -> tuple[float, float, float]:
     """(near, far, area) of the sea an oblique camera sees: the bottom and top edges' ground
     distances ``h / tan(depression -+ vfov/2)`` (``far`` capped at ``cap_m``, and ``cap_m`` when
     the horizon is in view; negative ``near``: behind the drone) and the trapezoid between them,
@@ -96,8 +128,11 @@ def oblique_view_m(altitude: float, hfov: float, pitch_deg: float, aspect: float
     depression = math.radians(-pitch_deg)
     top, bottom = depression - half_v, depression + half_v
     far = cap_m if top <= math.radians(1.0) else min(cap_m, altitude / math.tan(top))
-    near = altitude / math.tan(bottom) if bottom < math.pi / 2 else -altitude * math.tan(
-        bottom - math.pi / 2)
+    near = (
+        altitude / math.tan(bottom)
+        if bottom < math.pi / 2
+        else -altitude * math.tan(bottom - math.pi / 2)
+    )
 
     def width(d: float) -> float:
         return 2 * math.hypot(d, altitude) * math.tan(half_h)
@@ -105,9 +140,17 @@ def oblique_view_m(altitude: float, hfov: float, pitch_deg: float, aspect: float
     return near, far, (far - near) * (width(near) + width(far)) / 2
 
 
-def _maritime_oblique(name: str, seed: int, altitude: float, pitch_deg: float, hfov: float,
-                      sea_state: int, per_frame: float, sun: tuple[float, float],
-                      reach_m: float) -> Preset:
+def _maritime_oblique(
+    name: str,
+    seed: int,
+    altitude: float,
+    pitch_deg: float,
+    hfov: float,
+    sea_state: int,
+    per_frame: float,
+    sun: tuple[float, float],
+    reach_m: float,
+) -> Preset:
     """A maritime scene seen obliquely, the way real footage of swimmers is taken: the drone
     works slowly (2 m/s) over a small box, two 20 m legs east and west 60 m apart with the
     camera looking ahead, and objects lie within ``reach_m`` of the box all round, about
@@ -122,32 +165,62 @@ def _maritime_oblique(name: str, seed: int, altitude: float, pitch_deg: float, h
     strip = (rect[0] - reach_m, rect[1] - reach_m, rect[2] + reach_m, rect[3] + reach_m)
     n = _count(per_frame, strip, area)
     swimmers = round(0.64 * n)
-    moorings = (strip[0] - 2 * reach_m, strip[1] - 2 * reach_m, strip[2] + 2 * reach_m,
-                strip[3] + 2 * reach_m)
-    spread = ((moorings[2] - moorings[0]) * (moorings[3] - moorings[1])
-              / ((strip[2] - strip[0]) * (strip[3] - strip[1])))
+    moorings = (
+        strip[0] - 2 * reach_m,
+        strip[1] - 2 * reach_m,
+        strip[2] + 2 * reach_m,
+        strip[3] + 2 * reach_m,
+    )
+    spread = (
+        (moorings[2] - moorings[0])
+        * (moorings[3] - moorings[1])
+        / ((strip[2] - strip[0]) * (strip[3] - strip[1]))
+    )
     scenario = Scenario(
-        kind="maritime", seed=seed, area_ne=strip, sea_state=sea_state,
-        n_swimmers=round(0.8 * swimmers), n_life_jacket=swimmers - round(0.8 * swimmers),
-        n_boats=max(1, round(0.25 * n)), n_jetskis=max(1, round(0.06 * n)),
-        n_buoys=max(1, round(0.012 * n * spread)), buoy_area_ne=moorings,
+        kind="maritime",
+        seed=seed,
+        area_ne=strip,
+        sea_state=sea_state,
+        n_swimmers=round(0.8 * swimmers),
+        n_life_jacket=swimmers - round(0.8 * swimmers),
+        n_boats=max(1, round(0.25 * n)),
+        n_jetskis=max(1, round(0.06 * n)),
+        n_buoys=max(1, round(0.012 * n * spread)),
+        buoy_area_ne=moorings,
         n_life_rings=max(1, round(0.03 * n)),
-        n_birds=max(2, round(0.06 * n)), n_debris=round(0.3 * n), n_glints=round(0.5 * n),
-        sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1], figures="upright")
-    return Preset(name, scenario, _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0),
-                                           speed=2.0, pitch_deg=pitch_deg))
+        n_birds=max(2, round(0.06 * n)),
+        n_debris=round(0.3 * n),
+        n_glints=round(0.5 * n),
+        sun_azimuth_deg=sun[0],
+        sun_elevation_deg=sun[1],
+        figures="upright",
+    )
+    return Preset(
+        name,
+        scenario,
+        _mission(name, rect, altitude, hfov, (54.178, 7.892, 0.0), speed=2.0, pitch_deg=pitch_deg),
+    )
 
 
-def _urban(name: str, seed: int, altitude: float, hfov: float, per_frame: float,
-           sun: tuple[float, float]) -> Preset:
+def _urban(
+    name: str, seed: int, altitude: float, hfov: float, per_frame: float, sun: tuple[float, float]
+) -> Preset:
     rect = (30.0, -90.0, 90.0, 90.0)
     strip, footprint = _strip(rect, altitude, hfov)
     n = _count(per_frame, strip, footprint)
     scenario = Scenario(
-        kind="urban", seed=seed, area_ne=strip, n_pedestrians=n, n_parked_cars=3 * n,
-        n_moving_cars=max(2, n // 2), sun_azimuth_deg=sun[0], sun_elevation_deg=sun[1])
-    return Preset(name, scenario, _mission(name, rect, altitude, hfov, (48.137, 11.576, 519.0),
-                                           speed=8.0))
+        kind="urban",
+        seed=seed,
+        area_ne=strip,
+        n_pedestrians=n,
+        n_parked_cars=3 * n,
+        n_moving_cars=max(2, n // 2),
+        sun_azimuth_deg=sun[0],
+        sun_elevation_deg=sun[1],
+    )
+    return Preset(
+        name, scenario, _mission(name, rect, altitude, hfov, (48.137, 11.576, 519.0), speed=8.0)
+    )
 
 
 def maritime_train() -> Preset:
@@ -175,31 +248,36 @@ def maritime_test() -> Preset:
     return _maritime("maritime_test", 3003, 90.0, 75.0, 3, 12.0, (230.0, 50.0))
 
 
-def maritime_oblique(altitude: float, depression_deg: float, seed: int = 7100,
-                     reach_m: float = 100.0) -> Preset:
+def maritime_oblique(
+    altitude: float, depression_deg: float, seed: int = 7100, reach_m: float = 100.0
+) -> Preset:
     """An oblique maritime view at any height and depression (degrees below the horizon), as the
     ``maritime_oblique_*`` presets build theirs: for measuring across view angles."""
     name = f"maritime_oblique_{altitude:g}m_{depression_deg:g}deg"
-    return _maritime_oblique(name, seed, altitude, -depression_deg, 70.0, 3, 6.0,
-                             (200.0, 45.0), reach_m)
+    return _maritime_oblique(
+        name, seed, altitude, -depression_deg, 70.0, 3, 6.0, (200.0, 45.0), reach_m
+    )
 
 
 def maritime_oblique_low() -> Preset:
     """10 m up, looking 11 degrees down (horizon and sky in view): SeaDronesSee's p10 view."""
-    return _maritime_oblique("maritime_oblique_low", 7007, 10.0, -11.0, 70.0, 2, 6.0,
-                             (200.0, 45.0), 100.0)
+    return _maritime_oblique(
+        "maritime_oblique_low", 7007, 10.0, -11.0, 70.0, 2, 6.0, (200.0, 45.0), 100.0
+    )
 
 
 def maritime_oblique_mid() -> Preset:
     """36 m up, looking 36 degrees down: SeaDronesSee's median height and pitch."""
-    return _maritime_oblique("maritime_oblique_mid", 7008, 36.0, -36.0, 70.0, 3, 6.0,
-                             (150.0, 35.0), 70.0)
+    return _maritime_oblique(
+        "maritime_oblique_mid", 7008, 36.0, -36.0, 70.0, 3, 6.0, (150.0, 35.0), 70.0
+    )
 
 
 def maritime_oblique_high() -> Preset:
     """60 m up, looking 71 degrees down: SeaDronesSee's p90 height and pitch."""
-    return _maritime_oblique("maritime_oblique_high", 7009, 60.0, -71.0, 70.0, 3, 6.0,
-                             (250.0, 50.0), 60.0)
+    return _maritime_oblique(
+        "maritime_oblique_high", 7009, 60.0, -71.0, 70.0, 3, 6.0, (250.0, 50.0), 60.0
+    )
 
 
 def urban_train() -> Preset:
@@ -218,10 +296,20 @@ def urban_test() -> Preset:
 
 
 PRESETS: dict[str, Callable[[], Preset]] = {
-    f.__name__: f for f in (maritime_train, maritime_train_high, maritime_train_narrow,
-                            maritime_val, maritime_test, maritime_oblique_low,
-                            maritime_oblique_mid, maritime_oblique_high,
-                            urban_train, urban_val, urban_test)
+    f.__name__: f
+    for f in (
+        maritime_train,
+        maritime_train_high,
+        maritime_train_narrow,
+        maritime_val,
+        maritime_test,
+        maritime_oblique_low,
+        maritime_oblique_mid,
+        maritime_oblique_high,
+        urban_train,
+        urban_val,
+        urban_test,
+    )
 }
 
 

@@ -58,14 +58,39 @@ HAIR: tuple[BGR, ...] = ((22, 22, 26), (30, 45, 70), (60, 100, 150), (95, 165, 2
 SWIM_CAP: tuple[BGR, ...] = ((235, 235, 235), (40, 40, 205), (30, 200, 235), (200, 120, 30))
 WETSUIT: tuple[BGR, ...] = ((28, 28, 30), (60, 40, 28), (45, 45, 50), (35, 30, 60))
 LIFE_JACKET: tuple[BGR, ...] = ((10, 105, 250), (20, 85, 235), (25, 60, 220), (10, 190, 245))
-HULL: tuple[BGR, ...] = ((235, 235, 232), (200, 200, 196), (40, 50, 190), (150, 80, 30),
-                         (20, 110, 245), (60, 60, 60))
-DEBRIS: tuple[BGR, ...] = ((45, 75, 105), (215, 215, 210), (160, 95, 35), (60, 120, 60),
-                           (30, 30, 35))
-CAR: tuple[BGR, ...] = ((235, 235, 235), (25, 25, 28), (170, 170, 170), (40, 40, 170),
-                        (140, 80, 30), (60, 90, 60), (120, 120, 125))
-CLOTHES: tuple[BGR, ...] = ((40, 40, 40), (150, 60, 30), (40, 40, 170), (200, 200, 200),
-                            (60, 120, 60), (30, 160, 220), (110, 90, 80))
+HULL: tuple[BGR, ...] = (
+    (235, 235, 232),
+    (200, 200, 196),
+    (40, 50, 190),
+    (150, 80, 30),
+    (20, 110, 245),
+    (60, 60, 60),
+)
+DEBRIS: tuple[BGR, ...] = (
+    (45, 75, 105),
+    (215, 215, 210),
+    (160, 95, 35),
+    (60, 120, 60),
+    (30, 30, 35),
+)
+CAR: tuple[BGR, ...] = (
+    (235, 235, 235),
+    (25, 25, 28),
+    (170, 170, 170),
+    (40, 40, 170),
+    (140, 80, 30),
+    (60, 90, 60),
+    (120, 120, 125),
+)
+CLOTHES: tuple[BGR, ...] = (
+    (40, 40, 40),
+    (150, 60, 30),
+    (40, 40, 170),
+    (200, 200, 200),
+    (60, 120, 60),
+    (30, 160, 220),
+    (110, 90, 80),
+)
 
 
 @dataclass(frozen=True)
@@ -220,10 +245,15 @@ class SceneObject:
     @functools.cached_property
     def radius_m(self) -> float:
         """Radius of a circle about the centre that holds every part in every pose."""
-        flat = (math.hypot(p.x, p.y) + (2.0 if p.role in ("arm", "wing") else 1.0)
-                * max(p.a, p.b) + abs(p.swing) for p in self.parts)
-        upright = (math.hypot(u.x, u.y) + max(u.half_length, u.half_width) + u.top
-                   for u in self.upright)
+        flat = (
+            math.hypot(p.x, p.y)
+            + (2.0 if p.role in ("arm", "wing") else 1.0) * max(p.a, p.b)
+            + abs(p.swing)
+            for p in self.parts
+        )
+        upright = (
+            math.hypot(u.x, u.y) + max(u.half_length, u.half_width) + u.top for u in self.upright
+        )
         return max(*flat, *upright, 0.0)
 
     def _animate(self, part: Part, t: float) -> Part:
@@ -253,11 +283,26 @@ class SceneObject:
         if self.bob_depth > 0:
             wave = 0.5 + 0.5 * math.sin(2 * math.pi * (t / self.bob_period_s + self.phase))
             visibility = 1.0 - self.bob_depth * wave**3
-        upright = [u if not u.swing else replace(
-            u, tilt=u.tilt + u.swing * math.sin(2 * math.pi * (t / self.period_s + self.phase)
-                                                + u.phase), swing=0.0) for u in self.upright]
-        return ObjectState(self.track_id, self.category, np.array([n, e, -self.height_m]),
-                           heading, parts, visibility, upright)
+        upright = [
+            u
+            if not u.swing
+            else replace(
+                u,
+                tilt=u.tilt
+                + u.swing * math.sin(2 * math.pi * (t / self.period_s + self.phase) + u.phase),
+                swing=0.0,
+            )
+            for u in self.upright
+        ]
+        return ObjectState(
+            self.track_id,
+            self.category,
+            np.array([n, e, -self.height_m]),
+            heading,
+            parts,
+            visibility,
+            upright,
+        )
 
 
 @dataclass(frozen=True)
@@ -349,15 +394,24 @@ class UrbanLayout:
     lots: list[tuple[float, float, float, float]] = field(default_factory=list)
     trees: list[tuple[float, float, float]] = field(default_factory=list)
 
-    def road_lines(self, area_ne: tuple[float, float, float, float]) -> tuple[list[float],
-                                                                             list[float]]:
+    def road_lines(
+        self, area_ne: tuple[float, float, float, float]
+    ) -> tuple[list[float], list[float]]:
         """Centre lines inside ``area_ne``: (norths of east-west roads, easts of north-south)."""
         n0, e0, n1, e1 = area_ne
         on, oe = self.origin_ne
-        north = [on + k * self.block_m for k in range(math.ceil((n0 - on) / self.block_m),
-                                                      math.floor((n1 - on) / self.block_m) + 1)]
-        east = [oe + k * self.block_m for k in range(math.ceil((e0 - oe) / self.block_m),
-                                                     math.floor((e1 - oe) / self.block_m) + 1)]
+        north = [
+            on + k * self.block_m
+            for k in range(
+                math.ceil((n0 - on) / self.block_m), math.floor((n1 - on) / self.block_m) + 1
+            )
+        ]
+        east = [
+            oe + k * self.block_m
+            for k in range(
+                math.ceil((e0 - oe) / self.block_m), math.floor((e1 - oe) / self.block_m) + 1
+            )
+        ]
         return north, east
 
 
@@ -376,8 +430,9 @@ def pick_colour(rng: np.random.Generator, options: tuple[BGR, ...]) -> BGR:
     return tuple(float(np.clip(c + j, 0, 255)) for c, j in zip(base, jitter, strict=True))
 
 
-def uniform_in(rng: np.random.Generator, area: tuple[float, float, float, float]
-                ) -> tuple[float, float]:
+def uniform_in(
+    rng: np.random.Generator, area: tuple[float, float, float, float]
+) -> tuple[float, float]:
     n0, e0, n1, e1 = area
     return float(rng.uniform(n0, n1)), float(rng.uniform(e0, e1))
 
@@ -385,8 +440,9 @@ def uniform_in(rng: np.random.Generator, area: tuple[float, float, float, float]
 # ----------------------------------------------------------------------------- figures
 
 
-def swimmer_parts(rng: np.random.Generator, width: float, pose: str,
-                  life_jacket: bool) -> list[Part]:
+def swimmer_parts(
+    rng: np.random.Generator, width: float, pose: str, life_jacket: bool
+) -> list[Part]:
     """Parts of a swimmer. ``pose``: ``"head"`` (only the head shows), ``"tread"`` (head and
     shoulders, arms sweeping) or ``"float"`` (on the back, body ``width`` long)."""
     skin = pick_colour(rng, SKIN)
@@ -406,14 +462,43 @@ def swimmer_parts(rng: np.random.Generator, width: float, pose: str,
         head_r = min(0.12, 0.42 * w)
         parts.append(Part("ellipse", 0.0, 0.0, 1.1 * w, 1.35 * w, 0.0, ripple, 0.15, 0.0, False))
         for side in (-1.0, 1.0):
-            parts.append(Part("ellipse", 0.0, side * 0.8 * w, 0.26, 0.05, side * math.pi / 2,
-                              suit, 0.75, 0.15, True, "arm", 0.6, 0.0 if side > 0 else math.pi))
+            parts.append(
+                Part(
+                    "ellipse",
+                    0.0,
+                    side * 0.8 * w,
+                    0.26,
+                    0.05,
+                    side * math.pi / 2,
+                    suit,
+                    0.75,
+                    0.15,
+                    True,
+                    "arm",
+                    0.6,
+                    0.0 if side > 0 else math.pi,
+                )
+            )
         body = jacket if life_jacket else suit
-        parts.append(Part("ellipse", -0.05 * w, 0.0, 0.45 * w, w, 0.0, body,
-                          0.95 if life_jacket else 0.7, 0.3))
+        parts.append(
+            Part(
+                "ellipse", -0.05 * w, 0.0, 0.45 * w, w, 0.0, body, 0.95 if life_jacket else 0.7, 0.3
+            )
+        )
         parts.append(Part("ellipse", 0.02, 0.0, head_r, 0.9 * head_r, 0.0, cover, 0.97, 0.35))
-        parts.append(Part("ellipse", 0.02 + 0.45 * head_r, 0.0, 0.5 * head_r, 0.6 * head_r, 0.0,
-                          skin, 0.85, 0.2))
+        parts.append(
+            Part(
+                "ellipse",
+                0.02 + 0.45 * head_r,
+                0.0,
+                0.5 * head_r,
+                0.6 * head_r,
+                0.0,
+                skin,
+                0.85,
+                0.2,
+            )
+        )
         return parts
     length = width
     half = length / 2
@@ -421,14 +506,42 @@ def swimmer_parts(rng: np.random.Generator, width: float, pose: str,
     parts.append(Part("ellipse", 0.0, 0.0, 1.05 * half, 0.32, 0.0, ripple, 0.12, 0.0, False))
     parts.append(Part("ellipse", -0.55 * half, 0.0, 0.45 * half, 0.16, 0.0, suit, 0.35, 0.2))
     for side in (-1.0, 1.0):
-        parts.append(Part("ellipse", 0.35 * half, side * 0.16, 0.28, 0.045, side * 1.9, skin,
-                          0.6, 0.1, True, "arm", 0.35, 0.0 if side > 0 else math.pi))
-    parts.append(Part("ellipse", 0.2 * half, 0.0, 0.38 * half, 0.2 if not life_jacket else 0.25,
-                      0.0, torso, 0.9 if life_jacket else 0.6, 0.3))
-    parts.append(Part("ellipse", 0.2 * half + 0.38 * half + 0.08, 0.0, 0.11, 0.095, 0.0, cover,
-                      0.9, 0.3))
-    parts.append(Part("ellipse", 0.2 * half + 0.38 * half + 0.12, 0.0, 0.06, 0.06, 0.0, skin,
-                      0.8, 0.2))
+        parts.append(
+            Part(
+                "ellipse",
+                0.35 * half,
+                side * 0.16,
+                0.28,
+                0.045,
+                side * 1.9,
+                skin,
+                0.6,
+                0.1,
+                True,
+                "arm",
+                0.35,
+                0.0 if side > 0 else math.pi,
+            )
+        )
+    parts.append(
+        Part(
+            "ellipse",
+            0.2 * half,
+            0.0,
+            0.38 * half,
+            0.2 if not life_jacket else 0.25,
+            0.0,
+            torso,
+            0.9 if life_jacket else 0.6,
+            0.3,
+        )
+    )
+    parts.append(
+        Part("ellipse", 0.2 * half + 0.38 * half + 0.08, 0.0, 0.11, 0.095, 0.0, cover, 0.9, 0.3)
+    )
+    parts.append(
+        Part("ellipse", 0.2 * half + 0.38 * half + 0.12, 0.0, 0.06, 0.06, 0.0, skin, 0.8, 0.2)
+    )
     return parts
 
 
@@ -440,15 +553,29 @@ def boat_parts(rng: np.random.Generator, length: float, moving: bool) -> list[Pa
     parts: list[Part] = []
     foam = (235.0, 238.0, 235.0)
     if moving:
-        parts.append(Part("ellipse", -half - 1.4 * length, 0.0, 1.5 * length, 0.55 * beam, 0.0,
-                          foam, 0.35, 0.0, False))
-        parts.append(Part("ellipse", 0.15 * half, 0.0, 0.95 * half, 1.35 * beam, 0.0, foam,
-                          0.25, 0.0, False))
+        parts.append(
+            Part(
+                "ellipse",
+                -half - 1.4 * length,
+                0.0,
+                1.5 * length,
+                0.55 * beam,
+                0.0,
+                foam,
+                0.35,
+                0.0,
+                False,
+            )
+        )
+        parts.append(
+            Part("ellipse", 0.15 * half, 0.0, 0.95 * half, 1.35 * beam, 0.0, foam, 0.25, 0.0, False)
+        )
     parts.append(Part("box", -0.35 * half, 0.0, 0.65 * half, beam, 0.0, hull, 1.0, 0.15))
     parts.append(Part("ellipse", 0.15 * half, 0.0, 0.85 * half, beam, 0.0, hull, 1.0, 0.15))
     parts.append(Part("box", -0.3 * half, 0.0, 0.3 * half, 0.6 * beam, 0.0, cabin, 1.0, 0.25))
-    parts.append(Part("box", 0.05 * half, 0.0, 0.06 * half, 0.55 * beam, 0.0, (60, 55, 50),
-                      0.9, 0.0))
+    parts.append(
+        Part("box", 0.05 * half, 0.0, 0.06 * half, 0.55 * beam, 0.0, (60, 55, 50), 0.9, 0.0)
+    )
     return parts
 
 
@@ -459,10 +586,36 @@ def bird_parts(rng: np.random.Generator, span: float) -> list[Part]:
     half = span / 2
     parts = [Part("ellipse", 0.0, 0.0, 0.2 * span, 0.05 * span, 0.0, body, 1.0, 0.2)]
     for side in (-1.0, 1.0):
-        parts.append(Part("ellipse", 0.02 * span, side * 0.04 * span, 0.48 * half,
-                          0.075 * span, side * math.pi / 2, wing, 1.0, 0.2, True, "wing"))
-        parts.append(Part("ellipse", 0.0, side * 0.6 * half, 0.2 * half, 0.05 * span,
-                          side * math.pi / 2, (40, 40, 40), 0.8, 0.0, True, "wing"))
+        parts.append(
+            Part(
+                "ellipse",
+                0.02 * span,
+                side * 0.04 * span,
+                0.48 * half,
+                0.075 * span,
+                side * math.pi / 2,
+                wing,
+                1.0,
+                0.2,
+                True,
+                "wing",
+            )
+        )
+        parts.append(
+            Part(
+                "ellipse",
+                0.0,
+                side * 0.6 * half,
+                0.2 * half,
+                0.05 * span,
+                side * math.pi / 2,
+                (40, 40, 40),
+                0.8,
+                0.0,
+                True,
+                "wing",
+            )
+        )
     return parts
 
 
@@ -471,10 +624,19 @@ def debris_parts(rng: np.random.Generator, size: float) -> list[Part]:
     parts = []
     for _ in range(int(rng.integers(1, 4))):
         a = size * rng.uniform(0.2, 0.5)
-        parts.append(Part("ellipse" if rng.random() < 0.6 else "box",
-                          float(rng.normal(0, 0.15 * size)), float(rng.normal(0, 0.15 * size)),
-                          a, a * rng.uniform(0.3, 0.9), float(rng.uniform(0, math.pi)),
-                          pick_colour(rng, DEBRIS), float(rng.uniform(0.7, 1.0)), 0.2))
+        parts.append(
+            Part(
+                "ellipse" if rng.random() < 0.6 else "box",
+                float(rng.normal(0, 0.15 * size)),
+                float(rng.normal(0, 0.15 * size)),
+                a,
+                a * rng.uniform(0.3, 0.9),
+                float(rng.uniform(0, math.pi)),
+                pick_colour(rng, DEBRIS),
+                float(rng.uniform(0.7, 1.0)),
+                0.2,
+            )
+        )
     return parts
 
 
@@ -501,8 +663,21 @@ def pedestrian_parts(rng: np.random.Generator) -> list[Part]:
     return [
         Part("ellipse", -0.45, 0.3, 0.45, 0.14, 0.6, (15, 15, 15), 0.4, 0.0, False),
         Part("ellipse", 0.0, shoulders, 0.11, 0.045, 0.0, clothes, 0.9, 0.1, True, "limb", 0.15),
-        Part("ellipse", 0.0, -shoulders, 0.11, 0.045, 0.0, clothes, 0.9, 0.1, True, "limb",
-             0.15, math.pi),
+        Part(
+            "ellipse",
+            0.0,
+            -shoulders,
+            0.11,
+            0.045,
+            0.0,
+            clothes,
+            0.9,
+            0.1,
+            True,
+            "limb",
+            0.15,
+            math.pi,
+        ),
         Part("ellipse", 0.0, 0.0, 0.13, shoulders, 0.0, clothes, 1.0, 0.3),
         Part("ellipse", 0.01, 0.0, 0.1, 0.085, 0.0, hair, 1.0, 0.3),
     ]
@@ -511,10 +686,20 @@ def pedestrian_parts(rng: np.random.Generator) -> list[Part]:
 def glint_parts(rng: np.random.Generator, size: float) -> list[Part]:
     """A sun glint: a bright core and a softer halo that flash together."""
     return [
-        Part("ellipse", 0.0, 0.0, 1.8 * size, 1.2 * size, 0.0, (235, 245, 250), 0.35, 0.0,
-             False, "glint"),
-        Part("ellipse", 0.0, 0.0, size, 0.6 * size, 0.0, (250, 253, 255), 1.0, 0.0, True,
-             "glint"),
+        Part(
+            "ellipse",
+            0.0,
+            0.0,
+            1.8 * size,
+            1.2 * size,
+            0.0,
+            (235, 245, 250),
+            0.35,
+            0.0,
+            False,
+            "glint",
+        ),
+        Part("ellipse", 0.0, 0.0, size, 0.6 * size, 0.0, (250, 253, 255), 1.0, 0.0, True, "glint"),
     ]
 
 
@@ -529,33 +714,63 @@ def build_world(scenario: Scenario) -> World:
     return World(scenario, _urban_objects(scenario, layout), layout)
 
 
-def add_birds_debris_glints(objects: list[SceneObject], rng: np.random.Generator,
-                            sc: Scenario, diag: float, bob: float,
-                            drift: Callable[[], tuple[float, float]]) -> None:
+def add_birds_debris_glints(
+    objects: list[SceneObject],
+    rng: np.random.Generator,
+    sc: Scenario,
+    diag: float,
+    bob: float,
+    drift: Callable[[], tuple[float, float]],
+) -> None:
     """Append the scenario's birds, floating debris and sun glints to ``objects`` (shared by
     every maritime world, in this order, so a seed draws the same scene)."""
     for _ in range(sc.n_birds):
         heading = float(rng.uniform(0, 2 * math.pi))
         speed = float(rng.uniform(8.0, 15.0))
-        objects.append(SceneObject(
-            len(objects) + 1, "bird", loop_start(rng, sc.area_ne, heading, diag), heading,
-            bird_parts(rng, float(rng.uniform(1.0, 1.5))),
-            (speed * math.cos(heading), speed * math.sin(heading)),
-            height_m=float(rng.uniform(5.0, 35.0)), loop_m=diag + 200.0,
-            period_s=float(rng.uniform(0.25, 0.45)), phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "bird",
+                loop_start(rng, sc.area_ne, heading, diag),
+                heading,
+                bird_parts(rng, float(rng.uniform(1.0, 1.5))),
+                (speed * math.cos(heading), speed * math.sin(heading)),
+                height_m=float(rng.uniform(5.0, 35.0)),
+                loop_m=diag + 200.0,
+                period_s=float(rng.uniform(0.25, 0.45)),
+                phase=float(rng.random()),
+            )
+        )
     for _ in range(sc.n_debris):
-        objects.append(SceneObject(
-            len(objects) + 1, "debris", uniform_in(rng, sc.area_ne),
-            float(rng.uniform(0, 2 * math.pi)), debris_parts(rng, float(rng.uniform(0.2, 1.0))),
-            drift(), wander_m=float(rng.uniform(0.1, 0.5)), turn_rate=float(rng.normal(0, 0.03)),
-            bob_depth=float(min(0.6, 0.5 * bob)), bob_period_s=float(rng.uniform(3.0, 7.0)),
-            phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "debris",
+                uniform_in(rng, sc.area_ne),
+                float(rng.uniform(0, 2 * math.pi)),
+                debris_parts(rng, float(rng.uniform(0.2, 1.0))),
+                drift(),
+                wander_m=float(rng.uniform(0.1, 0.5)),
+                turn_rate=float(rng.normal(0, 0.03)),
+                bob_depth=float(min(0.6, 0.5 * bob)),
+                bob_period_s=float(rng.uniform(3.0, 7.0)),
+                phase=float(rng.random()),
+            )
+        )
     for _ in range(sc.n_glints):
-        objects.append(SceneObject(
-            len(objects) + 1, "sun_glint", uniform_in(rng, sc.area_ne),
-            float(rng.uniform(0, 2 * math.pi)), glint_parts(rng, float(rng.uniform(0.08, 0.3))),
-            drift(), period_s=float(rng.uniform(0.4, 2.0)), duty=float(rng.uniform(0.15, 0.4)),
-            phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "sun_glint",
+                uniform_in(rng, sc.area_ne),
+                float(rng.uniform(0, 2 * math.pi)),
+                glint_parts(rng, float(rng.uniform(0.08, 0.3))),
+                drift(),
+                period_s=float(rng.uniform(0.4, 2.0)),
+                duty=float(rng.uniform(0.15, 0.4)),
+                phase=float(rng.random()),
+            )
+        )
 
 
 def _maritime_objects(sc: Scenario) -> list[SceneObject]:
@@ -580,18 +795,30 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
             pose = "float"
         else:
             pose = "tread"
-        size = {"head": rng.uniform(0.18, 0.26), "tread": rng.uniform(*sc.swimmer_width_m),
-                "float": rng.uniform(1.3, 1.8)}[pose]
+        size = {
+            "head": rng.uniform(0.18, 0.26),
+            "tread": rng.uniform(*sc.swimmer_width_m),
+            "float": rng.uniform(1.3, 1.8),
+        }[pose]
         if jacket and pose == "tread":
             size = rng.uniform(max(sc.swimmer_width_m[0], 0.5), max(sc.swimmer_width_m[1], 0.7))
-        objects.append(SceneObject(
-            len(objects) + 1, "swimmer_with_life_jacket" if jacket else "swimmer",
-            uniform_in(rng, sc.area_ne), float(rng.uniform(0, 2 * math.pi)),
-            swimmer_parts(rng, float(size), pose, jacket), drift(),
-            wander_m=float(rng.uniform(0.2, 1.0)), wander_period_s=float(rng.uniform(30, 90)),
-            turn_rate=float(rng.normal(0, 0.05)), period_s=float(rng.uniform(1.5, 3.0)),
-            bob_depth=float(min(0.75, bob * rng.uniform(0.5, 1.5))),
-            bob_period_s=float(rng.uniform(3.0, 7.0)), phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "swimmer_with_life_jacket" if jacket else "swimmer",
+                uniform_in(rng, sc.area_ne),
+                float(rng.uniform(0, 2 * math.pi)),
+                swimmer_parts(rng, float(size), pose, jacket),
+                drift(),
+                wander_m=float(rng.uniform(0.2, 1.0)),
+                wander_period_s=float(rng.uniform(30, 90)),
+                turn_rate=float(rng.normal(0, 0.05)),
+                period_s=float(rng.uniform(1.5, 3.0)),
+                bob_depth=float(min(0.75, bob * rng.uniform(0.5, 1.5))),
+                bob_period_s=float(rng.uniform(3.0, 7.0)),
+                phase=float(rng.random()),
+            )
+        )
     n0, e0, n1, e1 = sc.area_ne
     diag = math.hypot(n1 - n0, e1 - e0)
     for _ in range(sc.n_boats):
@@ -599,16 +826,25 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
         heading = float(rng.uniform(0, 2 * math.pi))
         speed = float(rng.uniform(2.0, 8.0))
         start = loop_start(rng, sc.area_ne, heading, diag)
-        objects.append(SceneObject(
-            len(objects) + 1, "boat", start, heading, boat_parts(rng, length, True),
-            (speed * math.cos(heading), speed * math.sin(heading)), loop_m=diag + 200.0,
-            phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "boat",
+                start,
+                heading,
+                boat_parts(rng, length, True),
+                (speed * math.cos(heading), speed * math.sin(heading)),
+                loop_m=diag + 200.0,
+                phase=float(rng.random()),
+            )
+        )
     add_birds_debris_glints(objects, rng, sc, diag, bob, drift)
     return objects
 
 
-def loop_start(rng: np.random.Generator, area: tuple[float, float, float, float],
-                heading: float, diag: float) -> tuple[float, float]:
+def loop_start(
+    rng: np.random.Generator, area: tuple[float, float, float, float], heading: float, diag: float
+) -> tuple[float, float]:
     """Start of a straight loop through a random point of ``area`` along ``heading``."""
     pn, pe = uniform_in(rng, area)
     back = diag / 2 + 100.0
@@ -626,8 +862,15 @@ def _urban_layout(sc: Scenario) -> UrbanLayout:
     kmax_n = math.ceil((n1 + margin - origin[0]) / block)
     kmin_e = math.floor((e0 - margin - origin[1]) / block)
     kmax_e = math.ceil((e1 + margin - origin[1]) / block)
-    roofs = ((70, 80, 150), (60, 70, 120), (120, 120, 120), (80, 80, 85), (170, 170, 165),
-             (55, 60, 70), (100, 115, 130))
+    roofs = (
+        (70, 80, 150),
+        (60, 70, 120),
+        (120, 120, 120),
+        (80, 80, 85),
+        (170, 170, 165),
+        (55, 60, 70),
+        (100, 115, 130),
+    )
     inset = road / 2 + 2.5  # sidewalk
     for i in range(kmin_n, kmax_n):
         for j in range(kmin_e, kmax_e):
@@ -637,9 +880,13 @@ def _urban_layout(sc: Scenario) -> UrbanLayout:
             if u < 0.15:
                 layout.parks.append((bn0, be0, bn1, be1))
                 for _ in range(int(rng.integers(6, 18))):
-                    layout.trees.append((float(rng.uniform(bn0 + 2, bn1 - 2)),
-                                         float(rng.uniform(be0 + 2, be1 - 2)),
-                                         float(rng.uniform(1.5, 4.0))))
+                    layout.trees.append(
+                        (
+                            float(rng.uniform(bn0 + 2, bn1 - 2)),
+                            float(rng.uniform(be0 + 2, be1 - 2)),
+                            float(rng.uniform(1.5, 4.0)),
+                        )
+                    )
             elif u < 0.27:
                 layout.lots.append((bn0, be0, bn1, be1))
             else:
@@ -647,8 +894,12 @@ def _urban_layout(sc: Scenario) -> UrbanLayout:
     return layout
 
 
-def _split_block(rng: np.random.Generator, layout: UrbanLayout,
-                 rect: tuple[float, float, float, float], roofs: tuple[BGR, ...]) -> None:
+def _split_block(
+    rng: np.random.Generator,
+    layout: UrbanLayout,
+    rect: tuple[float, float, float, float],
+    roofs: tuple[BGR, ...],
+) -> None:
     """Fill a block with 1-3 x 1-3 buildings separated by small yards."""
     bn0, be0, bn1, be1 = rect
     rows, cols = int(rng.integers(1, 4)), int(rng.integers(1, 4))
@@ -656,12 +907,26 @@ def _split_block(rng: np.random.Generator, layout: UrbanLayout,
     for r in range(rows):
         for c in range(cols):
             gap = float(rng.uniform(1.0, 4.0))
-            layout.buildings.append(Building(
-                (bn0 + r * dn + gap, be0 + c * de + gap, bn0 + (r + 1) * dn - gap,
-                 be0 + (c + 1) * de - gap), pick_colour(rng, roofs), float(rng.uniform(6, 25))))
+            layout.buildings.append(
+                Building(
+                    (
+                        bn0 + r * dn + gap,
+                        be0 + c * de + gap,
+                        bn0 + (r + 1) * dn - gap,
+                        be0 + (c + 1) * de - gap,
+                    ),
+                    pick_colour(rng, roofs),
+                    float(rng.uniform(6, 25)),
+                )
+            )
     if rng.random() < 0.5:
-        layout.trees.append((float(rng.uniform(bn0, bn1)), float(rng.uniform(be0, be1)),
-                             float(rng.uniform(1.5, 3.5))))
+        layout.trees.append(
+            (
+                float(rng.uniform(bn0, bn1)),
+                float(rng.uniform(be0, be1)),
+                float(rng.uniform(1.5, 3.5)),
+            )
+        )
 
 
 def _urban_objects(sc: Scenario, layout: UrbanLayout) -> list[SceneObject]:
@@ -687,8 +952,9 @@ def _urban_objects(sc: Scenario, layout: UrbanLayout) -> list[SceneObject]:
                 re_ = east_roads[int(rng.integers(len(east_roads)))]
                 pos = (float(rng.uniform(n0, n1)), re_ + side * (layout.road_m / 2 - 1.1))
                 heading = 0.0
-        objects.append(SceneObject(len(objects) + 1, "car", pos, heading, car_parts(rng),
-                                   static=True))
+        objects.append(
+            SceneObject(len(objects) + 1, "car", pos, heading, car_parts(rng), static=True)
+        )
     for _ in range(sc.n_moving_cars):
         speed = float(rng.uniform(5.0, 13.0))
         forward = 1.0 if rng.random() < 0.5 else -1.0
@@ -702,10 +968,18 @@ def _urban_objects(sc: Scenario, layout: UrbanLayout) -> list[SceneObject]:
             heading = 0.0 if forward > 0 else math.pi
             start = (n0 - 60.0 if forward > 0 else n1 + 60.0, re_ + forward * lane)
             length = n1 - n0 + 120.0
-        objects.append(SceneObject(
-            len(objects) + 1, "car", start, heading, car_parts(rng),
-            (speed * math.cos(heading), speed * math.sin(heading)), loop_m=length,
-            phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "car",
+                start,
+                heading,
+                car_parts(rng),
+                (speed * math.cos(heading), speed * math.sin(heading)),
+                loop_m=length,
+                phase=float(rng.random()),
+            )
+        )
     for _ in range(sc.n_pedestrians):
         speed = float(rng.uniform(0.7, 1.5))
         if layout.parks and rng.random() < 0.3:
@@ -722,9 +996,17 @@ def _urban_objects(sc: Scenario, layout: UrbanLayout) -> list[SceneObject]:
             start = (float(rng.uniform(n0, n1)), re_ + side * (layout.road_m / 2 + 1.2))
             heading = 0.0 if rng.random() < 0.5 else math.pi
         walking = rng.random() < 0.75
-        objects.append(SceneObject(
-            len(objects) + 1, "person", start, heading, pedestrian_parts(rng),
-            (speed * math.cos(heading), speed * math.sin(heading)) if walking else (0.0, 0.0),
-            patrol_m=float(rng.uniform(15, 50)) if walking else 0.0,
-            period_s=1.1 / speed if walking else 4.0, phase=float(rng.random())))
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "person",
+                start,
+                heading,
+                pedestrian_parts(rng),
+                (speed * math.cos(heading), speed * math.sin(heading)) if walking else (0.0, 0.0),
+                patrol_m=float(rng.uniform(15, 50)) if walking else 0.0,
+                period_s=1.1 / speed if walking else 4.0,
+                phase=float(rng.random()),
+            )
+        )
     return objects

@@ -36,7 +36,11 @@ GRAVITY = 9.81
 #: Wind speed (m/s) at 10 m for each Douglas sea state 0..6.
 WIND_FOR_SEA_STATE = (1.0, 3.0, 5.0, 7.5, 10.0, 13.0, 17.0)
 WATER_COLOURS: tuple[tuple[float, float, float], ...] = (
-    (96.0, 86.0, 44.0), (108.0, 74.0, 32.0), (78.0, 86.0, 52.0), (92.0, 92.0, 60.0))
+    (96.0, 86.0, 44.0),
+    (108.0, 74.0, 32.0),
+    (78.0, 86.0, 52.0),
+    (92.0, 92.0, 60.0),
+)
 SKY_BGR = np.array([215.0, 200.0, 180.0], dtype=np.float32)
 LOW_RES = 4
 _GRID = (24, 40)
@@ -44,8 +48,15 @@ _VIEW_M = 400.0
 _MAX_TEXELS = 2048
 
 
-def _wave_tile(rng: np.random.Generator, n: int, texel_m: float, wavelengths: tuple[float, float],
-               direction: float, spread: float, sun_azimuth: float) -> np.ndarray:
+def _wave_tile(
+    rng: np.random.Generator,
+    n: int,
+    texel_m: float,
+    wavelengths: tuple[float, float],
+    direction: float,
+    spread: float,
+    sun_azimuth: float,
+) -> np.ndarray:
     """n x n x 3 uint8 periodic tile: (slope towards the sun, height, foam texture).
 
     Tile columns run east and rows south (``north = n0 - row * texel``); ``direction`` and
@@ -57,7 +68,7 @@ def _wave_tile(rng: np.random.Generator, n: int, texel_m: float, wavelengths: tu
     k_safe = np.where(k > 0, k, 1.0)
     lo, hi = 1.0 / wavelengths[1], 1.0 / wavelengths[0]
     band = np.exp(-0.5 * (np.log(k_safe / math.sqrt(lo * hi)) / (0.35 * math.log(hi / lo))) ** 2)
-    band *= k_safe ** -1.5
+    band *= k_safe**-1.5
     east, south = math.sin(direction), -math.cos(direction)
     cos_dir = (k_col * east + k_row * south) / k_safe
     spreading = np.maximum(cos_dir, 0.0) ** spread + 0.05
@@ -83,8 +94,9 @@ class _Layer:
     slow for every pixel it has to wrap.
     """
 
-    def __init__(self, tile: np.ndarray, texel_m: float, velocity_ne: tuple[float, float],
-                 weight: float) -> None:
+    def __init__(
+        self, tile: np.ndarray, texel_m: float, velocity_ne: tuple[float, float], weight: float
+    ) -> None:
         self.texel_m = texel_m
         self.period_m = texel_m * tile.shape[0]
         self.velocity_ne = velocity_ne
@@ -92,8 +104,9 @@ class _Layer:
         self._tiles = [tile]
         while self._tiles[-1].shape[0] > 16:
             half = self._tiles[-1].shape[0] // 2
-            self._tiles.append(cv2.resize(self._tiles[-1], (half, half),
-                                          interpolation=cv2.INTER_AREA))
+            self._tiles.append(
+                cv2.resize(self._tiles[-1], (half, half), interpolation=cv2.INTER_AREA)
+            )
         self._big: dict[int, np.ndarray] = {}
 
     def _level(self, level: int) -> np.ndarray:
@@ -105,11 +118,22 @@ class _Layer:
             self._big[level] = np.ascontiguousarray(np.tile(tile, (reps, reps, 1)))
         return self._big[level]
 
-    def warp(self, h_lo: np.ndarray, size: tuple[int, int], t: float, metres_per_px: float,
-             near_ne: np.ndarray) -> np.ndarray:
+    def warp(
+        self,
+        h_lo: np.ndarray,
+        size: tuple[int, int],
+        t: float,
+        metres_per_px: float,
+        near_ne: np.ndarray,
+    ) -> np.ndarray:
         """The tile warped onto the low-resolution image (uint8 x 3), offset for time ``t``."""
-        level = int(np.clip(math.floor(math.log2(max(metres_per_px / self.texel_m, 1.0))), 0,
-                            len(self._tiles) - 1))
+        level = int(
+            np.clip(
+                math.floor(math.log2(max(metres_per_px / self.texel_m, 1.0))),
+                0,
+                len(self._tiles) - 1,
+            )
+        )
         big = self._level(level)
         s = self.period_m / self._tiles[level].shape[0]
         span = s * big.shape[0]
@@ -119,8 +143,9 @@ class _Layer:
         corner = near_ne + np.array([span / 2, -span / 2])
         n0, e0 = shift + self.period_m * np.round((corner - shift) / self.period_m)
         a = np.array([[0.0, -s, n0], [s, 0.0, e0], [0.0, 0.0, 1.0]])
-        return cv2.warpPerspective(big, h_lo @ a, size, flags=cv2.INTER_LINEAR,
-                                   borderMode=cv2.BORDER_WRAP)
+        return cv2.warpPerspective(
+            big, h_lo @ a, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP
+        )
 
 
 class SeaSurface:
@@ -132,26 +157,30 @@ class SeaSurface:
         wind = WIND_FOR_SEA_STATE[scenario.sea_state]
         self.slope_var = 0.003 + 0.00512 * wind
         self.sun = scenario.sun_direction_ned
-        self.water = np.asarray(WATER_COLOURS[int(rng.integers(len(WATER_COLOURS)))],
-                                dtype=np.float32) * np.float32(rng.uniform(0.9, 1.1))
+        self.water = np.asarray(
+            WATER_COLOURS[int(rng.integers(len(WATER_COLOURS)))], dtype=np.float32
+        ) * np.float32(rng.uniform(0.9, 1.1))
         to = math.radians(scenario.wind_from_deg + 180.0)
         sun_az = math.radians(scenario.sun_azimuth_deg)
         self.layers: list[_Layer] = []
         swell_w = 0.35 + 0.12 * scenario.sea_state
         wind_w = 0.25 + 0.18 * scenario.sea_state
         for n, texel, band, peak, weight, spread in (
-                (256, 1.0, (12.0, 80.0), 40.0, swell_w, 6.0),
-                (512, 0.05, (0.4, 5.0), 2.0, wind_w, 2.0)):
+            (256, 1.0, (12.0, 80.0), 40.0, swell_w, 6.0),
+            (512, 0.05, (0.4, 5.0), 2.0, wind_w, 2.0),
+        ):
             for dev, speed_scale, share in ((0.15, 1.0, 0.6), (-0.3, 0.8, 0.4)):
                 d = to + dev + float(rng.normal(0, 0.1))
                 tile = _wave_tile(rng, n, texel, band, d, spread, sun_az)
                 c = speed_scale * math.sqrt(GRAVITY * peak / (2 * math.pi))
-                self.layers.append(_Layer(tile, texel, (c * math.cos(d), c * math.sin(d)),
-                                          weight * share))
+                self.layers.append(
+                    _Layer(tile, texel, (c * math.cos(d), c * math.sin(d)), weight * share)
+                )
         self.foam_threshold = 2.9 - 0.28 * scenario.sea_state
 
-    def glint_and_fresnel(self, intr: CameraIntrinsics, pose: CameraPose
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def glint_and_fresnel(
+        self, intr: CameraIntrinsics, pose: CameraPose
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(glint envelope, Fresnel reflectance, sea mask) on a coarse grid of float32 maps whose
         samples lie on the image's outer pixel edges."""
         gh, gw = _GRID
@@ -163,15 +192,17 @@ class SeaSurface:
         mirror = d * np.array([1.0, 1.0, -1.0])
         cos2b = np.clip(mirror @ self.sun, -1.0, 1.0)  # cos of twice the facet tilt
         half = np.arccos(cos2b) / 2
-        glint = np.exp(-np.tan(np.minimum(half, 1.5)) ** 2 / self.slope_var)
+        glint = np.exp(-(np.tan(np.minimum(half, 1.5)) ** 2) / self.slope_var)
         fresnel = 0.02 + 0.98 * (1.0 - cos_view) ** 5
         sea = (d[:, 2] > 0.02).astype(np.float64)
-        glint_map, fresnel_map, sea_map = (m.reshape(gh, gw).astype(np.float32)
-                                           for m in (glint * sea, fresnel, sea))
+        glint_map, fresnel_map, sea_map = (
+            m.reshape(gh, gw).astype(np.float32) for m in (glint * sea, fresnel, sea)
+        )
         return glint_map, fresnel_map, sea_map
 
-    def render_lowres(self, intr: CameraIntrinsics, pose: CameraPose, h_ground: np.ndarray,
-                      t: float, bias: float) -> tuple[np.ndarray, np.ndarray]:
+    def render_lowres(
+        self, intr: CameraIntrinsics, pose: CameraPose, h_ground: np.ndarray, t: float, bias: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The sea at 1/:data:`LOW_RES` resolution as (BGR uint8, coarse glint envelope).
 
         ``h_ground`` maps ground (north, east) to full-resolution pixels. ``bias`` is subtracted
@@ -185,20 +216,27 @@ class SeaSurface:
         near = centre[:2] / centre[2] if centre[2] != 0 else np.zeros(2)
         probe = np.linalg.solve(h_lo, np.array([size[0] / 2 + 1, size[1] / 2, 1.0]))
         metres_per_px = float(np.hypot(*(probe[:2] / probe[2] - near))) if probe[2] else 1.0
-        layers = np.stack([layer.warp(h_lo, size, t, metres_per_px, near)
-                           for layer in self.layers])
+        layers = np.stack([layer.warp(h_lo, size, t, metres_per_px, near) for layer in self.layers])
         weights = np.array([layer.weight for layer in self.layers])
         coarse = self.glint_and_fresnel(intr, pose)
-        glint, fresnel, sea = (cv2.resize(m, size, interpolation=cv2.INTER_LINEAR)
-                               for m in coarse)
+        glint, fresnel, sea = (cv2.resize(m, size, interpolation=cv2.INTER_LINEAR) for m in coarse)
         out = np.empty((size[1], size[0], 3), np.uint8)
-        compose_sea(layers, weights, glint, fresnel, sea, self.water.astype(np.float64),
-                    SKY_BGR.astype(np.float64), 9.0 + 2.5 * self.sea_state, self.foam_threshold,
-                    float(bias), out)
+        compose_sea(
+            layers,
+            weights,
+            glint,
+            fresnel,
+            sea,
+            self.water.astype(np.float64),
+            SKY_BGR.astype(np.float64),
+            9.0 + 2.5 * self.sea_state,
+            self.foam_threshold,
+            float(bias),
+            out,
+        )
         return out, coarse[0]
 
-    def add_sparkles(self, frame: np.ndarray, glint_grid: np.ndarray, t: float,
-                     seed: int) -> None:
+    def add_sparkles(self, frame: np.ndarray, glint_grid: np.ndarray, t: float, seed: int) -> None:
         """Scatter specular sparkles over ``frame`` with density following the coarse glint
         envelope ``glint_grid`` (from :meth:`glint_and_fresnel`)."""
         flat = glint_grid.ravel().astype(np.float64)

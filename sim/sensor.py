@@ -21,8 +21,9 @@ import numpy as np
 TILE = 256
 
 
-def _periodic_noise(rng: np.random.Generator, sigma_px: float, channels_gain: np.ndarray
-                    ) -> np.ndarray:
+def _periodic_noise(
+    rng: np.random.Generator, sigma_px: float, channels_gain: np.ndarray
+) -> np.ndarray:
     """A TILE x TILE x 3 periodic float32 field, zero mean, unit std, smoothed by ``sigma_px``."""
     white = rng.standard_normal((TILE, TILE)).astype(np.float32)
     if sigma_px > 0:
@@ -37,9 +38,17 @@ def _periodic_noise(rng: np.random.Generator, sigma_px: float, channels_gain: np
 class DetailOverlay:
     """Adds ground-locked grain and fresh sensor noise to frames of one size."""
 
-    def __init__(self, width: int, height: int, seed: int, grain_std: float, noise_std: float,
-                 grain_sigma_px: float = 0.8, grain_tint: tuple[float, float, float] = (1, 1, 1),
-                 drift_px_s: tuple[float, float] = (0.0, 0.0)) -> None:
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        seed: int,
+        grain_std: float,
+        noise_std: float,
+        grain_sigma_px: float = 0.8,
+        grain_tint: tuple[float, float, float] = (1, 1, 1),
+        drift_px_s: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
         rng = np.random.default_rng([seed, 11])
         self.width, self.height = width, height
         self.drift_px_s = drift_px_s
@@ -59,15 +68,14 @@ class DetailOverlay:
     def _tiled(self, tile: np.ndarray) -> np.ndarray:
         tile8 = np.clip(tile + 0.5, 0, 255).astype(np.uint8)
         reps = ((self.height + TILE) // TILE + 1, (self.width + TILE) // TILE + 1, 1)
-        return np.ascontiguousarray(np.tile(tile8, reps)[: self.height + TILE,
-                                                         : self.width + TILE])
+        return np.ascontiguousarray(np.tile(tile8, reps)[: self.height + TILE, : self.width + TILE])
 
     def apply(self, frame: np.ndarray, ground_origin_px: tuple[float, float], t: float) -> None:
         """Add grain (anchored at the image position of a fixed ground point) and noise."""
         du, dv = self.drift_px_s
         ou = int(round(-(ground_origin_px[0] + du * t))) % TILE
         ov = int(round(-(ground_origin_px[1] + dv * t))) % TILE
-        cv2.add(frame, self._grain[ov: ov + self.height, ou: ou + self.width], dst=frame)
+        cv2.add(frame, self._grain[ov : ov + self.height, ou : ou + self.width], dst=frame)
         rng = np.random.default_rng([self.seed, 12, int(round(t * 1e6))])
         nu, nv = (int(k) for k in rng.integers(0, TILE, 2))
-        cv2.add(frame, self._noise[nv: nv + self.height, nu: nu + self.width], dst=frame)
+        cv2.add(frame, self._noise[nv : nv + self.height, nu : nu + self.width], dst=frame)

@@ -27,9 +27,12 @@ _CIRCLE = np.stack([np.cos(_PHI), np.sin(_PHI)], axis=1)
 _QUARTER = np.linspace(0.0, math.pi / 2, 5)
 # Rounded-box outline: per corner (sign x, sign y) and the arc's unit offsets.
 _CORNER_SIGNS = np.repeat(np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]], float), 5, axis=0)
-_CORNER_ARCS = np.concatenate([np.stack([np.cos(_QUARTER + k * math.pi / 2),
-                                         np.sin(_QUARTER + k * math.pi / 2)], axis=1)
-                               for k in range(4)])
+_CORNER_ARCS = np.concatenate(
+    [
+        np.stack([np.cos(_QUARTER + k * math.pi / 2), np.sin(_QUARTER + k * math.pi / 2)], axis=1)
+        for k in range(4)
+    ]
+)
 
 
 def corner_radius(part: Part) -> float:
@@ -62,8 +65,9 @@ def visible_parts(parts: list[Part], visibility: float = 1.0) -> list[Part]:
     return [p for p in parts if p.opacity * visibility > _MIN_OPACITY]
 
 
-def tight_extent(h: np.ndarray, parts: list[Part], visibility: float = 1.0,
-                 min_opacity: float = 0.25) -> np.ndarray | None:
+def tight_extent(
+    h: np.ndarray, parts: list[Part], visibility: float = 1.0, min_opacity: float = 0.25
+) -> np.ndarray | None:
     """Projected ``[u_min, v_min, u_max, v_max]`` (pixel-centre coordinates, unclipped) of the
     ``in_box`` parts at least ``min_opacity`` opaque; None when none, or behind the camera."""
     chosen = [p for p in parts if p.in_box and p.opacity * visibility >= min_opacity]
@@ -77,8 +81,13 @@ def tight_extent(h: np.ndarray, parts: list[Part], visibility: float = 1.0,
     return np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
 
 
-def draw_parts(image: np.ndarray, h: np.ndarray, parts: list[Part], visibility: float = 1.0,
-               blur_px: float = 0.5) -> bool:
+def draw_parts(
+    image: np.ndarray,
+    h: np.ndarray,
+    parts: list[Part],
+    visibility: float = 1.0,
+    blur_px: float = 0.5,
+) -> bool:
     """Blend ``parts`` into ``image`` (uint8 HxWx3, in place) through ``h``; False if off-image."""
     parts = visible_parts(parts, visibility)
     if not parts:
@@ -115,6 +124,16 @@ def draw_parts(image: np.ndarray, h: np.ndarray, parts: list[Part], visibility: 
 def _part_row(part: Part, visibility: float, metres_per_px: float) -> list[float]:
     """One row of the kernel's part table; parts thinner than a pixel get less coverage."""
     thin = min(1.0, 2.0 * min(part.a, part.b) / metres_per_px)
-    return [1.0 if part.shape == "box" else 0.0, part.x, part.y, part.a, part.b,
-            math.cos(part.angle), math.sin(part.angle), *part.bgr,
-            part.opacity * visibility * thin, part.shade, corner_radius(part)]
+    return [
+        1.0 if part.shape == "box" else 0.0,
+        part.x,
+        part.y,
+        part.a,
+        part.b,
+        math.cos(part.angle),
+        math.sin(part.angle),
+        *part.bgr,
+        part.opacity * visibility * thin,
+        part.shade,
+        corner_radius(part),
+    ]

@@ -59,14 +59,23 @@ class SuiteScenario:
     def mission(self, base: MissionConfig) -> MissionConfig:
         """``base`` flown over this scenario's area, altitude, speed and lens."""
         spacing = 0.8 * self.footprint_m()[0]
-        area = dataclasses.replace(base.area, rectangle_m=self.area_rect(), polygon_m=None,
-                                   polygon_latlon=None, leg_spacing_m=spacing, heading_deg=0.0)
-        flight = dataclasses.replace(base.flight, altitude_m=self.altitude_m,
-                                     speed_m_s=self.speed_m_s, takeoff=False)
-        camera = dataclasses.replace(base.camera, width=SIZE[0], height=SIZE[1],
-                                     hfov_deg=self.hfov_deg)
-        return dataclasses.replace(base, area=area, flight=flight, camera=camera,
-                                   name=f"suite_{self.name}")
+        area = dataclasses.replace(
+            base.area,
+            rectangle_m=self.area_rect(),
+            polygon_m=None,
+            polygon_latlon=None,
+            leg_spacing_m=spacing,
+            heading_deg=0.0,
+        )
+        flight = dataclasses.replace(
+            base.flight, altitude_m=self.altitude_m, speed_m_s=self.speed_m_s, takeoff=False
+        )
+        camera = dataclasses.replace(
+            base.camera, width=SIZE[0], height=SIZE[1], hfov_deg=self.hfov_deg
+        )
+        return dataclasses.replace(
+            base, area=area, flight=flight, camera=camera, name=f"suite_{self.name}"
+        )
 
     def scenario(self, mission: MissionConfig) -> Scenario:
         """The world: objects over the area the camera sees (the rectangle widened by half a
@@ -74,11 +83,20 @@ class SuiteScenario:
         n0, e0, n1, e1 = self.area_rect()
         half = self.footprint_m()[0] / 2
         return Scenario(
-            kind="maritime", seed=self.seed, area_ne=(n0 - half, e0 - half, n1 + half, e1 + half),
-            sea_state=self.sea_state, n_swimmers=self.swimmers, n_life_jacket=self.life_jackets,
-            n_boats=self.boats, n_birds=self.birds, n_debris=self.debris, n_glints=self.glints,
-            wind_from_deg=mission.sim.wind_from_deg, sun_azimuth_deg=self.sun_azimuth_deg,
-            sun_elevation_deg=self.sun_elevation_deg)
+            kind="maritime",
+            seed=self.seed,
+            area_ne=(n0 - half, e0 - half, n1 + half, e1 + half),
+            sea_state=self.sea_state,
+            n_swimmers=self.swimmers,
+            n_life_jacket=self.life_jackets,
+            n_boats=self.boats,
+            n_birds=self.birds,
+            n_debris=self.debris,
+            n_glints=self.glints,
+            wind_from_deg=mission.sim.wind_from_deg,
+            sun_azimuth_deg=self.sun_azimuth_deg,
+            sun_elevation_deg=self.sun_elevation_deg,
+        )
 
 
 SUITE: tuple[SuiteScenario, ...] = (
@@ -111,6 +129,7 @@ def suite(names: list[str] | None = None) -> list[SuiteScenario]:
     known = {s.name: s for s in (*SUITE, *DEVELOPMENT)}
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise ValueError(f"unknown suite scenario(s) {', '.join(unknown)}; known: "
-                         f"{', '.join(known)}")
+        raise ValueError(
+            f"unknown suite scenario(s) {', '.join(unknown)}; known: {', '.join(known)}"
+        )
     return [known[n] for n in names]

@@ -32,7 +32,8 @@ GIMBAL_REPORTS = ("vehicle", "earth")
 _LOCKS = mavlink2.GIMBAL_DEVICE_FLAGS_ROLL_LOCK | mavlink2.GIMBAL_DEVICE_FLAGS_PITCH_LOCK
 _GIMBAL_FLAGS = {
     "vehicle": _LOCKS | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME,
-    "earth": _LOCKS | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_LOCK
+    "earth": _LOCKS
+    | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_LOCK
     | mavlink2.GIMBAL_DEVICE_FLAGS_YAW_IN_EARTH_FRAME,
 }
 
@@ -143,8 +144,9 @@ class TelemetryModel:
         gimbal_report: str = "vehicle",
     ) -> None:
         if gimbal_report not in GIMBAL_REPORTS:
-            raise ValueError(f"gimbal_report must be one of {GIMBAL_REPORTS}, got "
-                             f"{gimbal_report!r}")
+            raise ValueError(
+                f"gimbal_report must be one of {GIMBAL_REPORTS}, got {gimbal_report!r}"
+            )
         self.gimbal_report = gimbal_report
         self.flight = flight
         self.mission = mission or flight.mission

@@ -35,23 +35,29 @@ def _check_pinhole(intr: CameraIntrinsics) -> None:
 def intrinsic_matrix(intr: CameraIntrinsics) -> np.ndarray:
     """``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``: camera coordinates to homogeneous pixels."""
     _check_pinhole(intr)
-    return np.array([[float(intr.fx), 0.0, float(intr.cx)],
-                     [0.0, float(intr.fy), float(intr.cy)],
-                     [0.0, 0.0, 1.0]])
+    return np.array(
+        [
+            [float(intr.fx), 0.0, float(intr.cx)],
+            [0.0, float(intr.fy), float(intr.cy)],
+            [0.0, 0.0, 1.0],
+        ]
+    )
 
 
 def camera_coordinates(pose: CameraPose, points_ned: np.ndarray) -> np.ndarray:
     """Camera-frame coordinates [N, 3] of NED points [N, 3]: each row holds the offset from the
     camera centre resolved along the camera's right, down-the-image and forward axes."""
-    offsets = np.atleast_2d(np.asarray(points_ned, dtype=float)) - np.asarray(pose.position_ned,
-                                                                              dtype=float)
+    offsets = np.atleast_2d(np.asarray(points_ned, dtype=float)) - np.asarray(
+        pose.position_ned, dtype=float
+    )
     axes = np.asarray(pose.rotation_ned_from_camera, dtype=float)
     right, down, forward = axes[:, 0], axes[:, 1], axes[:, 2]
     return np.stack([offsets @ right, offsets @ down, offsets @ forward], axis=1)
 
 
-def project(intr: CameraIntrinsics, pose: CameraPose,
-            points_ned: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def project(
+    intr: CameraIntrinsics, pose: CameraPose, points_ned: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Pixels ``uv`` [N, 2] of NED points [N, 3] and whether each lies in front (``Z > 0``).
 
     Points on or behind the camera's plane get ``uv = NaN``.
@@ -77,12 +83,17 @@ def rays(intr: CameraIntrinsics, pose: CameraPose, uv: np.ndarray) -> np.ndarray
     x = (uv[:, 0] - float(intr.cx)) / float(intr.fx)
     y = (uv[:, 1] - float(intr.cy)) / float(intr.fy)
     axes = np.asarray(pose.rotation_ned_from_camera, dtype=float)
-    d = (x[:, None] * axes[:, 0] + y[:, None] * axes[:, 1] + axes[:, 2])
+    d = x[:, None] * axes[:, 0] + y[:, None] * axes[:, 1] + axes[:, 2]
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def plane_homography(intr: CameraIntrinsics, pose: CameraPose, origin_ned: np.ndarray,
-                     axis_a_ned: np.ndarray, axis_b_ned: np.ndarray) -> np.ndarray:
+def plane_homography(
+    intr: CameraIntrinsics,
+    pose: CameraPose,
+    origin_ned: np.ndarray,
+    axis_a_ned: np.ndarray,
+    axis_b_ned: np.ndarray,
+) -> np.ndarray:
     """3x3 ``H`` with ``[u w, v w, w]^T = H [a, b, 1]^T`` for the plane point
     ``origin + a * axis_a + b * axis_b`` (NED); ``w`` is that point's depth, > 0 in front.
 
@@ -91,17 +102,25 @@ def plane_homography(intr: CameraIntrinsics, pose: CameraPose, origin_ned: np.nd
     taken through the intrinsic matrix.
     """
     to_camera = np.asarray(pose.rotation_ned_from_camera, dtype=float).T
-    columns = np.column_stack([
-        to_camera @ np.asarray(axis_a_ned, dtype=float),
-        to_camera @ np.asarray(axis_b_ned, dtype=float),
-        to_camera @ (np.asarray(origin_ned, dtype=float) - np.asarray(pose.position_ned,
-                                                                       dtype=float)),
-    ])
+    columns = np.column_stack(
+        [
+            to_camera @ np.asarray(axis_a_ned, dtype=float),
+            to_camera @ np.asarray(axis_b_ned, dtype=float),
+            to_camera
+            @ (np.asarray(origin_ned, dtype=float) - np.asarray(pose.position_ned, dtype=float)),
+        ]
+    )
     return intrinsic_matrix(intr) @ columns
 
 
-def ground_homography(intr: CameraIntrinsics, pose: CameraPose,
-                      ground_down: float = 0.0) -> np.ndarray:
+def ground_homography(
+    intr: CameraIntrinsics, pose: CameraPose, ground_down: float = 0.0
+) -> np.ndarray:
     """3x3 ``H`` from ``(north, east, 1)`` on the plane ``down = ground_down`` to pixels."""
-    return plane_homography(intr, pose, np.array([0.0, 0.0, float(ground_down)]),
-                            np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    return plane_homography(
+        intr,
+        pose,
+        np.array([0.0, 0.0, float(ground_down)]),
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+    )

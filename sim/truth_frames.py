@@ -19,9 +19,7 @@ from scipy.spatial.transform import Rotation
 
 #: Camera (OpenCV) axes in the gimbal's FRD frame: image right is gimbal right, image down is
 #: gimbal down, the optical axis is gimbal forward.
-_CAMERA_AXES_IN_GIMBAL = np.array([[0.0, 0.0, 1.0],
-                                   [1.0, 0.0, 0.0],
-                                   [0.0, 1.0, 0.0]])
+_CAMERA_AXES_IN_GIMBAL = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
 
 
 def zyx_rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -44,8 +42,11 @@ def zyx_angles(r: np.ndarray) -> tuple[float, float, float]:
     return float(roll), float(pitch), float(yaw)
 
 
-def camera_rotation(vehicle_rpy: tuple[float, float, float],
-                    gimbal_rpy: tuple[float, float, float], gimbal_frame: str) -> np.ndarray:
+def camera_rotation(
+    vehicle_rpy: tuple[float, float, float],
+    gimbal_rpy: tuple[float, float, float],
+    gimbal_frame: str,
+) -> np.ndarray:
     """``R_ned_camera`` for a gimbal whose angles are relative to the body ("body"), to the
     horizon with yaw from the heading ("vehicle"), or to the horizon and north ("earth")."""
     gimbal = zyx_rotation(*gimbal_rpy)

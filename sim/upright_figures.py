@@ -32,8 +32,13 @@ from sim.scene import (
 
 Figure = tuple[list[Part], list[Upright]]
 RIPPLE: BGR = (225.0, 225.0, 215.0)
-BUOY: tuple[BGR, ...] = ((20, 200, 240), (30, 40, 200), (40, 140, 30), (235, 235, 235),
-                         (20, 110, 245))
+BUOY: tuple[BGR, ...] = (
+    (20, 200, 240),
+    (30, 40, 200),
+    (40, 140, 30),
+    (235, 235, 235),
+    (20, 110, 245),
+)
 RING: tuple[BGR, ...] = ((20, 90, 240), (30, 40, 210), (20, 200, 240))
 
 
@@ -48,48 +53,91 @@ def swimmer(rng: np.random.Generator, life_jacket: bool) -> Figure:
     u = rng.random()
     if u < 0.15 and not life_jacket:
         splash = float(rng.uniform(0.3, 0.45))
-        flat = [Part("ellipse", 0.0, 0.0, 1.3 * splash, 1.2 * splash, 0.0, RIPPLE, 0.15, 0.0,
-                     False),
-                Part("ellipse", 0.0, 0.0, splash, 0.9 * splash, 0.0, RIPPLE, 0.3, 0.0)]
+        flat = [
+            Part("ellipse", 0.0, 0.0, 1.3 * splash, 1.2 * splash, 0.0, RIPPLE, 0.15, 0.0, False),
+            Part("ellipse", 0.0, 0.0, splash, 0.9 * splash, 0.0, RIPPLE, 0.3, 0.0),
+        ]
         return flat, _head(cover, skin, 0.0)
     if u < 0.4:
         length = float(rng.uniform(1.5, 1.85))
         half = length / 2
-        flat = [Part("ellipse", 0.0, 0.0, 1.05 * half, 0.4, 0.0, RIPPLE, 0.12, 0.0, False),
-                Part("ellipse", -0.5 * half, 0.0, 0.5 * half, 0.17, 0.0, suit, 0.45, 0.2),
-                Part("ellipse", 0.2 * half, 0.0, 0.4 * half, shoulders, 0.0, torso, 0.85, 0.3),
-                Part("ellipse", 0.2 * half + 0.45 * half + 0.1, 0.0, 0.12, 0.1, 0.0, cover,
-                     0.9, 0.3)]
+        flat = [
+            Part("ellipse", 0.0, 0.0, 1.05 * half, 0.4, 0.0, RIPPLE, 0.12, 0.0, False),
+            Part("ellipse", -0.5 * half, 0.0, 0.5 * half, 0.17, 0.0, suit, 0.45, 0.2),
+            Part("ellipse", 0.2 * half, 0.0, 0.4 * half, shoulders, 0.0, torso, 0.85, 0.3),
+            Part("ellipse", 0.2 * half + 0.45 * half + 0.1, 0.0, 0.12, 0.1, 0.0, cover, 0.9, 0.3),
+        ]
         span = float(rng.uniform(0.55, 0.8))
         for side in (-1.0, 1.0):
-            flat.append(Part("ellipse", 0.3 * half, side * (shoulders + span / 2), span / 2,
-                             0.05, side * 1.3, skin, 0.55, 0.1))
-        upright = [Upright("ellipse", 0.2 * half, 0.0, 0.4 * half, shoulders, 0.0, 0.1, torso,
-                           0.9, 0.3),
-                   Upright("ellipse", 0.75 * half, 0.0, 0.11, 0.09, 0.0, 0.14, skin, 0.9, 0.2)]
+            flat.append(
+                Part(
+                    "ellipse",
+                    0.3 * half,
+                    side * (shoulders + span / 2),
+                    span / 2,
+                    0.05,
+                    side * 1.3,
+                    skin,
+                    0.55,
+                    0.1,
+                )
+            )
+        upright = [
+            Upright("ellipse", 0.2 * half, 0.0, 0.4 * half, shoulders, 0.0, 0.1, torso, 0.9, 0.3),
+            Upright("ellipse", 0.75 * half, 0.0, 0.11, 0.09, 0.0, 0.14, skin, 0.9, 0.2),
+        ]
         return flat, upright
     span = float(rng.uniform(0.3, 0.65))  # each arm, sculling on the surface
-    flat = [Part("ellipse", 0.0, 0.0, 0.6, shoulders + span + 0.15, 0.0, RIPPLE, 0.15, 0.0,
-                 False),
-            Part("ellipse", -0.15, 0.0, 0.35, shoulders, 0.0, torso, 0.5, 0.3)]
+    flat = [
+        Part("ellipse", 0.0, 0.0, 0.6, shoulders + span + 0.15, 0.0, RIPPLE, 0.15, 0.0, False),
+        Part("ellipse", -0.15, 0.0, 0.35, shoulders, 0.0, torso, 0.5, 0.3),
+    ]
     for side in (-1.0, 1.0):
-        flat.append(Part("ellipse", 0.05, side * (shoulders + span / 2), span / 2, 0.055,
-                         side * 0.25, skin, 0.5, 0.15))
-    upright = [Upright("ellipse", 0.0, 0.0, 0.13, shoulders, -0.05, 0.14, torso, 0.95, 0.3),
-               *_head(cover, skin, 0.1)]
+        flat.append(
+            Part(
+                "ellipse",
+                0.05,
+                side * (shoulders + span / 2),
+                span / 2,
+                0.055,
+                side * 0.25,
+                skin,
+                0.5,
+                0.15,
+            )
+        )
+    upright = [
+        Upright("ellipse", 0.0, 0.0, 0.13, shoulders, -0.05, 0.14, torso, 0.95, 0.3),
+        *_head(cover, skin, 0.1),
+    ]
     if rng.random() < 0.33:
         side = 1.0 if rng.random() < 0.5 else -1.0
-        upright.append(Upright("ellipse", 0.0, side * shoulders, 0.05, 0.05, 0.08,
-                               float(rng.uniform(0.65, 0.8)), skin, 0.95, 0.2,
-                               tilt=side * 0.35, swing=0.45, phase=float(rng.random())))
+        upright.append(
+            Upright(
+                "ellipse",
+                0.0,
+                side * shoulders,
+                0.05,
+                0.05,
+                0.08,
+                float(rng.uniform(0.65, 0.8)),
+                skin,
+                0.95,
+                0.2,
+                tilt=side * 0.35,
+                swing=0.45,
+                phase=float(rng.random()),
+            )
+        )
     return flat, upright
 
 
 def _head(cover: BGR, skin: BGR, bottom: float) -> list[Upright]:
     """A head rising from ``bottom`` metres: hair or cap, and the face below it."""
-    return [Upright("ellipse", 0.0, 0.0, 0.1, 0.09, bottom, bottom + 0.24, cover, 0.97, 0.35),
-            Upright("ellipse", 0.03, 0.0, 0.08, 0.07, bottom + 0.02, bottom + 0.16, skin, 0.85,
-                    0.2)]
+    return [
+        Upright("ellipse", 0.0, 0.0, 0.1, 0.09, bottom, bottom + 0.24, cover, 0.97, 0.35),
+        Upright("ellipse", 0.03, 0.0, 0.08, 0.07, bottom + 0.02, bottom + 0.16, skin, 0.85, 0.2),
+    ]
 
 
 def standing_person(rng: np.random.Generator, base: float = 0.0) -> list[Upright]:
@@ -100,11 +148,24 @@ def standing_person(rng: np.random.Generator, base: float = 0.0) -> list[Upright
     legs = pick_colour(rng, CLOTHES)
     width = float(rng.uniform(0.2, 0.25))
     y = float(rng.uniform(-0.3, 0.3))
-    return [Upright("box", 0.0, y, 0.12, 0.7 * width, base, base + 0.48 * tall, legs, 1.0, 0.2),
-            Upright("box", 0.0, y, 0.13, width, base + 0.46 * tall, base + 0.84 * tall,
-                    clothes, 1.0, 0.25),
-            Upright("ellipse", 0.0, y, 0.1, 0.09, base + 0.84 * tall, base + tall,
-                    pick_colour(rng, HAIR), 1.0, 0.3)]
+    return [
+        Upright("box", 0.0, y, 0.12, 0.7 * width, base, base + 0.48 * tall, legs, 1.0, 0.2),
+        Upright(
+            "box", 0.0, y, 0.13, width, base + 0.46 * tall, base + 0.84 * tall, clothes, 1.0, 0.25
+        ),
+        Upright(
+            "ellipse",
+            0.0,
+            y,
+            0.1,
+            0.09,
+            base + 0.84 * tall,
+            base + tall,
+            pick_colour(rng, HAIR),
+            1.0,
+            0.3,
+        ),
+    ]
 
 
 def person_on_land(rng: np.random.Generator, flat: list[Part]) -> Figure:
@@ -121,14 +182,39 @@ def boat(rng: np.random.Generator, moving: bool) -> Figure:
     hull = flat[-4].bgr
     freeboard = float(rng.uniform(0.5, 0.4 + 0.08 * length))
     cabin = pick_colour(rng, ((220, 220, 220), (70, 70, 75), (150, 150, 150)))
-    upright = [Upright("box", 0.0, 0.0, 0.95 * half, beam, 0.0, freeboard, hull, 1.0, 0.2),
-               Upright("box", -0.3 * half, 0.0, 0.3 * half, 0.6 * beam, freeboard,
-                       freeboard + float(rng.uniform(0.8, 1.6)), cabin, 1.0, 0.25)]
+    upright = [
+        Upright("box", 0.0, 0.0, 0.95 * half, beam, 0.0, freeboard, hull, 1.0, 0.2),
+        Upright(
+            "box",
+            -0.3 * half,
+            0.0,
+            0.3 * half,
+            0.6 * beam,
+            freeboard,
+            freeboard + float(rng.uniform(0.8, 1.6)),
+            cabin,
+            1.0,
+            0.25,
+        ),
+    ]
     for _ in range(int(rng.integers(1, 4))):
         person = standing_person(rng, freeboard - 0.3)
         x = float(rng.uniform(-0.8, 0.3)) * half
-        upright += [Upright(p.shape, x, p.y * beam, p.half_length, p.half_width, p.bottom, p.top,
-                            p.bgr, p.opacity, p.shade) for p in person]
+        upright += [
+            Upright(
+                p.shape,
+                x,
+                p.y * beam,
+                p.half_length,
+                p.half_width,
+                p.bottom,
+                p.top,
+                p.bgr,
+                p.opacity,
+                p.shade,
+            )
+            for p in person
+        ]
     return flat, upright
 
 
@@ -140,17 +226,50 @@ def jetski(rng: np.random.Generator, moving: bool) -> Figure:
     foam = (235.0, 238.0, 235.0)
     flat: list[Part] = []
     if moving:
-        flat.append(Part("ellipse", -half - 1.5 * length, 0.0, 1.6 * length, 0.7, 0.0, foam,
-                         0.35, 0.0, False))
-    flat += [Part("ellipse", 0.1 * half, 0.0, half, beam, 0.0, hull, 1.0, 0.2),
-             Part("box", -0.2 * half, 0.0, 0.35 * half, 0.22, 0.0, (30, 30, 32), 1.0, 0.1)]
+        flat.append(
+            Part(
+                "ellipse", -half - 1.5 * length, 0.0, 1.6 * length, 0.7, 0.0, foam, 0.35, 0.0, False
+            )
+        )
+    flat += [
+        Part("ellipse", 0.1 * half, 0.0, half, beam, 0.0, hull, 1.0, 0.2),
+        Part("box", -0.2 * half, 0.0, 0.35 * half, 0.22, 0.0, (30, 30, 32), 1.0, 0.1),
+    ]
     rider = standing_person(rng, 0.45)
     if rng.random() < 0.6:  # sitting: the legs fold, the body starts lower
-        rider = [Upright(p.shape, p.x, p.y, p.half_length, p.half_width, p.bottom - 0.5,
-                         p.top - 0.5, p.bgr, p.opacity, p.shade) for p in rider[1:]]
-    upright = [Upright("box", 0.0, 0.0, 0.9 * half, beam, 0.0, 0.5, hull, 1.0, 0.2),
-               *[Upright(p.shape, -0.2 * half, 0.0, p.half_length, p.half_width, p.bottom,
-                         p.top, p.bgr, p.opacity, p.shade) for p in rider]]
+        rider = [
+            Upright(
+                p.shape,
+                p.x,
+                p.y,
+                p.half_length,
+                p.half_width,
+                p.bottom - 0.5,
+                p.top - 0.5,
+                p.bgr,
+                p.opacity,
+                p.shade,
+            )
+            for p in rider[1:]
+        ]
+    upright = [
+        Upright("box", 0.0, 0.0, 0.9 * half, beam, 0.0, 0.5, hull, 1.0, 0.2),
+        *[
+            Upright(
+                p.shape,
+                -0.2 * half,
+                0.0,
+                p.half_length,
+                p.half_width,
+                p.bottom,
+                p.top,
+                p.bgr,
+                p.opacity,
+                p.shade,
+            )
+            for p in rider
+        ],
+    ]
     return flat, upright
 
 
@@ -159,14 +278,28 @@ def buoy(rng: np.random.Generator) -> Figure:
     width = float(rng.uniform(1.3, 2.1))
     colour = pick_colour(rng, BUOY)
     body_top = float(rng.uniform(0.6, 1.1))
-    flat = [Part("ellipse", 0.0, 0.0, 0.7 * width, 0.7 * width, 0.0, RIPPLE, 0.12, 0.0, False),
-            Part("ellipse", 0.0, 0.0, width / 2, width / 2, 0.0, colour, 1.0, 0.35)]
-    upright = [Upright("ellipse", 0.0, 0.0, width / 2, width / 2, 0.0, body_top, colour, 1.0,
-                       0.3),
-               Upright("box", 0.0, 0.0, 0.06, 0.06, body_top, body_top + 0.9 * width,
-                       (60, 60, 60), 1.0, 0.1),
-               Upright("ellipse", 0.0, 0.0, 0.2, 0.2, body_top + 0.7 * width,
-                       body_top + 0.9 * width, colour, 1.0, 0.2)]
+    flat = [
+        Part("ellipse", 0.0, 0.0, 0.7 * width, 0.7 * width, 0.0, RIPPLE, 0.12, 0.0, False),
+        Part("ellipse", 0.0, 0.0, width / 2, width / 2, 0.0, colour, 1.0, 0.35),
+    ]
+    upright = [
+        Upright("ellipse", 0.0, 0.0, width / 2, width / 2, 0.0, body_top, colour, 1.0, 0.3),
+        Upright(
+            "box", 0.0, 0.0, 0.06, 0.06, body_top, body_top + 0.9 * width, (60, 60, 60), 1.0, 0.1
+        ),
+        Upright(
+            "ellipse",
+            0.0,
+            0.0,
+            0.2,
+            0.2,
+            body_top + 0.7 * width,
+            body_top + 0.9 * width,
+            colour,
+            1.0,
+            0.2,
+        ),
+    ]
     return flat, upright
 
 
@@ -180,7 +313,18 @@ def life_ring(rng: np.random.Generator) -> Figure:
     for k in range(12):  # the ring as twelve short segments round its centre line
         a = 2 * math.pi * k / 12
         r = outer - thick
-        flat.append(Part("ellipse", r * math.cos(a), r * math.sin(a), 0.14, thick, a + math.pi / 2,
-                         white if k % 3 == 0 else colour, 1.0, 0.2))
+        flat.append(
+            Part(
+                "ellipse",
+                r * math.cos(a),
+                r * math.sin(a),
+                0.14,
+                thick,
+                a + math.pi / 2,
+                white if k % 3 == 0 else colour,
+                1.0,
+                0.2,
+            )
+        )
     upright = [Upright("ellipse", 0.0, 0.0, outer, outer, 0.0, 0.1, colour, 0.9, 0.2)]
     return flat, upright

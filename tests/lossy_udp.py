@@ -117,8 +117,9 @@ class LossyUdpProxy:
         digest = hashlib.sha256(f"{self.seed}|{direction}|{copy}|".encode() + content).digest()
         return [int.from_bytes(digest[i : i + 4], "big") / 2**32 for i in range(0, 20, 4)]
 
-    def _schedule(self, direction: str, data: bytes, sock: socket.socket,
-                  to: tuple[str, int]) -> None:
+    def _schedule(
+        self, direction: str, data: bytes, sock: socket.socket, to: tuple[str, int]
+    ) -> None:
         imp, stats = self.impairment, self.stats[direction]
         stats.received += 1
         u_loss, u_dup, u_late, u_delay, _ = self._draws(direction, data)

@@ -9,8 +9,14 @@ import cv2
 import numpy as np
 
 
-def textured_background(height: int, width: int, seed: int = 0, mean: float = 0.4,
-                        amplitude: float = 0.15, grain: float = 6.0) -> np.ndarray:
+def textured_background(
+    height: int,
+    width: int,
+    seed: int = 0,
+    mean: float = 0.4,
+    amplitude: float = 0.15,
+    grain: float = 6.0,
+) -> np.ndarray:
     """Smooth random texture: uniform noise blurred with sigma ``grain`` px, rescaled to
     ``mean +- amplitude``.
     """
@@ -21,8 +27,9 @@ def textured_background(height: int, width: int, seed: int = 0, mean: float = 0.
     return np.clip(mean + amplitude * tex / 2.0, 0.0, 1.0).astype(np.float32)
 
 
-def target_mask(height: int, width: int, cx: float, cy: float, size: float,
-                shape: str = "square") -> np.ndarray:
+def target_mask(
+    height: int, width: int, cx: float, cy: float, size: float, shape: str = "square"
+) -> np.ndarray:
     """Anti-aliased coverage in [0, 1] of a ``size``-px square (side) or disc (diameter) centred
     at ``(cx, cy)`` in pixel coordinates (pixel ``(i, j)`` has its centre at ``x = j, y = i``).
     """
@@ -38,17 +45,31 @@ def target_mask(height: int, width: int, cx: float, cy: float, size: float,
     return mx * my
 
 
-def render(background: np.ndarray, cx: float, cy: float, size: float, value: float = 0.95,
-           shape: str = "square") -> np.ndarray:
+def render(
+    background: np.ndarray,
+    cx: float,
+    cy: float,
+    size: float,
+    value: float = 0.95,
+    shape: str = "square",
+) -> np.ndarray:
     """Background with a target of intensity ``value`` pasted at ``(cx, cy)``."""
     m = target_mask(*background.shape, cx, cy, size, shape)
     return (background * (1.0 - m) + value * m).astype(np.float32)
 
 
-def moving_target(height: int, width: int, n_frames: int, start: tuple[float, float],
-                  velocity: tuple[float, float], size: float, value: float = 0.95,
-                  shape: str = "square", seed: int = 0,
-                  background: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+def moving_target(
+    height: int,
+    width: int,
+    n_frames: int,
+    start: tuple[float, float],
+    velocity: tuple[float, float],
+    size: float,
+    value: float = 0.95,
+    shape: str = "square",
+    seed: int = 0,
+    background: np.ndarray | None = None,
+) -> tuple[list[np.ndarray], np.ndarray]:
     """Frames of a target moving at constant ``velocity`` (px/frame, y down) from ``start``.
 
     Returns the frames and the ``[n_frames, 2]`` true centres ``(x, y)``.
@@ -65,8 +86,7 @@ def to_bgr(image: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
 
 
-def periodic_texture(height: int, width: int, rng: np.random.Generator,
-                     grain: float) -> np.ndarray:
+def periodic_texture(height: int, width: int, rng: np.random.Generator, grain: float) -> np.ndarray:
     """Spectrum of a periodic band-limited texture: uniform noise Gaussian-filtered with sigma
     ``grain`` px, zero mean (translate it with :func:`translated`).
     """
@@ -89,10 +109,19 @@ def translated(spectrum: np.ndarray, dx: float, dy: float, amplitude: float) -> 
     return scale * np.real(np.fft.ifft2(spectrum * np.exp(-2j * np.pi * (fx * dx + fy * dy))))
 
 
-def drifting_scene(height: int, width: int, n_frames: int, camera_velocity: tuple[float, float],
-                   start: tuple[float, float], relative_velocity: tuple[float, float],
-                   size: float, value: float = 0.95, seed: int = 0, grain: float = 2.0,
-                   amplitude: float = 0.3) -> tuple[list[np.ndarray], np.ndarray]:
+def drifting_scene(
+    height: int,
+    width: int,
+    n_frames: int,
+    camera_velocity: tuple[float, float],
+    start: tuple[float, float],
+    relative_velocity: tuple[float, float],
+    size: float,
+    value: float = 0.95,
+    seed: int = 0,
+    grain: float = 2.0,
+    amplitude: float = 0.3,
+) -> tuple[list[np.ndarray], np.ndarray]:
     """Frames seen from a translating camera: a periodic band-limited texture (Gaussian-filtered
     noise, sigma ``grain`` px) moves by ``camera_velocity`` px/frame, translated exactly by a
     Fourier phase ramp, and a target drifts over it at ``camera_velocity + relative_velocity``.
@@ -102,8 +131,9 @@ def drifting_scene(height: int, width: int, n_frames: int, camera_velocity: tupl
     rng = np.random.default_rng(seed)
     spectrum = periodic_texture(height, width, rng, grain)
     cam = np.asarray(camera_velocity, np.float64)
-    centres = (np.asarray(start, np.float64)
-               + np.arange(n_frames)[:, None] * (cam + np.asarray(relative_velocity)))
+    centres = np.asarray(start, np.float64) + np.arange(n_frames)[:, None] * (
+        cam + np.asarray(relative_velocity)
+    )
     frames = []
     for t, (cx, cy) in enumerate(centres):
         dx, dy = cam * t
@@ -112,12 +142,24 @@ def drifting_scene(height: int, width: int, n_frames: int, camera_velocity: tupl
     return frames, centres
 
 
-def sea_scene(height: int, width: int, n_frames: int, camera_velocity: tuple[float, float],
-              start: tuple[float, float], relative_velocity: tuple[float, float], size: float,
-              value: float = 0.95, seed: int = 0, grain: float = 2.0, amplitude: float = 0.3,
-              wave_velocity: tuple[float, float] = (1.0, -0.5), wave_grain: float = 3.0,
-              wave_amplitude: float = 0.15, sparkles: int = 4,
-              sparkle_size: float = 2.0) -> tuple[list[np.ndarray], np.ndarray]:
+def sea_scene(
+    height: int,
+    width: int,
+    n_frames: int,
+    camera_velocity: tuple[float, float],
+    start: tuple[float, float],
+    relative_velocity: tuple[float, float],
+    size: float,
+    value: float = 0.95,
+    seed: int = 0,
+    grain: float = 2.0,
+    amplitude: float = 0.3,
+    wave_velocity: tuple[float, float] = (1.0, -0.5),
+    wave_grain: float = 3.0,
+    wave_amplitude: float = 0.15,
+    sparkles: int = 4,
+    sparkle_size: float = 2.0,
+) -> tuple[list[np.ndarray], np.ndarray]:
     """:func:`drifting_scene` with sea-like clutter: a second texture layer (waves, sigma
     ``wave_grain``) moving at ``camera_velocity + wave_velocity``, so that no single shift
     explains all the change, and ``sparkles`` bright ``sparkle_size``-px glints at random places,
@@ -128,12 +170,16 @@ def sea_scene(height: int, width: int, n_frames: int, camera_velocity: tuple[flo
     waves = periodic_texture(height, width, rng, wave_grain)
     cam = np.asarray(camera_velocity, np.float64)
     wave = cam + np.asarray(wave_velocity, np.float64)
-    centres = (np.asarray(start, np.float64)
-               + np.arange(n_frames)[:, None] * (cam + np.asarray(relative_velocity)))
+    centres = np.asarray(start, np.float64) + np.arange(n_frames)[:, None] * (
+        cam + np.asarray(relative_velocity)
+    )
     frames = []
     for t, (cx, cy) in enumerate(centres):
-        bg = (0.4 + translated(ground, *(cam * t), amplitude)
-              + translated(waves, *(wave * t), wave_amplitude))
+        bg = (
+            0.4
+            + translated(ground, *(cam * t), amplitude)
+            + translated(waves, *(wave * t), wave_amplitude)
+        )
         bg = np.clip(bg, 0.0, 1.0).astype(np.float32)
         for _ in range(sparkles):
             x, y = rng.uniform(4, width - 4), rng.uniform(4, height - 4)

@@ -19,26 +19,52 @@ class RtspServer:
     :meth:`close`; ``requests`` lists the RTSP methods received, ``packets`` the RTP packets
     passed on."""
 
-    def __init__(self, folder: Path, size: str = "320x240", rate: int = 25,
-                 port: int = 0) -> None:
+    def __init__(self, folder: Path, size: str = "320x240", rate: int = 25, port: int = 0) -> None:
         assert FFMPEG is not None
         self.rtp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.rtp.bind(("127.0.0.1", 0))
         self.rtp.settimeout(0.2)
         sdp = folder / "stream.sdp"
         self.encoder = subprocess.Popen(
-            [FFMPEG, "-hide_banner", "-loglevel", "error", "-re", "-f", "lavfi", "-i",
-             f"testsrc2=size={size}:rate={rate}", "-c:v", "libx264", "-preset", "ultrafast",
-             "-tune", "zerolatency", "-g", str(rate), "-pix_fmt", "yuv420p", "-f", "rtp",
-             "-sdp_file", str(sdp), f"rtp://127.0.0.1:{self.rtp.getsockname()[1]}"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [
+                FFMPEG,
+                "-hide_banner",
+                "-loglevel",
+                "error",
+                "-re",
+                "-f",
+                "lavfi",
+                "-i",
+                f"testsrc2=size={size}:rate={rate}",
+                "-c:v",
+                "libx264",
+                "-preset",
+                "ultrafast",
+                "-tune",
+                "zerolatency",
+                "-g",
+                str(rate),
+                "-pix_fmt",
+                "yuv420p",
+                "-f",
+                "rtp",
+                "-sdp_file",
+                str(sdp),
+                f"rtp://127.0.0.1:{self.rtp.getsockname()[1]}",
+            ],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         deadline = time.monotonic() + 30
         while not (sdp.is_file() and "m=video" in sdp.read_text()):
             if time.monotonic() > deadline or self.encoder.poll() is not None:
                 raise RuntimeError("ffmpeg wrote no SDP")
             time.sleep(0.05)
-        self.sdp = sdp.read_text().replace("c=IN IP4 127.0.0.1", "c=IN IP4 0.0.0.0") \
+        self.sdp = (
+            sdp.read_text().replace("c=IN IP4 127.0.0.1", "c=IN IP4 0.0.0.0")
             + "a=control:streamid=0\r\n"
+        )
         self.listener = socket.create_server(("127.0.0.1", port))
         self.listener.settimeout(0.2)
         self.port = self.listener.getsockname()[1]
@@ -86,8 +112,9 @@ class RtspServer:
         lines = request.split("\r\n")
         method = lines[0].split(" ")[0]
         self.requests.append(method)
-        headers = {k.strip().lower(): v.strip() for k, _, v in
-                   (line.partition(":") for line in lines[1:])}
+        headers = {
+            k.strip().lower(): v.strip() for k, _, v in (line.partition(":") for line in lines[1:])
+        }
         cseq = headers.get("cseq", "0")
         status, extra, body = "200 OK", [], ""
         if method == "OPTIONS":
@@ -106,8 +133,12 @@ class RtspServer:
             return None
         else:
             status = "405 Method Not Allowed"
-        lines = [f"RTSP/1.0 {status}", f"CSeq: {cseq}", *extra,
-                 f"Content-Length: {len(body.encode())}"]
+        lines = [
+            f"RTSP/1.0 {status}",
+            f"CSeq: {cseq}",
+            *extra,
+            f"Content-Length: {len(body.encode())}",
+        ]
         return ("\r\n".join(lines) + "\r\n\r\n" + body).encode()
 
     def _forward(self, conn: socket.socket) -> bool:

@@ -13,9 +13,11 @@ CLASSES = ("swimmer", "swimmer_with_life_jacket")
 
 
 def _result(timestamp: float, boxes: list, scores: list, classes: list) -> FrameResult:
-    det = Detections(np.asarray(boxes, np.float32).reshape(-1, 4),
-                     np.asarray(scores, np.float32).reshape(-1),
-                     np.asarray(classes, np.int64).reshape(-1))
+    det = Detections(
+        np.asarray(boxes, np.float32).reshape(-1, 4),
+        np.asarray(scores, np.float32).reshape(-1),
+        np.asarray(classes, np.int64).reshape(-1),
+    )
     return FrameResult(timestamp, det, Proposals(boxes=det.boxes.copy()), None)
 
 
@@ -31,12 +33,14 @@ class ScriptedDetector:
         self.resets: list[int] = []
         self.per_stage_ms: dict[str, float] = {}
 
-    def process(self, frame_bgr: np.ndarray, timestamp: float,
-                shift_px: tuple[float, float] | None = None) -> FrameResult:
+    def process(
+        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+    ) -> FrameResult:
         items = self.script[self.calls] if self.calls < len(self.script) else []
         self.calls += 1
-        return _result(timestamp, [b for b, _, _ in items], [s for _, s, _ in items],
-                       [c for _, _, c in items])
+        return _result(
+            timestamp, [b for b, _, _ in items], [s for _, s, _ in items], [c for _, _, c in items]
+        )
 
     def reset(self) -> None:
         """Recorded (when, in calls) so that tests see it; the script goes on with the next
@@ -54,13 +58,14 @@ class BlobDetector:
         self.min_area = min_area
         self.per_stage_ms: dict[str, float] = {}
 
-    def process(self, frame_bgr: np.ndarray, timestamp: float,
-                shift_px: tuple[float, float] | None = None) -> FrameResult:
+    def process(
+        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+    ) -> FrameResult:
         grey = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY)
         n, _, stats, _ = cv2.connectedComponentsWithStats(
-            (grey > self.threshold).astype(np.uint8), connectivity=8)
-        boxes = [(x, y, x + w, y + h) for x, y, w, h, area in stats[1:n]
-                 if area >= self.min_area]
+            (grey > self.threshold).astype(np.uint8), connectivity=8
+        )
+        boxes = [(x, y, x + w, y + h) for x, y, w, h, area in stats[1:n] if area >= self.min_area]
         return _result(timestamp, boxes, [0.9] * len(boxes), [0] * len(boxes))
 
     def reset(self) -> None:

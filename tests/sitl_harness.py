@@ -165,8 +165,13 @@ class Sitl:
     def log_path(self) -> Path:
         return self.workdir / "sitl.log"
 
-    def start(self, *, wipe: bool = True, home: tuple[float, float, float, float] | None = None,
-              speedup: float | None = None) -> Sitl:
+    def start(
+        self,
+        *,
+        wipe: bool = True,
+        home: tuple[float, float, float, float] | None = None,
+        speedup: float | None = None,
+    ) -> Sitl:
         """Start the process (``wipe``: fresh eeprom, i.e. default parameters and no mission;
         without it the autopilot boots as after a power cycle; ``home``, ``speedup``: change
         them from now on). Same instance and ports every time, so a restart is the same
@@ -184,13 +189,20 @@ class Sitl:
             defaults += f",{extra}"
         args = [
             str(self.binary),
-            "--model", "+",
-            "--speedup", f"{self.speedup:g}",
-            "--defaults", defaults,
-            "-I", str(self.instance),
-            "--home", ",".join(f"{v:.7f}" for v in self.home),
-            "--serial0", f"udpclient:127.0.0.1:{self.link_port}",
-            "--serial1", f"udpclient:127.0.0.1:{self.gcs_port}",
+            "--model",
+            "+",
+            "--speedup",
+            f"{self.speedup:g}",
+            "--defaults",
+            defaults,
+            "-I",
+            str(self.instance),
+            "--home",
+            ",".join(f"{v:.7f}" for v in self.home),
+            "--serial0",
+            f"udpclient:127.0.0.1:{self.link_port}",
+            "--serial1",
+            f"udpclient:127.0.0.1:{self.gcs_port}",
         ]
         if wipe:
             args.append("--wipe")
@@ -198,8 +210,12 @@ class Sitl:
             args = [SETPRIV, "--pdeathsig", "KILL", *args]
         self._log = open(self.log_path, "ab")  # closed in stop()
         self.proc = subprocess.Popen(
-            args, cwd=self.workdir, stdin=subprocess.DEVNULL, stdout=self._log,
-            stderr=subprocess.STDOUT, start_new_session=True,
+            args,
+            cwd=self.workdir,
+            stdin=subprocess.DEVNULL,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
         )
         STARTED_PIDS.append(self.proc.pid)
         self.starts += 1
@@ -233,8 +249,9 @@ class Sitl:
             self._log.close()
             self._log = None
 
-    def restart(self, *, home: tuple[float, float, float, float] | None = None,
-                speedup: float | None = None) -> Sitl:
+    def restart(
+        self, *, home: tuple[float, float, float, float] | None = None, speedup: float | None = None
+    ) -> Sitl:
         """Kill and boot again on the same instance and ports, keeping the eeprom (a power
         cycle: parameters and the stored mission survive, ``time_boot_ms`` starts at 0)."""
         self.stop()
@@ -274,14 +291,17 @@ class Waypoint:
     frame: int = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 
 
-def box_survey(lat0: float, lon0: float, alt: float, side_m: float = 300.0,
-               speed_m_s: float = 5.0) -> list[Waypoint]:
+def box_survey(
+    lat0: float, lon0: float, alt: float, side_m: float = 300.0, speed_m_s: float = 5.0
+) -> list[Waypoint]:
     """A looping box survey north-east of ``(lat0, lon0)``: home placeholder (item 0, which
     ArduPilot overwrites with home), DO_CHANGE_SPEED, four corners, DO_JUMP back forever."""
     dn = 1.0 / 111_111.0
     de = dn / math.cos(math.radians(lat0))
-    items = [Waypoint(M.MAV_CMD_NAV_WAYPOINT, lat0, lon0, 0.0),
-             Waypoint(M.MAV_CMD_DO_CHANGE_SPEED, params=(1.0, speed_m_s, -1.0, 0.0))]
+    items = [
+        Waypoint(M.MAV_CMD_NAV_WAYPOINT, lat0, lon0, 0.0),
+        Waypoint(M.MAV_CMD_DO_CHANGE_SPEED, params=(1.0, speed_m_s, -1.0, 0.0)),
+    ]
     for n, e in ((side_m, 0.0), (side_m, side_m), (0.0, side_m), (0.0, 0.0)):
         items.append(Waypoint(M.MAV_CMD_NAV_WAYPOINT, lat0 + n * dn, lon0 + e * de, alt))
     items.append(Waypoint(M.MAV_CMD_DO_JUMP, params=(2.0, -1.0, 0.0, 0.0)))
@@ -339,13 +359,23 @@ class Pilot:
         with self._lock:
             if mtype == "HEARTBEAT":
                 self.heartbeat_sources.add((*src, int(msg.type)))
-                if (self.autopilot is None and msg.autopilot != M.MAV_AUTOPILOT_INVALID
-                        and msg.type != M.MAV_TYPE_GCS):
+                if (
+                    self.autopilot is None
+                    and msg.autopilot != M.MAV_AUTOPILOT_INVALID
+                    and msg.type != M.MAV_TYPE_GCS
+                ):
                     self.autopilot = src
             if mtype == "STATUSTEXT":
-                self.statustexts.append(Statustext(
-                    int(msg.severity), _text(msg.text), *src, arrival,
-                    int(getattr(msg, "id", 0)), int(getattr(msg, "chunk_seq", 0))))
+                self.statustexts.append(
+                    Statustext(
+                        int(msg.severity),
+                        _text(msg.text),
+                        *src,
+                        arrival,
+                        int(getattr(msg, "id", 0)),
+                        int(getattr(msg, "chunk_seq", 0)),
+                    )
+                )
             if src == self.autopilot:
                 self._latest[mtype] = (msg, arrival)
             waiters = [w for w in self._waiters if mtype in w.types]
@@ -371,8 +401,13 @@ class Pilot:
             for mtype in mtypes:
                 self._latest.pop(mtype, None)
 
-    def wait_message(self, types: Iterable[str], predicate: Callable[[Any], bool] | None = None,
-                     timeout: float = 10.0, send: Callable[[], None] | None = None) -> Any | None:
+    def wait_message(
+        self,
+        types: Iterable[str],
+        predicate: Callable[[Any], bool] | None = None,
+        timeout: float = 10.0,
+        send: Callable[[], None] | None = None,
+    ) -> Any | None:
         """The next message of ``types`` matching ``predicate`` after calling ``send`` (if
         given), or None after ``timeout`` seconds."""
         waiter = _Waiter(frozenset(types), predicate)
@@ -392,14 +427,20 @@ class Pilot:
     def statustexts_from(self, system: int, component: int) -> list[Statustext]:
         """STATUSTEXT seen from sender ``system``/``component``."""
         with self._lock:
-            return [s for s in self.statustexts
-                    if (s.src_system, s.src_component) == (system, component)]
+            return [
+                s
+                for s in self.statustexts
+                if (s.src_system, s.src_component) == (system, component)
+            ]
 
     def autopilot_texts(self, since: float = -math.inf) -> list[str]:
         """Texts of the autopilot's STATUSTEXT that arrived after ``since``."""
         with self._lock:
-            return [s.text for s in self.statustexts
-                    if (s.src_system, s.src_component) == self.autopilot and s.arrival > since]
+            return [
+                s.text
+                for s in self.statustexts
+                if (s.src_system, s.src_component) == self.autopilot and s.arrival > since
+            ]
 
     # -- sending ---------------------------------------------------------------------------
     @property
@@ -417,19 +458,37 @@ class Pilot:
             raise TimeoutError(f"no autopilot HEARTBEAT on {self.url} within {timeout:.0f} s")
         return found
 
-    def command_long(self, command: int, *params: float, timeout: float | None = None
-                     ) -> Any | None:
+    def command_long(
+        self, command: int, *params: float, timeout: float | None = None
+    ) -> Any | None:
         """COMMAND_LONG; returns the autopilot's COMMAND_ACK for it (None: no answer)."""
         p = [float(v) for v in params] + [0.0] * (7 - len(params))
         msg = self.conn.mav.command_long_encode(*self.target, command, 0, *p[:7])
         return self._command(command, msg, timeout)
 
-    def command_int(self, command: int, frame: int, params: Sequence[float], lat: float,
-                    lon: float, alt: float, timeout: float | None = None) -> Any | None:
+    def command_int(
+        self,
+        command: int,
+        frame: int,
+        params: Sequence[float],
+        lat: float,
+        lon: float,
+        alt: float,
+        timeout: float | None = None,
+    ) -> Any | None:
         """COMMAND_INT at ``lat``/``lon`` (degrees) and ``alt``; returns its COMMAND_ACK."""
         p = [float(v) for v in params] + [0.0] * (4 - len(params))
-        msg = self.conn.mav.command_int_encode(*self.target, frame, command, 0, 0, *p[:4],
-                                               round(lat * 1e7), round(lon * 1e7), float(alt))
+        msg = self.conn.mav.command_int_encode(
+            *self.target,
+            frame,
+            command,
+            0,
+            0,
+            *p[:4],
+            round(lat * 1e7),
+            round(lon * 1e7),
+            float(alt),
+        )
         return self._command(command, msg, timeout)
 
     def _command(self, command: int, msg: Any, timeout: float | None) -> Any | None:
@@ -443,17 +502,24 @@ class Pilot:
     def request_streams(self, rate_hz: float = 2.0) -> None:
         """All data streams at ``rate_hz`` (simulated time) and HOME_POSITION at 1 Hz: what a
         ground station asks for on connecting."""
-        self.send(self.conn.mav.request_data_stream_encode(
-            *self.target, M.MAV_DATA_STREAM_ALL, max(1, round(rate_hz)), 1))
+        self.send(
+            self.conn.mav.request_data_stream_encode(
+                *self.target, M.MAV_DATA_STREAM_ALL, max(1, round(rate_hz)), 1
+            )
+        )
         self.command_long(M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_HOME_POSITION, 1e6)
 
     def set_param(self, name: str, value: float, timeout: float = 5.0) -> float:
         """PARAM_SET; returns the value the autopilot reports back in PARAM_VALUE."""
-        msg = self.conn.mav.param_set_encode(*self.target, name.encode("ascii"), float(value),
-                                             M.MAV_PARAM_TYPE_REAL32)
+        msg = self.conn.mav.param_set_encode(
+            *self.target, name.encode("ascii"), float(value), M.MAV_PARAM_TYPE_REAL32
+        )
         reply = self.wait_message(
-            ["PARAM_VALUE"], lambda m: _text(m.param_id) == name, timeout,
-            send=lambda: self.send(msg))
+            ["PARAM_VALUE"],
+            lambda m: _text(m.param_id) == name,
+            timeout,
+            send=lambda: self.send(msg),
+        )
         if reply is None:
             raise TimeoutError(f"no PARAM_VALUE for {name}")
         return float(reply.param_value)
@@ -476,7 +542,8 @@ class Pilot:
     def wait_gps_fix(self, timeout: float = 60.0) -> Any:
         """The first GLOBAL_POSITION_INT with a position (ArduPilot sends 0, 0 before)."""
         found = wait_for(
-            lambda: (p := self.position()) is not None and (p.lat or p.lon) and p, timeout)
+            lambda: (p := self.position()) is not None and (p.lat or p.lon) and p, timeout
+        )
         if not found:
             raise TimeoutError("no GPS position from the autopilot")
         return found
@@ -506,8 +573,11 @@ class Pilot:
         while time.monotonic() < deadline:
             self.set_mode("GUIDED", timeout=max(1.0, deadline - time.monotonic()))
             ack = self.command_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-            if ack is not None and ack.result == M.MAV_RESULT_ACCEPTED and wait_for(
-                    lambda: self.armed, 5.0):
+            if (
+                ack is not None
+                and ack.result == M.MAV_RESULT_ACCEPTED
+                and wait_for(lambda: self.armed, 5.0)
+            ):
                 return
             time.sleep(0.5)
         raise TimeoutError(f"not armable; autopilot said: {self.autopilot_texts(started)[-5:]}")
@@ -517,8 +587,10 @@ class Pilot:
         ack = self.command_long(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, alt)
         if ack is None or ack.result != M.MAV_RESULT_ACCEPTED:
             raise RuntimeError(f"takeoff refused: {ack}; {self.autopilot_texts()[-3:]}")
-        if not wait_for(lambda: (p := self.position()) is not None
-                        and p.relative_alt / 1000.0 > 0.95 * alt, timeout):
+        if not wait_for(
+            lambda: (p := self.position()) is not None and p.relative_alt / 1000.0 > 0.95 * alt,
+            timeout,
+        ):
             raise TimeoutError(f"altitude {alt} m not reached: {self.position()}")
 
     def fly_up(self, alt: float, timeout: float = 180.0) -> None:
@@ -534,9 +606,10 @@ class Pilot:
         ts, tc = self.target
         deadline = time.monotonic() + timeout
         last: Any = mav.mission_count_encode(ts, tc, len(items), M.MAV_MISSION_TYPE_MISSION)
-        self_waiter = _Waiter(frozenset({"MISSION_REQUEST", "MISSION_REQUEST_INT",
-                                         "MISSION_ACK"}),
-                              lambda m: m.target_system == GCS_SYSTEM)
+        self_waiter = _Waiter(
+            frozenset({"MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"}),
+            lambda m: m.target_system == GCS_SYSTEM,
+        )
         with self._lock:
             self._waiters.append(self_waiter)
         try:
@@ -551,9 +624,19 @@ class Pilot:
                     return int(reply.type)
                 it = items[reply.seq]
                 last = mav.mission_item_int_encode(
-                    ts, tc, reply.seq, it.frame, it.command, 0, 1, *it.params,
-                    round(it.lat * 1e7), round(it.lon * 1e7), float(it.alt),
-                    M.MAV_MISSION_TYPE_MISSION)
+                    ts,
+                    tc,
+                    reply.seq,
+                    it.frame,
+                    it.command,
+                    0,
+                    1,
+                    *it.params,
+                    round(it.lat * 1e7),
+                    round(it.lon * 1e7),
+                    float(it.alt),
+                    M.MAV_MISSION_TYPE_MISSION,
+                )
                 self.send(last)
         finally:
             with self._lock:
@@ -568,9 +651,13 @@ class Pilot:
         count = None
         for _ in range(5):
             count = self.wait_message(
-                ["MISSION_COUNT"], lambda m: m.target_system == GCS_SYSTEM, self.ack_timeout_s,
-                send=lambda: self.send(mav.mission_request_list_encode(
-                    ts, tc, M.MAV_MISSION_TYPE_MISSION)))
+                ["MISSION_COUNT"],
+                lambda m: m.target_system == GCS_SYSTEM,
+                self.ack_timeout_s,
+                send=lambda: self.send(
+                    mav.mission_request_list_encode(ts, tc, M.MAV_MISSION_TYPE_MISSION)
+                ),
+            )
             if count is not None:
                 break
         if count is None:
@@ -584,13 +671,16 @@ class Pilot:
                     ["MISSION_ITEM_INT"],
                     lambda m, seq=seq: m.seq == seq and m.target_system == GCS_SYSTEM,
                     self.ack_timeout_s,
-                    send=lambda seq=seq: self.send(mav.mission_request_int_encode(
-                        ts, tc, seq, M.MAV_MISSION_TYPE_MISSION)))
+                    send=lambda seq=seq: self.send(
+                        mav.mission_request_int_encode(ts, tc, seq, M.MAV_MISSION_TYPE_MISSION)
+                    ),
+                )
             if item is None:
                 raise TimeoutError(f"mission item {seq} not received")
             items.append(item)
-        self.send(mav.mission_ack_encode(ts, tc, M.MAV_MISSION_ACCEPTED,
-                                         M.MAV_MISSION_TYPE_MISSION))
+        self.send(
+            mav.mission_ack_encode(ts, tc, M.MAV_MISSION_ACCEPTED, M.MAV_MISSION_TYPE_MISSION)
+        )
         return items
 
     def close(self) -> None:

@@ -11,22 +11,49 @@ import threading
 import pytest
 
 FFMPEG = shutil.which("ffmpeg")
-needs_ffmpeg = pytest.mark.skipif(FFMPEG is None,
-                                  reason="needs the ffmpeg command (apt-get install ffmpeg)")
+needs_ffmpeg = pytest.mark.skipif(
+    FFMPEG is None, reason="needs the ffmpeg command (apt-get install ffmpeg)"
+)
 
 
 class UdpStream:
     """``ffmpeg`` sending ``seconds`` of ``size`` video at ``rate`` fps to ``127.0.0.1:port``."""
 
-    def __init__(self, port: int, seconds: float = 60.0, size: str = "320x240",
-                 rate: int = 25) -> None:
+    def __init__(
+        self, port: int, seconds: float = 60.0, size: str = "320x240", rate: int = 25
+    ) -> None:
         assert FFMPEG is not None
         self.process = subprocess.Popen(
-            [FFMPEG, "-hide_banner", "-loglevel", "error", "-re", "-f", "lavfi",
-             "-i", f"testsrc2=size={size}:rate={rate}", "-t", str(seconds),
-             "-c:v", "libx264", "-preset", "ultrafast", "-tune", "zerolatency", "-g", str(rate),
-             "-pix_fmt", "yuv420p", "-f", "mpegts", f"udp://127.0.0.1:{port}?pkt_size=1316"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [
+                FFMPEG,
+                "-hide_banner",
+                "-loglevel",
+                "error",
+                "-re",
+                "-f",
+                "lavfi",
+                "-i",
+                f"testsrc2=size={size}:rate={rate}",
+                "-t",
+                str(seconds),
+                "-c:v",
+                "libx264",
+                "-preset",
+                "ultrafast",
+                "-tune",
+                "zerolatency",
+                "-g",
+                str(rate),
+                "-pix_fmt",
+                "yuv420p",
+                "-f",
+                "mpegts",
+                f"udp://127.0.0.1:{port}?pkt_size=1316",
+            ],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
 
     def stop(self) -> None:
         if self.process.poll() is None:

@@ -32,13 +32,21 @@ def _background(height: int, width: int, rng: np.random.Generator) -> np.ndarray
 
 
 def _paint(frame: np.ndarray, cx: float, cy: float, size: float, colour: tuple) -> None:
-    yy, xx = np.mgrid[0:frame.shape[0], 0:frame.shape[1]].astype(np.float32)
+    yy, xx = np.mgrid[0 : frame.shape[0], 0 : frame.shape[1]].astype(np.float32)
     cover = np.clip(size / 2.0 + 0.5 - np.hypot(xx - cx, yy - cy), 0.0, 1.0)[..., None]
     frame[:] = frame * (1.0 - cover) + np.asarray(colour, np.float32) * cover
 
 
-def write_dataset(folder: Path, n_videos: int = 2, n_frames: int = 16, seed: int = 0,
-                  height: int = 240, width: int = 320, targets: int = 4, glints: int = 6) -> Path:
+def write_dataset(
+    folder: Path,
+    n_videos: int = 2,
+    n_frames: int = 16,
+    seed: int = 0,
+    height: int = 240,
+    width: int = 320,
+    targets: int = 4,
+    glints: int = 6,
+) -> Path:
     """Write the dataset under ``folder`` (``images/`` and ``annotations.json``); returns the
     JSON path. Each video has ``targets`` moving swimmers (alternating classes), one boat and
     ``glints`` sun glints per frame, each shown for one frame only (false motion).
@@ -57,8 +65,15 @@ def write_dataset(folder: Path, n_videos: int = 2, n_frames: int = 16, seed: int
             start = rng.uniform([40, 40], [width - 40, height - 40])
             velocity = rng.uniform(0.8, 1.6, 2) * rng.choice([-1, 1], 2)
             movers.append((cat, rng.uniform(4.0, 7.0), colour, start, velocity))
-        movers.append((3, 14.0, (0.6, 0.6, 0.6), rng.uniform([60, 60], [width - 60, height - 60]),
-                       rng.uniform(0.5, 1.0, 2)))
+        movers.append(
+            (
+                3,
+                14.0,
+                (0.6, 0.6, 0.6),
+                rng.uniform([60, 60], [width - 60, height - 60]),
+                rng.uniform(0.5, 1.0, 2),
+            )
+        )
         for f in range(n_frames):
             frame = bg.copy()
             image_id = v * 1000 + f + 1
@@ -67,16 +82,24 @@ def write_dataset(folder: Path, n_videos: int = 2, n_frames: int = 16, seed: int
                 _paint(frame, cx, cy, size, colour)
                 if cat == 2:  # the dark swimmer's head in the orange jacket
                     _paint(frame, cx, cy, size * 0.4, (0.1, 0.1, 0.1))
-                annotations.append(Annotation(
-                    len(annotations) + 1, image_id, cat,
-                    (float(cx - size / 2), float(cy - size / 2), float(size), float(size)),
-                    track_id=v * 100 + len(movers), video_id=v + 1))
+                annotations.append(
+                    Annotation(
+                        len(annotations) + 1,
+                        image_id,
+                        cat,
+                        (float(cx - size / 2), float(cy - size / 2), float(size), float(size)),
+                        track_id=v * 100 + len(movers),
+                        video_id=v + 1,
+                    )
+                )
             for gx, gy in rng.uniform([0, 0], [width, height], size=(glints, 2)):
                 _paint(frame, gx, gy, rng.uniform(2.0, 4.0), (0.9, 0.9, 0.9))  # sun glint
             noisy = frame + rng.normal(0.0, 0.004, frame.shape)
             name = f"seq{v + 1}_{f:04d}.png"
-            cv2.imwrite(str(folder / "images" / name),
-                        np.clip(np.rint(noisy * 255), 0, 255).astype(np.uint8))
+            cv2.imwrite(
+                str(folder / "images" / name),
+                np.clip(np.rint(noisy * 255), 0, 255).astype(np.uint8),
+            )
             images.append(ImageRecord(image_id, name, height, width, v + 1, f))
     path = folder / "annotations.json"
     write_coco_video(VideoDataset(videos, images, annotations, list(CATEGORIES)), path)

@@ -37,9 +37,13 @@ class Rig:
     """The simulated vehicle, our link, outbox, store and an action policy with a fake clock."""
 
     def __init__(self, tmp_path, policy: list[str], aircraft=None, gimbal=False, **actions):
-        overrides = {"flight.takeoff": False, "area.home_lat": HOME[0],
-                     "area.home_lon": HOME[1], "actions.policy": policy,
-                     "actions.statustext_repeats": 1}
+        overrides = {
+            "flight.takeoff": False,
+            "area.home_lat": HOME[0],
+            "area.home_lon": HOME[1],
+            "actions.policy": policy,
+            "actions.statustext_repeats": 1,
+        }
         overrides.update({f"actions.{k}": v for k, v in actions.items()})
         self.mission = load_mission(overrides=overrides)
         port = free_udp_port()
@@ -50,12 +54,17 @@ class Rig:
         self.lines: list[str] = []
         self.clock = Clock()
         assert self.link.wait_autopilot(5.0)
-        self.policy = ActionPolicy(self.mission.actions, self.outbox, self.store,
-                                   survey_altitude_m=50.0, console=self.lines.append,
-                                   clock=self.clock,
-                                   move_gate=MoveGate.from_mission(self.mission),
-                                   aircraft_position=lambda: aircraft,
-                                   gimbal_present=lambda: gimbal)
+        self.policy = ActionPolicy(
+            self.mission.actions,
+            self.outbox,
+            self.store,
+            survey_altitude_m=50.0,
+            console=self.lines.append,
+            clock=self.clock,
+            move_gate=MoveGate.from_mission(self.mission),
+            aircraft_position=lambda: aircraft,
+            gimbal_present=lambda: gimbal,
+        )
 
     def alert(self, target_id: int, north: float, east: float, error_m: float = 3.0):
         alert = make_alert(target_id, position=at(north, east), error_m=error_m)
@@ -66,7 +75,9 @@ class Rig:
     def settle(self) -> None:
         """Tick like the controller does until nothing is queued."""
         assert wait_until(lambda: self.policy.tick() or not self.policy.pending(), 15.0), (
-            self.policy.pending(), self.lines)
+            self.policy.pending(),
+            self.lines,
+        )
 
     def commands(self, command: int) -> list:
         return [c for c in self.vehicle.commands if c.command == command]
@@ -118,16 +129,25 @@ def test_sixteen_alerts_in_ten_seconds_make_one_reposition_then_the_nearest(rig_
 
 def survey_items() -> list[MissionItem]:
     """The pilot's mission on the vehicle: home, speed, a 4-corner box, DO_JUMP back to 2."""
-    wire = [WireItem(M.MAV_FRAME_GLOBAL, M.MAV_CMD_NAV_WAYPOINT, x=round(HOME[0] * 1e7),
-                     y=round(HOME[1] * 1e7)),
-            WireItem(2, M.MAV_CMD_DO_CHANGE_SPEED, (1.0, 5.0, -1.0, 0.0))]
+    wire = [
+        WireItem(
+            M.MAV_FRAME_GLOBAL,
+            M.MAV_CMD_NAV_WAYPOINT,
+            x=round(HOME[0] * 1e7),
+            y=round(HOME[1] * 1e7),
+        ),
+        WireItem(2, M.MAV_CMD_DO_CHANGE_SPEED, (1.0, 5.0, -1.0, 0.0)),
+    ]
     for n, e in ((200, -100), (200, 100), (40, 100), (40, -100)):
         lat, lon = at(n, e)
-        wire.append(WireItem(REL, M.MAV_CMD_NAV_WAYPOINT, x=round(lat * 1e7),
-                             y=round(lon * 1e7), z=60.0))
+        wire.append(
+            WireItem(REL, M.MAV_CMD_NAV_WAYPOINT, x=round(lat * 1e7), y=round(lon * 1e7), z=60.0)
+        )
     wire.append(WireItem(2, M.MAV_CMD_DO_JUMP, (2.0, -1.0, 0.0, 0.0)))
-    return [MissionItem(seq, w.frame, w.command, 0, w.autocontinue, *w.params, w.x, w.y, w.z)
-            for seq, w in enumerate(wire)]
+    return [
+        MissionItem(seq, w.frame, w.command, 0, w.autocontinue, *w.params, w.x, w.y, w.z)
+        for seq, w in enumerate(wire)
+    ]
 
 
 def test_mission_policy_keeps_the_pilots_mission_and_inserts_the_visits(rig_factory):
@@ -144,10 +164,12 @@ def test_mission_policy_keeps_the_pilots_mission_and_inserts_the_visits(rig_fact
     # nearest first from the aircraft at 40 m N: target 2 (100 N, -50 E), then target 1
     assert [(it.x, it.y) for it in loiters] == [
         tuple(round(v * 1e7) for v in at(100.0, -50.0)),
-        tuple(round(v * 1e7) for v in at(150.0, 50.0))]
+        tuple(round(v * 1e7) for v in at(150.0, 50.0)),
+    ]
     kept = [it for it in after if it.command != M.MAV_CMD_NAV_LOITER_TIME]
     assert [(it.command, it.x, it.y, it.z) for it in kept[1:-1]] == [
-        (it.command, it.x, it.y, it.z) for it in pilot[1:-1]]
+        (it.command, it.x, it.y, it.z) for it in pilot[1:-1]
+    ]
     assert kept[-1].command == M.MAV_CMD_DO_JUMP and kept[-1].param1 == 2.0  # loop unchanged
     assert rig.vehicle.mission_current == 4  # the first visit is what the vehicle flies now
     assert rig.policy.acknowledged == 1
@@ -156,19 +178,24 @@ def test_mission_policy_keeps_the_pilots_mission_and_inserts_the_visits(rig_fact
 
 @pytest.mark.parametrize(
     ("north", "east", "error_m", "why"),
-    [(100.0, 0.0, 40.0, "position error 40 m exceeds 25 m"),
-     (100.0, 400.0, 3.0, "300 m outside the mission area (allowed: 200 m)")],
+    [
+        (100.0, 0.0, 40.0, "position error 40 m exceeds 25 m"),
+        (100.0, 400.0, 3.0, "300 m outside the mission area (allowed: 200 m)"),
+    ],
 )
-def test_moving_commands_only_to_bounded_positions_in_the_area(rig_factory, north, east,
-                                                                error_m, why):
+def test_moving_commands_only_to_bounded_positions_in_the_area(
+    rig_factory, north, east, error_m, why
+):
     rig = rig_factory(["alert", "loiter", "roi"])
     rig.alert(1, north, east, error_m=error_m)
     rig.clock.t += 120.0
     rig.settle()
     assert rig.commands(M.MAV_CMD_DO_REPOSITION) == []
     assert rig.commands(M.MAV_CMD_DO_SET_ROI_LOCATION) == []
-    assert f"  -> target 1 (T1-{rig.store.list()[0].short_id[-2:]}): loiter withheld: {why}" \
+    assert (
+        f"  -> target 1 (T1-{rig.store.list()[0].short_id[-2:]}): loiter withheld: {why}"
         in rig.lines
+    )
     assert rig.policy.withheld == 2  # loiter and roi
 
 

@@ -17,12 +17,17 @@ class _Sink:
         self.data += data
 
 
-def heartbeat(system: int, component: int, mav_type: int = M.MAV_TYPE_QUADROTOR,
-              autopilot: int = M.MAV_AUTOPILOT_ARDUPILOTMEGA):
+def heartbeat(
+    system: int,
+    component: int,
+    mav_type: int = M.MAV_TYPE_QUADROTOR,
+    autopilot: int = M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+):
     """A HEARTBEAT as received from ``system``/``component`` (encoded, then parsed)."""
     sink = _Sink()
     M.MAVLink(sink, srcSystem=system, srcComponent=component).heartbeat_send(
-        mav_type, autopilot, 0, 0, M.MAV_STATE_ACTIVE)
+        mav_type, autopilot, 0, 0, M.MAV_STATE_ACTIVE
+    )
     parser = M.MAVLink(None)
     (msg,) = parser.parse_buffer(sink.data)
     return msg
@@ -59,11 +64,18 @@ def test_a_rival_is_adopted_only_after_more_than_the_link_timeout():
     assert adoption.adopted == (2, 1) and adoption.adoptions == 2
 
 
-@pytest.mark.parametrize(("pin", "src", "adopted"), [
-    ((1, None), (1, 1), True), ((1, None), (2, 1), False),
-    ((None, 1), (7, 1), True), ((None, 1), (1, 2), False),
-    ((1, 1), (1, 1), True), ((1, 1), (1, 2), False), ((1, 1), (2, 1), False),
-])
+@pytest.mark.parametrize(
+    ("pin", "src", "adopted"),
+    [
+        ((1, None), (1, 1), True),
+        ((1, None), (2, 1), False),
+        ((None, 1), (7, 1), True),
+        ((None, 1), (1, 2), False),
+        ((1, 1), (1, 1), True),
+        ((1, 1), (1, 2), False),
+        ((1, 1), (2, 1), False),
+    ],
+)
 def test_pinned_system_and_component_are_enforced(pin, src, adopted):
     adoption = Adoption(3.0, target_system=pin[0], target_component=pin[1])
     assert (adoption.heartbeat(src, 1.0) is not None) is adopted

@@ -91,8 +91,14 @@ def test_cot_goes_out_only_for_confirmed_alerts_not_dismissed() -> None:
         alert_to_cot(make_alert(1, tier="candidate"))
     with pytest.raises(ValueError, match="dismissed"):
         alert_to_cot(make_alert(1, decision="dismissed", decided_by="ana", decided_at=5.0))
-    promoted = make_alert(1, tier="confirmed", evidence="held 4 s", decision="confirmed",
-                          decided_by="ana", decided_at=5.0)
+    promoted = make_alert(
+        1,
+        tier="confirmed",
+        evidence="held 4 s",
+        decision="confirmed",
+        decided_by="ana",
+        decided_at=5.0,
+    )
     assert ET.fromstring(alert_to_cot(promoted)).get("uid") == promoted.cot_uid
 
 
@@ -101,18 +107,23 @@ def test_exports_say_which_alerts_are_candidates_or_dismissed() -> None:
     gone = make_alert(2, decision="dismissed", decided_by="ana", decided_at=1_700_000_000.0)
     sure = make_alert(3, evidence="held 4.2 s within 3 m")
     ns = {"k": KML_NS}
-    placemarks = ET.fromstring(alerts_kml([cand, gone, sure])).findall(
-        "k:Document/k:Placemark", ns)
+    placemarks = ET.fromstring(alerts_kml([cand, gone, sure])).findall("k:Document/k:Placemark", ns)
     names = [p.find("k:name", ns).text for p in placemarks]
-    assert names == ["T1 swimmer 0.91 (unconfirmed)", "T2 swimmer 0.91 (dismissed)",
-                     "T3 swimmer 0.91"]
+    assert names == [
+        "T1 swimmer 0.91 (unconfirmed)",
+        "T2 swimmer 0.91 (dismissed)",
+        "T3 swimmer 0.91",
+    ]
     descriptions = [p.find("k:description", ns).text for p in placemarks]
     assert "unconfirmed candidate, discarded: drifts 3 m/s" in descriptions[0]
     assert "dismissed by ana at 2023-11-14T22:13:20.000Z" in descriptions[1]
     assert "confirmed: held 4.2 s within 3 m" in descriptions[2]
     props = [f["properties"] for f in alerts_geojson([cand, gone, sure])["features"]]
     assert [(p["tier"], p["decision"]) for p in props] == [
-        ("candidate", None), ("confirmed", "dismissed"), ("confirmed", None)]
+        ("candidate", None),
+        ("confirmed", "dismissed"),
+        ("confirmed", None),
+    ]
 
 
 def test_cot_over_udp_arrives() -> None:
@@ -149,8 +160,9 @@ def test_cot_sender_rejects_bad_urls(url: str) -> None:
 
 
 def test_statustext_format_and_limit() -> None:
-    alert = make_alert(1, position=(-35.362912, 149.165234), score=0.912, error_m=4.4,
-                       alert_id="0" * 32)
+    alert = make_alert(
+        1, position=(-35.362912, 149.165234), score=0.912, error_m=4.4, alert_id="0" * 32
+    )
     assert alert.short_id == "T1-qx"  # a hash of the stored alert id: the same after restarts
     assert alert.statustext() == "T1-qx SAR swimmer 0.91 -35.36291,149.16523 ±4m"
     blind = make_alert(1, positioned=False, alert_id="0" * 32)
@@ -166,10 +178,16 @@ def test_statustext_format_and_limit() -> None:
     assert len(text.encode()) <= STATUSTEXT_MAX_BYTES
     assert text.startswith(f"{worst.short_id} SAR pers ")
     assert text.endswith("-89.12346,-179.12346 ±123456m")
+
     # the name goes first; with no room even without it, the error radius: never a cut number
     def extreme(target_id: int) -> str:
-        alert = make_alert(target_id, class_name="person", position=(-89.123456, -179.123456),
-                           error_m=123456.0, score=1.0)
+        alert = make_alert(
+            target_id,
+            class_name="person",
+            position=(-89.123456, -179.123456),
+            error_m=123456.0,
+            score=1.0,
+        )
         return alert.statustext().removeprefix(alert.short_id)
 
     assert extreme(123456) == " SAR 1.00 -89.12346,-179.12346 ±123456m"
@@ -202,8 +220,14 @@ def test_thumbnail_is_a_jpeg_crop_centred_on_the_target() -> None:
 
 
 def test_a_life_ring_alert_reads_as_one_and_is_no_casualty() -> None:
-    ring = make_alert(2, class_name="life_saving_appliances", position=(-35.362912, 149.165234),
-                      score=0.8, error_m=3.0, alert_id="1" * 32)
+    ring = make_alert(
+        2,
+        class_name="life_saving_appliances",
+        position=(-35.362912, 149.165234),
+        score=0.8,
+        error_m=3.0,
+        alert_id="1" * 32,
+    )
     assert ring.statustext() == f"{ring.short_id} SAR life ring 0.80 -35.36291,149.16523 ±3m"
     event = ET.fromstring(alert_to_cot(ring, now=1_700_000_010.0))
     assert event.get("type") == "b-m-p-s-m" != COT_TYPE

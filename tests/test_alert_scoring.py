@@ -84,17 +84,17 @@ def test_a_person_seen_briefly_counts_apart():
     candidate = Alert(20, [(20, 100.0, 100.0)], at(10.0, 0.0))
     candidate.discarded = "seen in 30 % of frames"
     clutter = Alert(60, [(60, 700.0, 100.0)], at(80.0, 0.0), alert_id="b", score=0.95)
-    s = score_flight(frames(), [], candidates=[candidate, clutter],
-                     track_scores={"a": 0.8})
+    s = score_flight(frames(), [], candidates=[candidate, clutter], track_scores={"a": 0.8})
     assert s.missed == ["person 1 (4.9 s in view; discarded: seen in 30 % of frames)"]
     assert (s.candidate_scores, s.candidate_right) == ([0.8, 0.95], [True, False])
 
 
 def test_a_life_ring_alert_over_a_life_ring_is_counted_apart():
-    ring = [Frame(k, k / 10, [], [Ann(8, "life_saving_appliances", (195, 195, 206, 206))])
-            for k in range(40)]
-    as_ring = Alert(10, [(10, 200.0, 200.0)], at(-10.0, 10.0),
-                    class_name="life_saving_appliances")
+    ring = [
+        Frame(k, k / 10, [], [Ann(8, "life_saving_appliances", (195, 195, 206, 206))])
+        for k in range(40)
+    ]
+    as_ring = Alert(10, [(10, 200.0, 200.0)], at(-10.0, 10.0), class_name="life_saving_appliances")
     as_swimmer = Alert(20, [(20, 200.0, 200.0)], at(-10.0, 10.0))
     s = score_flight(ring, [(as_ring, 15, 1.5), (as_swimmer, 25, 2.5)])
     assert (s.appliances_found, s.false_alerts) == (1, 1)

@@ -129,14 +129,17 @@ def test_statustext_is_recorded_as_sent_never_as_delivered(tmp_path: Path) -> No
             store.record_sent("missing", CHANNEL_MAVLINK)
     with AlertStore(db) as store:  # after a restart, send again what was sent too few times
         assert [a.alert_id for a in store.undelivered(CHANNEL_MAVLINK, repeats=3)] == [
-            alerts[0].alert_id, alerts[2].alert_id]
+            alerts[0].alert_id,
+            alerts[2].alert_id,
+        ]
         assert [a.alert_id for a in store.undelivered(CHANNEL_MAVLINK)] == [alerts[0].alert_id]
         sent = store.get(alerts[1].alert_id)
         assert sent.mavlink_sent and sent.delivered == {} and sent.refused == {}
         assert sent.sent == {CHANNEL_MAVLINK: Sends(3, 50.0, 52.0)}
         doc = sent.to_json_dict()
         assert doc["delivered"] == {} and doc["sent"] == {
-            CHANNEL_MAVLINK: {"count": 3, "first": 50.0, "last": 52.0}}
+            CHANNEL_MAVLINK: {"count": 3, "first": 50.0, "last": 52.0}
+        }
         assert not store.get(alerts[0].alert_id).mavlink_sent
 
 
@@ -163,7 +166,8 @@ def test_command_answers_accepted_and_refused(tmp_path: Path) -> None:
         assert refused.delivered == {}
         assert refused.refused == {"mavlink_loiter": Refusal(55.0, 4, reason)}
         assert refused.to_json_dict()["refused"] == {
-            "mavlink_loiter": {"time": 55.0, "result": 4, "reason": reason}}
+            "mavlink_loiter": {"time": 55.0, "result": 4, "reason": reason}
+        }
         # a later acceptance replaces a refusal, and then stands
         assert store.record_ack(alerts[2].alert_id, "mavlink_loiter", 0, when=80.0)
         assert store.get(alerts[2].alert_id).delivered == {"mavlink_loiter": 80.0}
@@ -171,9 +175,12 @@ def test_command_answers_accepted_and_refused(tmp_path: Path) -> None:
 
 
 def test_alert_with_sends_and_answers_round_trips(tmp_path: Path) -> None:
-    alert = make_alert(4, delivered={"mavlink_roi": 12.5},
-                       refused={"mavlink_loiter": Refusal(13.25, 4, "refused (no reason given)")},
-                       sent={CHANNEL_MAVLINK: Sends(2, 11.0, 12.0)})
+    alert = make_alert(
+        4,
+        delivered={"mavlink_roi": 12.5},
+        refused={"mavlink_loiter": Refusal(13.25, 4, "refused (no reason given)")},
+        sent={CHANNEL_MAVLINK: Sends(2, 11.0, 12.0)},
+    )
     with AlertStore(tmp_path / "a.db") as store:
         store.add(alert)
         assert store.get(alert.alert_id) == alert
@@ -191,7 +198,8 @@ def test_position_found_later_is_attached_once_and_logged(tmp_path: Path) -> Non
         assert got.position == (-35.36, 149.17) and got.error_m == 3.5
         assert got.position_note == "ground plane"
         assert [(e.kind, e.alert.position) for e in sub.get(timeout=1.0)] == [
-            ("position", (-35.36, 149.17))]
+            ("position", (-35.36, 149.17))
+        ]
         # only the first position is attached; an alert placed from the start keeps its own
         assert not store.attach_position(blind.alert_id, (-35.0, 149.0), 1.0, "again")
         assert not store.attach_position(placed.alert_id, (-35.0, 149.0), 1.0, "again")
@@ -228,11 +236,17 @@ PRAGMA user_version = 2;
 
 #: Schema 1: schema 2 without the ``position`` event.
 _SCHEMA_1 = _SCHEMA_2.replace("'delivered', 'position'", "'delivered'").replace(
-    "user_version = 2", "user_version = 1")
+    "user_version = 2", "user_version = 1"
+)
 
 
-def _insert_old_alert(conn: sqlite3.Connection, alert_id: str, target_id: int,
-                      positioned: bool = True, ack_by: str | None = None) -> None:
+def _insert_old_alert(
+    conn: sqlite3.Connection,
+    alert_id: str,
+    target_id: int,
+    positioned: bool = True,
+    ack_by: str | None = None,
+) -> None:
     """One alert row as schemas 1-3 wrote it."""
     conn.execute(
         "INSERT INTO alerts (alert_id, mission_id, target_id, class_name, score, lock_time, "
@@ -240,9 +254,16 @@ def _insert_old_alert(conn: sqlite3.Connection, alert_id: str, target_id: int,
         "drone_alt_m, track, pixel_track, thumbnail, ack_time, ack_by, added_time) VALUES "
         "(?, 'm', ?, 'swimmer', 0.9, 1000.0, 7, ?, ?, ?, ?, NULL, -35.363, 149.165, 60.0, "
         "'[[1.0, -35.36, 149.16]]', '[[7, 10.5, 20.5]]', X'FFD8', ?, ?, 1001.0)",
-        (alert_id, target_id, -35.36 if positioned else None, 149.16 if positioned else None,
-         "" if positioned else "telemetry stale (2.4 s)", 3.5 if positioned else None,
-         1100.0 if ack_by else None, ack_by),
+        (
+            alert_id,
+            target_id,
+            -35.36 if positioned else None,
+            149.16 if positioned else None,
+            "" if positioned else "telemetry stale (2.4 s)",
+            3.5 if positioned else None,
+            1100.0 if ack_by else None,
+            ack_by,
+        ),
     )
 
 
@@ -251,11 +272,14 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
     with sqlite3.connect(db) as conn:
         conn.executescript(_SCHEMA_1)
         _insert_old_alert(conn, "blind", 1, positioned=False, ack_by="alice")
-        conn.executemany("INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)",
-                         [("new", "blind", 1001.0), ("ack", "blind", 1100.0)])
+        conn.executemany(
+            "INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)",
+            [("new", "blind", 1001.0), ("ack", "blind", 1100.0)],
+        )
         with pytest.raises(sqlite3.IntegrityError):
-            conn.execute("INSERT INTO events (kind, alert_id, time) VALUES ('position', ?, 0)",
-                         ("blind",))
+            conn.execute(
+                "INSERT INTO events (kind, alert_id, time) VALUES ('position', ?, 0)", ("blind",)
+            )
     conn.close()
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
@@ -267,20 +291,23 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
 
 
 #: The alert store as schema 3 wrote it: acks and sends, no tiers or decisions.
-_SCHEMA_3 = _SCHEMA_2.replace(
-    """CREATE TABLE deliveries (
+_SCHEMA_3 = (
+    _SCHEMA_2.replace(
+        """CREATE TABLE deliveries (
     alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
     time REAL NOT NULL, PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;""",
-    """CREATE TABLE acks (
+        """CREATE TABLE acks (
     alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
     time REAL NOT NULL, result INTEGER NOT NULL, reason TEXT NOT NULL DEFAULT '',
     PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;
 CREATE TABLE sends (
     alert_id TEXT NOT NULL REFERENCES alerts (alert_id), channel TEXT NOT NULL,
     count INTEGER NOT NULL CHECK (count > 0), first REAL NOT NULL, last REAL NOT NULL,
-    PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;""").replace(
-    "'delivered', 'position'", "'delivered', 'refused', 'sent', 'position'").replace(
-    "user_version = 2", "user_version = 3")
+    PRIMARY KEY (alert_id, channel)) WITHOUT ROWID;""",
+    )
+    .replace("'delivered', 'position'", "'delivered', 'refused', 'sent', 'position'")
+    .replace("user_version = 2", "user_version = 3")
+)
 
 
 def test_schema_3_store_keeps_its_alerts_as_confirmed_without_decisions(tmp_path: Path) -> None:
@@ -291,21 +318,37 @@ def test_schema_3_store_keeps_its_alerts_as_confirmed_without_decisions(tmp_path
         _insert_old_alert(conn, "old1", 6)
         conn.execute("INSERT INTO acks VALUES ('old0', 'mavlink_loiter', 1003.0, 0, '')")
         conn.execute("INSERT INTO sends VALUES ('old0', 'mavlink', 2, 1002.0, 1004.0)")
-        conn.executemany("INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)", [
-            ("new", "old0", 1001.0), ("sent", "old0", 1002.0), ("delivered", "old0", 1003.0),
-            ("sent", "old0", 1004.0), ("new", "old1", 1005.0)])
+        conn.executemany(
+            "INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)",
+            [
+                ("new", "old0", 1001.0),
+                ("sent", "old0", 1002.0),
+                ("delivered", "old0", 1003.0),
+                ("sent", "old0", 1004.0),
+                ("new", "old1", 1005.0),
+            ],
+        )
     conn.close()
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
         old0, old1 = store.list()
         assert (old0.tier, old0.evidence, old0.decision, old0.discarded, old0.ack_by) == (
-            "confirmed", "", None, None, "alice")
+            "confirmed",
+            "",
+            None,
+            None,
+            "alice",
+        )
         assert old0.sent[CHANNEL_MAVLINK] == Sends(2, 1002.0, 1004.0)
         assert old0.delivered == {"mavlink_loiter": 1003.0}
         assert [(e.kind, e.by, e.detail) for e in store.events()] == [
-            ("new", None, ""), ("sent", None, ""), ("delivered", None, ""), ("sent", None, ""),
-            ("new", None, "")]
+            ("new", None, ""),
+            ("sent", None, ""),
+            ("delivered", None, ""),
+            ("sent", None, ""),
+            ("new", None, ""),
+        ]
         assert [a.alert_id for a in store.undelivered("mavlink_loiter")] == ["old1"]
         # what schema 4 added works on the upgraded file
         assert store.decide("old1", "dismissed", "bo").dismissed
@@ -321,7 +364,8 @@ def test_schema_3_store_keeps_its_alerts_as_confirmed_without_decisions(tmp_path
 
 
 def test_schema_2_store_keeps_its_data_and_statustext_delivered_becomes_sent_once(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     db = tmp_path / "old.db"
     with sqlite3.connect(db) as conn:
         conn.executescript(_SCHEMA_2)
@@ -333,32 +377,57 @@ def test_schema_2_store_keeps_its_data_and_statustext_delivered_becomes_sent_onc
                 "ack_by, added_time) VALUES (?, 'm', ?, 'swimmer', 0.9, ?, ?, -35.36, 149.16, "
                 "'', 3.5, NULL, -35.363, 149.165, 60.0, '[[1.0, -35.36, 149.16]]', "
                 "'[[7, 10.5, 20.5]]', X'FFD8', ?, ?, ?)",
-                (f"old{i}", tid, 1000.0 + i, 7 + i, 1100.0 if ack_by else None, ack_by,
-                 1001.0 + i))
-        conn.executemany("INSERT INTO deliveries VALUES (?, ?, ?)", [
-            ("old0", "mavlink", 1002.0), ("old0", "mavlink_loiter", 1003.0)])
-        conn.executemany("INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)", [
-            ("new", "old0", 1001.0), ("delivered", "old0", 1002.0),
-            ("delivered", "old0", 1003.0), ("ack", "old0", 1100.0), ("new", "old1", 1002.0)])
+                (f"old{i}", tid, 1000.0 + i, 7 + i, 1100.0 if ack_by else None, ack_by, 1001.0 + i),
+            )
+        conn.executemany(
+            "INSERT INTO deliveries VALUES (?, ?, ?)",
+            [("old0", "mavlink", 1002.0), ("old0", "mavlink_loiter", 1003.0)],
+        )
+        conn.executemany(
+            "INSERT INTO events (kind, alert_id, time) VALUES (?, ?, ?)",
+            [
+                ("new", "old0", 1001.0),
+                ("delivered", "old0", 1002.0),
+                ("delivered", "old0", 1003.0),
+                ("ack", "old0", 1100.0),
+                ("new", "old1", 1002.0),
+            ],
+        )
     conn.close()
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         assert store._conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
         old0, old1 = store.list()
-        assert (old0.alert_id, old0.target_id, old0.position, old0.error_m, old0.ack_by,
-                old0.thumbnail, old0.track, old0.pixel_track) == (
-            "old0", 5, (-35.36, 149.16), 3.5, "alice", b"\xff\xd8", [(1.0, -35.36, 149.16)],
-            [(7, 10.5, 20.5)])
+        assert (
+            old0.alert_id,
+            old0.target_id,
+            old0.position,
+            old0.error_m,
+            old0.ack_by,
+            old0.thumbnail,
+            old0.track,
+            old0.pixel_track,
+        ) == (
+            "old0",
+            5,
+            (-35.36, 149.16),
+            3.5,
+            "alice",
+            b"\xff\xd8",
+            [(1.0, -35.36, 149.16)],
+            [(7, 10.5, 20.5)],
+        )
         # the STATUSTEXT was sent once, as far as anyone knew; the loiter was acknowledged
         assert old0.sent == {CHANNEL_MAVLINK: Sends(1, 1002.0, 1002.0)}
         assert old0.delivered == {"mavlink_loiter": 1003.0}
         assert CHANNEL_MAVLINK not in old0.to_json_dict()["delivered"]
         assert old1.sent == {} and old1.delivered == {} and not old1.acknowledged
         assert [a.alert_id for a in store.undelivered(CHANNEL_MAVLINK, repeats=5)] == [
-            "old0", "old1"]
+            "old0",
+            "old1",
+        ]
         assert [a.alert_id for a in store.undelivered("mavlink_loiter")] == ["old1"]
-        assert [e.kind for e in store.events()] == ["new", "delivered", "delivered", "ack",
-                                                    "new"]
+        assert [e.kind for e in store.events()] == ["new", "delivered", "delivered", "ack", "new"]
         store.record_sent("old0", CHANNEL_MAVLINK, when=1200.0)  # the new event kinds work
         store.record_ack("old1", "mavlink_loiter", 4, "refused", when=1201.0)
         assert store.get("old0").sent[CHANNEL_MAVLINK] == Sends(2, 1002.0, 1200.0)

@@ -52,7 +52,11 @@ def test_tier_and_decision_are_checked_and_in_the_json() -> None:
         make_alert(1, decision="ignored")
     doc = candidate(error_m=12.0).to_json_dict()
     assert (doc["tier"], doc["evidence"], doc["discarded"], doc["decision"]) == (
-        "candidate", "", None, None)
+        "candidate",
+        "",
+        None,
+        None,
+    )
     assert (doc["decided_by"], doc["decided_at"], doc["confirmed_at"]) == (None, None, None)
     assert doc["dismiss_radius_m"] == 24.0
     assert make_alert(1).to_json_dict()["tier"] == "confirmed"  # the default: as before tiers
@@ -68,7 +72,10 @@ def test_candidate_round_trips_and_the_system_promotes_it_once(tmp_path: Path) -
         promoted = store.promote(alert.alert_id, "held 4.1 s within 3 m", when=1234.5)
         assert promoted is not None
         assert (promoted.tier, promoted.evidence, promoted.confirmed_at) == (
-            "confirmed", "held 4.1 s within 3 m", 1234.5)
+            "confirmed",
+            "held 4.1 s within 3 m",
+            1234.5,
+        )
         again = store.promote(alert.alert_id, "other evidence", when=2000.0)
         assert again == promoted  # idempotent: the first confirmation stands
         assert kinds(store) == [("new", None, ""), ("confirmed", None, "held 4.1 s within 3 m")]
@@ -101,7 +108,10 @@ def test_discard_only_touches_an_undecided_candidate(tmp_path: Path) -> None:
         again = store.promote(foam.alert_id, "seen again for 5 s")
         assert again is not None and again.tier == "confirmed" and again.discarded is None
         assert [k for k in kinds(store) if k[0] in ("discarded", "confirmed")][0] == (
-            "discarded", None, "drifts 3.2 m/s: not a person")
+            "discarded",
+            None,
+            "drifts 3.2 m/s: not a person",
+        )
 
 
 def test_operator_decisions_double_contradicting_and_unknown(tmp_path: Path) -> None:
@@ -117,8 +127,10 @@ def test_operator_decisions_double_contradicting_and_unknown(tmp_path: Path) -> 
         # the operator's confirmation confirms the candidate, and says who did
         assert first.alert.tier == "confirmed"
         assert first.alert.confirmed_at == first.alert.decided_at
-        assert kinds(store, after=1) == [("decided", "ana", "confirmed"),
-                                         ("confirmed", "ana", "confirmed by operator ana")]
+        assert kinds(store, after=1) == [
+            ("decided", "ana", "confirmed"),
+            ("confirmed", "ana", "confirmed by operator ana"),
+        ]
         twice = store.record_decision(alert.alert_id, "confirmed", "bo")
         assert not twice.changed and twice.alert == first.alert  # idempotent, still ana's
         assert store.last_event_seq() == 3
@@ -127,7 +139,9 @@ def test_operator_decisions_double_contradicting_and_unknown(tmp_path: Path) -> 
         assert dismissed.dismissed and dismissed.decided_by == "bo"
         assert dismissed.tier == "confirmed"  # the tier records what the evidence said
         assert [(d.decision, d.by) for d in store.decisions(alert.alert_id)] == [
-            ("confirmed", "ana"), ("dismissed", "bo")]
+            ("confirmed", "ana"),
+            ("dismissed", "bo"),
+        ]
         assert not store.record_decision(alert.alert_id, "dismissed", "cy").changed
         with pytest.raises(KeyError):
             store.decide("no-such-alert", "dismissed", "ana")
@@ -145,8 +159,7 @@ def test_operator_decisions_double_contradicting_and_unknown(tmp_path: Path) -> 
         assert isinstance(history[0], OperatorDecision)
 
 
-def test_dismiss_always_wins_over_a_later_promotion_whatever_the_clocks(
-        tmp_path: Path) -> None:
+def test_dismiss_always_wins_over_a_later_promotion_whatever_the_clocks(tmp_path: Path) -> None:
     with AlertStore(tmp_path / "a.db") as store:
         alert = candidate()
         store.add(alert)
@@ -181,7 +194,8 @@ def test_dismiss_racing_a_promotion_from_another_connection(tmp_path: Path) -> N
             seq0 = feed_side.last_event_seq()
             dismissal, promoted = race(
                 lambda a=alert: feed_side.record_decision(a.alert_id, "dismissed", "ana"),
-                lambda a=alert: controller_side.promote(a.alert_id, "held 4 s"))
+                lambda a=alert: controller_side.promote(a.alert_id, "held 4 s"),
+            )
             final = feed_side.get(alert.alert_id)
             log = [e.kind for e in feed_side.events(seq0)]
             assert final.dismissed and dismissal.changed  # the dismissal always holds
@@ -202,8 +216,10 @@ def test_two_threads_deciding_at_once_on_one_store(tmp_path: Path) -> None:
             alert = candidate(i)
             store.add(alert)
             seq0 = store.last_event_seq()
-            race(lambda a=alert: store.decide(a.alert_id, "confirmed", "ana"),
-                 lambda a=alert: store.decide(a.alert_id, "dismissed", "bo"))
+            race(
+                lambda a=alert: store.decide(a.alert_id, "confirmed", "ana"),
+                lambda a=alert: store.decide(a.alert_id, "dismissed", "bo"),
+            )
             decided = [e for e in store.events(seq0) if e.kind == "decided"]
             assert sorted(e.detail for e in decided) == ["confirmed", "dismissed"]  # both kept
             final = store.get(alert.alert_id)
@@ -215,8 +231,12 @@ def test_two_threads_deciding_at_once_on_one_store(tmp_path: Path) -> None:
         alert = candidate(99)
         store.add(alert)
         seq0 = store.last_event_seq()
-        results = race(*(lambda k=k: store.record_decision(alert.alert_id, "dismissed", f"op{k}")
-                         for k in range(8)))
+        results = race(
+            *(
+                lambda k=k: store.record_decision(alert.alert_id, "dismissed", f"op{k}")
+                for k in range(8)
+            )
+        )
         assert sorted(r.changed for r in results) == [False] * 7 + [True]
         assert [e.kind for e in store.events(seq0)] == ["decided"]
 
@@ -248,10 +268,16 @@ def test_dismissed_zones_rule_and_restart(tmp_path: Path) -> None:
 
 
 def test_only_confirmed_alerts_not_dismissed_are_still_to_go_to_the_autopilot(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     with AlertStore(tmp_path / "a.db") as store:
         plain, cand, promoted, by_operator, dismissed = (
-            make_alert(1), candidate(2), candidate(3), candidate(4), make_alert(5))
+            make_alert(1),
+            candidate(2),
+            candidate(3),
+            candidate(4),
+            make_alert(5),
+        )
         for a in (plain, cand, promoted, by_operator, dismissed):
             store.add(a)
         store.promote(promoted.alert_id, "held")
@@ -277,12 +303,14 @@ def test_subscribers_see_tier_changes_and_decisions_with_who_and_why(tmp_path: P
         assert [(e.kind, e.alert.alert_id, e.by, e.detail) for e in events] == [
             ("confirmed", a.alert_id, None, "held 4 s"),
             ("discarded", b.alert_id, None, "glint"),
-            ("decided", b.alert_id, "ana", "dismissed")]
+            ("decided", b.alert_id, "ana", "dismissed"),
+        ]
         assert events[-1].alert.dismissed
 
 
-def test_drone_track_is_bounded_per_mission(tmp_path: Path,
-                                            monkeypatch: pytest.MonkeyPatch) -> None:
+def test_drone_track_is_bounded_per_mission(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setattr(store_module, "DRONE_POINTS_KEPT", 50)
     monkeypatch.setattr(store_module, "_TRIM_EVERY", 10)
     db = tmp_path / "a.db"
@@ -297,15 +325,23 @@ def test_drone_track_is_bounded_per_mission(tmp_path: Path,
         assert [p.t for p in track] == sorted(p.t for p in track)
         assert len(store.drone_track("other")) == 10  # the other mission keeps its own
         assert [p.t for p in store.drone_track("m", since=1195.0)] == [
-            1195.0, 1196.0, 1197.0, 1198.0, 1199.0]
+            1195.0,
+            1196.0,
+            1197.0,
+            1198.0,
+            1199.0,
+        ]
         last, points = store.drone_points_after("m")
         assert len(points) == len(track)
         store.record_drone("m", 1200.0, -35.37, 149.17, 61.0)
         newer, points = store.drone_points_after("m", last)
         assert newer > last and points == [(1200.0, -35.37, 149.17, 61.0)]
         assert store.drone_points_after("m", newer) == (newer, [])
-        for bad in ((float("nan"), -35.0, 149.0, 1.0), (1.0, 95.0, 149.0, 1.0),
-                    (1.0, -35.0, 149.0, float("inf"))):
+        for bad in (
+            (float("nan"), -35.0, 149.0, 1.0),
+            (1.0, 95.0, 149.0, 1.0),
+            (1.0, -35.0, 149.0, float("inf")),
+        ):
             with pytest.raises(ValueError):
                 store.record_drone("m", *bad)
     with AlertStore(db) as store:
@@ -324,8 +360,12 @@ def test_mission_area_and_current_mission(tmp_path: Path) -> None:
         assert store.current_mission() == "third"
         store.set_mission_area("first", AREA[:3])  # replaced
         assert store.mission_area("first") == AREA[:3]
-        for bad in ([], AREA[:2], [(-35.0, 149.0), (91.0, 149.0), (-35.1, 149.1)],
-                    [(-35.0, float("nan"))] * 3):
+        for bad in (
+            [],
+            AREA[:2],
+            [(-35.0, 149.0), (91.0, 149.0), (-35.1, 149.1)],
+            [(-35.0, float("nan"))] * 3,
+        ):
             with pytest.raises(ValueError):
                 store.set_mission_area("first", bad)
         assert store.mission_area("first") == AREA[:3]
@@ -336,10 +376,15 @@ def test_mission_area_and_current_mission(tmp_path: Path) -> None:
 def test_fresh_and_upgraded_stores_have_the_same_tables(tmp_path: Path) -> None:
     def columns(path: Path) -> dict[str, list[str]]:
         with sqlite3.connect(path) as conn:
-            tables = [r[0] for r in conn.execute(
-                "SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")]
-            result = {t: sorted(r[1] for r in conn.execute(f"PRAGMA table_info({t})"))
-                      for t in tables}
+            tables = [
+                r[0]
+                for r in conn.execute(
+                    "SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name"
+                )
+            ]
+            result = {
+                t: sorted(r[1] for r in conn.execute(f"PRAGMA table_info({t})")) for t in tables
+            }
         conn.close()
         return result
 
@@ -347,6 +392,7 @@ def test_fresh_and_upgraded_stores_have_the_same_tables(tmp_path: Path) -> None:
     old = tmp_path / "old.db"
     with sqlite3.connect(old) as conn:
         from test_alert_store import _SCHEMA_1  # the oldest schema there was
+
         conn.executescript(_SCHEMA_1)
     conn.close()
     AlertStore(old).close()

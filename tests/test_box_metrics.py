@@ -19,17 +19,24 @@ def box(cx, cy, side):
 
 
 def test_perfect_detections_score_one_in_every_band():
-    gt = {1: FrameBoxes.of([box(50, 50, 6), box(200, 50, 12), box(400, 50, 24)],
-                           class_ids=[1, 1, 2]),
-          2: FrameBoxes.of([box(80, 80, 10)], class_ids=[1])}
-    det = {k: FrameBoxes.of(v.boxes, scores=np.full(len(v), 0.9), class_ids=v.class_ids)
-           for k, v in gt.items()}
+    gt = {
+        1: FrameBoxes.of([box(50, 50, 6), box(200, 50, 12), box(400, 50, 24)], class_ids=[1, 1, 2]),
+        2: FrameBoxes.of([box(80, 80, 10)], class_ids=[1]),
+    }
+    det = {
+        k: FrameBoxes.of(v.boxes, scores=np.full(len(v), 0.9), class_ids=v.class_ids)
+        for k, v in gt.items()
+    }
     r = evaluate_boxes(gt, det)
     for name, band in r.bands.items():
         assert band.ap == pytest.approx(1.0), name
         assert band.ar == pytest.approx(1.0) and band.f2 == pytest.approx(1.0)
-    assert (r.bands["extremely_tiny"].n_gt, r.bands["tiny"].n_gt, r.bands["small"].n_gt,
-            r.bands["all"].n_gt) == (1, 2, 1, 4)
+    assert (
+        r.bands["extremely_tiny"].n_gt,
+        r.bands["tiny"].n_gt,
+        r.bands["small"].n_gt,
+        r.bands["all"].n_gt,
+    ) == (1, 2, 1, 4)
     json.dumps(r.to_dict())
 
 
@@ -38,8 +45,11 @@ def test_known_precision_recall_curve():
     # recall 0.5, 0.5, 1.0; precision 1, 0.5, 2/3; interpolated precision 1 for r <= 0.5
     # (51 of the 101 recall levels) and 2/3 above (50 levels).
     gt = {0: FrameBoxes.of([box(20, 20, 8), box(100, 20, 8)])}
-    det = {0: FrameBoxes.of([box(20, 20, 8), box(300, 300, 8), box(100, 20, 8)],
-                            scores=[0.9, 0.8, 0.7])}
+    det = {
+        0: FrameBoxes.of(
+            [box(20, 20, 8), box(300, 300, 8), box(100, 20, 8)], scores=[0.9, 0.8, 0.7]
+        )
+    }
     expected_ap = (51 * 1.0 + 50 * 2 / 3) / 101
     r = evaluate_boxes(gt, det, nwd_thresholds=[0.5], score_thr=0.5)
     band = r.bands["extremely_tiny"]  # 8x8 = 64 px^2, the upper edge of the band
@@ -64,9 +74,12 @@ def test_interpolated_ap_direct():
 
 def test_bands_populated_by_gt_area_and_detection_area():
     gt = {0: FrameBoxes.of([box(50, 50, 6), box(200, 50, 12), box(400, 50, 24)])}  # 36,144,576
-    det = {0: FrameBoxes.of(
-        [box(50, 50, 6), box(400, 50, 24), box(800, 800, 10), box(900, 900, 5)],
-        scores=[0.9, 0.9, 0.8, 0.7])}  # TP(ET), TP(small), FP area 100 (tiny), FP area 25 (ET)
+    det = {
+        0: FrameBoxes.of(
+            [box(50, 50, 6), box(400, 50, 24), box(800, 800, 10), box(900, 900, 5)],
+            scores=[0.9, 0.9, 0.8, 0.7],
+        )
+    }  # TP(ET), TP(small), FP area 100 (tiny), FP area 25 (ET)
     b = evaluate_boxes(gt, det, nwd_thresholds=[0.5]).bands
     assert [b[n].n_gt for n in ("extremely_tiny", "tiny", "small", "all")] == [1, 1, 1, 3]
     assert [b[n].n_detections for n in ("extremely_tiny", "tiny", "small", "all")] == [2, 1, 1, 4]

@@ -55,8 +55,7 @@ def fire(camera: CameraHold, clock: Clock, event: Event) -> None:
         clock.now += SETTLE_S
 
 
-@pytest.mark.parametrize(("before", "event"), sorted(TRANSITIONS, key=str),
-                         ids=lambda x: x.name)
+@pytest.mark.parametrize(("before", "event"), sorted(TRANSITIONS, key=str), ids=lambda x: x.name)
 def test_each_transition_of_the_table(before: View, event: Event) -> None:
     camera, clock = camera_in(before)
     assert camera.view is before
@@ -65,8 +64,9 @@ def test_each_transition_of_the_table(before: View, event: Event) -> None:
     assert camera.search_paused() is TRANSITIONS[(before, event)].paused
 
 
-UNLISTED = [(v, e) for v in View for e in Event
-            if (v, e) not in TRANSITIONS and e is not Event.SETTLED]
+UNLISTED = [
+    (v, e) for v in View for e in Event if (v, e) not in TRANSITIONS and e is not Event.SETTLED
+]
 
 
 @pytest.mark.parametrize(("before", "event"), UNLISTED, ids=lambda x: x.name)
@@ -82,8 +82,7 @@ def test_an_event_the_table_does_not_list_leaves_the_view(before: View, event: E
 
 
 def test_search_pauses_only_while_a_gimbal_points_the_camera_away() -> None:
-    assert [v for v in View if v.paused] == [View.ON_TARGET, View.RELEASING_GIMBAL,
-                                             View.SETTLING]
+    assert [v for v in View if v.paused] == [View.ON_TARGET, View.RELEASING_GIMBAL, View.SETTLING]
     camera, _ = camera_in(View.ON_TARGET)
     assert camera.search_paused()
     camera, _ = camera_in(View.VEHICLE_TURNED)

@@ -18,15 +18,16 @@ from sarmission.perception.pyramid import half_resolution
 ORANGE = (20, 110, 240)  # BGR, a life-jacket colour
 
 
-def sea_with_patch(height: int, width: int, cx: int, cy: int, side: int,
-                   colour: tuple[int, int, int] = ORANGE) -> np.ndarray:
+def sea_with_patch(
+    height: int, width: int, cx: int, cy: int, side: int, colour: tuple[int, int, int] = ORANGE
+) -> np.ndarray:
     """Blue-green textured water with a ``side`` px square of ``colour`` centred at (cx, cy)."""
     texture = textured_background(height, width, seed=3, mean=0.35)
     frame = np.empty((height, width, 3), np.uint8)
     for channel, gain in enumerate((0.95, 0.75, 0.35)):
         frame[..., channel] = np.clip(texture * gain * 255, 0, 255).astype(np.uint8)
     half = side // 2
-    frame[cy - half:cy - half + side, cx - half:cx - half + side] = colour
+    frame[cy - half : cy - half + side, cx - half : cx - half + side] = colour
     return frame
 
 
@@ -69,7 +70,7 @@ def test_grey_frames_have_no_anomaly_and_the_helper_skips_small_frames() -> None
     grey = to_bgr(textured_background(120, 160, seed=5))
     assert np.all(chroma_anomaly(grey) == 0.0)
     assert chroma_if_wanted(grey, wanted=False) is None
-    assert chroma_if_wanted(grey[:CHROMA_SCALE - 1], wanted=True) is None
+    assert chroma_if_wanted(grey[: CHROMA_SCALE - 1], wanted=True) is None
     assert chroma_if_wanted(grey, wanted=True).shape == (120 // 8, 160 // 8)
 
 

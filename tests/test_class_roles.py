@@ -15,12 +15,21 @@ from sarmission.evaluation.matching import FrameBoxes
 from sarmission.evaluation.report import evaluate_detections, person_category_map
 
 
-@pytest.mark.parametrize(("name", "role"), [
-    ("swimmer", "person"), ("Swimmer with life-jacket", "person"), ("floater", "person"),
-    ("person", "person"), ("boat", "object"), ("Jetski", "object"), ("buoy", "object"),
-    ("life_saving_appliances", "appliance"), ("Life ring", "appliance"),
-    ("target", "person"),  # a name nobody told us about: alert rather than miss
-])
+@pytest.mark.parametrize(
+    ("name", "role"),
+    [
+        ("swimmer", "person"),
+        ("Swimmer with life-jacket", "person"),
+        ("floater", "person"),
+        ("person", "person"),
+        ("boat", "object"),
+        ("Jetski", "object"),
+        ("buoy", "object"),
+        ("life_saving_appliances", "appliance"),
+        ("Life ring", "appliance"),
+        ("target", "person"),  # a name nobody told us about: alert rather than miss
+    ],
+)
 def test_roles_of_names(name, role):
     assert role_of(name) == role
 
@@ -36,11 +45,13 @@ def dataset() -> VideoDataset:
     """One frame with a swimmer at (100, 100) and a boat at (300, 300)."""
     categories = [Category(1, "swimmer"), Category(3, "boat")]
     images = [ImageRecord(1, "f.png", 480, 640, video_id=1, frame_index=0)]
-    annotations = [Annotation(1, 1, 1, (96.0, 96.0, 8.0, 8.0), track_id=1, video_id=1),
-                   Annotation(2, 1, 3, (280.0, 290.0, 40.0, 20.0), track_id=2,
-                              video_id=1)]
-    return VideoDataset(videos=[Video(1, "v")], images=images, annotations=annotations,
-                        categories=categories)
+    annotations = [
+        Annotation(1, 1, 1, (96.0, 96.0, 8.0, 8.0), track_id=1, video_id=1),
+        Annotation(2, 1, 3, (280.0, 290.0, 40.0, 20.0), track_id=2, video_id=1),
+    ]
+    return VideoDataset(
+        videos=[Video(1, "v")], images=images, annotations=annotations, categories=categories
+    )
 
 
 def test_a_head_that_names_boats_is_scored_on_people_only():
@@ -69,8 +80,7 @@ def test_a_dataset_with_no_person_category_is_refused():
 def test_people_only_keeps_ids_and_order():
     from sarmission.evaluation.report import people_only
 
-    boxes = FrameBoxes.of(np.arange(12.0).reshape(3, 4), [0.1, 0.2, 0.3], [2, 0, 1],
-                          ids=[7, 8, 9])
+    boxes = FrameBoxes.of(np.arange(12.0).reshape(3, 4), [0.1, 0.2, 0.3], [2, 0, 1], ids=[7, 8, 9])
     kept = people_only(boxes, np.array([0, 1]))
     assert kept.ids.tolist() == [8, 9] and kept.class_ids.tolist() == [0, 1]
 
@@ -97,10 +107,17 @@ def test_validation_f2_picks_epochs_on_people_only():
             return logits, torch.full((len(crops), 4), 8.0)  # the crop's own box
 
     swimmer, boat = [96.0, 96.0, 112.0, 112.0], [300.0, 300.0, 316.0, 316.0]
-    val = CropSet(crops=torch.zeros(2, 4, 16, 16), labels=torch.tensor([0, 1]),
-                  target_ltrb=torch.zeros(2, 4), boxes=torch.tensor([swimmer, boat]),
-                  image_ids=torch.tensor([1, 1]), jittered=torch.tensor([False, False]),
-                  frame_ids=torch.tensor([1]), gt_boxes=torch.tensor([swimmer, boat]),
-                  gt_classes=torch.tensor([0, 1]), gt_image_ids=torch.tensor([1, 1]))
+    val = CropSet(
+        crops=torch.zeros(2, 4, 16, 16),
+        labels=torch.tensor([0, 1]),
+        target_ltrb=torch.zeros(2, 4),
+        boxes=torch.tensor([swimmer, boat]),
+        image_ids=torch.tensor([1, 1]),
+        jittered=torch.tensor([False, False]),
+        frame_ids=torch.tensor([1]),
+        gt_boxes=torch.tensor([swimmer, boat]),
+        gt_classes=torch.tensor([0, 1]),
+        gt_image_ids=torch.tensor([1, 1]),
+    )
     assert validate_f2(Stub([0]), val)["recall"] == 1.0
     assert validate_f2(Stub([]), val)["recall"] == 0.0

@@ -31,8 +31,9 @@ def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def clip(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A short MP4 of a small target moving over a textured background."""
-    frames, _ = moving_target(240, 320, 12, start=(100.0, 120.0), velocity=(1.5, 0.5), size=8,
-                              seed=3)
+    frames, _ = moving_target(
+        240, 320, 12, start=(100.0, 120.0), velocity=(1.5, 0.5), size=8, seed=3
+    )
     path = tmp_path_factory.mktemp("video") / "clip.mp4"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30, (320, 240))
     for frame in frames:
@@ -41,11 +42,28 @@ def clip(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def test_detect_writes_coco_results_for_every_frame(clip: Path, checkpoint: Path,
-                                                     tmp_path: Path) -> None:
+def test_detect_writes_coco_results_for_every_frame(
+    clip: Path, checkpoint: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "dets.json"
-    code = main(["detect", str(clip), "--model", str(checkpoint), "--runtime", "torch",
-                 "--ds", "2", "--topn", "10", "--conf", "0.0", "--out", str(out)])
+    code = main(
+        [
+            "detect",
+            str(clip),
+            "--model",
+            str(checkpoint),
+            "--runtime",
+            "torch",
+            "--ds",
+            "2",
+            "--topn",
+            "10",
+            "--conf",
+            "0.0",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     records = json.loads(out.read_text())
     assert records, "a zero threshold keeps every proposal the head scores"
@@ -59,8 +77,9 @@ def test_detect_writes_coco_results_for_every_frame(clip: Path, checkpoint: Path
     assert per_frame.max() <= 10
 
 
-def test_detect_reports_a_wrong_model_file_in_one_line(clip: Path, tmp_path: Path,
-                                                       capsys: pytest.CaptureFixture) -> None:
+def test_detect_reports_a_wrong_model_file_in_one_line(
+    clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     bogus = tmp_path / "model.pt"
     bogus.write_bytes(b"not a checkpoint at all")
     code = main(["detect", str(clip), "--model", str(bogus), "--out", str(tmp_path / "d.json")])
@@ -70,15 +89,17 @@ def test_detect_reports_a_wrong_model_file_in_one_line(clip: Path, tmp_path: Pat
     assert not (tmp_path / "d.json").exists()
 
 
-def test_detect_reports_a_missing_input(tmp_path: Path, checkpoint: Path,
-                                        capsys: pytest.CaptureFixture) -> None:
+def test_detect_reports_a_missing_input(
+    tmp_path: Path, checkpoint: Path, capsys: pytest.CaptureFixture
+) -> None:
     code = main(["detect", str(tmp_path / "nope.mp4"), "--model", str(checkpoint)])
     assert code == 2
     assert "nope.mp4" in capsys.readouterr().err
 
 
-def test_export_writes_onnx_that_loads_with_a_dynamic_proposal_axis(checkpoint: Path,
-                                                                    tmp_path: Path) -> None:
+def test_export_writes_onnx_that_loads_with_a_dynamic_proposal_axis(
+    checkpoint: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "head.onnx"
     assert main(["export", "--model", str(checkpoint), "--out", str(out)]) == 0
     model = onnx.load(str(out))
@@ -101,9 +122,24 @@ def test_info_reports_head_parameters_and_stage_flops(capsys: pytest.CaptureFixt
 
 def test_bench_prints_a_json_row_per_configuration() -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "sarmission.cli", "bench", "--size", "320x240", "--ds", "2,4",
-         "--topn", "10", "--frames", "2", "--json"],
-        capture_output=True, text=True, timeout=240,
+        [
+            sys.executable,
+            "-m",
+            "sarmission.cli",
+            "bench",
+            "--size",
+            "320x240",
+            "--ds",
+            "2,4",
+            "--topn",
+            "10",
+            "--frames",
+            "2",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
     )
     assert done.returncode == 0, done.stderr
     rows = json.loads(done.stdout)
@@ -115,12 +151,33 @@ def test_bench_prints_a_json_row_per_configuration() -> None:
 
 
 def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
-    common = [sys.executable, "-m", "sarmission.cli", "bench", "--size", "320x240", "--ds", "2",
-              "--topn", "10", "--frames", "2", "--json"]
-    runs = [json.loads(subprocess.run(common + extra, capture_output=True, text=True,
-                                      timeout=240, check=True).stdout)[0]
-            for extra in ([], ["--colour-share", "0", "--crop-scales", "1"],
-                          ["--refine-threshold", "0"])]
+    common = [
+        sys.executable,
+        "-m",
+        "sarmission.cli",
+        "bench",
+        "--size",
+        "320x240",
+        "--ds",
+        "2",
+        "--topn",
+        "10",
+        "--frames",
+        "2",
+        "--json",
+    ]
+    runs = [
+        json.loads(
+            subprocess.run(
+                common + extra, capture_output=True, text=True, timeout=240, check=True
+            ).stdout
+        )[0]
+        for extra in (
+            [],
+            ["--colour-share", "0", "--crop-scales", "1"],
+            ["--refine-threshold", "0"],
+        )
+    ]
     assert runs[1]["colour_share"] == 0.0 and runs[1]["crop_scales"] == [1.0]
     assert runs[0]["refine_threshold"] == 0.3 and runs[2]["refine_threshold"] == 0.0
     # The default second crop scale may refine every proposal: its bound is twice the single.
@@ -134,8 +191,9 @@ def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> Non
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
 
 
-def test_detect_rejects_a_colour_share_outside_0_1(clip: Path, tmp_path: Path,
-                                                  capsys: pytest.CaptureFixture) -> None:
+def test_detect_rejects_a_colour_share_outside_0_1(
+    clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     out = tmp_path / "d.json"
     code = main(["detect", str(clip), "--colour-share", "1.2", "--out", str(out)])
     err = capsys.readouterr().err
@@ -148,15 +206,27 @@ def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
     index = 99  # no such /dev/video99 on a test machine
     assert not Path(f"/dev/video{index}").exists()
     done = subprocess.run(
-        [sys.executable, "-m", "sarmission.cli", "run", "--connect",
-         f"udp:127.0.0.1:{free_udp_port()}",
-         "--camera", str(index), "--alerts-db", str(tmp_path / "alerts.db")],
-        capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "sarmission.cli",
+            "run",
+            "--connect",
+            f"udp:127.0.0.1:{free_udp_port()}",
+            "--camera",
+            str(index),
+            "--alerts-db",
+            str(tmp_path / "alerts.db"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert done.returncode == 2, done.stderr
     assert done.stderr.splitlines() == [
         f"sarmission run: error: cannot open camera {index}: no such device "
-        f"(/dev/video{index} does not exist)"]
+        f"(/dev/video{index} does not exist)"
+    ]
     assert not (tmp_path / "alerts.db").exists()  # nothing was started
 
 
@@ -182,7 +252,17 @@ def test_mission_commands_hand_the_crop_options_to_the_detector(tmp_path: Path) 
     from_file = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
     net, _ = build_detector(from_file, load_mission_from_args(from_file))
     assert net.crop_scales == (1.0,) and net.refine_threshold == 0.6
-    overridden = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file),
-                                    "--crop-scales", "1,3", "--refine-threshold", "0"])
+    overridden = parser.parse_args(
+        [
+            "replay",
+            "clip.mp4",
+            "--mission",
+            str(mission_file),
+            "--crop-scales",
+            "1,3",
+            "--refine-threshold",
+            "0",
+        ]
+    )
     net, _ = build_detector(overridden, load_mission_from_args(overridden))
     assert net.crop_scales == (1.0, 3.0) and net.refine_threshold == 0.0

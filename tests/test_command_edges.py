@@ -38,12 +38,18 @@ class BusyAutopilot(RawPeer):
         self._ack(msg, self.final)
 
     def _ack(self, msg: Any, result: int) -> None:
-        self.send(self.conn.mav.command_ack_encode(msg.command, result, 50, 0,
-                                                   msg.get_srcSystem(), msg.get_srcComponent()))
+        self.send(
+            self.conn.mav.command_ack_encode(
+                msg.command, result, 50, 0, msg.get_srcSystem(), msg.get_srcComponent()
+            )
+        )
 
     def commands(self, command: int) -> list[Any]:
-        return [m for m in list(self.received)
-                if m.get_type() == "COMMAND_LONG" and m.command == command]
+        return [
+            m
+            for m in list(self.received)
+            if m.get_type() == "COMMAND_LONG" and m.command == command
+        ]
 
 
 @pytest.mark.parametrize("final", [M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_DENIED])

@@ -13,12 +13,28 @@ from sarmission.mission.confirmation import Sighting, TargetEvidence, assess, dr
 
 ORIGIN = (54.17, 7.89)
 # the rule's shape, not its tuned defaults: a second of at least six sightings
-RULE = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_seen_share=0.4, max_speed_m_s=1.5,
-                     min_size_m=0.15, max_size_m=2.5, min_score=0.6, give_up_s=20.0)
+RULE = ConfirmConfig(
+    min_seen_s=1.0,
+    min_sightings=6,
+    min_seen_share=0.4,
+    max_speed_m_s=1.5,
+    min_size_m=0.15,
+    max_size_m=2.5,
+    min_score=0.6,
+    give_up_s=20.0,
+)
 
 
-def sightings(velocity=(0.0, 0.0), seconds=1.5, fps=30.0, error=1.5, size=0.6, score=0.85,
-              seed=0, bias=(0.8, -0.5)):
+def sightings(
+    velocity=(0.0, 0.0),
+    seconds=1.5,
+    fps=30.0,
+    error=1.5,
+    size=0.6,
+    score=0.85,
+    seed=0,
+    bias=(0.8, -0.5),
+):
     """Fixes of an object moving at ``velocity`` (m/s north, east): each fix off by a shared
     bias (GNSS) plus independent noise, together about ``error`` DRMS."""
     rng = np.random.default_rng(seed)
@@ -49,11 +65,13 @@ def test_a_still_or_drifting_person_is_confirmed(velocity):
 
 @pytest.mark.parametrize(
     ("kwargs", "why"),
-    [({"velocity": (10.0, 0.0)}, "moves 10"),  # glint under a 10 m/s aircraft
-     ({"velocity": (0.0, -6.0)}, "moves 5.9"),  # a bird
-     ({"size": 6.0}, "6.00 m on the ground is no person"),  # a boat
-     ({"size": 0.05}, "0.05 m on the ground is no person"),  # a speck
-     ({"score": 0.45}, "score 0.45 below 0.6")],
+    [
+        ({"velocity": (10.0, 0.0)}, "moves 10"),  # glint under a 10 m/s aircraft
+        ({"velocity": (0.0, -6.0)}, "moves 5.9"),  # a bird
+        ({"size": 6.0}, "6.00 m on the ground is no person"),  # a boat
+        ({"size": 0.05}, "0.05 m on the ground is no person"),  # a speck
+        ({"score": 0.45}, "score 0.45 below 0.6"),
+    ],
 )
 def test_clutter_is_discarded_with_the_reason(kwargs, why):
     found = assess(evidence_of(sightings(**kwargs)), 101.5, RULE)
@@ -90,15 +108,22 @@ def test_clutter_seen_in_few_of_the_frames_is_discarded():
 
 def labelled(labels):
     """The standing person's sightings, the head's class of each taken from ``labels`` in turn."""
-    return [Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, labels[i % len(labels)])
-            for i, s in enumerate(sightings())]
+    return [
+        Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, labels[i % len(labels)])
+        for i, s in enumerate(sightings())
+    ]
 
 
-@pytest.mark.parametrize(("labels", "verdict"), [
-    (["boat"], "discard"), (["swimmer", "jetski"], "discard"),  # half called an object
-    (["swimmer", "buoy", "swimmer"], "confirm"), (["life_saving_appliances"], "confirm"),
-    ([""], "confirm"),  # class unknown: taken for a person
-])
+@pytest.mark.parametrize(
+    ("labels", "verdict"),
+    [
+        (["boat"], "discard"),
+        (["swimmer", "jetski"], "discard"),  # half called an object
+        (["swimmer", "buoy", "swimmer"], "confirm"),
+        (["life_saving_appliances"], "confirm"),
+        ([""], "confirm"),  # class unknown: taken for a person
+    ],
+)
 def test_a_target_the_head_calls_an_object_is_discarded(labels, verdict):
     found = assess(evidence_of(labelled(labels)), 101.5, RULE)
     assert found.verdict == verdict, found

@@ -18,14 +18,23 @@ from sarmission.mission.config import ConfirmConfig
 from sarmission.mission.confirmation import Sighting, TargetEvidence, assess, frames_seen
 
 ORIGIN = (54.17, 7.89)
-RULE = ConfirmConfig(min_seen_s=1.0, min_sightings=5, min_seen_share=0.5, max_speed_m_s=1.0,
-                     min_size_m=0.25, max_size_m=2.0, min_score=0.5, give_up_s=20.0)
+RULE = ConfirmConfig(
+    min_seen_s=1.0,
+    min_sightings=5,
+    min_seen_share=0.5,
+    max_speed_m_s=1.0,
+    min_size_m=0.25,
+    max_size_m=2.0,
+    min_score=0.5,
+    give_up_s=20.0,
+)
 #: A fix error that makes the drift speed's standard error exactly 0.25 m/s (module docstring).
 ERROR_FOR_QUARTER = 0.25 * math.sqrt(0.625)
 
 
-def evidence(times=(0.0, 0.25, 0.5, 0.75, 1.0), sizes=0.6, scores=0.8, north_m_s=0.0,
-             error=1.0, frames=None) -> TargetEvidence:
+def evidence(
+    times=(0.0, 0.25, 0.5, 0.75, 1.0), sizes=0.6, scores=0.8, north_m_s=0.0, error=1.0, frames=None
+) -> TargetEvidence:
     """Sightings at ``100 + times``, moving north at ``north_m_s``; ``frames`` processed."""
     ev = TargetEvidence()
     n = len(times)
@@ -49,8 +58,10 @@ def test_min_sightings_and_min_seen_s_at_their_boundary():
     assert verdict(evidence(times=(0.0, 0.125, 0.25, 0.5, 0.75)), 101.0) == "wait"  # 0.75 s
 
 
-@pytest.mark.parametrize(("size", "expected"), [(2.0, "confirm"), (2.01, "discard"),
-                                                (0.25, "confirm"), (0.24, "discard")])
+@pytest.mark.parametrize(
+    ("size", "expected"),
+    [(2.0, "confirm"), (2.01, "discard"), (0.25, "confirm"), (0.24, "discard")],
+)
 def test_size_limits_are_inclusive(size, expected):
     assert verdict(evidence(sizes=size)) == expected
 
@@ -80,8 +91,9 @@ def test_give_up_after_not_at_give_up_s():
     assert verdict(ev, 120.25) == "discard"
 
 
-@pytest.mark.parametrize(("speed", "expected"), [(0.0, "confirm"), (0.6, "confirm"),
-                                                 (1.4, "confirm"), (1.6, "discard")])
+@pytest.mark.parametrize(
+    ("speed", "expected"), [(0.0, "confirm"), (0.6, "confirm"), (1.4, "confirm"), (1.6, "discard")]
+)
 def test_speed_gate_allows_two_standard_errors(speed, expected):
     # standard error 0.25 m/s: discarded only above 1.0 + 2 x 0.25 = 1.5 m/s
     found = assess(evidence(north_m_s=speed, error=ERROR_FOR_QUARTER), 101.0, RULE)
@@ -117,10 +129,18 @@ def offset(north_m: float, east_m: float) -> tuple[float, float]:
     return float(lat), float(lon)
 
 
-@pytest.mark.parametrize(("north", "east", "inside"), [
-    (19.0, 0.0, True), (21.0, 0.0, False), (0.0, 19.0, True), (0.0, 21.0, False),
-    (-13.0, -13.0, True), (-15.0, -15.0, False), (6.0, 0.0, True),
-])
+@pytest.mark.parametrize(
+    ("north", "east", "inside"),
+    [
+        (19.0, 0.0, True),
+        (21.0, 0.0, False),
+        (0.0, 19.0, True),
+        (0.0, 21.0, False),
+        (-13.0, -13.0, True),
+        (-15.0, -15.0, False),
+        (6.0, 0.0, True),
+    ],
+)
 def test_a_dismissed_zone_suppresses_within_its_radius(north, east, inside):
     book = CandidateBook(_Store([(*ORIGIN, 20.0)]), "m", RULE)
     zone = book.suppressing(offset(north, east))

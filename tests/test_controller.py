@@ -32,8 +32,14 @@ FPS = 10.0
 
 @pytest.fixture
 def mission():
-    return load_mission(overrides={"camera.width": W, "camera.height": H,
-                                   "camera.hfov_deg": 30.0, "name": "ctl_test"})
+    return load_mission(
+        overrides={
+            "camera.width": W,
+            "camera.height": H,
+            "camera.hfov_deg": 30.0,
+            "name": "ctl_test",
+        }
+    )
 
 
 def confirm_at_lock(mission) -> None:
@@ -54,10 +60,15 @@ def filled_buffer(mission, t_end: float, t_start: float = 0.0) -> TelemetryBuffe
 
 
 def target_pixel(mission) -> tuple[float, float]:
-    cam = CameraPose.from_attitudes(np.array([DRONE_NED[0], DRONE_NED[1], -ALT]),
-                                    (0.0, 0.0, YAW), (0.0, -math.pi / 2, 0.0), "body")
-    uv, _ = project_points(mission.camera.intrinsics(), cam,
-                           np.array([[TARGET_NED[0], TARGET_NED[1], 0.0]]))
+    cam = CameraPose.from_attitudes(
+        np.array([DRONE_NED[0], DRONE_NED[1], -ALT]),
+        (0.0, 0.0, YAW),
+        (0.0, -math.pi / 2, 0.0),
+        "body",
+    )
+    uv, _ = project_points(
+        mission.camera.intrinsics(), cam, np.array([[TARGET_NED[0], TARGET_NED[1], 0.0]])
+    )
     return float(uv[0, 0]), float(uv[0, 1])
 
 
@@ -90,9 +101,14 @@ def test_target_seen_3_of_5_frames_is_alerted_once_within_1m(tmp_path, mission):
     n = 20
     store = AlertStore(tmp_path / "alerts.db")
     lines = []
-    ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
-                            filled_buffer(mission, n / FPS), store, console=lines.append,
-                            to_posix=lambda t: 1.7e9 + t)
+    ctl = MissionController(
+        mission,
+        ScriptedDetector(script_3_of_5(mission, n)),
+        filled_buffer(mission, n / FPS),
+        store,
+        console=lines.append,
+        to_posix=lambda t: 1.7e9 + t,
+    )
     alerts = run_frames(ctl, n)
     assert len(alerts) == 1 and store.count() == 1
     alert = store.list()[0]
@@ -120,12 +136,22 @@ def test_restart_on_the_same_store_does_not_re_announce(tmp_path, mission):
     n = 12
     path = tmp_path / "alerts.db"
     with AlertStore(path) as store:
-        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
-                                filled_buffer(mission, n / FPS), store, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script_3_of_5(mission, n)),
+            filled_buffer(mission, n / FPS),
+            store,
+            console=lambda s: None,
+        )
         assert len(run_frames(ctl, n)) == 1
     with AlertStore(path) as store:
-        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
-                                filled_buffer(mission, n / FPS), store, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script_3_of_5(mission, n)),
+            filled_buffer(mission, n / FPS),
+            store,
+            console=lambda s: None,
+        )
         assert ctl.known_at_start == 1
         assert run_frames(ctl, n) == []
         assert store.count() == 1 and ctl.stats.merged_tracks == 1
@@ -135,8 +161,9 @@ def test_stale_telemetry_gives_an_alert_without_position_and_the_reason(tmp_path
     n = 8
     buf = filled_buffer(mission, 1.0)  # telemetry ends at t = 1 s; frames from t = 5 s
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)), buf,
-                                store, console=lambda s: None)
+        ctl = MissionController(
+            mission, ScriptedDetector(script_3_of_5(mission, n)), buf, store, console=lambda s: None
+        )
         # a candidate for the operator; never confirmed: there is nothing to check it against
         assert run_frames(ctl, n, t0=5.0) == []
         (alert,) = ctl.stats.candidates
@@ -178,8 +205,9 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
     Either its track goes on, or it is lost for 2 s and a new track locks on it (frame 25) with
     telemetry: one candidate either way, which gets the position, and is confirmed (announced
     once, with its position) after a second of placed sightings."""
-    mission.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_score=0.6,
-                                    min_seen_share=0.0)
+    mission.confirm = ConfirmConfig(
+        min_seen_s=1.0, min_sightings=6, min_score=0.6, min_seen_share=0.0
+    )
     n = 41
     u, v = target_pixel(mission)
     box = (u - 5, v - 5, u + 5, v + 5)
@@ -188,9 +216,14 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
     lines: list[str] = []
     actions = AnnouncedActions()
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script),
-                                filled_buffer(mission, 4.0, t_start=2.0), store,
-                                actions=actions, console=lines.append)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            filled_buffer(mission, 4.0, t_start=2.0),
+            store,
+            actions=actions,
+            console=lines.append,
+        )
         alerts = run_frames(ctl, n)
         assert len(alerts) == 1 and store.count() == 1
         stored = store.get(alerts[0].alert_id)
@@ -202,24 +235,42 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
     assert ctl.stats.located_later == 1 and ctl.stats.merged_tracks == int(reborn)
     assert [p for _, p in actions.announced] == [stored.position]
     assert [line.split(":")[0] for line in lines] == [
-        "CANDIDATE target 1", "POSITION target 1", f"ALERT target 1 ({stored.short_id})"]
+        "CANDIDATE target 1",
+        "POSITION target 1",
+        f"ALERT target 1 ({stored.short_id})",
+    ]
     assert "positions found after the alert: 1" in ctl.summary()
 
 
 def test_corrupt_frames_are_skipped_and_counted(tmp_path, mission):
     confirm_at_lock(mission)
     good = np.full((H, W, 3), 90, np.uint8)
-    frames = [good, good, None, good, np.zeros((H, W), np.uint8), good,
-              good.astype(np.float32), np.zeros((H // 2, W // 2, 3), np.uint8), "garbage", good]
+    frames = [
+        good,
+        good,
+        None,
+        good,
+        np.zeros((H, W), np.uint8),
+        good,
+        good.astype(np.float32),
+        np.zeros((H // 2, W // 2, 3), np.uint8),
+        "garbage",
+        good,
+    ]
     detector = ScriptedDetector(script_3_of_5(mission, len(frames)))
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(mission, detector, filled_buffer(mission, 2.0), store,
-                                console=lambda s: None)
+        ctl = MissionController(
+            mission, detector, filled_buffer(mission, 2.0), store, console=lambda s: None
+        )
         alerts = run_frames(ctl, len(frames), frames=frames)
         assert ctl.stats.skipped_total == 5 and ctl.stats.frames == 5
         assert detector.calls == 5  # the detector never saw a bad frame
-        assert set(ctl.stats.skipped) == {"no image", "not a BGR uint8 image", "size 480x270 "
-                                          "differs from the stream's 960x540", "not an image"}
+        assert set(ctl.stats.skipped) == {
+            "no image",
+            "not a BGR uint8 image",
+            "size 480x270 differs from the stream's 960x540",
+            "not an image",
+        }
         assert len(alerts) == 1  # frames 0, 1, 3 of the good ones lock the target
         assert "skipped: 5" in ctl.summary()
 
@@ -240,14 +291,26 @@ def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp
     lines: list[str] = []
     try:
         assert link.wait_autopilot(5.0)
-        actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append, move_gate=MoveGate.from_mission(mission))
-        ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
-                                filled_buffer(mission, n / FPS), store, actions=actions,
-                                console=lambda s: None)
+        actions = ActionPolicy(
+            mission.actions,
+            outbox,
+            store,
+            survey_altitude_m=50.0,
+            console=lines.append,
+            move_gate=MoveGate.from_mission(mission),
+        )
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script_3_of_5(mission, n)),
+            filled_buffer(mission, n / FPS),
+            store,
+            actions=actions,
+            console=lambda s: None,
+        )
         (alert,) = run_frames(ctl, n)
-        assert wait_until(lambda: not actions.pending() and store.get(alert.alert_id).delivered,
-                          10.0)
+        assert wait_until(
+            lambda: not actions.pending() and store.get(alert.alert_id).delivered, 10.0
+        )
         stored = store.get(alert.alert_id)
         assert stored.delivered.keys() == {"mavlink_loiter"}
         assert stored.sent.keys() == {"mavlink"} and stored.sent["mavlink"].count == 3
@@ -264,8 +327,10 @@ def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp
         assert actions.acknowledged == 1 and actions.sent == 1
         assert store.undelivered("mavlink", repeats=3) == []
         assert [a.alert_id for a in store.undelivered("mavlink", repeats=4)] == [alert.alert_id]
-        sent_line = (f"  -> target 1 ({alert.short_id}): STATUSTEXT sent 3x (no "
-                     "acknowledgement exists for STATUSTEXT)")
+        sent_line = (
+            f"  -> target 1 ({alert.short_id}): STATUSTEXT sent 3x (no "
+            "acknowledgement exists for STATUSTEXT)"
+        )
         ack_line = "  -> target 1: MAV_CMD_DO_REPOSITION acknowledged (1 attempt)"
         assert lines.index(ack_line) < lines.index(sent_line)  # repeats did not hold it up
         assert not any("delivered" in line for line in lines)
@@ -308,13 +373,25 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
 
     try:
         assert link.wait_autopilot(5.0)
-        actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append, clock=lambda: now[0],
-                               move_gate=MoveGate.from_mission(mission),
-                               gimbal_present=lambda: True)
+        actions = ActionPolicy(
+            mission.actions,
+            outbox,
+            store,
+            survey_altitude_m=50.0,
+            console=lines.append,
+            clock=lambda: now[0],
+            move_gate=MoveGate.from_mission(mission),
+            gimbal_present=lambda: True,
+        )
         detector = ScriptedDetector(script_3_of_5(mission, n))
-        ctl = MissionController(mission, detector, filled_buffer(mission, 4.0), store,
-                                actions=actions, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            detector,
+            filled_buffer(mission, 4.0),
+            store,
+            actions=actions,
+            console=lambda s: None,
+        )
         assert not actions.search_paused()
         (alert,) = run_frames(ctl, n)
         wait_for(lambda: store.get(alert.alert_id).delivered)
@@ -344,8 +421,9 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
         assert not actions.search_paused()
         run_frames(ctl, 2, start=n + 5)
         assert detector.calls == calls + 2 and ctl.stats.paused == paused + 5
-        assert (f"frames not searched while the camera was on a target: {paused + 5}"
-                in ctl.summary())
+        assert (
+            f"frames not searched while the camera was on a target: {paused + 5}" in ctl.summary()
+        )
         assert actions.acknowledged == 1  # the release is no alert delivery
     finally:
         outbox.close()

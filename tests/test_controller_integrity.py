@@ -27,8 +27,14 @@ TARGET_OFFSET_NE = (12.0, -7.0)  # metres north/east of the point under the dron
 
 @pytest.fixture
 def mission():
-    return load_mission(overrides={"camera.width": W, "camera.height": H,
-                                   "camera.hfov_deg": HFOV_DEG, "name": "integrity"})
+    return load_mission(
+        overrides={
+            "camera.width": W,
+            "camera.height": H,
+            "camera.hfov_deg": HFOV_DEG,
+            "name": "integrity",
+        }
+    )
 
 
 def nadir_pixel(height_m: float) -> tuple[float, float]:
@@ -70,15 +76,17 @@ def run(ctl, n: int):
 
 
 def test_no_position_before_the_autopilot_reports_home_then_placed_from_the_buffer(
-        tmp_path, mission):
+    tmp_path, mission
+):
     assert metres(mission.area.home[:2], DRONE) > 1e6  # the mission file's home is far away
     buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
     hover(buf, 3.0, 60.0)
     lines: list[str] = []
     with AlertStore(tmp_path / "a.db") as store:
         # seen in frames 0-9 only: the position must come from those sightings
-        ctl = MissionController(mission, ScriptedDetector(script(10, 60.0) + [[]] * 5), buf,
-                                store, console=lines.append)
+        ctl = MissionController(
+            mission, ScriptedDetector(script(10, 60.0) + [[]] * 5), buf, store, console=lines.append
+        )
         run(ctl, 10)
         alerts = ctl.stats.candidates  # locked without a position: a candidate, unconfirmed
         assert len(alerts) == 1 and alerts[0].position is None
@@ -99,8 +107,9 @@ def test_no_fix_for_a_drone_on_the_ground(tmp_path, mission):
     buf.set_home(*DRONE, 2.0)
     hover(buf, 3.0, 0.4)  # landed after an autopilot restart: relative altitude ~0
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script(20, 0.4)), buf, store,
-                                console=lambda s: None)
+        ctl = MissionController(
+            mission, ScriptedDetector(script(20, 0.4)), buf, store, console=lambda s: None
+        )
         assert run(ctl, 20) == []  # nothing confirmed without a position
         alerts = ctl.stats.candidates
         assert len(alerts) == 1 and alerts[0].position is None
@@ -109,15 +118,21 @@ def test_no_fix_for_a_drone_on_the_ground(tmp_path, mission):
 
 
 def test_a_fix_needs_the_minimum_height_from_the_mission(tmp_path):
-    mission = load_mission(overrides={"camera.width": W, "camera.height": H,
-                                      "camera.hfov_deg": HFOV_DEG,
-                                      "geolocation.min_height_m": 30.0})
+    mission = load_mission(
+        overrides={
+            "camera.width": W,
+            "camera.height": H,
+            "camera.hfov_deg": HFOV_DEG,
+            "geolocation.min_height_m": 30.0,
+        }
+    )
     buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
     buf.set_home(*DRONE, 2.0)
     hover(buf, 3.0, 25.0)
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script(10, 25.0)), buf, store,
-                                console=lambda s: None)
+        ctl = MissionController(
+            mission, ScriptedDetector(script(10, 25.0)), buf, store, console=lambda s: None
+        )
         run(ctl, 10)
         (alert,) = ctl.stats.candidates
         assert alert.position is None and "a fix needs 30 m" in alert.position_note
@@ -128,8 +143,9 @@ def test_exact_position_around_the_drone_not_the_mission_home(tmp_path, mission)
     buf.set_home(DRONE[0] - 0.002, DRONE[1] + 0.003, 2.0)  # the autopilot's home, 300 m away
     hover(buf, 3.0, 60.0)
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script(10, 60.0)), buf, store,
-                                console=lambda s: None)
+        ctl = MissionController(
+            mission, ScriptedDetector(script(10, 60.0)), buf, store, console=lambda s: None
+        )
         run(ctl, 10)
         (alert,) = ctl.stats.candidates
         assert alert.position is not None and metres(alert.position, truth()) < 0.05
@@ -141,8 +157,9 @@ def test_non_finite_gimbal_attitude_is_no_fix_and_no_crash(tmp_path, mission):
     buf.set_home(*DRONE, 2.0)
     hover(buf, 3.0, 60.0, gimbal_pitch=math.nan)  # pushed directly, past the message checks
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script(10, 60.0)), buf, store,
-                                console=lambda s: None)
+        ctl = MissionController(
+            mission, ScriptedDetector(script(10, 60.0)), buf, store, console=lambda s: None
+        )
         run(ctl, 10)
         (alert,) = ctl.stats.candidates
         assert alert.position is None and "not finite" in alert.position_note

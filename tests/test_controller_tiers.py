@@ -22,11 +22,18 @@ F = (W / 2) / math.tan(math.radians(HFOV_DEG) / 2)
 
 @pytest.fixture
 def mission():
-    mission = load_mission(overrides={"camera.width": W, "camera.height": H,
-                                      "camera.hfov_deg": HFOV_DEG, "name": "tiers"})
+    mission = load_mission(
+        overrides={
+            "camera.width": W,
+            "camera.height": H,
+            "camera.hfov_deg": HFOV_DEG,
+            "name": "tiers",
+        }
+    )
     # the rule's shape, not its tuned defaults: a second of at least six sightings
-    mission.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_seen_share=0.4,
-                                    min_score=0.6)
+    mission.confirm = ConfirmConfig(
+        min_seen_s=1.0, min_sightings=6, min_seen_share=0.4, min_score=0.6
+    )
     return mission
 
 
@@ -59,8 +66,9 @@ def flight(seconds: float, speed_north: float = 0.0, height: float = 60.0) -> Te
     buf.set_home(*DRONE, 2.0)
     for t in np.arange(0.0, seconds + 1e-9, 0.05):
         lat, lon, _ = pymap3d.ned2geodetic(speed_north * t, 0.0, 0.0, *DRONE, 0.0)
-        buf.push_position(float(t), float(lat), float(lon), height,
-                          velocity_ned=(speed_north, 0.0, 0.0))
+        buf.push_position(
+            float(t), float(lat), float(lon), height, velocity_ned=(speed_north, 0.0, 0.0)
+        )
         buf.push_attitude(float(t), 0.0, 0.0, 0.0)
     return buf
 
@@ -83,8 +91,14 @@ def test_a_still_person_is_a_candidate_then_confirmed_after_a_second(tmp_path, m
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 20
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
-                                actions=actions, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            flight(3.0),
+            store,
+            actions=actions,
+            console=lambda s: None,
+        )
         alerts = run(ctl, 20)
         (alert,) = alerts
         assert store.get(alert.alert_id).tier == "confirmed"
@@ -98,8 +112,14 @@ def test_glint_that_keeps_its_place_in_the_image_is_discarded(tmp_path, mission)
     script = [[(box_at(0.0, 8.0, 60.0), 0.95, 0)]] * 30  # fixed pixel, aircraft at 10 m/s
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script), flight(4.0, 10.0), store,
-                                actions=actions, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            flight(4.0, 10.0),
+            store,
+            actions=actions,
+            console=lambda s: None,
+        )
         assert run(ctl, 30) == [] and actions.alerts == []
         (candidate,) = ctl.stats.candidates
         stored = store.get(candidate.alert_id)
@@ -110,8 +130,14 @@ def test_glint_that_keeps_its_place_in_the_image_is_discarded(tmp_path, mission)
 def test_a_boat_is_too_large_to_be_a_person(tmp_path, mission):
     script = [[(box_at(5.0, 5.0, 60.0, side_px=130.0), 0.9, 0)]] * 20  # 6 m across
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
-                                actions=Announced(), console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            flight(3.0),
+            store,
+            actions=Announced(),
+            console=lambda s: None,
+        )
         assert run(ctl, 20) == []
         (candidate,) = ctl.stats.candidates
         assert "on the ground is no person" in store.get(candidate.alert_id).discarded
@@ -121,13 +147,20 @@ def test_the_operator_confirms_a_candidate_before_the_evidence_does(tmp_path, mi
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 6
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
-                                actions=actions, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            flight(3.0),
+            store,
+            actions=actions,
+            console=lambda s: None,
+        )
         assert run(ctl, 4) == []
         (candidate,) = ctl.stats.candidates
         store.decide(candidate.alert_id, "confirmed", by="jo")
-        assert ctl.process(4, 0.4, np.full((H, W, 3), 90, np.uint8))[0].alert_id == \
-            candidate.alert_id
+        assert (
+            ctl.process(4, 0.4, np.full((H, W, 3), 90, np.uint8))[0].alert_id == candidate.alert_id
+        )
         assert [a.alert_id for a in actions.alerts] == [candidate.alert_id]
 
 
@@ -135,8 +168,14 @@ def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 20
     path = tmp_path / "a.db"
     with AlertStore(path) as store:
-        ctl = MissionController(mission, ScriptedDetector(script[:4]), flight(3.0), store,
-                                actions=Announced(), console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script[:4]),
+            flight(3.0),
+            store,
+            actions=Announced(),
+            console=lambda s: None,
+        )
         run(ctl, 4)
         (candidate,) = ctl.stats.candidates
         store.decide(candidate.alert_id, "dismissed", by="jo")  # foam, says the operator
@@ -145,9 +184,15 @@ def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
         ctl.detector = ScriptedDetector(script[:16])
         assert run(ctl, 16, start=4) == [] and actions.alerts == []  # evidence cannot overrule
     with AlertStore(path) as store:  # a restart: a new track on the same spot, another id
-        ctl = MissionController(mission, ScriptedDetector(script), flight(3.0), store,
-                                actions=Announced(), console=lambda s: None,
-                                mission_id="tiers")
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            flight(3.0),
+            store,
+            actions=Announced(),
+            console=lambda s: None,
+            mission_id="tiers",
+        )
         ctl.registry.targets.clear()  # forget the known target: only the zone may silence it
         assert run(ctl, 20) == []
         assert ctl.stats.suppressed == 1 and ctl.stats.candidates == []
@@ -157,28 +202,45 @@ def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
 class ObjectsDetector(ScriptedDetector):
     """The scripted detector with the maritime head's classes (boats, buoys, life rings)."""
 
-    classes = ("swimmer", "swimmer_with_life_jacket", "boat", "jetski", "buoy",
-               "life_saving_appliances")
+    classes = (
+        "swimmer",
+        "swimmer_with_life_jacket",
+        "boat",
+        "jetski",
+        "buoy",
+        "life_saving_appliances",
+    )
 
 
 def test_a_target_the_head_calls_a_boat_is_never_alerted(tmp_path, mission):
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 2)]] * 20
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ObjectsDetector(script), flight(3.0), store,
-                                actions=actions, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ObjectsDetector(script),
+            flight(3.0),
+            store,
+            actions=actions,
+            console=lambda s: None,
+        )
         assert run(ctl, 20) == [] and actions.alerts == []
         assert ctl.stats.candidates == [] and ctl.stats.objects == 1
         assert "calls an object (never alerted): 1" in ctl.summary()
 
 
-def test_a_target_first_called_a_boat_becomes_a_candidate_once_it_is_a_person(tmp_path,
-                                                                            mission):
+def test_a_target_first_called_a_boat_becomes_a_candidate_once_it_is_a_person(tmp_path, mission):
     box = box_at(10.0, -5.0, 60.0)
     script = [[(box, 0.9, 2)]] * 3 + [[(box, 0.9, 0)]] * 27
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ObjectsDetector(script), flight(4.0), store,
-                                actions=Announced(), console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ObjectsDetector(script),
+            flight(4.0),
+            store,
+            actions=Announced(),
+            console=lambda s: None,
+        )
         (alert,) = run(ctl, 30)
         assert alert.class_name == "swimmer"
         (candidate,) = ctl.stats.candidates
@@ -188,8 +250,14 @@ def test_a_target_first_called_a_boat_becomes_a_candidate_once_it_is_a_person(tm
 def test_a_life_ring_is_its_own_kind_of_alert(tmp_path, mission):
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 5)]] * 20
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(mission, ObjectsDetector(script), flight(3.0), store,
-                                actions=Announced(), console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            ObjectsDetector(script),
+            flight(3.0),
+            store,
+            actions=Announced(),
+            console=lambda s: None,
+        )
         (alert,) = run(ctl, 20)
         assert alert.class_name == "life_saving_appliances"
         assert "life_saving_appliances" in store.get(alert.alert_id).class_name

@@ -38,13 +38,13 @@ def _blob(h: int, w: int, cx: float, cy: float, sigma: float) -> np.ndarray:
 
 def _centroid(crop: np.ndarray) -> np.ndarray:
     c = crop.astype(np.float64)
-    yy, xx = np.mgrid[0:c.shape[0], 0:c.shape[1]]
+    yy, xx = np.mgrid[0 : c.shape[0], 0 : c.shape[1]]
     return np.array([(c * xx).sum(), (c * yy).sum()]) / c.sum()
 
 
 def _avg_pool(a: np.ndarray, ds: int) -> np.ndarray:
     h, w = a.shape[0] // ds, a.shape[1] // ds
-    return a[:h * ds, :w * ds].reshape(h, ds, w, ds).mean(axis=(1, 3)).astype(np.float32)
+    return a[: h * ds, : w * ds].reshape(h, ds, w, ds).mean(axis=(1, 3)).astype(np.float32)
 
 
 def test_roi_align_matches_analytic_bilinear_values():
@@ -65,8 +65,16 @@ def test_roi_align_matches_analytic_bilinear_values():
 def test_roi_align_equals_whole_image_grid_sample_including_borders():
     rng = np.random.default_rng(1)
     image = rng.random((40, 50, 3)).astype(np.float32)
-    boxes = np.array([[10, 12, 26, 28], [-5, -3, 11, 13], [40, 30, 56, 46], [3.3, 7.7, 19.3, 23.7],
-                      [-30, -30, -14, -14]], np.float32)
+    boxes = np.array(
+        [
+            [10, 12, 26, 28],
+            [-5, -3, 11, 13],
+            [40, 30, 56, 46],
+            [3.3, 7.7, 19.3, 23.7],
+            [-30, -30, -14, -14],
+        ],
+        np.float32,
+    )
     got = roi_align(image, boxes, 16, sampling_ratio=1)
     # The grid is normalised to the whole image here, to each box's window in roi_align: the
     # same positions up to float32 rounding of the normalised coordinates.
@@ -85,12 +93,17 @@ def test_sampling_is_torch_grid_sample_bit_for_bit(seed: int):
     grid_y = rng.uniform(-1.1, 1.1, (n, m)).astype(np.float32)
     grid = np.empty((n, m, m, 2), np.float32)
     grid[..., 0], grid[..., 1] = grid_x[:, None, :], grid_y[:, :, None]
-    expected = F.grid_sample(torch.from_numpy(windows).permute(0, 3, 1, 2),
-                             torch.from_numpy(grid), mode="bilinear", padding_mode="zeros",
-                             align_corners=False)
+    expected = F.grid_sample(
+        torch.from_numpy(windows).permute(0, 3, 1, 2),
+        torch.from_numpy(grid),
+        mode="bilinear",
+        padding_mode="zeros",
+        align_corners=False,
+    )
     np.testing.assert_array_equal(_sample(windows, None, grid_x, grid_y, 1), expected.numpy())
-    np.testing.assert_array_equal(_sample(windows, None, grid_x, grid_y, 2),
-                                  F.avg_pool2d(expected, 2).numpy())
+    np.testing.assert_array_equal(
+        _sample(windows, None, grid_x, grid_y, 2), F.avg_pool2d(expected, 2).numpy()
+    )
 
 
 def test_border_boxes_are_zero_padded():
@@ -145,8 +158,9 @@ def test_colour_channels_are_rgb_in_unit_range():
     frame = np.zeros((20, 20, 3), np.uint8)
     frame[..., 0], frame[..., 1], frame[..., 2] = 10, 128, 255  # B, G, R
     z = np.zeros((10, 10), np.float32)
-    crops = motion_enhanced_crops(frame, MotionMaps(2, z, z, z, z, z),
-                                  np.array([[2, 2, 18, 18]], np.float32), np.zeros(1))
+    crops = motion_enhanced_crops(
+        frame, MotionMaps(2, z, z, z, z, z), np.array([[2, 2, 18, 18]], np.float32), np.zeros(1)
+    )
     assert crops.shape == (1, 4, 16, 16) and crops.dtype == np.float32
     np.testing.assert_allclose(crops[0, :3, 8, 8], [1.0, 128 / 255, 10 / 255], atol=1e-6)
     assert np.all(crops[0, 3] == 0)  # zero motion: normalisation guard keeps E at 0
@@ -165,7 +179,8 @@ def test_enhanced_response_hand_made():
 def test_empty_boxes_and_flops():
     frame = np.zeros((20, 20, 3), np.uint8)
     z = np.zeros((10, 10), np.float32)
-    crops = motion_enhanced_crops(frame, MotionMaps(2, z, z, z, z, z), np.zeros((0, 4)),
-                                  np.zeros(0))
+    crops = motion_enhanced_crops(
+        frame, MotionMaps(2, z, z, z, z, z), np.zeros((0, 4)), np.zeros(0)
+    )
     assert crops.shape == (0, 4, 16, 16)
     assert crop_flops(25) == 25 * crop_flops(1) > 0

@@ -40,8 +40,7 @@ def test_sample_structure():
     assert ds.annotations[2].extra == {"occluded": False}
     assert ds.annotations[3].area == 400.0  # computed from bbox when absent
     assert ds.images[3].extra == {"source": "drone-2"}
-    assert {k: len(v) for k, v in ds.annotations_by_image().items()} == {10: 1, 11: 2, 20: 0,
-                                                                          21: 1}
+    assert {k: len(v) for k, v in ds.annotations_by_image().items()} == {10: 1, 11: 2, 20: 0, 21: 1}
 
 
 def test_sample_telemetry_mot_keys():
@@ -73,9 +72,18 @@ def test_sample_telemetry_v2_unit_keys(caplog):
 
 
 def test_parse_telemetry_variants(caplog):
-    t = parse_telemetry({"GPS_LATITUDE": "12.5", "gps_latitude_ref": "S", "gps_longitude": 3,
-                         "gps_longitude_ref": "W", "time(ms)": 1500, "Gimbal Pitch (deg)": None,
-                         "speed": [1, 2], "altitude": float("nan")})
+    t = parse_telemetry(
+        {
+            "GPS_LATITUDE": "12.5",
+            "gps_latitude_ref": "S",
+            "gps_longitude": 3,
+            "gps_longitude_ref": "W",
+            "time(ms)": 1500,
+            "Gimbal Pitch (deg)": None,
+            "speed": [1, 2],
+            "altitude": float("nan"),
+        }
+    )
     assert (t.latitude, t.longitude, t.time) == (-12.5, -3.0, 1.5)
     assert t.gimbal_pitch is None and t.speed is None and t.altitude is None
     assert parse_telemetry({"date_time": "2020:08:25 12:59:54"}).time == 1598360394.0
@@ -112,16 +120,19 @@ def _broken(tmp_path, mutate):
     return path
 
 
-@pytest.mark.parametrize("mutate, message", [
-    (lambda d: d.pop("images"), "missing required top-level key 'images'"),
-    (lambda d: d["images"][1].pop("file_name"), "images[1] (id=11) is missing required key"),
-    (lambda d: d["annotations"][0].pop("bbox"), "'bbox'"),
-    (lambda d: d["annotations"][0].update(bbox=[1, 2, 3]), "must be 4 numbers"),
-    (lambda d: d["annotations"][0].update(image_id=999), "unknown image_id 999"),
-    (lambda d: d["categories"].append({"id": 1, "name": "dup"}), "duplicate id 1"),
-    (lambda d: d["images"][0].update(height="tall"), "'height' must be an integer"),
-    (lambda d: d.update(annotations={}), "'annotations' must be a list"),
-])
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda d: d.pop("images"), "missing required top-level key 'images'"),
+        (lambda d: d["images"][1].pop("file_name"), "images[1] (id=11) is missing required key"),
+        (lambda d: d["annotations"][0].pop("bbox"), "'bbox'"),
+        (lambda d: d["annotations"][0].update(bbox=[1, 2, 3]), "must be 4 numbers"),
+        (lambda d: d["annotations"][0].update(image_id=999), "unknown image_id 999"),
+        (lambda d: d["categories"].append({"id": 1, "name": "dup"}), "duplicate id 1"),
+        (lambda d: d["images"][0].update(height="tall"), "'height' must be an integer"),
+        (lambda d: d.update(annotations={}), "'annotations' must be a list"),
+    ],
+)
 def test_malformed_files(tmp_path, mutate, message):
     path = _broken(tmp_path, mutate)
     with pytest.raises(DatasetFormatError) as info:
@@ -140,9 +151,11 @@ def test_invalid_json_and_missing_file(tmp_path):
 
 
 def test_mot_round_trip(tmp_path):
-    rows = [MotRow(1, 3, (10.0, 20.5, 8.0, 6.25), 0.875, 1, 1.0),
-            MotRow(2, 3, (11.0, 21.0, 8.0, 6.0), 1.0, 1, 0.5),
-            MotRow(2, 4, (0.1, 0.2, 0.3, 0.4), -1.0, -1, 1.0)]
+    rows = [
+        MotRow(1, 3, (10.0, 20.5, 8.0, 6.25), 0.875, 1, 1.0),
+        MotRow(2, 3, (11.0, 21.0, 8.0, 6.0), 1.0, 1, 0.5),
+        MotRow(2, 4, (0.1, 0.2, 0.3, 0.4), -1.0, -1, 1.0),
+    ]
     path = tmp_path / "gt.txt"
     write_mot(rows, path)
     assert path.read_text().splitlines()[0] == "1,3,10,20.5,8,6.25,0.875,1,1"
@@ -152,8 +165,10 @@ def test_mot_round_trip(tmp_path):
 def test_mot_short_lines_and_errors(tmp_path):
     path = tmp_path / "det.txt"
     path.write_text("1,-1,5,6,7,8\n\n2,1,5,6,7,8,0.5\n")
-    assert read_mot(path) == [MotRow(1, -1, (5.0, 6.0, 7.0, 8.0)),
-                              MotRow(2, 1, (5.0, 6.0, 7.0, 8.0), 0.5)]
+    assert read_mot(path) == [
+        MotRow(1, -1, (5.0, 6.0, 7.0, 8.0)),
+        MotRow(2, 1, (5.0, 6.0, 7.0, 8.0), 0.5),
+    ]
     path.write_text("1,1,5,6\n")
     with pytest.raises(DatasetFormatError, match=r"det.txt:1: expected at least 6"):
         read_mot(path)

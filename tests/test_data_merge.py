@@ -21,8 +21,10 @@ TOOL = Path(__file__).resolve().parents[1] / "tools" / "train_default_model.py"
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("merge_data")
-    return {"train": write_dataset(root / "a", n_videos=1, n_frames=4, seed=1),
-            "val": write_dataset(root / "b", n_videos=1, n_frames=5, seed=2)}
+    return {
+        "train": write_dataset(root / "a", n_videos=1, n_frames=4, seed=1),
+        "val": write_dataset(root / "b", n_videos=1, n_frames=5, seed=2),
+    }
 
 
 def test_merge_unites_categories_by_name_and_paths(data, tmp_path) -> None:
@@ -50,8 +52,7 @@ def test_merge_unites_categories_by_name_and_paths(data, tmp_path) -> None:
     assert len(again.videos) == 2 and len(again.images) == len(first.images) + len(second.images)
     n_swimmers = sum(a.category_id == swimmer_id for a in first.annotations + second.annotations)
     assert sum(a.category_id == by_name["swimmer"] for a in again.annotations) == n_swimmers
-    frames = [item.frame_bgr for video in again.videos
-              for item in iter_sequence(again, video.id)]
+    frames = [item.frame_bgr for video in again.videos for item in iter_sequence(again, video.id)]
     assert len(frames) == len(again.images)
     assert len({im.id for im in again.images}) == len(again.images)
 
@@ -67,7 +68,10 @@ def test_heldout_validation_clips_are_not_test_clips() -> None:
 
     seeds = tool.heldout_val_seeds()
     assert len(seeds) == sum(clips for _, clips, _ in tool.HELDOUT_VAL) == len(set(seeds))
-    test_seeds = {world(name).seed * 1000 + i for name, _, _ in tool.HELDOUT_VAL
-                  for i in range(tool.HELDOUT_VAL_FIRST_CLIP)}
+    test_seeds = {
+        world(name).seed * 1000 + i
+        for name, _, _ in tool.HELDOUT_VAL
+        for i in range(tool.HELDOUT_VAL_FIRST_CLIP)
+    }
     assert not test_seeds & set(seeds)
     assert tool.HELDOUT_VAL_FIRST_CLIP >= 50

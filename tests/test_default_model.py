@@ -21,8 +21,14 @@ FRAMES = 45
 @pytest.fixture(scope="module")
 def unseen_clip(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """45 frames of 4K maritime_test footage over a world of seed :data:`UNSEEN_SEED`."""
-    return generate_split("maritime_test", 1, FRAMES, tmp_path_factory.mktemp("unseen"),
-                          progress=False, seed=UNSEEN_SEED)
+    return generate_split(
+        "maritime_test",
+        1,
+        FRAMES,
+        tmp_path_factory.mktemp("unseen"),
+        progress=False,
+        seed=UNSEEN_SEED,
+    )
 
 
 def test_the_shipped_files_load_as_a_small_head() -> None:

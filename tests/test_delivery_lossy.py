@@ -53,8 +53,9 @@ def test_repeated_statustext_reaches_the_vehicle_through_30_percent_loss(tmp_pat
     lines: list[str] = []
     try:
         assert link.wait_autopilot(10.0), "no HEARTBEAT through the relay"
-        actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append)
+        actions = ActionPolicy(
+            mission.actions, outbox, store, survey_altitude_m=50.0, console=lines.append
+        )
         # fixed alert ids: the same texts, hence the same fate in the seeded relay, every run
         alerts = [make_alert(i, alert_id=f"{SEED:08x}{i:024x}") for i in range(1, N_ALERTS + 1)]
         for alert in alerts:
@@ -80,8 +81,11 @@ def test_repeated_statustext_reaches_the_vehicle_through_30_percent_loss(tmp_pat
     assert vehicle.duplicates_dropped > 0
     assert max(by_short_id.values()) <= repeats, by_short_id.most_common(3)
     for alert in alerts:
-        assert all(t == alert.statustext().replace("±", "+-")
-                   for t in texts if t.startswith(alert.short_id + " "))
+        assert all(
+            t == alert.statustext().replace("±", "+-")
+            for t in texts
+            if t.startswith(alert.short_id + " ")
+        )
     # the relay did its damage: about 30 % lost each way, copies made, some held late
     up, down = proxy.stats[UP], proxy.stats[DOWN]
     assert 0.2 < up.loss_rate < 0.4 and 0.2 < down.loss_rate < 0.4, (up.loss_rate, down.loss_rate)
@@ -99,6 +103,11 @@ def test_repeated_statustext_reaches_the_vehicle_through_30_percent_loss(tmp_pat
         doc = alert.to_json_dict()
         assert doc["delivered"] == {} and doc["sent"][CHANNEL_MAVLINK]["count"] == repeats
     assert kinds == {"new", "sent"}
-    assert sum(f"STATUSTEXT sent {repeats}x (no acknowledgement exists for STATUSTEXT)" in line
-               for line in lines) == N_ALERTS
+    assert (
+        sum(
+            f"STATUSTEXT sent {repeats}x (no acknowledgement exists for STATUSTEXT)" in line
+            for line in lines
+        )
+        == N_ALERTS
+    )
     assert not any("delivered" in line or "acknowledged" in line for line in lines)

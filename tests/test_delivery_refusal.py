@@ -27,10 +27,15 @@ NO_ORIGIN = "MAV_CMD_DO_REPOSITION refused: MAV_RESULT_FAILED (no reason given)"
 
 def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp_path):
     # the mission area around the sample alerts (near Canberra): the reposition may go there
-    mission = load_mission(overrides={"flight.takeoff": False,
-                                      "area.home_lat": -35.3640, "area.home_lon": 149.1652,
-                                      "actions.policy": ["alert", "loiter"],
-                                      "actions.statustext_repeats": 1})
+    mission = load_mission(
+        overrides={
+            "flight.takeoff": False,
+            "area.home_lat": -35.3640,
+            "area.home_lon": 149.1652,
+            "actions.policy": ["alert", "loiter"],
+            "actions.statustext_repeats": 1,
+        }
+    )
     port = free_udp_port()
     vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", mission, home_after_s=3600.0).start()
     link = MavlinkLink(f"udpout:127.0.0.1:{port}")
@@ -43,17 +48,25 @@ def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp
         arm = sender.command_long(M.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
         assert (arm.accepted, arm.result, arm.attempts) == (False, M.MAV_RESULT_FAILED, 1)
         assert arm.reason == f"'{ARM_NO_HOME}'"
-        assert arm.error == ("MAV_CMD_COMPONENT_ARM_DISARM refused: MAV_RESULT_FAILED "
-                             f"(autopilot: '{ARM_NO_HOME}')")
+        assert arm.error == (
+            f"MAV_CMD_COMPONENT_ARM_DISARM refused: MAV_RESULT_FAILED (autopilot: '{ARM_NO_HOME}')"
+        )
 
-        actions = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=50.0,
-                               console=lines.append, move_gate=MoveGate.from_mission(mission))
+        actions = ActionPolicy(
+            mission.actions,
+            outbox,
+            store,
+            survey_altitude_m=50.0,
+            console=lines.append,
+            move_gate=MoveGate.from_mission(mission),
+        )
         alert = make_alert(1)
         store.add(alert)
         actions.announce(alert)
         # the controller ticks the policy every frame: the visit plan sends the reposition
-        assert wait_until(lambda: actions.tick() or (not actions.pending()
-                                                     and not actions.planner.pending), 10.0)
+        assert wait_until(
+            lambda: actions.tick() or (not actions.pending() and not actions.planner.pending), 10.0
+        )
         stored = store.get(alert.alert_id)
     finally:
         outbox.close()
@@ -70,8 +83,10 @@ def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp
     with AlertStore(tmp_path / "alerts.db") as reopened:  # a refusal is final: not sent again
         assert reopened.undelivered("mavlink_loiter") == []
         assert isinstance(reopened.get(alert.alert_id).refused["mavlink_loiter"], Refusal)
-    assert [c.command for c in vehicle.commands] == [M.MAV_CMD_COMPONENT_ARM_DISARM,
-                                                     M.MAV_CMD_DO_REPOSITION]
+    assert [c.command for c in vehicle.commands] == [
+        M.MAV_CMD_COMPONENT_ARM_DISARM,
+        M.MAV_CMD_DO_REPOSITION,
+    ]
 
 
 class ScriptedAutopilot:
@@ -80,8 +95,9 @@ class ScriptedAutopilot:
     component of the vehicle, 1/154), ``("sleep", seconds)`` and ``("ack", result)`` steps."""
 
     def __init__(self, port: int) -> None:
-        self.conn = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}",
-                                               source_system=1, source_component=1)
+        self.conn = mavutil.mavlink_connection(
+            f"udpout:127.0.0.1:{port}", source_system=1, source_component=1
+        )
         self.conn.mav = M.MAVLink(self.conn, srcSystem=1, srcComponent=1)
         self.camera = M.MAVLink(self.conn, srcSystem=1, srcComponent=154)
         self.script: list[tuple] = []
@@ -96,10 +112,12 @@ class ScriptedAutopilot:
         while not self._stop.is_set():
             if time.monotonic() >= next_hb:
                 next_hb = time.monotonic() + 0.2
-                self.conn.mav.heartbeat_send(M.MAV_TYPE_QUADROTOR,
-                                             M.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 4)
-            msg = self.conn.recv_match(type=["COMMAND_LONG", "COMMAND_INT"], blocking=True,
-                                       timeout=0.05)
+                self.conn.mav.heartbeat_send(
+                    M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 4
+                )
+            msg = self.conn.recv_match(
+                type=["COMMAND_LONG", "COMMAND_INT"], blocking=True, timeout=0.05
+            )
             if msg is None:
                 continue
             for step in self.script:
@@ -136,32 +154,43 @@ def test_reason_is_what_the_autopilot_said_around_the_refusal():
                 result = sender.command_long(M.MAV_CMD_DO_SET_MODE, 1.0, 4.0)
                 assert result.result == M.MAV_RESULT_FAILED
                 # the script played out and its last text arrived: none is left for the next
-                assert wait_until(lambda: peer.answered > answered and len(heard) == peer.texts,
-                                  5.0)
+                assert wait_until(
+                    lambda: peer.answered > answered and len(heard) == peer.texts, 5.0
+                )
                 return result.error
 
             # texts before and after the ACK count; chatter (INFO) and other components do not
-            assert refuse(("text", warn, b"Mode change to GUIDED failed: requires position"),
-                          ("text", info, b"EKF3 IMU0 origin set"),
-                          ("other", crit, b"Camera: storage full"),
-                          ("ack", M.MAV_RESULT_FAILED),
-                          ("sleep", 0.05),
-                          ("text", crit, b"Arm: Need Position Estimate")) == (
+            assert refuse(
+                ("text", warn, b"Mode change to GUIDED failed: requires position"),
+                ("text", info, b"EKF3 IMU0 origin set"),
+                ("other", crit, b"Camera: storage full"),
+                ("ack", M.MAV_RESULT_FAILED),
+                ("sleep", 0.05),
+                ("text", crit, b"Arm: Need Position Estimate"),
+            ) == (
                 "MAV_CMD_DO_SET_MODE refused: MAV_RESULT_FAILED (autopilot: "
                 "'Mode change to GUIDED failed: requires position', "
-                "'Arm: Need Position Estimate')")
+                "'Arm: Need Position Estimate')"
+            )
             # nothing of weight said: no reason; a text long after the ACK is not one either
-            assert refuse(("text", info, b"GPS 1: detected u-blox"),
-                          ("ack", M.MAV_RESULT_FAILED),
-                          ("sleep", REASON_WINDOW_S + 0.5),
-                          ("text", crit, b"PreArm: Need Position Estimate")) == (
-                "MAV_CMD_DO_SET_MODE refused: MAV_RESULT_FAILED (no reason given)")
+            assert refuse(
+                ("text", info, b"GPS 1: detected u-blox"),
+                ("ack", M.MAV_RESULT_FAILED),
+                ("sleep", REASON_WINDOW_S + 0.5),
+                ("text", crit, b"PreArm: Need Position Estimate"),
+            ) == ("MAV_CMD_DO_SET_MODE refused: MAV_RESULT_FAILED (no reason given)")
             # hostile text: printable ASCII only, cut at a NUL, at most three texts quoted
-            error = refuse(("ack", M.MAV_RESULT_FAILED),
-                           ("text", crit, b"Bad\xff\x1b[2Jtext\x00hidden"),
-                           ("text", crit, b"two"), ("text", crit, b"two"),
-                           ("text", crit, b"three"), ("text", crit, b"four"))
-            assert error == ("MAV_CMD_DO_SET_MODE refused: MAV_RESULT_FAILED (autopilot: "
-                             "'Bad??[2Jtext', 'two', 'three')"), error
+            error = refuse(
+                ("ack", M.MAV_RESULT_FAILED),
+                ("text", crit, b"Bad\xff\x1b[2Jtext\x00hidden"),
+                ("text", crit, b"two"),
+                ("text", crit, b"two"),
+                ("text", crit, b"three"),
+                ("text", crit, b"four"),
+            )
+            assert error == (
+                "MAV_CMD_DO_SET_MODE refused: MAV_RESULT_FAILED (autopilot: "
+                "'Bad??[2Jtext', 'two', 'three')"
+            ), error
         finally:
             peer.close()

@@ -38,8 +38,10 @@ def browser(tmp_path: Path) -> Iterator[Chromium]:
 def test_new_alert_shows_live_and_ack_button_works(
     tmp_path: Path, browser: Chromium, token: str | None
 ) -> None:
-    with AlertStore(tmp_path / "alerts.db") as store, \
-            FeedServer(store, port=0, token=token) as feed:
+    with (
+        AlertStore(tmp_path / "alerts.db") as store,
+        FeedServer(store, port=0, token=token) as feed,
+    ):
         earlier = make_alert(1, lock_time=time.time() - 300, delivered={"mavlink": 1.0})
         store.add(earlier)
         store.acknowledge(earlier.alert_id, "jo")
@@ -69,10 +71,13 @@ def test_new_alert_shows_live_and_ack_button_works(
         store.record_sent(alert.alert_id, "mavlink")
         store.record_sent(alert.alert_id, "mavlink")
         store.record_ack(alert.alert_id, "mavlink_loiter", 4, "refused: MAV_RESULT_FAILED")
-        browser.wait_for(f"{card}.innerText.includes('STATUSTEXT sent 2\u00d7 (no "
-                         f"acknowledgement)')", timeout=5.0)
-        browser.wait_for(f"{card}.innerText.includes('loiter refused: refused: "
-                         f"MAV_RESULT_FAILED')", timeout=5.0)
+        browser.wait_for(
+            f"{card}.innerText.includes('STATUSTEXT sent 2\u00d7 (no acknowledgement)')",
+            timeout=5.0,
+        )
+        browser.wait_for(
+            f"{card}.innerText.includes('loiter refused: refused: MAV_RESULT_FAILED')", timeout=5.0
+        )
         assert alert.short_id in browser.js(f"{card}.innerText")
         assert browser.js("document.getElementById('unacked').textContent") == "2"
         browser.screenshot(tmp_path / "feed.png")
@@ -91,8 +96,10 @@ def test_new_alert_shows_live_and_ack_button_works(
 def test_page_without_the_token_is_refused_and_a_refused_stream_is_retried(
     tmp_path: Path, browser: Chromium
 ) -> None:
-    with AlertStore(tmp_path / "alerts.db") as store, \
-            FeedServer(store, port=0, token=TOKEN, max_streams=1) as feed:
+    with (
+        AlertStore(tmp_path / "alerts.db") as store,
+        FeedServer(store, port=0, token=TOKEN, max_streams=1) as feed,
+    ):
         store.add(make_alert(1))
         browser.open_page(feed.url + "/")
         browser.wait_for("document.body?.innerText.includes('access token required')", 15.0)
@@ -100,13 +107,17 @@ def test_page_without_the_token_is_refused_and_a_refused_stream_is_retried(
 
         # the only stream slot is taken: the page says so and retries until it gets one
         blocker = socket.create_connection(("127.0.0.1", feed.port), timeout=10)
-        blocker.sendall(f"GET /events HTTP/1.0\r\nAuthorization: Bearer {TOKEN}\r\n"
-                        f"Host: 127.0.0.1:{feed.port}\r\n\r\n".encode())
+        blocker.sendall(
+            f"GET /events HTTP/1.0\r\nAuthorization: Bearer {TOKEN}\r\n"
+            f"Host: 127.0.0.1:{feed.port}\r\n\r\n".encode()
+        )
         try:
             assert blocker.recv(4096).startswith(b"HTTP/1.0 200")
             browser.call("Page.navigate", url=feed.page_url)
-            browser.wait_for("document.getElementById('status')?.textContent"
-                             ".includes('refused; retrying')", timeout=15.0)
+            browser.wait_for(
+                "document.getElementById('status')?.textContent.includes('refused; retrying')",
+                timeout=15.0,
+            )
             assert browser.js("document.body.dataset.live") == "0"
         finally:
             blocker.close()

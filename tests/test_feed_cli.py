@@ -34,11 +34,27 @@ def status(url: str, token: str | None = None) -> int:
 class FeedRun:
     """``run --sim --feed FEED`` in a thread, its console captured."""
 
-    def __init__(self, tmp_path: Path, capsys: pytest.CaptureFixture[str], feed: str,
-                 *extra: str) -> None:
-        argv = [FAR_TARGET, "--connect", f"udp:127.0.0.1:{free_udp_port()}", "--sim",
-                "--sim-fps", "5", "--alerts-db", str(tmp_path / "alerts.db"),
-                "--connect-timeout", "5", "--feed", feed, *extra, "--duration", "8", *SET_ARGS]
+    def __init__(
+        self, tmp_path: Path, capsys: pytest.CaptureFixture[str], feed: str, *extra: str
+    ) -> None:
+        argv = [
+            FAR_TARGET,
+            "--connect",
+            f"udp:127.0.0.1:{free_udp_port()}",
+            "--sim",
+            "--sim-fps",
+            "5",
+            "--alerts-db",
+            str(tmp_path / "alerts.db"),
+            "--connect-timeout",
+            "5",
+            "--feed",
+            feed,
+            *extra,
+            "--duration",
+            "8",
+            *SET_ARGS,
+        ]
         self.capsys = capsys
         self.console = ""
         self.outcome: list[int] = []
@@ -47,6 +63,7 @@ class FeedRun:
 
     def announced(self) -> re.Match[str]:
         """The console's feed line, once printed."""
+
         def seen() -> re.Match[str] | None:
             self.console += self.capsys.readouterr().out
             return ANNOUNCED.search(self.console)

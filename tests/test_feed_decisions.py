@@ -49,7 +49,9 @@ def test_confirm_and_dismiss_through_the_feed(store: AlertStore, feed: FeedServe
     status, doc = decide(feed, cand.alert_id, "dismiss", by="cy")  # a double dismiss
     assert status == 200 and doc["unchanged"] is True and doc["decided_by"] == "bo"
     assert [(d.decision, d.by) for d in store.decisions(cand.alert_id)] == [
-        ("confirmed", "ana"), ("dismissed", "bo")]
+        ("confirmed", "ana"),
+        ("dismissed", "bo"),
+    ]
     # the system never promotes what an operator dismissed
     dismissed = make_alert(2, tier="candidate")
     store.add(dismissed)
@@ -87,8 +89,9 @@ def test_decisions_racing_over_http(store: AlertStore, feed: FeedServer) -> None
     assert (final.decision, final.decided_by) == (history[-1].decision, history[-1].by)
 
 
-def test_candidates_and_tier_changes_reach_sse_and_jsonl(store: AlertStore,
-                                                         feed: FeedServer) -> None:
+def test_candidates_and_tier_changes_reach_sse_and_jsonl(
+    store: AlertStore, feed: FeedServer
+) -> None:
     store.add(make_alert(9))  # so the map's mission does not change during the test
     conn, sse = open_stream(feed, "/events")
     lines_conn, lines = open_stream(feed, "/alerts.jsonl?follow=1")
@@ -101,7 +104,9 @@ def test_candidates_and_tier_changes_reach_sse_and_jsonl(store: AlertStore,
         new = [json.loads(e["data"]) for e in read_sse(sse, until="alert")]
         new += [json.loads(e["data"]) for e in read_sse(sse, until="alert")]
         assert [(d["alert_id"], d["tier"]) for d in new] == [
-            (a.alert_id, "candidate"), (b.alert_id, "candidate")]
+            (a.alert_id, "candidate"),
+            (b.alert_id, "candidate"),
+        ]
         assert [json.loads(lines.readline())["tier"] for _ in range(2)] == ["candidate"] * 2
 
         store.promote(a.alert_id, "held 4.2 s within 3 m")
@@ -112,10 +117,13 @@ def test_candidates_and_tier_changes_reach_sse_and_jsonl(store: AlertStore,
         relined = [json.loads(lines.readline()) for _ in range(3)]
         for docs in (updates, relined):
             assert [d["alert_id"] for d in docs] == [a.alert_id, b.alert_id, b.alert_id]
-            assert (docs[0]["tier"], docs[0]["evidence"]) == ("confirmed",
-                                                              "held 4.2 s within 3 m")
-            assert (docs[2]["tier"], docs[2]["discarded"], docs[2]["decision"],
-                    docs[2]["decided_by"]) == ("candidate", "drifts 3 m/s", "dismissed", "ana")
+            assert (docs[0]["tier"], docs[0]["evidence"]) == ("confirmed", "held 4.2 s within 3 m")
+            assert (
+                docs[2]["tier"],
+                docs[2]["discarded"],
+                docs[2]["decision"],
+                docs[2]["decided_by"],
+            ) == ("candidate", "drifts 3 m/s", "dismissed", "ana")
     finally:
         conn.close()
         lines_conn.close()
@@ -124,12 +132,20 @@ def test_candidates_and_tier_changes_reach_sse_and_jsonl(store: AlertStore,
 def test_api_map(store: AlertStore, feed: FeedServer) -> None:
     status, _, body = get(feed, "/api/map")
     assert status == 200 and json.loads(body) == {
-        "mission_id": None, "area": None, "track": [], "alerts": [], "dismissed": []}
+        "mission_id": None,
+        "area": None,
+        "track": [],
+        "alerts": [],
+        "dismissed": [],
+    }
     store.set_mission_area("test-mission", AREA)
     for i in range(5):
         store.record_drone("test-mission", 1000.0 + i, -35.365 + i * 1e-4, 149.165, 60.0)
-    confirmed, cand, gone = (make_alert(1), make_alert(2, tier="candidate"),
-                             make_alert(3, tier="candidate", error_m=8.0))
+    confirmed, cand, gone = (
+        make_alert(1),
+        make_alert(2, tier="candidate"),
+        make_alert(3, tier="candidate", error_m=8.0),
+    )
     for a in (confirmed, cand, gone):
         store.add(a)
     store.decide(gone.alert_id, "dismissed", "ana")
@@ -141,28 +157,39 @@ def test_api_map(store: AlertStore, feed: FeedServer) -> None:
     assert doc["area"] == [list(v) for v in AREA]
     assert doc["track"][0] == [1000.0, -35.365, 149.165] and len(doc["track"]) == 6
     assert [(a["target_id"], a["tier"], a["decision"]) for a in doc["alerts"]] == [
-        (1, "confirmed", None), (2, "candidate", None), (3, "candidate", "dismissed")]
+        (1, "confirmed", None),
+        (2, "candidate", None),
+        (3, "candidate", "dismissed"),
+    ]
     assert doc["dismissed"] == [[*gone.position, 16.0]]
     since = json.loads(get(feed, "/api/map?since=1004")[2])
     assert [p[0] for p in since["track"]] == [1004.0, 1005.0]
     older = json.loads(get(feed, "/api/map?mission=older")[2])
     assert [a["target_id"] for a in older["alerts"]] == [4] and older["area"] is None
-    for bad in ("/api/map?mission=", "/api/map?mission=" + "m" * 129, "/api/map?since=nan",
-                "/api/map?mission=a&mission=b", "/api/map?zoom=3", "/api/map?mission=%07"):
+    for bad in (
+        "/api/map?mission=",
+        "/api/map?mission=" + "m" * 129,
+        "/api/map?since=nan",
+        "/api/map?mission=a&mission=b",
+        "/api/map?zoom=3",
+        "/api/map?mission=%07",
+    ):
         status, ctype, body = get(feed, bad)
         assert status == 400 and ctype == "application/json" and b"\n" not in body.strip(), bad
 
 
-def test_stream_carries_the_map_then_only_its_changes(store: AlertStore,
-                                                      feed: FeedServer) -> None:
+def test_stream_carries_the_map_then_only_its_changes(store: AlertStore, feed: FeedServer) -> None:
     store.set_mission_area("test-mission", AREA)
     store.record_drone("test-mission", 1000.0, -35.365, 149.165, 60.0)
     conn, sse = open_stream(feed, "/events")
     try:
         first = read_sse(sse, until="hello")
         (snapshot,) = [json.loads(e["data"]) for e in first if e["event"] == "map"]
-        assert snapshot == {"mission_id": "test-mission", "area": [list(v) for v in AREA],
-                            "track": [[1000.0, -35.365, 149.165]]}
+        assert snapshot == {
+            "mission_id": "test-mission",
+            "area": [list(v) for v in AREA],
+            "track": [[1000.0, -35.365, 149.165]],
+        }
         seq = store.last_event_seq()
         recorded = [[1001.0 + i, -35.365 + i * 1e-5, 149.165] for i in range(30)]
         for t, lat, lon in recorded:
@@ -179,8 +206,11 @@ def test_stream_carries_the_map_then_only_its_changes(store: AlertStore,
         assert area == {"mission_id": "test-mission", "area": [list(v) for v in AREA[:3]]}
         store.record_drone("next-mission", 2000.0, -35.0, 149.0, 50.0)  # a new flight
         again = json.loads(read_sse(sse, until="map")[-1]["data"])
-        assert again == {"mission_id": "next-mission", "area": None,
-                         "track": [[2000.0, -35.0, 149.0]]}
+        assert again == {
+            "mission_id": "next-mission",
+            "area": None,
+            "track": [[2000.0, -35.0, 149.0]],
+        }
     finally:
         conn.close()
 

@@ -42,8 +42,14 @@ def secured(store: AlertStore) -> Iterator[FeedServer]:
         yield server
 
 
-def request(port: int, method: str, target: str, headers: dict[str, str] | None = None,
-            body: bytes = b"", host: str | None = None) -> tuple[int, dict[str, str], bytes]:
+def request(
+    port: int,
+    method: str,
+    target: str,
+    headers: dict[str, str] | None = None,
+    body: bytes = b"",
+    host: str | None = None,
+) -> tuple[int, dict[str, str], bytes]:
     """One raw HTTP/1.0 request; returns status, headers (lower-cased names) and body."""
     lines = [f"{method} {target} HTTP/1.0"]
     if host is not None:
@@ -72,17 +78,28 @@ def exchange(port: int, raw: bytes) -> tuple[int, dict[str, str], bytes]:
     return int(status_line.split()[1]), headers, body
 
 
-def get(feed: FeedServer, target: str, headers: dict[str, str] | None = None,
-        host: str | None = None) -> tuple[int, dict[str, str], bytes]:
+def get(
+    feed: FeedServer, target: str, headers: dict[str, str] | None = None, host: str | None = None
+) -> tuple[int, dict[str, str], bytes]:
     host = f"127.0.0.1:{feed.port}" if host is None else host
     return request(feed.port, "GET", target, headers, host=host)
 
 
-def ack(feed: FeedServer, alert_id: str, headers: dict[str, str], body: bytes = b'{"by": "kim"}',
-        host: str | None = None) -> tuple[int, dict[str, str], bytes]:
-    return request(feed.port, "POST", f"/api/alerts/{alert_id}/ack",
-                   {"Content-Type": "application/json", **headers}, body,
-                   host=f"127.0.0.1:{feed.port}" if host is None else host)
+def ack(
+    feed: FeedServer,
+    alert_id: str,
+    headers: dict[str, str],
+    body: bytes = b'{"by": "kim"}',
+    host: str | None = None,
+) -> tuple[int, dict[str, str], bytes]:
+    return request(
+        feed.port,
+        "POST",
+        f"/api/alerts/{alert_id}/ack",
+        {"Content-Type": "application/json", **headers},
+        body,
+        host=f"127.0.0.1:{feed.port}" if host is None else host,
+    )
 
 
 def one_line_error(status: int, headers: dict[str, str], body: bytes, expected: int) -> str:
@@ -108,9 +125,19 @@ def first_status(feed: FeedServer, target: str, headers: dict[str, str]) -> int:
 
 
 def every_route(alert_id: str) -> list[str]:
-    return ["/", "/events", "/api/alerts", f"/api/alerts/{alert_id}", "/api/map", "/alerts.jsonl",
-            "/alerts.jsonl?follow=1", "/alerts.geojson", "/alerts.kml",
-            f"/thumb/{alert_id}.jpg", "/healthz"]
+    return [
+        "/",
+        "/events",
+        "/api/alerts",
+        f"/api/alerts/{alert_id}",
+        "/api/map",
+        "/alerts.jsonl",
+        "/alerts.jsonl?follow=1",
+        "/alerts.geojson",
+        "/alerts.kml",
+        f"/thumb/{alert_id}.jpg",
+        "/healthz",
+    ]
 
 
 # ---------------------------------------------------------------------------- token
@@ -119,8 +146,12 @@ def every_route(alert_id: str) -> list[str]:
 def test_every_route_needs_the_token(secured: FeedServer, alert_id: str) -> None:
     wrong = {"Authorization": "Bearer " + "x" * len(TOKEN)}
     for route in every_route(alert_id):
-        for headers in ({}, wrong, {"Authorization": f"Basic {TOKEN}"},
-                        {"Cookie": f"sarmission_feed_{secured.port}=forged"}):
+        for headers in (
+            {},
+            wrong,
+            {"Authorization": f"Basic {TOKEN}"},
+            {"Cookie": f"sarmission_feed_{secured.port}=forged"},
+        ):
             status, reply_headers, body = get(secured, route, headers)
             assert one_line_error(status, reply_headers, body, 401), route
             assert reply_headers["www-authenticate"].startswith("Bearer")
@@ -172,8 +203,13 @@ def test_network_bind_generates_a_token_and_warns(
         assert get(feed, "/healthz")[0] == 401
         auth = {"Authorization": f"Bearer {feed.token}"}
         # a wildcard bind answers to IP literals, localhost and the names it was given
-        for host in (f"127.0.0.1:{feed.port}", "10.1.2.3", "[::1]:80", "localhost",
-                     f"Drone.Local:{feed.port}"):
+        for host in (
+            f"127.0.0.1:{feed.port}",
+            "10.1.2.3",
+            "[::1]:80",
+            "localhost",
+            f"Drone.Local:{feed.port}",
+        ):
             assert get(feed, "/healthz", auth, host=host)[0] == 200, host
         status, headers, body = get(feed, "/healthz", auth, host="rebind.example.com")
         assert "rebind.example.com" in one_line_error(status, headers, body, 421)
@@ -185,8 +221,7 @@ def test_bad_token_values_are_refused(store: AlertStore) -> None:
             FeedServer(store, port=0, token=token)
 
 
-def test_token_file(tmp_path: Path, secured: FeedServer,
-                    caplog: pytest.LogCaptureFixture) -> None:
+def test_token_file(tmp_path: Path, secured: FeedServer, caplog: pytest.LogCaptureFixture) -> None:
     path = tmp_path / "feed.token"
     path.write_text(f"  {TOKEN}\n")
     path.chmod(0o600)
@@ -208,8 +243,12 @@ def test_token_file(tmp_path: Path, secured: FeedServer,
 
 
 def test_foreign_host_is_refused_even_with_the_token(secured: FeedServer, alert_id: str) -> None:
-    for host in ("evil.example", f"evil.example:{secured.port}", "127.0.0.1.nip.io",
-                 "localhost.evil.example"):
+    for host in (
+        "evil.example",
+        f"evil.example:{secured.port}",
+        "127.0.0.1.nip.io",
+        "localhost.evil.example",
+    ):
         status, headers, body = get(secured, "/api/alerts", BEARER, host=host)
         assert one_line_error(status, headers, body, 421)
         assert ack(secured, alert_id, BEARER, host=host)[0] == 421
@@ -218,14 +257,14 @@ def test_foreign_host_is_refused_even_with_the_token(secured: FeedServer, alert_
         assert one_line_error(status, headers, body, 400)
     status, headers, body = request(secured.port, "GET", "/api/alerts", BEARER)  # no Host
     assert "Host" in one_line_error(status, headers, body, 400)
-    status, headers, body = get(secured, "/api/alerts", BEARER,
-                                host=f"127.0.0.1:{secured.port}\r\nHost: evil.example")
+    status, headers, body = get(
+        secured, "/api/alerts", BEARER, host=f"127.0.0.1:{secured.port}\r\nHost: evil.example"
+    )
     assert "Host" in one_line_error(status, headers, body, 400)
     assert not secured.store.get(alert_id).acknowledged
 
 
-def test_dns_rebinding_against_a_loopback_feed_is_refused(store: AlertStore,
-                                                          alert_id: str) -> None:
+def test_dns_rebinding_against_a_loopback_feed_is_refused(store: AlertStore, alert_id: str) -> None:
     with FeedServer(store, port=0) as feed:  # no token: the Host check is the defence
         host = f"attacker.example:{feed.port}"
         assert get(feed, "/api/alerts", host=host)[0] == 421
@@ -239,8 +278,14 @@ def test_foreign_origin_cannot_acknowledge(secured: FeedServer, alert_id: str) -
     status, headers, body = get(secured, f"/?token={TOKEN}")
     jar = {"Cookie": headers["set-cookie"].split(";")[0]}
     port = secured.port
-    for origin in ("http://evil.example", f"http://evil.example:{port}", "null",
-                   f"https://127.0.0.1:{port}", f"http://127.0.0.1:{port + 1}", "http://[::1"):
+    for origin in (
+        "http://evil.example",
+        f"http://evil.example:{port}",
+        "null",
+        f"https://127.0.0.1:{port}",
+        f"http://127.0.0.1:{port + 1}",
+        "http://[::1",
+    ):
         for credential in (jar, BEARER):
             status, headers, body = ack(secured, alert_id, {**credential, "Origin": origin})
             assert one_line_error(status, headers, body, 403), origin
@@ -261,18 +306,31 @@ def test_bad_last_event_id_is_a_400_not_a_traceback(
         status, headers, body = get(secured, "/events", {**BEARER, "Last-Event-ID": value})
         assert "Last-Event-ID" in one_line_error(status, headers, body, 400), value
     status, headers, body = request(
-        secured.port, "GET", "/events", {**BEARER, "Last-Event-ID": "1"},
-        host=f"127.0.0.1:{secured.port}\r\nLast-Event-ID: 2")
+        secured.port,
+        "GET",
+        "/events",
+        {**BEARER, "Last-Event-ID": "1"},
+        host=f"127.0.0.1:{secured.port}\r\nLast-Event-ID: 2",
+    )
     assert one_line_error(status, headers, body, 400)
     assert not [r for r in caplog.records if r.levelno >= logging.ERROR]
 
 
 def test_bad_query_parameters_are_one_line_400s(secured: FeedServer) -> None:
-    for target in ("/api/alerts?since=nan", "/api/alerts?since=inf", "/api/alerts?since=",
-                   "/api/alerts?since=1e999", "/api/alerts?since=" + "1" * 100,
-                   "/api/alerts?since=1&since=2", "/api/alerts?sinse=1", "/alerts.jsonl?follow=2",
-                   "/alerts.jsonl?follow=1&x=1", "/healthz?x", "/api/alerts?since=%ff",
-                   "/api/alerts?" + "&".join(f"a{i}=1" for i in range(20))):
+    for target in (
+        "/api/alerts?since=nan",
+        "/api/alerts?since=inf",
+        "/api/alerts?since=",
+        "/api/alerts?since=1e999",
+        "/api/alerts?since=" + "1" * 100,
+        "/api/alerts?since=1&since=2",
+        "/api/alerts?sinse=1",
+        "/alerts.jsonl?follow=2",
+        "/alerts.jsonl?follow=1&x=1",
+        "/healthz?x",
+        "/api/alerts?since=%ff",
+        "/api/alerts?" + "&".join(f"a{i}=1" for i in range(20)),
+    ):
         status, headers, body = get(secured, target, BEARER)
         assert one_line_error(status, headers, body, 400), target
     status, headers, body = get(secured, "/api/alerts?x=" + "y" * 3000, BEARER)
@@ -299,18 +357,24 @@ def test_bad_ack_requests_are_one_line_errors(
         status, reply_headers, reply = ack(secured, alert_id, {**BEARER, **headers}, body)
         assert one_line_error(status, reply_headers, reply, expected), body[:40]
     target = f"/api/alerts/{alert_id}/ack"
-    base = f"POST {target} HTTP/1.0\r\nHost: 127.0.0.1:{secured.port}\r\n" \
-           f"Authorization: Bearer {TOKEN}\r\nContent-Type: application/json\r\n"
-    for extra, expected in (("Content-Length: ten\r\n", 400), ("Content-Length: -1\r\n", 400),
-                            ("Content-Length: 99999999999999999999\r\n", 400),
-                            ("Content-Length: 2\r\nContent-Length: 2\r\n", 400),
-                            ("Transfer-Encoding: chunked\r\n", 411)):
+    base = (
+        f"POST {target} HTTP/1.0\r\nHost: 127.0.0.1:{secured.port}\r\n"
+        f"Authorization: Bearer {TOKEN}\r\nContent-Type: application/json\r\n"
+    )
+    for extra, expected in (
+        ("Content-Length: ten\r\n", 400),
+        ("Content-Length: -1\r\n", 400),
+        ("Content-Length: 99999999999999999999\r\n", 400),
+        ("Content-Length: 2\r\nContent-Length: 2\r\n", 400),
+        ("Transfer-Encoding: chunked\r\n", 411),
+    ):
         status, headers, body = exchange(secured.port, (base + extra + "\r\n{}").encode())
         assert one_line_error(status, headers, body, expected), extra
     assert not secured.store.get(alert_id).acknowledged
     # what the HTTP parser itself refuses is JSON too
-    status, headers, body = request(secured.port, "DELETE", "/api/alerts", BEARER,
-                                    host=f"127.0.0.1:{secured.port}")
+    status, headers, body = request(
+        secured.port, "DELETE", "/api/alerts", BEARER, host=f"127.0.0.1:{secured.port}"
+    )
     assert one_line_error(status, headers, body, 501)
     status, headers, body = exchange(secured.port, b"GET /" + b"a" * 70000 + b" HTTP/1.0\r\n\r\n")
     assert one_line_error(status, headers, body, 414)
@@ -325,27 +389,58 @@ def test_decisions_are_guarded_like_acknowledgements(
     port = secured.port
     evil = {"Origin": "http://evil.example"}
 
-    def post(verb: str, headers: dict[str, str], body: bytes = b'{"by": "kim"}',
-             content_type: str = "application/json") -> tuple[int, dict[str, str], bytes]:
-        return request(port, "POST", f"/api/alerts/{alert_id}/{verb}",
-                       {"Content-Type": content_type, **headers}, body, host=f"127.0.0.1:{port}")
+    def post(
+        verb: str,
+        headers: dict[str, str],
+        body: bytes = b'{"by": "kim"}',
+        content_type: str = "application/json",
+    ) -> tuple[int, dict[str, str], bytes]:
+        return request(
+            port,
+            "POST",
+            f"/api/alerts/{alert_id}/{verb}",
+            {"Content-Type": content_type, **headers},
+            body,
+            host=f"127.0.0.1:{port}",
+        )
 
     for verb in ("confirm", "dismiss"):
         assert one_line_error(*post(verb, {}), 401)
         assert one_line_error(*post(verb, {**BEARER, **evil}), 403)
         assert one_line_error(*post(verb, BEARER, content_type="text/plain"), 415)
-        assert one_line_error(*request(port, "POST", f"/api/alerts/{alert_id}/{verb}",
-                                       BEARER, b'{"by": "kim"}', host=f"evil.example:{port}"),
-                              421)
-        for body, expected in ((b"{}", 400), (b'{"by": "  "}', 400), (b'{"by": null}', 400),
-                               (b'{"by": "kim", "when": 1}', 400), (b"[" * 4000, 400),
-                               (b'{"by": "' + b"n" * 65 + b'"}', 400), (b"\xff", 400),
-                               (b"{" + b" " * 5000 + b"}", 413)):
+        assert one_line_error(
+            *request(
+                port,
+                "POST",
+                f"/api/alerts/{alert_id}/{verb}",
+                BEARER,
+                b'{"by": "kim"}',
+                host=f"evil.example:{port}",
+            ),
+            421,
+        )
+        for body, expected in (
+            (b"{}", 400),
+            (b'{"by": "  "}', 400),
+            (b'{"by": null}', 400),
+            (b'{"by": "kim", "when": 1}', 400),
+            (b"[" * 4000, 400),
+            (b'{"by": "' + b"n" * 65 + b'"}', 400),
+            (b"\xff", 400),
+            (b"{" + b" " * 5000 + b"}", 413),
+        ):
             assert one_line_error(*post(verb, BEARER, body), expected), (verb, body[:30])
-        assert "no alert" in one_line_error(*request(
-            port, "POST", "/api/alerts/unknown-id/" + verb,
-            {"Content-Type": "application/json", **BEARER}, b'{"by": "kim"}',
-            host=f"127.0.0.1:{port}"), 404)
+        assert "no alert" in one_line_error(
+            *request(
+                port,
+                "POST",
+                "/api/alerts/unknown-id/" + verb,
+                {"Content-Type": "application/json", **BEARER},
+                b'{"by": "kim"}',
+                host=f"127.0.0.1:{port}",
+            ),
+            404,
+        )
     alert = secured.store.get(alert_id)
     assert alert.decision is None and secured.store.decisions(alert_id) == []
     status, _, body = post("dismiss", BEARER)
@@ -363,8 +458,7 @@ def idle_sockets(port: int, n: int) -> list[socket.socket]:
 
 
 def test_connection_cap_answers_503_and_recovers(store: AlertStore) -> None:
-    with FeedServer(store, port=0, max_connections=4, max_streams=2,
-                    request_timeout=60.0) as feed:
+    with FeedServer(store, port=0, max_connections=4, max_streams=2, request_timeout=60.0) as feed:
         held = idle_sockets(feed.port, 4)
         try:
             assert wait_until(lambda: feed.connections.held == 4, timeout=10)
@@ -379,8 +473,7 @@ def test_connection_cap_answers_503_and_recovers(store: AlertStore) -> None:
 
 def test_stream_cap_answers_503_and_recovers(store: AlertStore) -> None:
     with FeedServer(store, port=0, max_streams=2) as feed:
-        streams = [socket.create_connection(("127.0.0.1", feed.port), timeout=10)
-                   for _ in range(2)]
+        streams = [socket.create_connection(("127.0.0.1", feed.port), timeout=10) for _ in range(2)]
         try:
             for sock, target in zip(streams, ("/events", "/alerts.jsonl?follow=1"), strict=True):
                 sock.sendall(f"GET {target} HTTP/1.0\r\nHost: localhost\r\n\r\n".encode())
@@ -430,6 +523,7 @@ def test_stalled_and_trickling_requests_are_closed(store: AlertStore) -> None:
         dripper = threading.Thread(target=drip, daemon=True)
         dripper.start()
         try:
+
             def both_closed() -> bool:
                 for name, sock in (("silent", silent), ("trickle", trickle)):
                     if name not in done and (answer := closed_by_server(sock)) is not None:
@@ -454,8 +548,7 @@ def request_threads() -> int:
 
 
 def test_threads_come_back_when_clients_leave(store: AlertStore) -> None:
-    with FeedServer(store, port=0, max_connections=64, max_streams=40,
-                    request_timeout=1.0) as feed:
+    with FeedServer(store, port=0, max_connections=64, max_streams=40, request_timeout=1.0) as feed:
         assert get(feed, "/healthz")[0] == 200
         assert wait_until(lambda: request_threads() == 0, timeout=10)
         stalled = idle_sockets(feed.port, 10)  # kept open: the server must drop them itself

@@ -45,12 +45,14 @@ class Scene:
         self.store = store
         # an older mission's alert, far away: not on this mission's map
         store.add(make_alert(50, mission_id="old-mission", position=at(5000, 5000)))
-        store.set_mission_area(MISSION, [at(-400, -300), at(400, -300), at(400, 300),
-                                         at(-400, 300)])
+        store.set_mission_area(
+            MISSION, [at(-400, -300), at(400, -300), at(400, 300), at(-400, 300)]
+        )
 
         def add(target_id: int, where: tuple[float, float] | None, **kw: object) -> Alert:
-            alert = make_alert(target_id, mission_id=MISSION, position=where,
-                               positioned=where is not None, **kw)
+            alert = make_alert(
+                target_id, mission_id=MISSION, position=where, positioned=where is not None, **kw
+            )
             store.add(alert)
             return alert
 
@@ -86,14 +88,21 @@ def served(tmp_path: Path) -> Iterator[tuple[Scene, FeedServer]]:
 
 def open_at(browser: Chromium, feed: FeedServer, width: int, height: int, mobile: bool) -> None:
     browser.open_page(feed.page_url)
-    browser.call("Emulation.setDeviceMetricsOverride", width=width, height=height,
-                 deviceScaleFactor=1, mobile=mobile)
+    browser.call(
+        "Emulation.setDeviceMetricsOverride",
+        width=width,
+        height=height,
+        deviceScaleFactor=1,
+        mobile=mobile,
+    )
     browser.wait_for("document.body?.dataset.live === '1'", timeout=15.0)
 
 
 def markers(browser: Chromium) -> dict[str, int]:
-    return browser.js("Object.fromEntries(['alert', 'candidate', 'dismissed', 'discarded'].map("
-                      "k => [k, document.querySelectorAll('#map .marker.' + k).length]))")
+    return browser.js(
+        "Object.fromEntries(['alert', 'candidate', 'dismissed', 'discarded'].map("
+        "k => [k, document.querySelectorAll('#map .marker.' + k).length]))"
+    )
 
 
 def settled(browser: Chromium, expected: dict[str, int]) -> None:
@@ -101,7 +110,8 @@ def settled(browser: Chromium, expected: dict[str, int]) -> None:
     browser.wait_for(
         "(() => { const s = document.getElementById('map'); return !mapView.pending && "
         "s.getAttribute('viewBox') === '0 0 ' + s.clientWidth + ' ' + s.clientHeight; })()",
-        timeout=10.0)
+        timeout=10.0,
+    )
     deadline = time.monotonic() + 10.0
     while markers(browser) != expected:
         assert time.monotonic() < deadline, f"map shows {markers(browser)}, not {expected}"
@@ -109,25 +119,31 @@ def settled(browser: Chromium, expected: dict[str, int]) -> None:
 
 
 def centres(browser: Chromium, kind: str) -> list[tuple[int, int]]:
-    return [tuple(p) for p in browser.js(
-        f"[...document.querySelectorAll('#map .marker.{kind} .centre')].map(c => {{"
-        "const r = c.getBoundingClientRect(); "
-        "return [Math.round(r.x + r.width / 2), Math.round(r.y + r.height / 2)]; })")]
+    return [
+        tuple(p)
+        for p in browser.js(
+            f"[...document.querySelectorAll('#map .marker.{kind} .centre')].map(c => {{"
+            "const r = c.getBoundingClientRect(); "
+            "return [Math.round(r.x + r.width / 2), Math.round(r.y + r.height / 2)]; })"
+        )
+    ]
 
 
 def rect(browser: Chromium, selector: str) -> tuple[int, int, int, int]:
-    x, y, w, h = browser.js(f"(() => {{ const r = document.querySelector('{selector}')"
-                            ".getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()")
+    x, y, w, h = browser.js(
+        f"(() => {{ const r = document.querySelector('{selector}')"
+        ".getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()"
+    )
     return round(x), round(y), round(w), round(h)
 
 
 def rgb(hex_colour: str) -> np.ndarray:
-    return np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)])
+    return np.array([int(hex_colour[i : i + 2], 16) for i in (1, 3, 5)])
 
 
 def colour_at(image: np.ndarray, x: int, y: int) -> np.ndarray:
     """The median RGB of the 3x3 pixels around ``(x, y)``."""
-    patch = image[y - 1:y + 2, x - 1:x + 2, ::-1].reshape(-1, 3)
+    patch = image[y - 1 : y + 2, x - 1 : x + 2, ::-1].reshape(-1, 3)
     return np.median(patch, axis=0)
 
 
@@ -135,7 +151,7 @@ def discs(image: np.ndarray, region: tuple[int, int, int, int], colour: str) -> 
     """How many blobs of at least 60 pixels of ``colour`` (within 12 per channel) ``region``
     of the screenshot holds."""
     x, y, w, h = region
-    crop = image[y:y + h, x:x + w, ::-1].astype(int)
+    crop = image[y : y + h, x : x + w, ::-1].astype(int)
     mask = (np.abs(crop - rgb(colour)) <= 12).all(axis=2).astype(np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     return sum(1 for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= 60)
@@ -160,8 +176,7 @@ def check_screenshot(browser: Chromium, path: Path, expected: dict[str, int]) ->
 def click_at(browser: Chromium, x: int, y: int) -> None:
     """A real mouse click at viewport pixel ``(x, y)``."""
     for kind in ("mousePressed", "mouseReleased"):
-        browser.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left",
-                     clickCount=1)
+        browser.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, button="left", clickCount=1)
 
 
 def card(alert: Alert) -> str:
@@ -175,8 +190,9 @@ def wait_store(condition: object, what: str, timeout: float = 5.0) -> None:
         time.sleep(0.02)
 
 
-def test_desktop_map_tiers_and_decisions(tmp_path: Path, browser: Chromium,
-                                         served: tuple[Scene, FeedServer]) -> None:
+def test_desktop_map_tiers_and_decisions(
+    tmp_path: Path, browser: Chromium, served: tuple[Scene, FeedServer]
+) -> None:
     scene, feed = served
     store = scene.store
     open_at(browser, feed, 1280, 800, mobile=False)
@@ -186,8 +202,9 @@ def test_desktop_map_tiers_and_decisions(tmp_path: Path, browser: Chromium,
     assert browser.js("document.querySelectorAll('#map polygon.area').length") == 1
     assert browser.js("document.querySelector('#map polyline.track').points.length") == 40
     assert browser.js("document.querySelectorAll('#map .drone').length") == 1
-    assert browser.js("/^[0-9.]+ k?m$/.test(document.querySelector('#map .scale text')"
-                      ".textContent)")
+    assert browser.js(
+        "/^[0-9.]+ k?m$/.test(document.querySelector('#map .scale text').textContent)"
+    )
     assert browser.js("document.querySelector('#map .north').textContent") == "N"
     # the list: tiers at a glance, the discarded candidate hidden, the blind alert listed
     assert browser.js(f"{card(scene.cand1)}.dataset.kind") == "candidate"
@@ -206,9 +223,17 @@ def test_desktop_map_tiers_and_decisions(tmp_path: Path, browser: Chromium,
     settled(browser, expected)
 
     # a click on a marker highlights its card
-    (x, y), = [p for p, a in zip(centres(browser, "candidate"), browser.js(
-        "[...document.querySelectorAll('#map .marker.candidate')].map(g => g.dataset.alert)"),
-        strict=True) if a == scene.cand2.alert_id]
+    ((x, y),) = [
+        p
+        for p, a in zip(
+            centres(browser, "candidate"),
+            browser.js(
+                "[...document.querySelectorAll('#map .marker.candidate')].map(g => g.dataset.alert)"
+            ),
+            strict=True,
+        )
+        if a == scene.cand2.alert_id
+    ]
     click_at(browser, x, y)
     browser.wait_for(f"{card(scene.cand2)}.classList.contains('highlight')", timeout=3.0)
     assert browser.js("document.querySelectorAll('article.highlight').length") == 1
@@ -245,8 +270,9 @@ def test_desktop_map_tiers_and_decisions(tmp_path: Path, browser: Chromium,
     check_screenshot(browser, tmp_path / "map_desktop_after.png", {**expected, "alert": 4})
 
 
-def test_phone_map_above_a_scrolling_list(tmp_path: Path, browser: Chromium,
-                                          served: tuple[Scene, FeedServer]) -> None:
+def test_phone_map_above_a_scrolling_list(
+    tmp_path: Path, browser: Chromium, served: tuple[Scene, FeedServer]
+) -> None:
     scene, feed = served
     open_at(browser, feed, 390, 844, mobile=True)
     expected = {"alert": 2, "candidate": 2, "dismissed": 1, "discarded": 0}
@@ -257,20 +283,24 @@ def test_phone_map_above_a_scrolling_list(tmp_path: Path, browser: Chromium,
     lx, ly, lw, lh = rect(browser, ".list")
     assert my + mh <= ly + 1 and mw >= 370 and mh >= 220 and lh >= 250  # map above the list
     assert browser.js("getComputedStyle(document.querySelector('.list')).overflowY") == "auto"
-    sizes = browser.js("[...document.querySelectorAll('.side button')].filter(b => "
-                       "b.offsetParent).map(b => [b.offsetWidth, b.offsetHeight])")
+    sizes = browser.js(
+        "[...document.querySelectorAll('.side button')].filter(b => "
+        "b.offsetParent).map(b => [b.offsetWidth, b.offsetHeight])"
+    )
     assert sizes and all(w >= 44 and h >= 44 for w, h in sizes)
     check_screenshot(browser, tmp_path / "map_phone.png", expected)
 
     # tap the dismissed zone's marker: its card is highlighted and scrolled into the list's view
-    (x, y), = centres(browser, "dismissed")
+    ((x, y),) = centres(browser, "dismissed")
     click_at(browser, x, y)
     browser.wait_for(f"{card(scene.gone)}.classList.contains('highlight')", timeout=3.0)
-    _, cy, _, ch = rect(browser, f"article[data-alert-id=\"{scene.gone.alert_id}\"]")
+    _, cy, _, ch = rect(browser, f'article[data-alert-id="{scene.gone.alert_id}"]')
     assert ly - 1 <= cy and cy + min(ch, 100) <= ly + lh + 1
 
     browser.js("document.getElementById('operator').value = 'kim'")
     browser.js(f"{card(scene.cand2)}.querySelector('button.confirm').click()")
-    wait_store(lambda: scene.store.get(scene.cand2.alert_id).decision == "confirmed",
-               "not confirmed from the phone")
+    wait_store(
+        lambda: scene.store.get(scene.cand2.alert_id).decision == "confirmed",
+        "not confirmed from the phone",
+    )
     settled(browser, {**expected, "alert": 3, "candidate": 1})

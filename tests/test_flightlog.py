@@ -115,8 +115,15 @@ def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:
 def test_dji_images_exif_xmp_and_images_without_exif(tmp_path: Path) -> None:
     folder = tmp_path / "photos"
     folder.mkdir()
-    write_dji_jpeg(folder / "DJI_0001.JPG", lat=LAT0, lon=LON0, gimbal_pitch=-45.0,
-                   gimbal_yaw=270.0, flight_yaw=265.0, when="2024:05:01 12:00:00")
+    write_dji_jpeg(
+        folder / "DJI_0001.JPG",
+        lat=LAT0,
+        lon=LON0,
+        gimbal_pitch=-45.0,
+        gimbal_yaw=270.0,
+        flight_yaw=265.0,
+        when="2024:05:01 12:00:00",
+    )
     write_dji_jpeg(folder / "DJI_0002.JPG", lat=LAT0 + 1e-4, lon=LON0, when="2024:05:01 12:00:02")
     write_dji_jpeg(folder / "DJI_0003.JPG", lat=None, lon=None, exif=False)
     log = open_flight_log(folder)

@@ -37,8 +37,10 @@ def test_mp4_video(tmp_path):
     frames = list(source)
     assert [f.index for f in frames] == list(range(7))
     assert frames[3].timestamp_s == pytest.approx(0.3)
-    assert all(isinstance(f, Frame) and f.image_bgr.dtype == np.uint8
-               and f.image_bgr.shape == (H, W, 3) for f in frames)
+    assert all(
+        isinstance(f, Frame) and f.image_bgr.dtype == np.uint8 and f.image_bgr.shape == (H, W, 3)
+        for f in frames
+    )
     assert np.abs(frames[5].image_bgr.astype(int) - image(5)).mean() < 8  # lossy codec
     assert source.skipped == 0
     assert len(list(source)) == 7  # iterable again
@@ -50,7 +52,7 @@ def test_video_with_corrupt_frame_is_skipped(tmp_path, caplog):
     data = bytearray(path.read_bytes())
     starts = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
     assert len(starts) == 6 and starts[3] - starts[2] > 1000  # one JPEG per frame
-    data[starts[2]:starts[2] + 400] = bytes(400)  # destroy the header of frame 2
+    data[starts[2] : starts[2] + 400] = bytes(400)  # destroy the header of frame 2
     path.write_bytes(bytes(data))
     source = open_frame_source(path)
     with caplog.at_level(logging.WARNING):
@@ -109,12 +111,46 @@ def test_variable_frame_rate_video_keeps_its_presentation_times(tmp_path):
         lines += [f"file 'f{i}.png'", f"duration {duration}"]
     (tmp_path / "list.txt").write_text("\n".join(lines + [f"file 'f{len(durations) - 1}.png'"]))
     path = tmp_path / "vfr.mkv"
-    subprocess.run([FFMPEG, "-loglevel", "error", "-f", "concat", "-i", str(tmp_path / "list.txt"),
-                    "-fps_mode", "vfr", "-c:v", "libx264", "-preset", "ultrafast", "-pix_fmt",
-                    "yuv420p", str(path)], check=True, timeout=120)
-    probe = subprocess.run([FFMPEG.replace("ffmpeg", "ffprobe"), "-v", "error", "-select_streams",
-                            "v", "-show_entries", "frame=pts_time", "-of", "csv=p=0", str(path)],
-                           check=True, capture_output=True, text=True, timeout=60)
+    subprocess.run(
+        [
+            FFMPEG,
+            "-loglevel",
+            "error",
+            "-f",
+            "concat",
+            "-i",
+            str(tmp_path / "list.txt"),
+            "-fps_mode",
+            "vfr",
+            "-c:v",
+            "libx264",
+            "-preset",
+            "ultrafast",
+            "-pix_fmt",
+            "yuv420p",
+            str(path),
+        ],
+        check=True,
+        timeout=120,
+    )
+    probe = subprocess.run(
+        [
+            FFMPEG.replace("ffmpeg", "ffprobe"),
+            "-v",
+            "error",
+            "-select_streams",
+            "v",
+            "-show_entries",
+            "frame=pts_time",
+            "-of",
+            "csv=p=0",
+            str(path),
+        ],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     expected = [float(v.strip(",")) for v in probe.stdout.split()]
     assert np.diff(expected).std() > 0.02  # the file's frame rate really varies
     source = open_frame_source(path)
@@ -129,7 +165,7 @@ def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog):
     write_video(path, "MJPG", 8, make=noise)
     data = path.read_bytes()
     starts = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
-    path.write_bytes(data[:starts[5]])  # frames 5..7 gone, the header still says 8
+    path.write_bytes(data[: starts[5]])  # frames 5..7 gone, the header still says 8
     source = open_frame_source(path)
     with caplog.at_level(logging.INFO):
         indices = [f.index for f in source]

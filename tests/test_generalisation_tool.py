@@ -46,8 +46,9 @@ def test_shared_pass_detects_what_each_head_detects_alone(tool, tmp_path) -> Non
     shared = tool.run_heads(heads, dataset)
     total = 0
     for name, head in heads.items():
-        alone = run_mitenet(MiteNet(head, ds=2, topn=25, score_threshold=0.3), dataset,
-                            progress=False)
+        alone = run_mitenet(
+            MiteNet(head, ds=2, topn=25, score_threshold=0.3), dataset, progress=False
+        )
         assert list(alone.detections) == list(shared[name].detections)
         for image_id, det in alone.detections.items():
             other = shared[name].detections[image_id]
@@ -56,44 +57,87 @@ def test_shared_pass_detects_what_each_head_detects_alone(tool, tmp_path) -> Non
             np.testing.assert_array_equal(det.class_ids, other.class_ids)
             total += len(det.boxes)
     assert total > 0
-    assert any(not np.array_equal(shared["a"].detections[i].scores,
-                                  shared["b"].detections[i].scores) for i in shared["a"].detections)
+    assert any(
+        not np.array_equal(shared["a"].detections[i].scores, shared["b"].detections[i].scores)
+        for i in shared["a"].detections
+    )
 
 
 def _split(ssr, far, r05):
-    return {"ssr": ssr, "far_det": far, "head_r05": r05, "head_r01": r05, "rpn_r01": 0.8,
-            "locked": 3, "lockable": 4}
+    return {
+        "ssr": ssr,
+        "far_det": far,
+        "head_r05": r05,
+        "head_r01": r05,
+        "rpn_r01": 0.8,
+        "locked": 3,
+        "lockable": 4,
+    }
 
 
 def test_page_reports_mean_and_range_over_seeds(tool) -> None:
     runs = {}
     for seed, (own, sea) in enumerate(((90.0, 10.0), (80.0, 30.0), (100.0, None))):
         runs[f"baseline/seed{seed}"] = {
-            "variant": "baseline", "seed": seed, "checkpoint": "x", "best_epoch": 7,
-            "val_f2": 0.25, "train_crops": 5000, "train_s": 120.0,
-            "test": {"maritime_test": _split(own, 20.0, 0.5),
-                     "heldout_maritime": _split(sea, 90.0, 0.1),
-                     "heldout_land": _split(5.0, 99.0, 0.0)}}
+            "variant": "baseline",
+            "seed": seed,
+            "checkpoint": "x",
+            "best_epoch": 7,
+            "val_f2": 0.25,
+            "train_crops": 5000,
+            "train_s": 120.0,
+            "test": {
+                "maritime_test": _split(own, 20.0, 0.5),
+                "heldout_maritime": _split(sea, 90.0, 0.1),
+                "heldout_land": _split(5.0, 99.0, 0.0),
+            },
+        }
     results = {
         "command": "python tools/generalisation_study.py --seeds 0,1,2",
-        "generated": "2026-01-01T00:00:00+00:00", "wall_s": 600.0, "machine": {"nproc": 2},
-        "settings": {"seeds": [0, 1, 2], "variants": ["baseline"],
-                     "train": {"epochs": 20, "select_from": 5, "batch_size": 64, "lr": 0.02,
-                               "frame_stride": 3, "jitters_per_gt": 4, "ds": 1},
-                     "test_frames": 40, "test_clips": {"maritime_test": 2}},
-        "variants": {"baseline": {"description": "maritime", "presets": [["maritime_train", 3,
-                                                                          40, "3840x2160"]],
-                                  "randomise": "none", "background_negatives": 0}},
-        "runs": runs, "shipped": {"maritime_test": _split(93.9, 12.0, 0.72),
-                                  "heldout_maritime": _split(16.7, 98.0, 0.04),
-                                  "heldout_land": _split(38.5, 97.0, 0.06)}}
+        "generated": "2026-01-01T00:00:00+00:00",
+        "wall_s": 600.0,
+        "machine": {"nproc": 2},
+        "settings": {
+            "seeds": [0, 1, 2],
+            "variants": ["baseline"],
+            "train": {
+                "epochs": 20,
+                "select_from": 5,
+                "batch_size": 64,
+                "lr": 0.02,
+                "frame_stride": 3,
+                "jitters_per_gt": 4,
+                "ds": 1,
+            },
+            "test_frames": 40,
+            "test_clips": {"maritime_test": 2},
+        },
+        "variants": {
+            "baseline": {
+                "description": "maritime",
+                "presets": [["maritime_train", 3, 40, "3840x2160"]],
+                "randomise": "none",
+                "background_negatives": 0,
+            }
+        },
+        "runs": runs,
+        "shipped": {
+            "maritime_test": _split(93.9, 12.0, 0.72),
+            "heldout_maritime": _split(16.7, 98.0, 0.04),
+            "heldout_land": _split(38.5, 97.0, 0.06),
+        },
+    }
     md = tool.render_section(results)
     assert md.startswith(tool.BEGIN) and md.endswith(tool.END)
-    assert "| `baseline` | 3 | 90.0 (80.0-100.0) | 20.0 (20.0-20.0) | 0.50 (0.50-0.50) " \
-           "| 20.0 (10.0-30.0) |" in md
+    assert (
+        "| `baseline` | 3 | 90.0 (80.0-100.0) | 20.0 (20.0-20.0) | 0.50 (0.50-0.50) "
+        "| 20.0 (10.0-30.0) |" in md
+    )
     assert "| 93.9 | 12.0 | 0.72 |" in md
     assert "`python tools/generalisation_study.py --seeds 0,1,2`" in md
-    assert "| `baseline/seed2` | 7 | 0.250 | 5000 | 2.0 | 3/4 | 3/4 | 3/4 | 100.0 | 20.0 " \
-           "| 0.50 | — |" in md
+    assert (
+        "| `baseline/seed2` | 7 | 0.250 | 5000 | 2.0 | 3/4 | 3/4 | 3/4 | 100.0 | 20.0 "
+        "| 0.50 | — |" in md
+    )
     assert tool.spread([None, None]) is None
     assert tool.spread([1.0, 3.0, None]) == (2.0, 1.0, 3.0)

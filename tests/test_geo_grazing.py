@@ -16,10 +16,19 @@ SIGMA_A = math.radians(0.5)
 def looking_down(depression_deg: float, height_m: float = 100.0) -> PlatformPose:
     """Level drone, earth-frame gimbal: the centre pixel's ray is ``depression_deg`` below the
     horizon. No GNSS error, 1 m of altitude error, 0.5 degree of pointing error."""
-    return PlatformPose(47.67, 9.27, height_m, 0.0, 0.0, 0.0,
-                        gimbal_rpy=(0.0, -math.radians(depression_deg), 0.0),
-                        gimbal_frame="earth", gnss_sigma_m=0.0, alt_sigma_m=1.0,
-                        attitude_sigma_rad=SIGMA_A)
+    return PlatformPose(
+        47.67,
+        9.27,
+        height_m,
+        0.0,
+        0.0,
+        0.0,
+        gimbal_rpy=(0.0, -math.radians(depression_deg), 0.0),
+        gimbal_frame="earth",
+        gnss_sigma_m=0.0,
+        alt_sigma_m=1.0,
+        attitude_sigma_rad=SIGMA_A,
+    )
 
 
 def hand_error(depression_deg: float, height_m: float = 100.0) -> float:
@@ -34,14 +43,17 @@ def hand_error(depression_deg: float, height_m: float = 100.0) -> float:
     return math.sqrt(along_pointing**2 + along_height**2 + across**2)
 
 
-@pytest.mark.parametrize(("depression_deg", "expected_m"), [
-    # (d, DRMS by hand): 30 deg: t = 200 m, 3.491 along, 1.732 height, 1.745 across -> 4.270
-    (30.0, 4.270),
-    # 10 deg: t = 575.9 m, 28.94 along, 5.671 height, 5.026 across -> 29.92
-    (10.0, 29.92),
-    # 5 deg: t = 1147.4 m, 114.9 along, 11.43 height, 10.01 across -> 115.9
-    (5.0, 115.9),
-])
+@pytest.mark.parametrize(
+    ("depression_deg", "expected_m"),
+    [
+        # (d, DRMS by hand): 30 deg: t = 200 m, 3.491 along, 1.732 height, 1.745 across -> 4.270
+        (30.0, 4.270),
+        # 10 deg: t = 575.9 m, 28.94 along, 5.671 height, 5.026 across -> 29.92
+        (10.0, 29.92),
+        # 5 deg: t = 1147.4 m, 114.9 along, 11.43 height, 10.01 across -> 115.9
+        (5.0, 115.9),
+    ],
+)
 def test_error_estimate_matches_the_hand_computed_value(depression_deg, expected_m):
     fix = geolocate(CENTRE, INTR, looking_down(depression_deg))
     assert fix.ok, fix.note
@@ -67,8 +79,9 @@ def test_a_ray_within_three_pointing_sigmas_of_the_horizon_is_no_fix():
 def test_maximum_off_nadir_angle():
     limits = FixLimits(max_off_nadir_deg=80.0)
     fix = geolocate(CENTRE, INTR, looking_down(9.0), limits=limits)  # 81 deg off nadir
-    assert not fix.ok and fix.note.startswith("ray 81.0 deg from straight down (a fix needs at "
-                                              "most 80; error estimate")
+    assert not fix.ok and fix.note.startswith(
+        "ray 81.0 deg from straight down (a fix needs at most 80; error estimate"
+    )
     assert geolocate(CENTRE, INTR, looking_down(11.0), limits=limits).ok
 
 

@@ -33,8 +33,7 @@ def rodrigues(axis, angle: float) -> np.ndarray:
 def frd_to_ned(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """Turn about down by yaw, then about the new right axis by pitch, then about the new
     forward axis by roll (intrinsic rotations compose to the right)."""
-    return (rodrigues((0, 0, 1), yaw) @ rodrigues((0, 1, 0), pitch)
-            @ rodrigues((1, 0, 0), roll))
+    return rodrigues((0, 0, 1), yaw) @ rodrigues((0, 1, 0), pitch) @ rodrigues((1, 0, 0), roll)
 
 
 def ray_ned(u: float, v: float, vehicle_rpy, gimbal_rpy, frame: str) -> np.ndarray:
@@ -63,36 +62,99 @@ def fix_offset(fix) -> tuple[float, float]:
     return float(n), float(e)
 
 
-def pose(rel_alt: float, vehicle_rpy=(0.0, 0.0, 0.0), gimbal_rpy=NADIR, frame="body",
-         **sigmas) -> PlatformPose:
-    return PlatformPose(LAT0, LON0, rel_alt, *vehicle_rpy, gimbal_rpy=gimbal_rpy,
-                        gimbal_frame=frame, **sigmas)
+def pose(
+    rel_alt: float, vehicle_rpy=(0.0, 0.0, 0.0), gimbal_rpy=NADIR, frame="body", **sigmas
+) -> PlatformPose:
+    return PlatformPose(
+        LAT0, LON0, rel_alt, *vehicle_rpy, gimbal_rpy=gimbal_rpy, gimbal_frame=frame, **sigmas
+    )
 
 
 @pytest.mark.parametrize(
     ("case", "pixel", "vehicle", "gimbal", "frame", "north", "east"),
     [
-        ("nadir, image centre: below the drone", (500, 400), (0, 0, 0.7), NADIR, "body",
-         0.0, 0.0),
-        ("looking east, 45 deg down", (500, 400), (0, 0, 0), (0, -math.pi / 4, math.pi / 2),
-         "earth", 0.0, 100.0),
-        ("heading 90 deg, gimbal 45 deg down on the body", (500, 400), (0, 0, math.pi / 2),
-         (0, -math.pi / 4, 0), "body", 0.0, 100.0),
-        ("heading 90 deg, gimbal yaw 0 relative to it", (500, 400), (0.1, 0.05, math.pi / 2),
-         (0, -math.pi / 4, 0), "vehicle", 0.0, 100.0),
-        ("heading -30 deg, 60 deg down: 57.7 m away", (500, 400), (0, 0, -math.pi / 6),
-         (0, -math.pi / 3, 0), "body", 100 / math.sqrt(3) * math.cos(math.pi / 6),
-         -100 / math.sqrt(3) * math.sin(math.pi / 6)),
-        ("right wing down 10 deg, nadir on the body: left", (500, 400),
-         (math.radians(10), 0, 0), NADIR, "body", 0.0, -100 * math.tan(math.radians(10))),
-        ("nose up 10 deg, nadir on the body: ahead", (500, 400), (0, math.radians(10), 0),
-         NADIR, "body", 100 * math.tan(math.radians(10)), 0.0),
-        ("200 px right of centre, heading north: east", (700, 400), (0, 0, 0), NADIR, "body",
-         0.0, 100 * 200 / 800),
-        ("200 px below centre, heading north: south", (500, 600), (0, 0, 0), NADIR, "body",
-         -100 * 200 / 800, 0.0),
-        ("200 px right, heading east: south", (700, 400), (0, 0, math.pi / 2), NADIR, "body",
-         -100 * 200 / 800, 0.0),
+        ("nadir, image centre: below the drone", (500, 400), (0, 0, 0.7), NADIR, "body", 0.0, 0.0),
+        (
+            "looking east, 45 deg down",
+            (500, 400),
+            (0, 0, 0),
+            (0, -math.pi / 4, math.pi / 2),
+            "earth",
+            0.0,
+            100.0,
+        ),
+        (
+            "heading 90 deg, gimbal 45 deg down on the body",
+            (500, 400),
+            (0, 0, math.pi / 2),
+            (0, -math.pi / 4, 0),
+            "body",
+            0.0,
+            100.0,
+        ),
+        (
+            "heading 90 deg, gimbal yaw 0 relative to it",
+            (500, 400),
+            (0.1, 0.05, math.pi / 2),
+            (0, -math.pi / 4, 0),
+            "vehicle",
+            0.0,
+            100.0,
+        ),
+        (
+            "heading -30 deg, 60 deg down: 57.7 m away",
+            (500, 400),
+            (0, 0, -math.pi / 6),
+            (0, -math.pi / 3, 0),
+            "body",
+            100 / math.sqrt(3) * math.cos(math.pi / 6),
+            -100 / math.sqrt(3) * math.sin(math.pi / 6),
+        ),
+        (
+            "right wing down 10 deg, nadir on the body: left",
+            (500, 400),
+            (math.radians(10), 0, 0),
+            NADIR,
+            "body",
+            0.0,
+            -100 * math.tan(math.radians(10)),
+        ),
+        (
+            "nose up 10 deg, nadir on the body: ahead",
+            (500, 400),
+            (0, math.radians(10), 0),
+            NADIR,
+            "body",
+            100 * math.tan(math.radians(10)),
+            0.0,
+        ),
+        (
+            "200 px right of centre, heading north: east",
+            (700, 400),
+            (0, 0, 0),
+            NADIR,
+            "body",
+            0.0,
+            100 * 200 / 800,
+        ),
+        (
+            "200 px below centre, heading north: south",
+            (500, 600),
+            (0, 0, 0),
+            NADIR,
+            "body",
+            -100 * 200 / 800,
+            0.0,
+        ),
+        (
+            "200 px right, heading east: south",
+            (700, 400),
+            (0, 0, math.pi / 2),
+            NADIR,
+            "body",
+            -100 * 200 / 800,
+            0.0,
+        ),
     ],
 )
 def test_hand_computed_cases(case, pixel, vehicle, gimbal, frame, north, east):
@@ -100,7 +162,8 @@ def test_hand_computed_cases(case, pixel, vehicle, gimbal, frame, north, east):
     assert fix.ok, (case, fix.note)
     assert fix_offset(fix) == pytest.approx((north, east), abs=0.01), case
     assert ground_offset(*pixel, vehicle, gimbal, frame, 100.0) == pytest.approx(
-        (north, east), abs=1e-9), case  # the ray-trace agrees with the hand
+        (north, east), abs=1e-9
+    ), case  # the ray-trace agrees with the hand
 
 
 def random_poses(frame: str, n: int, seed: int):
@@ -128,8 +191,12 @@ def test_ray_trace_from_first_principles(frame):
 
 def test_plane_below_home_lengthens_the_ray():
     """The ground 20 m below home, the drone 80 m above home: 100 m of height."""
-    fix = geolocate((500, 400), INTR, pose(80.0, (0, 0, 0), (0, -math.pi / 4, 0), "earth"),
-                    ground_below_home_m=20.0)
+    fix = geolocate(
+        (500, 400),
+        INTR,
+        pose(80.0, (0, 0, 0), (0, -math.pi / 4, 0), "earth"),
+        ground_below_home_m=20.0,
+    )
     assert fix_offset(fix) == pytest.approx((100.0, 0.0), abs=0.01)
 
 
@@ -142,16 +209,18 @@ def test_ground_height_uncertainty_slides_the_point_along_the_ray(pixel):
     without = geolocate(pixel, INTR, p)
     with_ground = geolocate(pixel, INTR, p, ground_sigma_m=3.0)
     tan_off_nadir = math.hypot(pixel[0] - INTR.cx, pixel[1] - INTR.cy) / INTR.fx
-    assert with_ground.error_m ** 2 - without.error_m ** 2 == pytest.approx(
-        (3.0 * tan_off_nadir) ** 2, rel=1e-6, abs=1e-9)
+    assert with_ground.error_m**2 - without.error_m**2 == pytest.approx(
+        (3.0 * tan_off_nadir) ** 2, rel=1e-6, abs=1e-9
+    )
     assert (with_ground.lat, with_ground.lon) == (without.lat, without.lon)
 
 
 def test_gnss_error_alone_at_nadir():
     """No attitude or height error, looking straight down: the fix is as good as the GNSS,
     sigma per axis in two axes: sqrt(2) sigma DRMS."""
-    fix = geolocate((500, 400), INTR, pose(100.0, gnss_sigma_m=2.0, alt_sigma_m=0.0,
-                                           attitude_sigma_rad=0.0))
+    fix = geolocate(
+        (500, 400), INTR, pose(100.0, gnss_sigma_m=2.0, alt_sigma_m=0.0, attitude_sigma_rad=0.0)
+    )
     assert fix.error_m == pytest.approx(2.0 * math.sqrt(2.0))
 
 

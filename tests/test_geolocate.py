@@ -66,7 +66,8 @@ def exact_tolerance(position_ned, point_ned) -> float:
     own tangent plane, whose vertical is tilted by ``offset / R`` from home's, which moves the
     ground point by about ``height * offset / R`` (about 1-2 mm at 100-200 m from home)."""
     offset = math.hypot(position_ned[0], position_ned[1]) + math.hypot(
-        point_ned[0] - position_ned[0], point_ned[1] - position_ned[1])
+        point_ned[0] - position_ned[0], point_ned[1] - position_ned[1]
+    )
     return 1e-3 + 2.0 * offset * abs(position_ned[2]) / EARTH_RADIUS_M
 
 

@@ -25,8 +25,13 @@ def load_tool():
 
 def test_exact_telemetry_gives_sub_metre_fixes(tmp_path):
     tool = load_tool()
-    result = tool.measure(duration_s=15.0, telemetry="exact", policy=("alert",),
-                          workdir=tmp_path, gimbal_report="earth")
+    result = tool.measure(
+        duration_s=15.0,
+        telemetry="exact",
+        policy=("alert",),
+        workdir=tmp_path,
+        gimbal_report="earth",
+    )
     assert result["swimmers_in_view"] >= 1
     assert result["alerted"] >= 1, result["console"]
     assert result["false_alerts"] == 0

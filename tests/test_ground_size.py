@@ -14,9 +14,16 @@ F = 480.0 / math.tan(math.radians(17.5))  # focal length in pixels
 
 
 def pose(height: float, gimbal_pitch_deg: float = -90.0) -> PlatformPose:
-    return PlatformPose(54.17, 7.89, height, 0.0, 0.0, 0.0,
-                        gimbal_rpy=(0.0, math.radians(gimbal_pitch_deg), 0.0),
-                        gimbal_frame="earth")
+    return PlatformPose(
+        54.17,
+        7.89,
+        height,
+        0.0,
+        0.0,
+        0.0,
+        gimbal_rpy=(0.0, math.radians(gimbal_pitch_deg), 0.0),
+        gimbal_frame="earth",
+    )
 
 
 def test_nadir_extent_is_pixels_times_height_over_focal_length():

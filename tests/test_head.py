@@ -60,11 +60,19 @@ def test_dfl_decode_one_hot_gives_the_bin(k: int):
 
 def test_flops_per_proposal_matches_hand_count(head: MiteHead):
     hw, c = 16 * 16, 2
-    macs = (hw * 16 * 6 * 9                      # stem
-            + hw * 24 * 16 * 9 + hw * 24 * 24 * 9 + hw * 24 * 16  # block d=2 with 1x1 skip
-            + 2 * hw * 24 * 24 * 9              # block d=4
-            + hw * 24 * 9 + 2 * (24 * 6 + 6 * 24) + 48 * 32 + 32 * c  # classification
-            + hw * 4 * 24 + 4 * hw * 68)        # regression
+    macs = (
+        hw * 16 * 6 * 9  # stem
+        + hw * 24 * 16 * 9
+        + hw * 24 * 24 * 9
+        + hw * 24 * 16  # block d=2 with 1x1 skip
+        + 2 * hw * 24 * 24 * 9  # block d=4
+        + hw * 24 * 9
+        + 2 * (24 * 6 + 6 * 24)
+        + 48 * 32
+        + 32 * c  # classification
+        + hw * 4 * 24
+        + 4 * hw * 68
+    )  # regression
     assert head_flops_per_proposal(head) == 2 * macs
 
 

@@ -26,8 +26,9 @@ from sarmission.geo.wgs84 import ned_to_geodetic
 def test_nadir_camera_puts_its_heading_at_the_top_of_the_image() -> None:
     lens = Lens(640, 360, 60.0)
     view = View((10.0, -5.0, 80.0), heading_deg=90.0)  # looking down, facing east
-    uv, depth = project(lens, view, np.array([[10.0, -5.0, 0.0], [30.0, -5.0, 0.0],
-                                              [10.0, -25.0, 0.0]]))
+    uv, depth = project(
+        lens, view, np.array([[10.0, -5.0, 0.0], [30.0, -5.0, 0.0], [10.0, -25.0, 0.0]])
+    )
     assert np.allclose(uv[0], [320, 180]) and np.allclose(depth, 80.0)
     assert uv[1, 1] < 180 and abs(uv[1, 0] - 320) < 1e-6  # east is up
     assert uv[2, 0] > 320 and abs(uv[2, 1] - 180) < 1e-6  # south is to the right
@@ -82,8 +83,9 @@ def _clip_with_swimmers(offsets: list[tuple[float, float]]):
     for i, (de, dn) in enumerate(offsets):
         kind = "swimmer_with_life_jacket" if i % 2 else "swimmer"
         look = dataclasses.replace(draw_look(rng, kind, spec.sea.water_bgr), posture="upright")
-        things.append(Thing(i + 1, look, (centre[0, 0] + de, centre[0, 1] + dn, 0.0),
-                            (0.0, 0.0), 0.0, 0.0))
+        things.append(
+            Thing(i + 1, look, (centre[0, 0] + de, centre[0, 1] + dn, 0.0), (0.0, 0.0), 0.0, 0.0)
+        )
     return spec, tuple(things)
 
 
@@ -99,7 +101,7 @@ def test_targets_are_boxed_where_they_are_drawn() -> None:
     for box in boxes:
         x, y, w, h = (int(round(v)) for v in box.bbox)
         assert box.is_target and 3 <= max(w, h) <= 64
-        assert diff[y:y + h, x:x + w].mean() > 8.0
+        assert diff[y : y + h, x : x + w].mean() > 8.0
         # the box centre projects from the swimmer's own position
         thing = things[box.track_id - 1]
         uv, _ = project(spec.lens, spec.path.view(0.0), np.array([thing.start]))
@@ -107,7 +109,7 @@ def test_targets_are_boxed_where_they_are_drawn() -> None:
     far = np.ones_like(diff, bool)
     for box in boxes:
         x, y, w, h = (int(round(v)) for v in box.bbox)
-        far[max(0, y - 3 * h):y + 4 * h, max(0, x - 3 * w):x + 4 * w] = False
+        far[max(0, y - 3 * h) : y + 4 * h, max(0, x - 3 * w) : x + 4 * w] = False
     assert diff[far].max() == 0  # nothing drawn away from the annotated people
 
 
@@ -122,8 +124,9 @@ def test_fully_visible_people_span_the_tiny_target_sizes(name: str, clip: int) -
 def test_same_seed_renders_the_same_clip_and_another_clip_differs(tmp_path: Path) -> None:
     a = render_world("heldout_land", 1, 2, tmp_path / "a", size=(256, 144), images=True)
     b = render_world("heldout_land", 1, 2, tmp_path / "b", size=(256, 144), images=True)
-    c = render_world("heldout_land", 1, 2, tmp_path / "c", size=(256, 144), images=True,
-                     first_clip=1)
+    c = render_world(
+        "heldout_land", 1, 2, tmp_path / "c", size=(256, 144), images=True, first_clip=1
+    )
     assert json.loads(a.read_text()) == json.loads(b.read_text())
     for i in range(2):
         name = f"heldout_land_00/{i:06d}.jpg"

@@ -77,13 +77,16 @@ def test_the_drivers_capture_time_is_used_when_it_is_on_our_clock(monkeypatch):
     assert capture.released
 
 
-@pytest.mark.parametrize(("driver_ms", "expected"), [
-    (99_800.0, 99.8),      # 0.2 s before the grab returned: the driver's time
-    (100_000.0, 100.0),
-    (98_500.0, 100.0),     # 1.5 s old: not believable, the grab's time
-    (100_300.0, 100.0),    # in the future: another clock
-    (0.0, 100.0),          # the first frame's stream position
-])
+@pytest.mark.parametrize(
+    ("driver_ms", "expected"),
+    [
+        (99_800.0, 99.8),  # 0.2 s before the grab returned: the driver's time
+        (100_000.0, 100.0),
+        (98_500.0, 100.0),  # 1.5 s old: not believable, the grab's time
+        (100_300.0, 100.0),  # in the future: another clock
+        (0.0, 100.0),  # the first frame's stream position
+    ],
+)
 def test_capture_time(driver_ms, expected):
     assert capture_time(driver_ms, 100.0) == pytest.approx(expected)
 
@@ -96,7 +99,10 @@ def test_a_camera_that_cannot_be_opened_says_why(monkeypatch):
     capture = Closed([], [])
     monkeypatch.setattr(live_sources.cv2, "VideoCapture", lambda index: capture)
     monkeypatch.setattr(live_sources.sys, "platform", "linux")
-    with pytest.raises(OSError, match=r"^cannot open camera 97: no such device "
-                                      r"\(/dev/video97 does not exist\)$"):
+    with pytest.raises(
+        OSError,
+        match=r"^cannot open camera 97: no such device "
+        r"\(/dev/video97 does not exist\)$",
+    ):
         CameraSource(97)
     assert capture.released

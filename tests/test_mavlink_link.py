@@ -61,8 +61,13 @@ def test_detects_autopilot_requests_streams_and_buffers_pose(ardupilot):
     assert vehicle.sent_counts.get("GLOBAL_POSITION_INT", 0) == 0
     assert link.request_streams(STREAMS) == {k: M.MAV_RESULT_ACCEPTED for k in STREAMS}
     # a pose 0.2 s back needs samples on both sides of it, the gimbal's (5 Hz) among them
-    assert wait_until(lambda: buf.pose_at(time.monotonic() - 0.2) is not None
-                      and buf.newest_time("gimbal") is not None, 10.0)
+    assert wait_until(
+        lambda: (
+            buf.pose_at(time.monotonic() - 0.2) is not None
+            and buf.newest_time("gimbal") is not None
+        ),
+        10.0,
+    )
     now = time.monotonic()
     sim_now = vehicle.sim_time()
     pose = buf.pose_at(now - 0.2)
@@ -100,7 +105,8 @@ def test_statustext_command_and_mission_upload(ardupilot):
     assert cmd.params[1] == 1 and math.isnan(cmd.params[3]) and cmd.params[0] == -1
     d0 = np.linalg.norm(start[:2] - target)
     assert wait_until(  # flying towards the target
-        lambda: np.linalg.norm(vehicle.truth_state().position_ned[:2] - target) < d0 - 8.0, 20.0)
+        lambda: np.linalg.norm(vehicle.truth_state().position_ned[:2] - target) < d0 - 8.0, 20.0
+    )
 
     assert sender.set_roi(lat, lon, 0.0).accepted
     items = [
@@ -164,8 +170,9 @@ def test_command_without_ack_retries_then_fails():
             assert result.attempts == 3 and "no COMMAND_ACK after 3 tries" in result.error
 
             def confirmations() -> list[int]:
-                return [m.confirmation for m in list(peer.received)
-                        if m.get_type() == "COMMAND_LONG"]
+                return [
+                    m.confirmation for m in list(peer.received) if m.get_type() == "COMMAND_LONG"
+                ]
 
             assert wait_until(lambda: len(confirmations()) >= 3, 10.0)
             assert confirmations() == [0, 1, 2]  # one send per try, counting the re-sends

@@ -29,8 +29,11 @@ def test_score_equal_to_the_threshold_is_no_candidate():
     gt = FrameBoxes.of([BOX])
     at = match_frame(FrameBoxes.of([BOX], scores=[0.5]), gt, score_thr=0.5)
     assert at.n_candidates == 0 and at.det_indices.size == 0
-    above = match_frame(FrameBoxes.of([BOX], scores=[0.5]), gt,
-                        score_thr=float(np.nextafter(np.float32(0.5), np.float32(0.0))))
+    above = match_frame(
+        FrameBoxes.of([BOX], scores=[0.5]),
+        gt,
+        score_thr=float(np.nextafter(np.float32(0.5), np.float32(0.0))),
+    )
     assert above.n_candidates == 1 and above.det_indices.tolist() == [0]
 
 
@@ -38,8 +41,11 @@ def frame(index: int, gt_ids: list[int], hits: list[bool]) -> SequenceFrame:
     """GT boxes for ``gt_ids`` side by side; a detection on each one marked as hit."""
     gt_boxes = [[100.0 * i, 0.0, 100.0 * i + 8.0, 8.0] for i in range(len(gt_ids))]
     det_boxes = [b for b, hit in zip(gt_boxes, hits, strict=True) if hit]
-    return SequenceFrame(index, FrameBoxes.of(gt_boxes, ids=gt_ids),
-                         FrameBoxes.of(det_boxes, scores=[0.9] * len(det_boxes)))
+    return SequenceFrame(
+        index,
+        FrameBoxes.of(gt_boxes, ids=gt_ids),
+        FrameBoxes.of(det_boxes, scores=[0.9] * len(det_boxes)),
+    )
 
 
 def test_short_trajectories_count_in_the_success_rate_denominator():

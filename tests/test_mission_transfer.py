@@ -26,8 +26,11 @@ def survey() -> list[WireItem]:
     items = [WireItem(M.MAV_FRAME_GLOBAL, M.MAV_CMD_NAV_WAYPOINT, x=430000000, y=100000000)]
     items.append(WireItem(2, M.MAV_CMD_DO_CHANGE_SPEED, (1.0, 5.0, -1.0, 0.0)))
     for k, (n, e) in enumerate(((300, 0), (300, 300), (0, 300), (0, 0))):
-        items.append(WireItem(REL, M.MAV_CMD_NAV_WAYPOINT, x=430000000 + 27 * n + k,
-                              y=100000000 + 37 * e, z=60.0))
+        items.append(
+            WireItem(
+                REL, M.MAV_CMD_NAV_WAYPOINT, x=430000000 + 27 * n + k, y=100000000 + 37 * e, z=60.0
+            )
+        )
     items.append(WireItem(2, M.MAV_CMD_DO_JUMP, (2.0, -1.0, 0.0, 0.0)))
     return items
 
@@ -55,7 +58,8 @@ def test_download_reads_the_mission_the_pilot_uploaded():
             assert link.wait_autopilot(5.0)
             pilot = survey()
             vehicle.missions[M.MAV_MISSION_TYPE_MISSION] = [
-                vehicle_item(seq, it) for seq, it in enumerate(pilot)]
+                vehicle_item(seq, it) for seq, it in enumerate(pilot)
+            ]
             assert download_mission(link) == pilot
 
 
@@ -67,8 +71,9 @@ def test_download_from_an_autopilot_that_never_answers_says_so():
 
         def heartbeats() -> None:  # an autopilot that is alive but ignores mission requests
             while not stop.wait(0.2):
-                peer.mav.heartbeat_send(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                                        0, 0, M.MAV_STATE_ACTIVE)
+                peer.mav.heartbeat_send(
+                    M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, M.MAV_STATE_ACTIVE
+                )
 
         thread = threading.Thread(target=heartbeats, daemon=True)
         thread.start()
@@ -85,6 +90,17 @@ def test_download_from_an_autopilot_that_never_answers_says_so():
 def vehicle_item(seq: int, it: WireItem):
     from sim.vehicle import MissionItem
 
-    return MissionItem(seq=seq, frame=it.frame, command=it.command, current=0,
-                       autocontinue=it.autocontinue, param1=it.params[0], param2=it.params[1],
-                       param3=it.params[2], param4=it.params[3], x=it.x, y=it.y, z=it.z)
+    return MissionItem(
+        seq=seq,
+        frame=it.frame,
+        command=it.command,
+        current=0,
+        autocontinue=it.autocontinue,
+        param1=it.params[0],
+        param2=it.params[1],
+        param3=it.params[2],
+        param4=it.params[3],
+        x=it.x,
+        y=it.y,
+        z=it.z,
+    )

@@ -22,8 +22,9 @@ H, W = 120, 160
 def _clip(frames: int = 10) -> tuple[list[np.ndarray], np.ndarray]:
     """Textured background and a 6 px bright disc moving at (2, 1) px/frame: BGR frames and the
     target centres (full-resolution pixels)."""
-    images, centres = moving_target(H, W, frames, start=(40.0, 50.0), velocity=(2.0, 1.0),
-                                    size=6.0, shape="disc", seed=7)
+    images, centres = moving_target(
+        H, W, frames, start=(40.0, 50.0), velocity=(2.0, 1.0), size=6.0, shape="disc", seed=7
+    )
     return [to_bgr(im) for im in images], centres
 
 
@@ -43,8 +44,9 @@ def test_proposals_find_the_moving_target(head: MiteHead):
     results = _run(net, frames)
     for result, (cx, cy) in zip(results[4:], centres[4:], strict=True):
         boxes = result.proposals.boxes
-        inside = ((boxes[:, 0] <= cx) & (cx <= boxes[:, 2])
-                  & (boxes[:, 1] <= cy) & (cy <= boxes[:, 3]))
+        inside = (
+            (boxes[:, 0] <= cx) & (cx <= boxes[:, 2]) & (boxes[:, 1] <= cy) & (cy <= boxes[:, 3])
+        )
         assert inside.any(), (result.timestamp, boxes, (cx, cy))
     assert set(net.per_stage_ms) == {"vstmd", "colour", "rpn", "crops", "head"}
     assert all(v >= 0 for v in net.per_stage_ms.values())
@@ -67,9 +69,12 @@ def test_replay_after_reset_is_identical(head: MiteHead):
 
 def test_torch_and_onnx_give_the_same_detections(head: MiteHead):
     frames, _ = _clip(8)
-    nets = [MiteNet(TorchHeadRuntime(head), topn=8, score_threshold=0.0),
-            MiteNet(OnnxHeadRuntime(head_onnx_bytes(head), intra_op_threads=1), topn=8,
-                    score_threshold=0.0)]
+    nets = [
+        MiteNet(TorchHeadRuntime(head), topn=8, score_threshold=0.0),
+        MiteNet(
+            OnnxHeadRuntime(head_onnx_bytes(head), intra_op_threads=1), topn=8, score_threshold=0.0
+        ),
+    ]
     a, b = (_run(n, frames) for n in nets)
     assert sum(len(r.detections) for r in a) > 0
     for ra, rb in zip(a, b, strict=True):
@@ -130,11 +135,15 @@ def test_nms_drops_overlapping_lower_scores():
 
 def _greedy_nms_reference(boxes: np.ndarray, scores: np.ndarray, threshold: float) -> list[int]:
     """Textbook greedy NMS, one box at a time in pure Python."""
+
     def iou(a, b):
         iw = max(min(a[2], b[2]) - max(a[0], b[0]), 0.0)
         ih = max(min(a[3], b[3]) - max(a[1], b[1]), 0.0)
-        union = max(a[2] - a[0], 0.0) * max(a[3] - a[1], 0.0) \
-            + max(b[2] - b[0], 0.0) * max(b[3] - b[1], 0.0) - iw * ih
+        union = (
+            max(a[2] - a[0], 0.0) * max(a[3] - a[1], 0.0)
+            + max(b[2] - b[0], 0.0) * max(b[3] - b[1], 0.0)
+            - iw * ih
+        )
         return iw * ih / max(union, 1e-9)
 
     remaining = sorted(range(len(scores)), key=lambda i: (-scores[i], i))
@@ -155,8 +164,9 @@ def test_nms_matches_textbook_greedy_suppression_with_ties_and_empty_boxes():
         boxes = np.concatenate([corner, corner + rng.uniform(-2, 25, (n, 2))], axis=1)
         scores = rng.choice([0.2, 0.5, 0.9], n) if trial % 2 else rng.random(n)
         threshold = float(rng.choice([0.0, 0.3, 0.5, 0.7]))
-        assert nms_xyxy(boxes, scores, threshold).tolist() == \
-            _greedy_nms_reference(boxes.tolist(), scores.tolist(), threshold)
+        assert nms_xyxy(boxes, scores, threshold).tolist() == _greedy_nms_reference(
+            boxes.tolist(), scores.tolist(), threshold
+        )
 
 
 def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
@@ -167,13 +177,19 @@ def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
     tinted = []
     for frame in frames:
         f = (frame.astype(np.float32) * np.array([0.95, 0.75, 0.4], np.float32)).astype(np.uint8)
-        f[still[1] - 5:still[1] + 5, still[0] - 5:still[0] + 5] = (20, 110, 240)
+        f[still[1] - 5 : still[1] + 5, still[0] - 5 : still[0] + 5] = (20, 110, 240)
         tinted.append(f)
 
     def reaches(result) -> bool:
         b = result.proposals.boxes
-        return bool(np.any((b[:, 0] <= still[0]) & (still[0] <= b[:, 2])
-                           & (b[:, 1] <= still[1]) & (still[1] <= b[:, 3])))
+        return bool(
+            np.any(
+                (b[:, 0] <= still[0])
+                & (still[0] <= b[:, 2])
+                & (b[:, 1] <= still[1])
+                & (still[1] <= b[:, 3])
+            )
+        )
 
     with_colour = _run(MiteNet(TorchHeadRuntime(head), ds=2, topn=5, colour_share=0.4), tinted)
     motion_only = _run(MiteNet(TorchHeadRuntime(head), ds=2, topn=5, colour_share=0.0), tinted)
@@ -190,8 +206,11 @@ def _crop_scores(net: MiteNet, frame: np.ndarray, result, scale: float):
     """Best-class probability and decoded box of every proposal's crop at ``scale`` (one
     bilinear sample per bin, as MiteNet cuts them)."""
     boxes = scaled_boxes(result.proposals.boxes, scale)
-    logits, ltrb = net.head.predict(motion_enhanced_crops(
-        frame, result.motion, boxes, result.proposals.polarity, sampling_ratio=1))
+    logits, ltrb = net.head.predict(
+        motion_enhanced_crops(
+            frame, result.motion, boxes, result.proposals.polarity, sampling_ratio=1
+        )
+    )
     probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
     return probs.max(axis=1), ltrb_to_boxes(ltrb, boxes, 16)
 
@@ -202,8 +221,17 @@ def sea_frames(tmp_path_factory: pytest.TempPathFactory) -> list[np.ndarray]:
     px, boats, foam)."""
     chosen = preset("maritime_train_narrow")
     out = tmp_path_factory.mktemp("sea")
-    generate_sequence(chosen.scenario, chosen.mission, frames=12, size=(960, 540), seed=0,
-                      out_dir=out, video=False, progress=False, start_s=5.0)
+    generate_sequence(
+        chosen.scenario,
+        chosen.mission,
+        frames=12,
+        size=(960, 540),
+        seed=0,
+        out_dir=out,
+        video=False,
+        progress=False,
+        start_s=5.0,
+    )
     return [cv2.imread(str(path)) for path in sorted(out.rglob("*.jpg"))]
 
 
@@ -229,25 +257,36 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
     assert every.crop_scales == (1.0, 2.0)  # the default
     outcomes = set()
     for result, best, (first_scores, first_boxes), (wide_scores, wide_boxes) in zip(
-            _run(net, sea_frames)[3:], _run(every, sea_frames)[3:], firsts, wides, strict=True):
+        _run(net, sea_frames)[3:], _run(every, sea_frames)[3:], firsts, wides, strict=True
+    ):
         side = np.maximum(wide_boxes[:, 2] - wide_boxes[:, 0], wide_boxes[:, 3] - wide_boxes[:, 1])
         higher, larger = wide_scores > first_scores, side >= net.box_size
         refined = first_scores >= threshold
         wide_wins = refined & higher & larger
         outcomes |= set(zip(refined.tolist(), higher.tolist(), larger.tolist(), strict=True))
-        np.testing.assert_allclose(result.detections.scores,
-                                   np.where(wide_wins, wide_scores, first_scores), atol=1e-5)
-        np.testing.assert_allclose(result.detections.boxes,
-                                   np.where(wide_wins[:, None], wide_boxes, first_boxes),
-                                   atol=1e-3)
-        np.testing.assert_allclose(best.detections.scores,
-                                   np.where(higher & larger, wide_scores, first_scores), atol=1e-5)
+        np.testing.assert_allclose(
+            result.detections.scores, np.where(wide_wins, wide_scores, first_scores), atol=1e-5
+        )
+        np.testing.assert_allclose(
+            result.detections.boxes,
+            np.where(wide_wins[:, None], wide_boxes, first_boxes),
+            atol=1e-3,
+        )
+        np.testing.assert_allclose(
+            best.detections.scores, np.where(higher & larger, wide_scores, first_scores), atol=1e-5
+        )
     # (refined, wide crop scored higher, wide box >= S): the cases the rule tells apart occurred.
-    assert {(True, True, True), (True, True, False), (True, False, True),
-            (False, True, True)} <= outcomes, outcomes
+    assert {
+        (True, True, True),
+        (True, True, False),
+        (True, False, True),
+        (False, True, True),
+    } <= outcomes, outcomes
     head = MiteHead()
-    one, two = (MiteNet(TorchHeadRuntime(head), crop_scales=scales).complexity(2160, 3840)
-                ["flops"]["head"] for scales in ((1.0,), (1.0, 2.0)))
+    one, two = (
+        MiteNet(TorchHeadRuntime(head), crop_scales=scales).complexity(2160, 3840)["flops"]["head"]
+        for scales in ((1.0,), (1.0, 2.0))
+    )
     assert two == 2 * one  # the most the refinement can cost: every proposal refined
     for bad in ({"crop_scales": (1.0, 0.0)}, {"crop_scales": ()}):
         with pytest.raises(ValueError, match="crop_scales"):
@@ -258,8 +297,9 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
 
 def test_scaled_boxes_keep_the_centre():
     boxes = np.array([[10.0, 20.0, 26.0, 36.0], [0.0, 0.0, 4.0, 8.0]], np.float32)
-    np.testing.assert_allclose(scaled_boxes(boxes, 2.0),
-                               [[2.0, 12.0, 34.0, 44.0], [-2.0, -4.0, 6.0, 12.0]])
+    np.testing.assert_allclose(
+        scaled_boxes(boxes, 2.0), [[2.0, 12.0, 34.0, 44.0], [-2.0, -4.0, 6.0, 12.0]]
+    )
 
 
 def test_frame_result_carries_the_camera_shift(head: MiteHead):

@@ -17,19 +17,27 @@ def at(north: float, east: float) -> tuple[float, float]:
 
 @pytest.fixture
 def gate() -> MoveGate:
-    mission = load_mission(overrides={"area.home_lat": HOME[0], "area.home_lon": HOME[1],
-                                      "actions.area_margin_m": 200.0,
-                                      "actions.max_error_m": 25.0})
+    mission = load_mission(
+        overrides={
+            "area.home_lat": HOME[0],
+            "area.home_lon": HOME[1],
+            "actions.area_margin_m": 200.0,
+            "actions.max_error_m": 25.0,
+        }
+    )
     return MoveGate.from_mission(mission)
 
 
-@pytest.mark.parametrize(("north", "east", "allowed"), [
-    (100.0, 0.0, True),  # inside
-    (100.0, 150.0, True),  # 50 m outside: within the margin
-    (100.0, 295.0, True),  # 195 m outside
-    (100.0, 305.0, False),  # 205 m outside
-    (-170.0, 0.0, False),  # 210 m south of the area
-])
+@pytest.mark.parametrize(
+    ("north", "east", "allowed"),
+    [
+        (100.0, 0.0, True),  # inside
+        (100.0, 150.0, True),  # 50 m outside: within the margin
+        (100.0, 295.0, True),  # 195 m outside
+        (100.0, 305.0, False),  # 205 m outside
+        (-170.0, 0.0, False),  # 210 m south of the area
+    ],
+)
 def test_margin_around_the_area(gate, north, east, allowed):
     refusal = gate.refusal(at(north, east), 3.0)
     assert (refusal == "") is allowed, refusal

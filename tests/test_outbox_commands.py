@@ -24,8 +24,9 @@ from sim.vehicle import SimVehicle
 @pytest.fixture
 def outbox():
     port = free_udp_port()
-    vehicle = SimVehicle(f"udpin:127.0.0.1:{port}",
-                         load_mission(overrides={"flight.takeoff": False})).start()
+    vehicle = SimVehicle(
+        f"udpin:127.0.0.1:{port}", load_mission(overrides={"flight.takeoff": False})
+    ).start()
     link = MavlinkLink(f"udpout:127.0.0.1:{port}", link_timeout_s=2.0)
     assert link.wait_autopilot(5.0), "no autopilot HEARTBEAT"
     box = Outbox(CommandSender(link, retries=2, ack_timeout_s=1.0), statustext_repeats=1)
@@ -38,22 +39,34 @@ def outbox():
 def test_each_command_kind_arrives_as_its_mavlink_command(outbox) -> None:
     vehicle, box = outbox
     delivered, sent = [], []
-    box.set_callbacks(on_delivered=lambda action, result: delivered.append(action.key),
-                      on_sent=lambda action, result: sent.append(action.key))
+    box.set_callbacks(
+        on_delivered=lambda action, result: delivered.append(action.key),
+        on_sent=lambda action, result: sent.append(action.key),
+    )
     commands = [
         ("roi", SetRoi(54.1705, 7.8905, 0.0), M.MAV_CMD_DO_SET_ROI_LOCATION, True),
         ("release", ClearRoi(), M.MAV_CMD_DO_SET_ROI_NONE, False),
         ("move", Reposition(54.1706, 7.8906, 40.0), M.MAV_CMD_DO_REPOSITION, True),
-        ("int", CommandInt(M.MAV_CMD_DO_SET_ROI_LOCATION, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                           x=541_707_000, y=78_907_000), M.MAV_CMD_DO_SET_ROI_LOCATION, True),
-        ("long", CommandLong(M.MAV_CMD_DO_SET_ROI_NONE, (0.0,)), M.MAV_CMD_DO_SET_ROI_NONE,
-         False),
+        (
+            "int",
+            CommandInt(
+                M.MAV_CMD_DO_SET_ROI_LOCATION,
+                M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                x=541_707_000,
+                y=78_907_000,
+            ),
+            M.MAV_CMD_DO_SET_ROI_LOCATION,
+            True,
+        ),
+        ("long", CommandLong(M.MAV_CMD_DO_SET_ROI_NONE, (0.0,)), M.MAV_CMD_DO_SET_ROI_NONE, False),
     ]
     for key, command, _, _ in commands:
         box.submit(command, key=key)
     box.submit(StatusText("T1-a SAR test"), key="text")
     assert wait_until(lambda: len(delivered) == len(commands) and sent == ["text"], 15.0), (
-        delivered, sent)
+        delivered,
+        sent,
+    )
     assert delivered == [key for key, *_ in commands]  # in the order submitted
     received = [(c.command, c.is_int) for c in vehicle.commands]
     assert received == [(mav_cmd, is_int) for _, _, mav_cmd, is_int in commands]

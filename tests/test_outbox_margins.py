@@ -123,22 +123,33 @@ def text(severity: int, words: str) -> Any:
 def test_retries_and_confirmation_count_up_to_255():
     link = ScriptedLink()  # a silent autopilot
     result = CommandSender(link, retries=3, ack_timeout_s=0.01).command_long(
-        M.MAV_CMD_DO_SET_ROI_NONE)
+        M.MAV_CMD_DO_SET_ROI_NONE
+    )
     assert not result.accepted and result.no_answer and result.attempts == 4
     assert [m.confirmation for _, m in link.sends("COMMAND_LONG")] == [0, 1, 2, 3]
 
     link = ScriptedLink()
     result = CommandSender(link, retries=257, ack_timeout_s=0.01).command_long(
-        M.MAV_CMD_DO_SET_ROI_NONE)
+        M.MAV_CMD_DO_SET_ROI_NONE
+    )
     assert result.attempts == 258
     assert [m.confirmation for _, m in link.sends("COMMAND_LONG")] == [*range(256), 255, 255]
 
 
-@pytest.mark.parametrize(("source", "target", "ours"), [
-    (AUTOPILOT, US, True), (AUTOPILOT, (0, 0), True), (AUTOPILOT, (US[0], 0), True),
-    (AUTOPILOT, (0, US[1]), True), (AUTOPILOT, (255, 190), False), (AUTOPILOT, (US[0], 190), False),
-    (AUTOPILOT, (2, US[1]), False), ((2, 1), US, False), ((1, 154), US, False),
-])
+@pytest.mark.parametrize(
+    ("source", "target", "ours"),
+    [
+        (AUTOPILOT, US, True),
+        (AUTOPILOT, (0, 0), True),
+        (AUTOPILOT, (US[0], 0), True),
+        (AUTOPILOT, (0, US[1]), True),
+        (AUTOPILOT, (255, 190), False),
+        (AUTOPILOT, (US[0], 190), False),
+        (AUTOPILOT, (2, US[1]), False),
+        ((2, 1), US, False),
+        ((1, 154), US, False),
+    ],
+)
 def test_only_the_autopilot_acks_addressed_to_us_count(source, target, ours):
     command = M.MAV_CMD_DO_SET_ROI_NONE
     link = ScriptedLink(lambda msg: [(ack(command, M.MAV_RESULT_ACCEPTED, target), source, 0.0)])
@@ -154,10 +165,12 @@ def refusal_reason(*texts: tuple[int, str, float], source=AUTOPILOT) -> str:
 
     def answer(msg):
         return [(text(sev, words), source, offset) for sev, words, offset in texts] + [
-            (ack(command, M.MAV_RESULT_FAILED), AUTOPILOT, 0.0)]
+            (ack(command, M.MAV_RESULT_FAILED), AUTOPILOT, 0.0)
+        ]
 
     result = CommandSender(ScriptedLink(answer), retries=0, ack_timeout_s=0.01).command_long(
-        command, 1.0)
+        command, 1.0
+    )
     assert result.result == M.MAV_RESULT_FAILED
     return result.error.split("(", 1)[1].rstrip(")")
 
@@ -165,28 +178,40 @@ def refusal_reason(*texts: tuple[int, str, float], source=AUTOPILOT) -> str:
 def test_reason_texts_within_the_window_around_the_refusal():
     w = M.MAV_SEVERITY_WARNING
     before, after = REASON_WINDOW_S - 0.2, REASON_WINDOW_S + 0.2
-    assert refusal_reason((w, "inside before", -before), (w, "outside before", -after),
-                          (w, "inside after", before), (w, "outside after", after)) == (
-        "autopilot: 'inside before', 'inside after'")
+    assert refusal_reason(
+        (w, "inside before", -before),
+        (w, "outside before", -after),
+        (w, "inside after", before),
+        (w, "outside after", after),
+    ) == ("autopilot: 'inside before', 'inside after'")
 
 
 def test_reason_severity_count_and_sender():
-    notice, warning, critical = (M.MAV_SEVERITY_NOTICE, M.MAV_SEVERITY_WARNING,
-                                 M.MAV_SEVERITY_CRITICAL)
+    notice, warning, critical = (
+        M.MAV_SEVERITY_NOTICE,
+        M.MAV_SEVERITY_WARNING,
+        M.MAV_SEVERITY_CRITICAL,
+    )
     assert refusal_reason((notice, "chatter", 0.0), (warning, "warned", 0.0)) == (
-        "autopilot: 'warned'")
+        "autopilot: 'warned'"
+    )
     four = [(critical, f"text {k}", 0.0) for k in range(MAX_REASONS + 1)]
     assert refusal_reason(*four) == "autopilot: " + ", ".join(
-        f"'text {k}'" for k in range(MAX_REASONS))
+        f"'text {k}'" for k in range(MAX_REASONS)
+    )
     assert refusal_reason((critical, "a camera", 0.0), source=(1, 100)) == "no reason given"
 
 
 def make_outbox(link: ScriptedLink, **kwargs) -> tuple[Outbox, list, list, list]:
     delivered, refused, sent = [], [], []
-    outbox = Outbox(CommandSender(link, retries=0, ack_timeout_s=0.01),
-                    on_delivered=lambda a, r: delivered.append(a.key),
-                    on_refused=lambda a, r: refused.append(a.key),
-                    on_sent=lambda a, r: sent.append(a.key), poll_s=0.02, **kwargs)
+    outbox = Outbox(
+        CommandSender(link, retries=0, ack_timeout_s=0.01),
+        on_delivered=lambda a, r: delivered.append(a.key),
+        on_refused=lambda a, r: refused.append(a.key),
+        on_sent=lambda a, r: sent.append(a.key),
+        poll_s=0.02,
+        **kwargs,
+    )
     return outbox, delivered, refused, sent
 
 
@@ -235,8 +260,7 @@ def test_a_command_without_an_answer_stays_and_goes_when_answered():
     command = M.MAV_CMD_DO_REPOSITION
 
     def answer(msg):
-        return ([(ack(command, M.MAV_RESULT_ACCEPTED), AUTOPILOT, 0.0)]
-                if answering.is_set() else [])
+        return [(ack(command, M.MAV_RESULT_ACCEPTED), AUTOPILOT, 0.0)] if answering.is_set() else []
 
     link = ScriptedLink(answer)
     outbox, delivered, refused, _ = make_outbox(link)

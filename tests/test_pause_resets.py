@@ -34,9 +34,16 @@ FRAME = np.full((H, W, 3), 90, np.uint8)
 
 @pytest.fixture
 def mission():
-    m = load_mission(overrides={"camera.width": W, "camera.height": H, "camera.hfov_deg": 40.0,
-                                "name": "pause_test", "actions.policy": ["roi"],
-                                "actions.roi_hold_s": 5.0})
+    m = load_mission(
+        overrides={
+            "camera.width": W,
+            "camera.height": H,
+            "camera.hfov_deg": 40.0,
+            "name": "pause_test",
+            "actions.policy": ["roi"],
+            "actions.roi_hold_s": 5.0,
+        }
+    )
     m.confirm = ConfirmConfig(min_seen_s=0.0, min_sightings=1, min_score=0.5)
     return m
 
@@ -84,8 +91,9 @@ def test_after_a_pause_the_detector_is_reset_and_the_target_locks_again(tmp_path
     detector = target_everywhere(40)
     pause = PauseSwitch()
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(mission, detector, hovering(mission, 5.0), store,
-                                actions=pause, console=lambda s: None)
+        ctl = MissionController(
+            mission, detector, hovering(mission, 5.0), store, actions=pause, console=lambda s: None
+        )
         frame = 0
 
         def run(n: int) -> None:
@@ -112,12 +120,21 @@ class RefusesRelease(RawPeer):
     """An autopilot that accepts DO_SET_ROI_LOCATION and denies DO_SET_ROI_NONE."""
 
     def _on_command(self, msg: Any) -> None:
-        answers = {M.MAV_CMD_DO_SET_ROI_LOCATION: M.MAV_RESULT_ACCEPTED,
-                   M.MAV_CMD_DO_SET_ROI_NONE: M.MAV_RESULT_DENIED}
+        answers = {
+            M.MAV_CMD_DO_SET_ROI_LOCATION: M.MAV_RESULT_ACCEPTED,
+            M.MAV_CMD_DO_SET_ROI_NONE: M.MAV_RESULT_DENIED,
+        }
         if msg.command in answers:
-            self.send(self.conn.mav.command_ack_encode(
-                msg.command, answers[msg.command], 0, 0, msg.get_srcSystem(),
-                msg.get_srcComponent()))
+            self.send(
+                self.conn.mav.command_ack_encode(
+                    msg.command,
+                    answers[msg.command],
+                    0,
+                    0,
+                    msg.get_srcSystem(),
+                    msg.get_srcComponent(),
+                )
+            )
 
 
 def test_a_refused_camera_release_ends_the_pause_and_resets(tmp_path, mission):
@@ -130,13 +147,25 @@ def test_a_refused_camera_release_ends_the_pause_and_resets(tmp_path, mission):
     store = AlertStore(tmp_path / "alerts.db")
     try:
         assert link.wait_autopilot(10.0)
-        policy = ActionPolicy(mission.actions, outbox, store, survey_altitude_m=60.0,
-                              console=lines.append, clock=lambda: now[0],
-                              move_gate=MoveGate.from_mission(mission),
-                              gimbal_present=lambda: True)
+        policy = ActionPolicy(
+            mission.actions,
+            outbox,
+            store,
+            survey_altitude_m=60.0,
+            console=lines.append,
+            clock=lambda: now[0],
+            move_gate=MoveGate.from_mission(mission),
+            gimbal_present=lambda: True,
+        )
         detector = target_everywhere(200)
-        ctl = MissionController(mission, detector, hovering(mission, 20.0), store,
-                                actions=policy, console=lambda s: None)
+        ctl = MissionController(
+            mission,
+            detector,
+            hovering(mission, 20.0),
+            store,
+            actions=policy,
+            console=lambda s: None,
+        )
         frame = 0
 
         def step() -> None:

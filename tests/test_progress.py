@@ -78,21 +78,34 @@ def clip(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_a_command_writing_into_a_pipe_draws_no_bar(clip: Path, tmp_path: Path):
     """stderr to a file or pipe (a CI log): no tqdm redraws; --no-progress: nothing at all."""
-    base = [sys.executable, "-m", "sarmission.cli", "detect", str(clip), "--out",
-            str(tmp_path / "d.json")]
+    base = [
+        sys.executable,
+        "-m",
+        "sarmission.cli",
+        "detect",
+        str(clip),
+        "--out",
+        str(tmp_path / "d.json"),
+    ]
     piped = subprocess.run(base, capture_output=True, text=True, timeout=300)
     assert piped.returncode == 0, piped.stderr
     assert "\r" not in piped.stderr and "it/s" not in piped.stderr
-    silent = subprocess.run(base + ["--no-progress"], capture_output=True, text=True,
-                            timeout=300)
+    silent = subprocess.run(base + ["--no-progress"], capture_output=True, text=True, timeout=300)
     assert silent.returncode == 0 and silent.stderr == ""
     assert silent.stdout.startswith("8 frames, ")
 
 
-@pytest.mark.parametrize("command", [
-    ["detect", "x.mp4"], ["replay", "x.mp4"], ["eval", "--annotations", "a.json"],
-    ["train", "--train", "a.json", "--val", "b.json", "--out", "h.pt"],
-    ["sim", "generate", "--out", "d"], ["bench"]])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["detect", "x.mp4"],
+        ["replay", "x.mp4"],
+        ["eval", "--annotations", "a.json"],
+        ["train", "--train", "a.json", "--val", "b.json", "--out", "h.pt"],
+        ["sim", "generate", "--out", "d"],
+        ["bench"],
+    ],
+)
 def test_every_long_command_takes_no_progress(command: list[str]):
     from sarmission.cli import build_parser
 

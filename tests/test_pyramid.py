@@ -16,7 +16,8 @@ def test_half_resolution_is_the_2x2_block_mean_and_drops_an_odd_edge() -> None:
     expected = frame[:8, :12].astype(np.float64).reshape(4, 2, 6, 2, 3).mean(axis=(1, 3))
     assert np.abs(half - expected).max() <= 0.5 + 1e-9  # one rounding to uint8
     gray = frame[..., 0].astype(np.float32)
-    np.testing.assert_allclose(half_resolution(gray),
-                               gray[:8, :12].reshape(4, 2, 6, 2).mean(axis=(1, 3)), atol=1e-4)
+    np.testing.assert_allclose(
+        half_resolution(gray), gray[:8, :12].reshape(4, 2, 6, 2).mean(axis=(1, 3)), atol=1e-4
+    )
     with pytest.raises(ValueError, match="too small"):
         half_resolution(np.zeros((1, 8, 3), np.uint8))

@@ -52,25 +52,28 @@ def test_each_transform_is_seeded_and_keeps_shapes_dtypes_and_labels(name: str) 
 @pytest.mark.parametrize("name", [n for n in TRANSFORMS if n != "geometry"])
 def test_photometric_transforms_leave_motion_and_targets_alone(name: str) -> None:
     crops, ltrb, labels = _batch()
-    out, targets = randomise_crops(crops, ltrb, labels, Randomisation((name,), 1.0),
-                                   np.random.default_rng(3))
+    out, targets = randomise_crops(
+        crops, ltrb, labels, Randomisation((name,), 1.0), np.random.default_rng(3)
+    )
     assert torch.equal(out[:, 3], crops[:, 3])
     assert torch.equal(targets, ltrb)
 
 
 def test_probability_zero_changes_nothing_and_one_changes_every_crop() -> None:
     crops, ltrb, labels = _batch()
-    out, _ = randomise_crops(crops, ltrb, labels, Randomisation(TRANSFORMS, 0.0),
-                             np.random.default_rng(0))
+    out, _ = randomise_crops(
+        crops, ltrb, labels, Randomisation(TRANSFORMS, 0.0), np.random.default_rng(0)
+    )
     assert torch.equal(out, crops)
-    out, _ = randomise_crops(crops, ltrb, labels, Randomisation(("noise",), 1.0),
-                             np.random.default_rng(0))
+    out, _ = randomise_crops(
+        crops, ltrb, labels, Randomisation(("noise",), 1.0), np.random.default_rng(0)
+    )
     assert all(not torch.equal(out[i], crops[i]) for i in range(len(crops)))
 
 
 def test_hue_turns_saturated_colours_and_keeps_greys() -> None:
     crops = torch.zeros(8, 3, 16, 16)
-    crops[:, :, :, :8] = 0.5                                   # grey half
+    crops[:, :, :, :8] = 0.5  # grey half
     crops[:, 0, :, 8:], crops[:, 1, :, 8:], crops[:, 2, :, 8:] = 0.9, 0.3, 0.1  # orange half
     out = hue(crops, np.random.default_rng(1))
     assert torch.allclose(out[:, :, :, :8], crops[:, :, :, :8], atol=1e-5)
@@ -88,6 +91,7 @@ def test_blocks_quantise_away_faint_fine_texture_and_keep_flat_areas() -> None:
     crops = board.expand(4, 3, 16, 16).clone()
     out = blocks(crops, np.random.default_rng(0))
     assert out.shape == crops.shape
+
     def ripple(x: torch.Tensor) -> float:  # mean step between neighbours along rows
         return float((x[..., 1:] - x[..., :-1]).abs().mean())
 
@@ -103,14 +107,16 @@ def test_blocks_quantise_away_faint_fine_texture_and_keep_flat_areas() -> None:
 def test_geometry_moves_content_and_box_together() -> None:
     """A bright off-centre bar lands where the transformed target box says."""
     crops = torch.zeros(1, 4, 16, 16)
-    crops[0, :, 3:7, 9:15] = 1.0          # rows 3..6, columns 9..14
+    crops[0, :, 3:7, 9:15] = 1.0  # rows 3..6, columns 9..14
     # l, t, r, b from the centre (8, 8): the bar lies right of and above it, so l and b < 0
     ltrb = torch.tensor([[8 - 9.0, 8 - 3.0, 15 - 8.0, 7 - 8.0]])
     out, moved = geometry(crops, ltrb, torch.tensor([0]), np.random.default_rng(5))
     mask = out[0, 0] > 0.5
     rows, cols = torch.nonzero(mask, as_tuple=True)
-    found = torch.tensor([8 - cols.min(), 8 - rows.min(), cols.max() + 1 - 8,
-                          rows.max() + 1 - 8], dtype=torch.float32)
+    found = torch.tensor(
+        [8 - cols.min(), 8 - rows.min(), cols.max() + 1 - 8, rows.max() + 1 - 8],
+        dtype=torch.float32,
+    )
     assert torch.allclose(found, moved[0], atol=1.6)
     assert not torch.allclose(moved, ltrb)
     # the motion channel moved with the colour
@@ -123,8 +129,10 @@ def test_geometry_keeps_negative_targets_zero() -> None:
     assert torch.all(moved[labels < 0] == 0)
     rotated = moved[labels >= 0]
     # an envelope of a rotated, scaled box: never smaller than 0.86 of the original per side
-    assert torch.all(rotated[:, 0] + rotated[:, 2] >= math.exp(-0.15) * (
-        ltrb[labels >= 0][:, 0] + ltrb[labels >= 0][:, 2]) - 1e-4)
+    assert torch.all(
+        rotated[:, 0] + rotated[:, 2]
+        >= math.exp(-0.15) * (ltrb[labels >= 0][:, 0] + ltrb[labels >= 0][:, 2]) - 1e-4
+    )
 
 
 def test_parse_names_all_and_none() -> None:

@@ -26,9 +26,19 @@ def _pose(north: float = 30.0, east: float = 0.0, altitude: float = 40.0) -> Cam
 
 
 def _maritime(seed: int = 7) -> Scenario:
-    return Scenario(kind="maritime", seed=seed, area_ne=(10.0, -30.0, 50.0, 30.0), sea_state=2,
-                    n_swimmers=10, n_life_jacket=5, n_boats=1, n_birds=1, n_debris=3, n_glints=3,
-                    floating_fraction=0.3)
+    return Scenario(
+        kind="maritime",
+        seed=seed,
+        area_ne=(10.0, -30.0, 50.0, 30.0),
+        sea_state=2,
+        n_swimmers=10,
+        n_life_jacket=5,
+        n_boats=1,
+        n_birds=1,
+        n_debris=3,
+        n_glints=3,
+        floating_fraction=0.3,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -59,16 +69,22 @@ def test_different_seed_differs(renderer: SceneRenderer, intr: CameraIntrinsics)
 def test_boxes_contain_the_targets(renderer: SceneRenderer, intr: CameraIntrinsics) -> None:
     frame, anns = renderer.render(2.0, _pose())
     lab = frame.astype(np.float64)
-    targets = [a for a in anns if a.is_target and a.visibility > 0.6
-               and a.bbox_xyxy[2] - a.bbox_xyxy[0] >= 3 and a.bbox_xyxy[3] - a.bbox_xyxy[1] >= 3]
+    targets = [
+        a
+        for a in anns
+        if a.is_target
+        and a.visibility > 0.6
+        and a.bbox_xyxy[2] - a.bbox_xyxy[0] >= 3
+        and a.bbox_xyxy[3] - a.bbox_xyxy[1] >= 3
+    ]
     assert len(targets) >= 5
     distances = []
     for a in targets:
         x0, y0, x1, y1 = (int(round(v)) for v in a.bbox_xyxy)
         inside = lab[y0:y1, x0:x1].reshape(-1, 3)
         around = np.zeros(frame.shape[:2], bool)
-        around[max(0, y0 - 10):y1 + 10, max(0, x0 - 10):x1 + 10] = True
-        around[max(0, y0 - 3):y1 + 3, max(0, x0 - 3):x1 + 3] = False
+        around[max(0, y0 - 10) : y1 + 10, max(0, x0 - 10) : x1 + 10] = True
+        around[max(0, y0 - 3) : y1 + 3, max(0, x0 - 3) : x1 + 3] = False
         sea = lab[around]
         centre = np.median(sea, axis=0)
         spread = np.percentile(np.linalg.norm(sea - centre, axis=1), 95) + 1.0
@@ -95,8 +111,17 @@ def test_boxes_contain_the_targets(renderer: SceneRenderer, intr: CameraIntrinsi
 
 
 def _single(part: Part, height_m: float = 0.0) -> World:
-    sc = Scenario(kind="maritime", seed=1, area_ne=(0.0, -10.0, 10.0, 10.0), n_swimmers=0,
-                  n_life_jacket=0, n_boats=0, n_birds=0, n_debris=0, n_glints=0)
+    sc = Scenario(
+        kind="maritime",
+        seed=1,
+        area_ne=(0.0, -10.0, 10.0, 10.0),
+        n_swimmers=0,
+        n_life_jacket=0,
+        n_boats=0,
+        n_birds=0,
+        n_debris=0,
+        n_glints=0,
+    )
     obj = SceneObject(1, "swimmer", (30.0, 0.0), 0.0, [part], height_m=height_m)
     return World(sc, [obj])
 
@@ -113,10 +138,13 @@ def test_box_matches_analytic_size(intr: CameraIntrinsics, altitude: float) -> N
     assert y1 - y0 == pytest.approx(0.6 * intr.fy / altitude, rel=0.1)
 
 
-def test_ground_positions_project_into_boxes(renderer: SceneRenderer,
-                                             intr: CameraIntrinsics) -> None:
-    pose = CameraPose(np.array([28.0, 3.0, -40.0]),
-                      rotation_ned_from_camera((0.05, -0.08, 0.4), (0.0, -1.4, 0.0), "vehicle"))
+def test_ground_positions_project_into_boxes(
+    renderer: SceneRenderer, intr: CameraIntrinsics
+) -> None:
+    pose = CameraPose(
+        np.array([28.0, 3.0, -40.0]),
+        rotation_ned_from_camera((0.05, -0.08, 0.4), (0.0, -1.4, 0.0), "vehicle"),
+    )
     _, anns = renderer.render(3.0, pose)
     on_sea = [a for a in anns if a.is_target and a.visibility > 0.5]
     assert on_sea
@@ -127,13 +155,20 @@ def test_ground_positions_project_into_boxes(renderer: SceneRenderer,
         assert a.lat is not None and abs(a.lat - 54.17) < 0.01
 
 
-def test_sea_moves_but_static_city_does_not(renderer: SceneRenderer,
-                                            intr: CameraIntrinsics) -> None:
+def test_sea_moves_but_static_city_does_not(
+    renderer: SceneRenderer, intr: CameraIntrinsics
+) -> None:
     a, _ = renderer.render(1.0, _pose())
     b, _ = renderer.render(1.0 + 1 / 30, _pose())
     sea_change = np.mean(np.abs(a.astype(int) - b.astype(int)))
-    city = Scenario(kind="urban", seed=3, area_ne=(0.0, -40.0, 60.0, 40.0), n_parked_cars=10,
-                    n_moving_cars=0, n_pedestrians=0)
+    city = Scenario(
+        kind="urban",
+        seed=3,
+        area_ne=(0.0, -40.0, 60.0, 40.0),
+        n_parked_cars=10,
+        n_moving_cars=0,
+        n_pedestrians=0,
+    )
     urban = SceneRenderer(city, intr)
     c, anns = urban.render(1.0, _pose())
     d, _ = urban.render(1.0 + 1 / 30, _pose())
@@ -172,8 +207,16 @@ def test_maritime_test_preset_fills_the_size_bands() -> None:
 def test_generate_sequence_writes_coco_video(tmp_path, intr: CameraIntrinsics) -> None:
     preset = maritime_test()
     mission = replace(preset.mission, name="tiny")
-    path = generate_sequence(preset.scenario, mission, frames=3, size=(320, 180), seed=0,
-                             out_dir=tmp_path, video=False, progress=False)
+    path = generate_sequence(
+        preset.scenario,
+        mission,
+        frames=3,
+        size=(320, 180),
+        seed=0,
+        out_dir=tmp_path,
+        video=False,
+        progress=False,
+    )
     ds = read_coco_video(path)
     assert len(ds.images) == 3 and ds.images[0].telemetry.altitude == pytest.approx(90.0, abs=1)
     assert (tmp_path / ds.images[2].file_name).exists()

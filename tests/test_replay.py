@@ -41,10 +41,25 @@ def entity_paths(rrd: Path) -> str:
 def test_replay_of_a_frames_folder_with_flight_telemetry_writes_a_recording(tmp_path, capsys):
     write_clip(tmp_path / "clip")
     rrd = tmp_path / "out.rrd"
-    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
-                 "--telemetry", "sim",
-                 "--rerun", "save", str(rrd), "--alerts-db", str(tmp_path / "alerts.db"),
-                 "--ds", "1"])
+    code = main(
+        [
+            "replay",
+            str(tmp_path / "clip"),
+            "--mission",
+            str(MISSION),
+            "--fps",
+            "10",
+            "--telemetry",
+            "sim",
+            "--rerun",
+            "save",
+            str(rrd),
+            "--alerts-db",
+            str(tmp_path / "alerts.db"),
+            "--ds",
+            "1",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     assert "telemetry: simulated flight of the mission (positions are the simulator's" in out
@@ -53,22 +68,54 @@ def test_replay_of_a_frames_folder_with_flight_telemetry_writes_a_recording(tmp_
     assert "targets:" in out and f"wrote {rrd}" in out
     assert rrd.stat().st_size > 10_000
     schema = entity_paths(rrd)
-    for entity in ("/camera/frame", "/camera/proposals", "/camera/detections", "/camera/tracks",
-                   "/telemetry/altitude_m", "/telemetry/stage_ms/vstmd", "/map/drone"):
+    for entity in (
+        "/camera/frame",
+        "/camera/proposals",
+        "/camera/detections",
+        "/camera/tracks",
+        "/telemetry/altitude_m",
+        "/telemetry/stage_ms/vstmd",
+        "/map/drone",
+    ):
         assert entity in schema, entity
 
 
 def test_replay_of_a_coco_dataset_uses_its_meta_telemetry(tmp_path, capsys):
     paths = write_clip(tmp_path / "images")
-    images = [ImageRecord(i + 1, p.name, 180, 320, video_id=1, frame_index=i,
-                          meta={"gps_latitude": 54.178, "gps_longitude": 7.892 + 1e-5 * i,
-                                "altitude": 60.0, "gimbal_pitch": -90.0, "compass_heading": 90.0})
-              for i, p in enumerate(paths)]
+    images = [
+        ImageRecord(
+            i + 1,
+            p.name,
+            180,
+            320,
+            video_id=1,
+            frame_index=i,
+            meta={
+                "gps_latitude": 54.178,
+                "gps_longitude": 7.892 + 1e-5 * i,
+                "altitude": 60.0,
+                "gimbal_pitch": -90.0,
+                "compass_heading": 90.0,
+            },
+        )
+        for i, p in enumerate(paths)
+    ]
     dataset = VideoDataset([Video(1, "clip")], images, [], [Category(1, "swimmer")])
     ann = tmp_path / "annotations.json"
     write_coco_video(dataset, ann)
-    code = main(["replay", str(ann), "--fps", "10", "--rerun", "save", str(tmp_path / "d.rrd"),
-                 "--max-frames", "8"])
+    code = main(
+        [
+            "replay",
+            str(ann),
+            "--fps",
+            "10",
+            "--rerun",
+            "save",
+            str(tmp_path / "d.rrd"),
+            "--max-frames",
+            "8",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     assert "telemetry: dataset meta" in out
@@ -78,8 +125,9 @@ def test_replay_of_a_coco_dataset_uses_its_meta_telemetry(tmp_path, capsys):
 
 def test_replay_refuses_meta_telemetry_that_is_not_there(tmp_path, capsys):
     paths = write_clip(tmp_path / "images")
-    images = [ImageRecord(i + 1, p.name, 180, 320, video_id=1, frame_index=i)
-              for i, p in enumerate(paths)]
+    images = [
+        ImageRecord(i + 1, p.name, 180, 320, video_id=1, frame_index=i) for i, p in enumerate(paths)
+    ]
     ann = tmp_path / "annotations.json"
     write_coco_video(VideoDataset([Video(1, "clip")], images, [], [Category(1, "swimmer")]), ann)
     assert main(["replay", str(ann), "--telemetry", "meta"]) == 2
@@ -95,13 +143,28 @@ def test_replay_rejects_bad_rerun_options(tmp_path, capsys, rerun_args):
 
 def test_replay_without_telemetry_invents_no_position(tmp_path, capsys):
     write_clip(tmp_path / "clip")
-    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
-                 "--ds", "1", "--report", str(tmp_path / "report")])
+    code = main(
+        [
+            "replay",
+            str(tmp_path / "clip"),
+            "--mission",
+            str(MISSION),
+            "--fps",
+            "10",
+            "--ds",
+            "1",
+            "--report",
+            str(tmp_path / "report"),
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     assert "telemetry: none given" in out and "simulated" not in out
-    alerts = [line for line in out.splitlines() if "target" in line and "score" not in line
-              and line.split()[0] in ("ALERT", "CANDIDATE")]
+    alerts = [
+        line
+        for line in out.splitlines()
+        if "target" in line and "score" not in line and line.split()[0] in ("ALERT", "CANDIDATE")
+    ]
     assert alerts, out
     assert all("position unknown: no telemetry" in line and "±" not in line for line in alerts)
     rows = (tmp_path / "report" / "alerts.csv").read_text().splitlines()
@@ -112,9 +175,24 @@ def test_replay_without_telemetry_invents_no_position(tmp_path, capsys):
 def test_replay_with_a_tlog_aligned_by_offset_writes_the_report(tmp_path, capsys):
     write_clip(tmp_path / "clip")
     write_tlog(tmp_path / "flight.tlog", seconds=10.0, pitch_deg=-90.0)
-    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--fps", "10",
-                 "--ds", "1", "--telemetry", str(tmp_path / "flight.tlog"),
-                 "--time-offset", "102", "--report", str(tmp_path / "report")])
+    code = main(
+        [
+            "replay",
+            str(tmp_path / "clip"),
+            "--mission",
+            str(MISSION),
+            "--fps",
+            "10",
+            "--ds",
+            "1",
+            "--telemetry",
+            str(tmp_path / "flight.tlog"),
+            "--time-offset",
+            "102",
+            "--report",
+            str(tmp_path / "report"),
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     assert "telemetry: MAVLink tlog flight.tlog" in out
@@ -132,8 +210,18 @@ def test_replay_with_a_tlog_aligned_by_offset_writes_the_report(tmp_path, capsys
 def test_replay_refuses_a_log_of_another_day(tmp_path, capsys):
     write_mp4(tmp_path / "clip.mp4", frames=8, created=START_UTC + 3 * 86400)
     write_tlog(tmp_path / "flight.tlog", seconds=10.0)
-    code = main(["replay", str(tmp_path / "clip.mp4"), "--mission", str(MISSION),
-                 "--ds", "1", "--telemetry", str(tmp_path / "flight.tlog")])
+    code = main(
+        [
+            "replay",
+            str(tmp_path / "clip.mp4"),
+            "--mission",
+            str(MISSION),
+            "--ds",
+            "1",
+            "--telemetry",
+            str(tmp_path / "flight.tlog"),
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     assert "telemetry: none: the video was recorded 2024-05-04" in out

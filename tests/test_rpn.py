@@ -32,12 +32,14 @@ def test_peaks_are_local_maxima_ranked_and_capped() -> None:
     assert rows.size == 7
     assert np.all(np.diff(scores) <= 0)
     for i, j, s in zip(rows, cols, scores, strict=True):
-        window = r[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2]
+        window = r[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
         assert s == window.max()
     # No other local maximum beats the last kept one.
     padded = np.pad(r, 1)
-    neigh = np.max([padded[1 + dy:61 + dy, 1 + dx:81 + dx]
-                    for dy in (-1, 0, 1) for dx in (-1, 0, 1)], axis=0)
+    neigh = np.max(
+        [padded[1 + dy : 61 + dy, 1 + dx : 81 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)],
+        axis=0,
+    )
     all_max = np.sort(r[r == neigh])[::-1]
     np.testing.assert_array_equal(scores, all_max[:7])
 
@@ -59,8 +61,9 @@ def test_count_and_box_size() -> None:
     for t in range(12):
         img = bg.copy()
         for k, (x0, y0) in enumerate([(60, 60), (200, 80), (120, 180)]):
-            f, _ = moving_target(240, 320, 1, (x0 + 2.0 * t, y0 + 0.5 * k * t), (0, 0), 8,
-                                 background=img)
+            f, _ = moving_target(
+                240, 320, 1, (x0 + 2.0 * t, y0 + 0.5 * k * t), (0, 0), 8, background=img
+            )
             img = f[0]
         frames.append(img)
     maps = final_maps(frames, 2, 8)
@@ -81,8 +84,9 @@ def test_forward_shift_moves_box_towards_target() -> None:
     for k in range(8):
         theta = k * np.pi / 4
         v = (2.0 * np.cos(theta), -2.0 * np.sin(theta))
-        frames, centres = moving_target(200, 200, 12, (100 - 11 * v[0], 100 - 11 * v[1]), v, 8,
-                                        seed=k)
+        frames, centres = moving_target(
+            200, 200, 12, (100 - 11 * v[0], 100 - 11 * v[1]), v, 8, seed=k
+        )
         props = TTMRPN(topn=1, box_size=16.0).propose(final_maps(frames, 1, 8))
         assert len(props) == 1
         box_centre = props.boxes[0].reshape(2, 2).mean(axis=0)
@@ -90,8 +94,9 @@ def test_forward_shift_moves_box_towards_target() -> None:
         shifted.append(np.linalg.norm(box_centre - centres[-1]))
         # The shift is exactly 0.3 * S along theta (y up).
         d = box_centre - props.points[0]
-        np.testing.assert_allclose(d, [4.8 * np.cos(props.theta[0]),
-                                       -4.8 * np.sin(props.theta[0])], atol=1e-3)
+        np.testing.assert_allclose(
+            d, [4.8 * np.cos(props.theta[0]), -4.8 * np.sin(props.theta[0])], atol=1e-3
+        )
     assert np.mean(shifted) < np.mean(raw)
 
 
@@ -99,8 +104,9 @@ def test_polarity_follows_contrast() -> None:
     bg = np.full((160, 200), 0.5, np.float32)
     got = {}
     for name, value in (("bright", 0.95), ("dark", 0.05)):
-        frames, _ = moving_target(160, 200, 12, (70.0, 80.0), (2.0, 0.0), 8, value=value,
-                                  background=bg)
+        frames, _ = moving_target(
+            160, 200, 12, (70.0, 80.0), (2.0, 0.0), 8, value=value, background=bg
+        )
         maps = final_maps(frames, 1, 8)
         props = TTMRPN(topn=1).propose(maps)
         x, y = props.points[0].astype(int)
@@ -139,11 +145,13 @@ def test_flops() -> None:
 
 
 @pytest.mark.parametrize("ds", [1, 2])
-@pytest.mark.parametrize(("start", "relative"), [((7.0, 100.0), (-2.0, 2.0)),
-                                                 ((150.0, 7.0), (0.0, -1.0)),
-                                                 ((296.0, 206.0), (-1.0, 0.0))])
+@pytest.mark.parametrize(
+    ("start", "relative"),
+    [((7.0, 100.0), (-2.0, 2.0)), ((150.0, 7.0), (0.0, -1.0)), ((296.0, 206.0), (-1.0, 0.0))],
+)
 def test_target_at_the_frame_edge_is_proposed_first(
-        ds: int, start: tuple[float, float], relative: tuple[float, float]) -> None:
+    ds: int, start: tuple[float, float], relative: tuple[float, float]
+) -> None:
     # A camera moving by (2, 1) px/frame over texture; the target ends 7 px from the left, 7 px
     # from the top (the new-content side) or 11-21 px from the right and bottom edges.
     frames, centres = drifting_scene(240, 320, 14, (2.0, 1.0), start, relative, 8.0, seed=3)
@@ -159,8 +167,7 @@ def test_proposals_do_not_pile_up_on_the_frame_edge() -> None:
     # (11 %), although the lobula counts pixels outside the map as zero.
     points = []
     for seed in range(3):
-        frames, _ = sea_scene(240, 320, 16, (3.0, 1.5), (160.0, 120.0), (1.0, 0.0), 8.0,
-                              seed=seed)
+        frames, _ = sea_scene(240, 320, 16, (3.0, 1.5), (160.0, 120.0), (1.0, 0.0), 8.0, seed=seed)
         model = VSTMD(ds=2, target_size=8.0)
         for i, f in enumerate(frames):
             maps = model.step(to_bgr(f))
@@ -187,8 +194,9 @@ def test_colour_slots_take_chroma_maxima_away_from_motion_points() -> None:
         response[row, col] = 1.0 - 0.1 * k
     maps = maps_from_response(response, ds=2)
     # 20 x 20 chroma map; (2, 2) sits on the first motion point (x = y = 19.5 vs 20.5).
-    chroma = chroma_with_peaks((20, 20), [(2, 2, 50.0), (15, 5, 40.0), (5, 15, 30.0),
-                                          (17, 17, 20.0)])
+    chroma = chroma_with_peaks(
+        (20, 20), [(2, 2, 50.0), (15, 5, 40.0), (5, 15, 30.0), (17, 17, 20.0)]
+    )
     rpn = TTMRPN(topn=5, colour_share=0.4)
     assert rpn.colour_slots == 2
     props = rpn.propose(maps, chroma)
@@ -220,7 +228,8 @@ def test_empty_colour_slots_go_back_to_motion_and_share_zero_ignores_colour() ->
     sparse[40, 40] = 1.0
     mixed = TTMRPN(topn=5, colour_share=0.2).propose(
         maps_from_response(sparse, ds=2),
-        chroma_with_peaks((20, 20), [(2, 2, 5.0), (2, 17, 4.0), (17, 2, 3.0)]))
+        chroma_with_peaks((20, 20), [(2, 2, 5.0), (2, 17, 4.0), (17, 2, 3.0)]),
+    )
     np.testing.assert_array_equal(mixed.source, [0, 1, 1, 1])
 
 

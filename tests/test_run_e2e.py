@@ -64,31 +64,45 @@ def truth(mission, north, east):
 def session_for(mission, vehicle, port, db, targets, lines, **camera_kwargs):
     renderer = DotRenderer(targets, mission.camera.intrinsics(), mission.area.home)
     camera = SimCamera(vehicle, renderer=renderer, fps=15.0, **camera_kwargs)
-    return LiveSession(mission, BlobDetector(), camera, f"udp:127.0.0.1:{port}", str(db),
-                       transport_latency_s=mission.telemetry.latency_s, connect_timeout_s=5.0,
-                       console=lines.append), camera
+    return LiveSession(
+        mission,
+        BlobDetector(),
+        camera,
+        f"udp:127.0.0.1:{port}",
+        str(db),
+        transport_latency_s=mission.telemetry.latency_s,
+        connect_timeout_s=5.0,
+        console=lines.append,
+    ), camera
 
 
 def test_targets_alerted_once_loiter_acknowledged_despite_garbage(tmp_path):
     # one visit every 2 s (60 s by default), a group radius below their spacing: each person
     # gets a reposition of their own within the run
-    mission = mission_with(**{"actions.policy": ["alert", "loiter"],
-                              "actions.visit_interval_s": 2.0,
-                              "actions.visit_group_radius_m": 5.0})
+    mission = mission_with(
+        **{
+            "actions.policy": ["alert", "loiter"],
+            "actions.visit_interval_s": 2.0,
+            "actions.visit_group_radius_m": 5.0,
+        }
+    )
     targets = [(20.0, 5.0), (30.0, 15.0)]  # 14 m apart: two people
     port = free_udp_port()
     vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission, stream_on_request=True).start()
     lines: list[str] = []
     try:
-        session, camera = session_for(mission, vehicle, port, tmp_path / "alerts.db", targets,
-                                      lines, corrupt_every=9)
+        session, camera = session_for(
+            mission, vehicle, port, tmp_path / "alerts.db", targets, lines, corrupt_every=9
+        )
         stop_noise = threading.Event()
 
         def garbage() -> None:  # malformed MAVLink at the controller's port
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
                 while not stop_noise.wait(0.1):
-                    s.sendto(b"\xfd\x09\x00\x00\x07\x01\x01\x00\x00\x00garbage!!\x00",
-                             ("127.0.0.1", port))
+                    s.sendto(
+                        b"\xfd\x09\x00\x00\x07\x01\x01\x00\x00\x00garbage!!\x00",
+                        ("127.0.0.1", port),
+                    )
                     s.sendto(os.urandom(40), ("127.0.0.1", port))
 
         noise = threading.Thread(target=garbage, daemon=True)
@@ -111,7 +125,8 @@ def test_targets_alerted_once_loiter_acknowledged_despite_garbage(tmp_path):
         assert alert.sent["mavlink"].count >= 1  # STATUSTEXT: sent, nothing acknowledges it
     # every send the store counts reached the vehicle (no loss on 127.0.0.1)
     assert Counter(s.text for s in vehicle.statustexts) == {
-        a.statustext().replace("±", "+-"): a.sent["mavlink"].count for a in alerts}
+        a.statustext().replace("±", "+-"): a.sent["mavlink"].count for a in alerts
+    }
     repositions = [c for c in vehicle.commands if c.command == M.MAV_CMD_DO_REPOSITION]
     # one reposition per target; a COMMAND_INT whose ACK came late is re-sent unchanged
     assert len({c.params[4:6] for c in repositions}) == 2
@@ -125,12 +140,25 @@ def test_killed_and_restarted_run_loses_and_repeats_nothing(tmp_path):
     port = free_udp_port()
     db = tmp_path / "alerts.db"
     targets = json.dumps([[20.0, 0.0], [20.0, 30.0]])
-    cmd = [sys.executable, str(TESTS / "run_scripted.py"), targets, "--connect",
-           f"udp:127.0.0.1:{port}", "--sim", "--sim-fps", "15", "--alerts-db", str(db),
-           "--connect-timeout", "5", *SET_ARGS]
+    cmd = [
+        sys.executable,
+        str(TESTS / "run_scripted.py"),
+        targets,
+        "--connect",
+        f"udp:127.0.0.1:{port}",
+        "--sim",
+        "--sim-fps",
+        "15",
+        "--alerts-db",
+        str(db),
+        "--connect-timeout",
+        "5",
+        *SET_ARGS,
+    ]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    first = subprocess.Popen([*cmd, "--duration", "30"], stdout=subprocess.PIPE,
-                             stderr=subprocess.STDOUT, env=env)
+    first = subprocess.Popen(
+        [*cmd, "--duration", "30"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env
+    )
     try:
         deadline = time.monotonic() + 40
         while time.monotonic() < deadline and first.poll() is None:
@@ -148,8 +176,9 @@ def test_killed_and_restarted_run_loses_and_repeats_nothing(tmp_path):
         before = store.list()
     assert len(before) == 1, first.stdout.read().decode()
 
-    second = subprocess.Popen([*cmd, "--duration", "40"], stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, env=env)
+    second = subprocess.Popen(
+        [*cmd, "--duration", "40"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env
+    )
     try:
         deadline = time.monotonic() + 40
         done = False
@@ -185,16 +214,18 @@ def test_alert_during_link_loss_is_delivered_after(tmp_path):
     vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission, stream_on_request=True).start()
     lines: list[str] = []
     try:
-        session, _ = session_for(mission, vehicle, port, tmp_path / "alerts.db", [(20.0, 10.0)],
-                                 lines)
+        session, _ = session_for(
+            mission, vehicle, port, tmp_path / "alerts.db", [(20.0, 10.0)], lines
+        )
 
         def locked() -> bool:
             return any(line.startswith("CANDIDATE target 1") for line in list(lines))
 
         def outage() -> None:
             # silent once the session believes the autopilot's telemetry, before the lock
-            wait_until(lambda: session.telemetry.newest_time("position") is not None
-                       or locked(), 15.0)
+            wait_until(
+                lambda: session.telemetry.newest_time("position") is not None or locked(), 15.0
+            )
             vehicle.stop()
             wait_until(locked, 15.0)  # the lock comes while the autopilot is silent
             vehicle.start()  # same port; its clock restarts like a rebooted autopilot
@@ -213,8 +244,9 @@ def test_alert_during_link_loss_is_delivered_after(tmp_path):
     # locked while the autopilot was silent: a candidate without a position (the operator
     # sees it); once the rebooted autopilot's telemetry places the person again (the flight
     # starts over, so a new target) it is confirmed, and only then told to the autopilot
-    assert any(line.startswith("CANDIDATE target 1") and "no position for" in line
-               for line in lines), lines
+    assert any(
+        line.startswith("CANDIDATE target 1") and "no position for" in line for line in lines
+    ), lines
     (alert,) = [a for a in stored if a.tier == "confirmed"]
     assert [a.position for a in stored if a.tier == "candidate"] in ([], [None])
     assert session.telemetry.resets == 1  # the reboot dropped what came before
@@ -240,9 +272,23 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
     stored, and on the JSON API, as it is in the store."""
     port, feed_port = free_udp_port(), free_tcp_port()
     db = tmp_path / "alerts.db"
-    argv = [json.dumps([[20.0, -25.0]]), "--connect", f"udp:127.0.0.1:{port}", "--sim",
-            "--sim-fps", "15", "--alerts-db", str(db), "--connect-timeout", "5",
-            "--feed", f"127.0.0.1:{feed_port}", "--duration", "4", *SET_ARGS]
+    argv = [
+        json.dumps([[20.0, -25.0]]),
+        "--connect",
+        f"udp:127.0.0.1:{port}",
+        "--sim",
+        "--sim-fps",
+        "15",
+        "--alerts-db",
+        str(db),
+        "--connect-timeout",
+        "5",
+        "--feed",
+        f"127.0.0.1:{feed_port}",
+        "--duration",
+        "4",
+        *SET_ARGS,
+    ]
     outcome: list[int] = []
     runner = threading.Thread(target=lambda: outcome.append(run_scripted.main(argv)))
     runner.start()
@@ -274,15 +320,30 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
     changing = ("delivered", "refused", "sent")  # may have come in between the reads
     for served in (streamed, listed):
         assert {k: v for k, v in served.items() if k not in changing} == {
-            k: v for k, v in stored.to_json_dict().items() if k not in changing}
+            k: v for k, v in stored.to_json_dict().items() if k not in changing
+        }
     assert distance_m(stored.position, truth(mission_with(), 20.0, -25.0)) < 5.0
 
 
 def test_cli_run_sim_with_mitenet(tmp_path, capsys):
     port = free_udp_port()
-    code = main(["run", "--connect", f"udp:127.0.0.1:{port}", "--sim", "--sim-size", "320x180",
-                 "--max-frames", "15", "--alerts-db", str(tmp_path / "a.db"),
-                 "--connect-timeout", "5", *SET_ARGS])
+    code = main(
+        [
+            "run",
+            "--connect",
+            f"udp:127.0.0.1:{port}",
+            "--sim",
+            "--sim-size",
+            "320x180",
+            "--max-frames",
+            "15",
+            "--alerts-db",
+            str(tmp_path / "a.db"),
+            "--connect-timeout",
+            "5",
+            *SET_ARGS,
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0, out
     assert "autopilot 1/1 adopted" in out
@@ -291,8 +352,9 @@ def test_cli_run_sim_with_mitenet(tmp_path, capsys):
 
 
 def test_cli_run_reports_a_bad_connection_string(tmp_path, capsys):
-    code = main(["run", "--connect", "tcp:127.0.0.1:1", "--sim", "--alerts-db",
-                 str(tmp_path / "a.db")])
+    code = main(
+        ["run", "--connect", "tcp:127.0.0.1:1", "--sim", "--alerts-db", str(tmp_path / "a.db")]
+    )
     assert code == 2
     assert "--sim needs a udp:" in capsys.readouterr().err
 

@@ -99,8 +99,9 @@ def test_bad_checkpoints(model_files, tmp_path):
     ckpt = torch.load(pt, weights_only=True)
     torch.save(ckpt["state_dict"], tmp_path / "bare.pt")
     _expect_error(tmp_path / "bare.pt", "no 'format' entry")
-    missing = dict(ckpt, state_dict={k: v for k, v in ckpt["state_dict"].items()
-                                     if not k.startswith("stem.")})
+    missing = dict(
+        ckpt, state_dict={k: v for k, v in ckpt["state_dict"].items() if not k.startswith("stem.")}
+    )
     torch.save(missing, tmp_path / "missing_keys.pt")
     _expect_error(tmp_path / "missing_keys.pt", "missing ['stem.")
     wider = dict(ckpt, config=HeadConfig(widths=(16, 32)).to_dict())

@@ -47,8 +47,11 @@ def sequences():
     # Video "w": track 1 (a different trajectory from v's track 1) annotated at frames 10, 11
     # and 15 only, hit in all three: its own annotated frames are consecutive, so it locks at
     # frame 15 and the search time is 15 - 10 = 5. Frames given out of order on purpose.
-    w = [frame(15, [(1, X1)], [(X1, 0.9)]), frame(10, [(1, X1)], [(X1, 0.9)]),
-         frame(11, [(1, X1)], [(X1, 0.9)])]
+    w = [
+        frame(15, [(1, X1)], [(X1, 0.9)]),
+        frame(10, [(1, X1)], [(X1, 0.9)]),
+        frame(11, [(1, X1)], [(X1, 0.9)]),
+    ]
     return {"v": v, "w": w}
 
 

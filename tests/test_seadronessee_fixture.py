@@ -45,11 +45,14 @@ def test_the_sample_is_in_seadronessees_convention():
     assert isinstance(poses[11], NoMetaPose) and isinstance(poses[20], NoMetaPose)
 
 
-@pytest.mark.parametrize(("image_id", "ground_m", "bearing_deg"), [
-    (10, 8.3 / math.tan(math.radians(43.9)), 137.5),  # 43.9 deg down from 8.3 m, heading 137.5
-    (21, 0.0, 0.0)])  # straight down: the centre is below the drone
-def test_placed_frames_centre_rays_land_where_the_geometry_says(image_id, ground_m,
-                                                                bearing_deg):
+@pytest.mark.parametrize(
+    ("image_id", "ground_m", "bearing_deg"),
+    [
+        (10, 8.3 / math.tan(math.radians(43.9)), 137.5),  # 43.9 deg down from 8.3 m, heading 137.5
+        (21, 0.0, 0.0),
+    ],
+)  # straight down: the centre is below the drone
+def test_placed_frames_centre_rays_land_where_the_geometry_says(image_id, ground_m, bearing_deg):
     dataset = read_coco_video(FIXTURE)
     pose = meta_pose(dataset.image(image_id).telemetry, dataset_conventions(dataset))
     assert isinstance(pose, MetaPose)
@@ -67,8 +70,12 @@ def test_placed_frames_centre_rays_land_where_the_geometry_says(image_id, ground
 def write_frames(folder: Path) -> Path:
     """The sample beside 320x180 frames for its file names: a grey sea with a bright dot."""
     shutil.copy(FIXTURE, folder / FIXTURE.name)
-    for name in ("DJI_0001/000000.png", "DJI_0001/000001.png", "DJI_0002/000000.png",
-                 "DJI_0002/000001.png"):
+    for name in (
+        "DJI_0001/000000.png",
+        "DJI_0001/000001.png",
+        "DJI_0002/000000.png",
+        "DJI_0002/000001.png",
+    ):
         (folder / name).parent.mkdir(exist_ok=True)
         image = np.full((180, 320, 3), 90, np.uint8)
         cv2.circle(image, (100, 90), 3, (240, 240, 250), -1)
@@ -76,21 +83,44 @@ def write_frames(folder: Path) -> Path:
     return folder / FIXTURE.name
 
 
-@pytest.mark.parametrize(("video", "drone", "reach_m"), [
-    ("1", (47.671044, 9.269786), 40.0),  # 8.3 m up, 43.9 deg down: the frame spans < 40 m
-    ("2", (47.6805, 9.2791), 40.0)])  # 52.4 m up looking down, 70 deg lens: 37 m half width
+@pytest.mark.parametrize(
+    ("video", "drone", "reach_m"),
+    [
+        ("1", (47.671044, 9.269786), 40.0),  # 8.3 m up, 43.9 deg down: the frame spans < 40 m
+        ("2", (47.6805, 9.2791), 40.0),
+    ],
+)  # 52.4 m up looking down, 70 deg lens: 37 m half width
 def test_the_sample_replays_with_positions(tmp_path, capsys, video, drone, reach_m):
     path = write_frames(tmp_path)
     # Two frames a video: every detection is a candidate (lock 1 of 1) so positions show.
-    assert main(["replay", str(path), "--video-id", video, "--fps", "0.5", "--set", "lock.m=1",
-                 "--set", "lock.k=1", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "replay",
+                str(path),
+                "--video-id",
+                video,
+                "--fps",
+                "0.5",
+                "--set",
+                "lock.m=1",
+                "--set",
+                "lock.k=1",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "meta read as: gimbal pitch positive below the horizon" in out
     assert "mixed" not in out
     # Video 2's first frame has no meta: its candidates come without a position, and get one
     # (a POSITION line) from the second frame.
-    places = re.findall(r"(?:CANDIDATE|POSITION) target \d+: \w+ (?:[\d.]+ )?at "
-                        r"(-?[\d.]+),(-?[\d.]+) ±", out)
+    places = re.findall(
+        r"(?:CANDIDATE|POSITION) target \d+: \w+ (?:[\d.]+ )?at "
+        r"(-?[\d.]+),(-?[\d.]+) ±",
+        out,
+    )
     assert places, out
     for lat, lon in places:
         north, east, _ = geodetic_to_ned(float(lat), float(lon), 0.0, *drone, 0.0)

@@ -21,8 +21,13 @@ from sarmission.geo.geolocate import PlatformPose, geolocate
 from sarmission.mavlink.telemetry import TelemetryBuffer
 from sarmission.mission.replay_telemetry import push_frame_telemetry
 
-REAL = (Path(__file__).resolve().parents[1].parent / "shared" / "datasets" / "seadronessee"
-        / "instances_val.json")
+REAL = (
+    Path(__file__).resolve().parents[1].parent
+    / "shared"
+    / "datasets"
+    / "seadronessee"
+    / "instances_val.json"
+)
 WGS84_A = 6378137.0
 WGS84_E2 = 6.69437999014e-3
 #: A DJI-like lens; the check holds for any field of view.
@@ -76,16 +81,20 @@ def test_the_file_reads_as_seadronessee_positive_below_the_horizon(dataset):
 
 def test_frames_are_placed_or_say_what_their_meta_lacks(dataset, raw_meta):
     conventions = dataset_conventions(dataset)
-    poses = {im.id: meta_pose(im.telemetry, conventions) for im in dataset.images
-             if im.id in raw_meta}
+    poses = {
+        im.id: meta_pose(im.telemetry, conventions) for im in dataset.images if im.id in raw_meta
+    }
     placed = [p for p in poses.values() if isinstance(p, MetaPose)]
     refused = [p for p in poses.values() if isinstance(p, NoMetaPose)]
     # Frames whose raw meta holds a position, a height, a pitch and a heading, counted here.
-    complete = [m for m in raw_meta.values()
-                if any(k in m for k in ("latitude", "gps_latitude"))
-                and any(k in m for k in ("height_above_takeoff(meter)", "altitude"))
-                and any(k.startswith("gimbal_pitch") for k in m)
-                and any(k.startswith(("compass_heading", "gimbal_heading")) for k in m)]
+    complete = [
+        m
+        for m in raw_meta.values()
+        if any(k in m for k in ("latitude", "gps_latitude"))
+        and any(k in m for k in ("height_above_takeoff(meter)", "altitude"))
+        and any(k.startswith("gimbal_pitch") for k in m)
+        and any(k.startswith(("compass_heading", "gimbal_heading")) for k in m)
+    ]
     assert len(placed) == len(complete) > 1000
     assert all(p.reason.startswith("meta lacks") for p in refused), {p.reason for p in refused}
 
@@ -111,8 +120,9 @@ def test_rays_below_the_horizon_meet_the_ground_where_the_altitude_says(dataset,
         centre = geolocate((intr.cx, intr.cy), intr, platform)
         assert centre.ok, where
         assert centre.depression_deg == pytest.approx(pitch, abs=0.01), where
-        assert centre.range_m == pytest.approx(height / math.sin(math.radians(pitch)),
-                                               rel=1e-3), where
+        assert centre.range_m == pytest.approx(height / math.sin(math.radians(pitch)), rel=1e-3), (
+            where
+        )
         distance, bearing = ground_offset_m(platform.lat, platform.lon, centre.lat, centre.lon)
         expected = height / math.tan(math.radians(pitch))
         assert distance == pytest.approx(expected, rel=2e-3, abs=0.05), where
@@ -125,8 +135,9 @@ def test_rays_below_the_horizon_meet_the_ground_where_the_altitude_says(dataset,
         below = pitch + half_vfov
         assert bottom.ok, where
         near, near_bearing = ground_offset_m(platform.lat, platform.lon, bottom.lat, bottom.lon)
-        assert near == pytest.approx(abs(height / math.tan(math.radians(below))), rel=2e-3,
-                                     abs=0.05), where
+        assert near == pytest.approx(
+            abs(height / math.tan(math.radians(below))), rel=2e-3, abs=0.05
+        ), where
         if below > 90.5:  # past straight down: the bottom edge lies behind the drone
             assert angle_diff(near_bearing, heading + 180.0) < 1.0, where
         top = geolocate((intr.cx, 0.0), intr, platform)

@@ -14,8 +14,22 @@ from sarmission.data.sequence import iter_sequence
 
 def test_generate_writes_merged_clips_that_read_back_frame_by_frame(tmp_path: Path) -> None:
     out = tmp_path / "split"
-    code = main(["sim", "generate", "--scenario", "maritime_val", "--frames", "3",
-                 "--sequences", "2", "--size", "320x180", "--out", str(out)])
+    code = main(
+        [
+            "sim",
+            "generate",
+            "--scenario",
+            "maritime_val",
+            "--frames",
+            "3",
+            "--sequences",
+            "2",
+            "--size",
+            "320x180",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     dataset = read_coco_video(out / "maritime_val.json")
     assert [v.id for v in dataset.videos] == [1, 2]
@@ -43,8 +57,25 @@ def test_generate_writes_mot_and_yolo_that_agree_with_the_coco_file(tmp_path: Pa
     from sarmission.data.yolo import read_yolo, yolo_to_xyxy
 
     out = tmp_path / "gen"
-    assert main(["sim", "generate", "--scenario", "maritime_test", "--frames", "2", "--size",
-                 "480x270", "--mot", "--yolo", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "sim",
+                "generate",
+                "--scenario",
+                "maritime_test",
+                "--frames",
+                "2",
+                "--size",
+                "480x270",
+                "--mot",
+                "--yolo",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     dataset = read_coco_video(out / "maritime_test.json")
     video = dataset.videos[0].name
     rows = read_mot(out / "mot" / f"{video}.txt")

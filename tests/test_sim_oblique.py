@@ -20,8 +20,9 @@ def render(depression_deg: float, height_m: float, east_m: float = 20.0):
     chosen = preset("maritime_oblique_low")
     renderer = SceneRenderer(chosen.scenario, INTR)
     n0, e0, n1, e1 = chosen.scenario.area_ne
-    rotation = rotation_ned_from_camera((0.0, 0.0, 0.0),
-                                        (0.0, -math.radians(depression_deg), 0.0), "earth")
+    rotation = rotation_ned_from_camera(
+        (0.0, 0.0, 0.0), (0.0, -math.radians(depression_deg), 0.0), "earth"
+    )
     position = np.array([(n0 + n1) / 2, e0 + east_m, -height_m])
     pose = CameraPose(position, rotation)
     frame, annotations = renderer.render(3.0, pose)
@@ -33,7 +34,7 @@ def test_sky_above_the_horizon_and_sea_below(depression_deg):
     frame, _, _ = render(depression_deg, 10.0)
     horizon_row = INTR.cy - INTR.fy * math.tan(math.radians(depression_deg))  # by hand
     sky = frame[: max(int(horizon_row) - 4, 0)]
-    sea = frame[int(horizon_row) + 20:]
+    sea = frame[int(horizon_row) + 20 :]
     if depression_deg < 35.0 * 9 / 16:  # the horizon is inside the frame
         assert sky.size and np.abs(sky.mean(axis=(0, 1)) - SKY_BGR).max() < 12.0
     else:
@@ -66,17 +67,25 @@ def test_target_sizes_follow_the_distance():
     assert np.corrcoef(widths, 1.0 / ranges)[0, 1] > 0.5  # nearer is bigger
 
 
-@pytest.mark.parametrize(("name", "height", "pitch"), [
-    ("maritime_oblique_low", 10.0, -11.0), ("maritime_oblique_mid", 36.0, -36.0),
-    ("maritime_oblique_high", 60.0, -71.0)])
+@pytest.mark.parametrize(
+    ("name", "height", "pitch"),
+    [
+        ("maritime_oblique_low", 10.0, -11.0),
+        ("maritime_oblique_mid", 36.0, -36.0),
+        ("maritime_oblique_high", 60.0, -71.0),
+    ],
+)
 def test_oblique_presets_fly_their_views(name, height, pitch):
     chosen = preset(name)
     assert chosen.mission.flight.altitude_m == height
     assert chosen.mission.camera.mount_pitch_deg == pitch and chosen.mission.camera.gimbal
     near, far, area = oblique_view_m(height, 70.0, pitch)
     half_v = math.degrees(math.atan(math.tan(math.radians(35.0)) * 9 / 16))
-    assert near == pytest.approx(height / math.tan(math.radians(-pitch + half_v)), rel=1e-6) \
-        if -pitch + half_v < 90 else near < 0
+    assert (
+        near == pytest.approx(height / math.tan(math.radians(-pitch + half_v)), rel=1e-6)
+        if -pitch + half_v < 90
+        else near < 0
+    )
     assert far <= 200.0 and area > 0
     n0, e0, n1, e1 = chosen.scenario.area_ne
     legs = chosen.mission.area.rectangle_m

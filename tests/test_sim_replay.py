@@ -40,9 +40,18 @@ def angle_diff_deg(a: float, b: float) -> float:
 def clip(tmp_path_factory) -> Path:
     chosen = preset("maritime_val")
     out = tmp_path_factory.mktemp("clip")
-    return generate_sequence(chosen.scenario, chosen.mission, FRAMES, size=(320, 180),
-                             seed=chosen.scenario.seed, out_dir=out, fps=FPS, progress=False,
-                             name="clip", start_s=5.0)
+    return generate_sequence(
+        chosen.scenario,
+        chosen.mission,
+        FRAMES,
+        size=(320, 180),
+        seed=chosen.scenario.seed,
+        out_dir=out,
+        fps=FPS,
+        progress=False,
+        name="clip",
+        start_s=5.0,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -118,8 +127,9 @@ def test_vehicle_streams_the_footage_position_and_denies_reposition(dataset):
     vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", flight=flight).start()
     conn = mavlink2_connection(f"udpout:127.0.0.1:{port}", 255, 190)
     try:
-        conn.mav.heartbeat_send(M.MAV_TYPE_ONBOARD_CONTROLLER, M.MAV_AUTOPILOT_INVALID, 0, 0,
-                                M.MAV_STATE_ACTIVE)
+        conn.mav.heartbeat_send(
+            M.MAV_TYPE_ONBOARD_CONTROLLER, M.MAV_AUTOPILOT_INVALID, 0, 0, M.MAV_STATE_ACTIVE
+        )
         times = np.array([im.telemetry.time for im in images]) - images[0].telemetry.time
         lats = np.array([im.telemetry.latitude for im in images])
         lons = np.array([im.telemetry.longitude for im in images])
@@ -138,8 +148,9 @@ def test_vehicle_streams_the_footage_position_and_denies_reposition(dataset):
             assert angle_diff_deg(msg.hdg / 100.0, float(np.interp(t, times, heads))) < 1.0
             checked += 1
         assert checked >= 5
-        conn.mav.command_long_send(1, 1, M.MAV_CMD_DO_REPOSITION, 0, -1, 1, 0, math.nan,
-                                   lats[0], lons[0], 50.0)
+        conn.mav.command_long_send(
+            1, 1, M.MAV_CMD_DO_REPOSITION, 0, -1, 1, 0, math.nan, lats[0], lons[0], 50.0
+        )
         ack = conn.recv_match(type="COMMAND_ACK", blocking=True, timeout=3.0)
         assert ack is not None and ack.command == M.MAV_CMD_DO_REPOSITION
         assert ack.result == M.MAV_RESULT_DENIED
@@ -162,8 +173,11 @@ def test_footage_renderer_matches_opencv_and_ends_or_loops(clip, dataset, tmp_pa
         assert np.array_equal(image, reference[index]), index
         expected = sorted(a.track_id for a in boxes[by_index[index]])
         assert sorted(a.track_id for a in annotations) == expected
-        for a, b in zip(sorted(annotations, key=lambda a: a.track_id),
-                        sorted(boxes[by_index[index]], key=lambda a: a.track_id), strict=True):
+        for a, b in zip(
+            sorted(annotations, key=lambda a: a.track_id),
+            sorted(boxes[by_index[index]], key=lambda a: a.track_id),
+            strict=True,
+        ):
             x, y, w, h = b.bbox
             assert a.bbox_xyxy == pytest.approx((x, y, x + w, y + h))
             assert (a.lat, a.lon) == (b.gt_lat, b.gt_lon)
@@ -191,9 +205,20 @@ def test_footage_renderer_matches_opencv_and_ends_or_loops(clip, dataset, tmp_pa
 
 
 def replay_args(footage: Path, tmp_path: Path, head: Path, *extra: str) -> list[str]:
-    return ["sim", "replay", str(footage), "--connect", f"udp:127.0.0.1:{free_udp_port()}",
-            "--model", str(head), "--alerts-db", str(tmp_path / "alerts.db"),
-            "--connect-timeout", "5", *extra]
+    return [
+        "sim",
+        "replay",
+        str(footage),
+        "--connect",
+        f"udp:127.0.0.1:{free_udp_port()}",
+        "--model",
+        str(head),
+        "--alerts-db",
+        str(tmp_path / "alerts.db"),
+        "--connect-timeout",
+        "5",
+        *extra,
+    ]
 
 
 def frames_processed(out: str) -> int:
@@ -201,8 +226,9 @@ def frames_processed(out: str) -> int:
     return int(line.split(":")[1].split(",")[0])
 
 
-def test_replay_command_runs_the_controller_on_the_annotated_clip(clip, head_checkpoint,
-                                                                  tmp_path, capsys):
+def test_replay_command_runs_the_controller_on_the_annotated_clip(
+    clip, head_checkpoint, tmp_path, capsys
+):
     rrd = tmp_path / "replay.rrd"
     code = main(replay_args(clip, tmp_path, head_checkpoint, "--rerun", "save", str(rrd)))
     out = capsys.readouterr().out

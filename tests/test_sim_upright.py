@@ -17,21 +17,35 @@ from sim.scenarios import preset
 from sim.scene import Part, Scenario, SceneObject, Upright, World
 
 INTR = CameraIntrinsics.from_hfov(640, 360, 70.0)
-REAL = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "seadronessee" \
+REAL = (
+    Path(__file__).resolve().parents[2]
+    / "shared"
+    / "datasets"
+    / "seadronessee"
     / "instances_val.json"
+)
 
 
 def camera(depression_deg: float, height_m: float, heading_deg: float = 0.0) -> CameraPose:
     rotation = rotation_ned_from_camera(
-        (0.0, 0.0, 0.0), (0.0, -math.radians(depression_deg), math.radians(heading_deg)),
-        "earth")
+        (0.0, 0.0, 0.0), (0.0, -math.radians(depression_deg), math.radians(heading_deg)), "earth"
+    )
     return CameraPose(np.array([0.0, 0.0, -height_m]), rotation)
 
 
 def pole_world(north: float, flat: list[Part], upright: list[Upright]) -> World:
-    scenario = Scenario(kind="maritime", seed=3, area_ne=(-5.0, -5.0, 60.0, 5.0), n_swimmers=0,
-                        n_life_jacket=0, n_boats=0, n_birds=0, n_debris=0, n_glints=0,
-                        figures="upright")
+    scenario = Scenario(
+        kind="maritime",
+        seed=3,
+        area_ne=(-5.0, -5.0, 60.0, 5.0),
+        n_swimmers=0,
+        n_life_jacket=0,
+        n_boats=0,
+        n_birds=0,
+        n_debris=0,
+        n_glints=0,
+        figures="upright",
+    )
     return World(scenario, [SceneObject(1, "buoy", (north, 0.0), 0.0, flat, upright=upright)])
 
 
@@ -103,12 +117,17 @@ def test_oblique_swimmers_stand_out_of_the_water_at_real_sizes():
 def test_oblique_preset_swimmer_widths_sit_in_the_real_range():
     data = json.loads(REAL.read_text())
     width_of = {im["id"]: im["width"] for im in data["images"]}
-    real = [a["bbox"][2] * 3840.0 / width_of[a["image_id"]] for a in data["annotations"]
-            if a["category_id"] == 1]
+    real = [
+        a["bbox"][2] * 3840.0 / width_of[a["image_id"]]
+        for a in data["annotations"]
+        if a["category_id"] == 1
+    ]
     r10, r50, r90 = np.percentile(real, [10, 50, 90])
-    simulated = [w * 3840.0 / 640.0 for name in ("maritime_oblique_low", "maritime_oblique_mid",
-                                                  "maritime_oblique_high")
-                 for w, _, _ in oblique_swimmers(name, 3)]
+    simulated = [
+        w * 3840.0 / 640.0
+        for name in ("maritime_oblique_low", "maritime_oblique_mid", "maritime_oblique_high")
+        for w, _, _ in oblique_swimmers(name, 3)
+    ]
     s50 = float(np.median(simulated))
     assert r10 < s50 < r90
     assert 0.6 * r50 < s50 < 1.6 * r50
@@ -120,7 +139,10 @@ def test_the_maritime_classes_of_real_footage_are_in_the_oblique_world():
     world = build_upright_world(preset("maritime_oblique_mid").scenario)
     categories = {o.category for o in world.objects}
     assert {"swimmer", "boat", "jetski", "buoy", "life_saving_appliances"} <= categories
-    assert not any(o.is_target for o in world.objects
-                   if o.category in ("boat", "jetski", "buoy", "life_saving_appliances"))
+    assert not any(
+        o.is_target
+        for o in world.objects
+        if o.category in ("boat", "jetski", "buoy", "life_saving_appliances")
+    )
     people = [o for o in world.objects if o.is_target]
     assert people and all(o.upright for o in people)

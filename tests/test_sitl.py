@@ -80,21 +80,23 @@ def mission_config(policy: list[str]) -> MissionConfig:
     """The mission as flown here: SITL's home, the survey box inside the area, a hard-mounted
     nadir camera (SITL has no gimbal), a small image, the survey altitude, a candidate
     confirmed at its lock."""
-    return load_mission(overrides={
-        "name": "sitl",
-        "area.home_lat": HOME[0],
-        "area.home_lon": HOME[1],
-        "area.rectangle_m": [-200.0, -200.0, 400.0, 400.0],
-        "camera.width": 640,
-        "camera.height": 360,
-        "camera.gimbal": False,
-        "camera.mount_pitch_deg": -90.0,
-        "flight.altitude_m": ALT,
-        "actions.policy": policy,
-        # confirmed at the lock: these tests are about the autopilot, not the evidence
-        "confirm.min_seen_s": 0.0,
-        "confirm.min_sightings": 1,
-    })
+    return load_mission(
+        overrides={
+            "name": "sitl",
+            "area.home_lat": HOME[0],
+            "area.home_lon": HOME[1],
+            "area.rectangle_m": [-200.0, -200.0, 400.0, 400.0],
+            "camera.width": 640,
+            "camera.height": 360,
+            "camera.gimbal": False,
+            "camera.mount_pitch_deg": -90.0,
+            "flight.altitude_m": ALT,
+            "actions.policy": policy,
+            # confirmed at the lock: these tests are about the autopilot, not the evidence
+            "confirm.min_seen_s": 0.0,
+            "confirm.min_sightings": 1,
+        }
+    )
 
 
 class StampedFrames:
@@ -111,7 +113,8 @@ class StampedFrames:
 
     def read(self) -> Frame | None:
         if self._closed.wait(self.period_s) or (
-                self.count is not None and self.read_count >= self.count):
+            self.count is not None and self.read_count >= self.count
+        ):
             return None
         self.read_count += 1
         return Frame(self.read_count - 1, time.monotonic(), self._image)
@@ -120,20 +123,39 @@ class StampedFrames:
         self._closed.set()
 
 
-def open_session(sitl: Sitl, db: Path, policy: list[str], detector: Any = None,
-                 source: StampedFrames | None = None) -> tuple[LiveSession, list[str]]:
+def open_session(
+    sitl: Sitl,
+    db: Path,
+    policy: list[str],
+    detector: Any = None,
+    source: StampedFrames | None = None,
+) -> tuple[LiveSession, list[str]]:
     """A LiveSession on our SITL port; returns it and the list its console writes to."""
     lines: list[str] = []
-    session = LiveSession(mission_config(policy), detector or ScriptedDetector([]),
-                          source or StampedFrames(0), sitl.link_url, str(db),
-                          console=lines.append, connect_timeout_s=DEADLINE_S)
+    session = LiveSession(
+        mission_config(policy),
+        detector or ScriptedDetector([]),
+        source or StampedFrames(0),
+        sitl.link_url,
+        str(db),
+        console=lines.append,
+        connect_timeout_s=DEADLINE_S,
+    )
     return session, lines
 
 
 def alert_at(lat: float, lon: float, target_id: int = 1) -> Alert:
     """A stored-alert stand-in at ``lat``/``lon`` for the action policy."""
-    return Alert(mission_id="sitl", target_id=target_id, class_name="swimmer", score=0.9,
-                 lock_time=time.time(), frame_index=0, position=(lat, lon), error_m=3.0)
+    return Alert(
+        mission_id="sitl",
+        target_id=target_id,
+        class_name="swimmer",
+        score=0.9,
+        lock_time=time.time(),
+        frame_index=0,
+        position=(lat, lon),
+        error_m=3.0,
+    )
 
 
 # -- the shared vehicle -------------------------------------------------------------------------
@@ -172,13 +194,19 @@ def no_stray_sitl() -> Iterator[None]:
 
 
 @pytest.fixture(scope="module")
-def vehicle(sitl_binary: Path, tmp_path_factory: pytest.TempPathFactory,
-            no_stray_sitl: None) -> Iterator[Vehicle]:
+def vehicle(
+    sitl_binary: Path, tmp_path_factory: pytest.TempPathFactory, no_stray_sitl: None
+) -> Iterator[Vehicle]:
     """SITL powered on with its simulated GPS switched off (``SIM_GPS1_ENABLE 0``), so that
     the time before a fix lasts as long as the ``boot`` fixture needs; the pilot connected."""
     workdir = tmp_path_factory.mktemp("sitl")
-    sitl = Sitl(sitl_binary, workdir / "sitl", speedup=SPEEDUP, home=HOME,
-                extra_params={"SIM_GPS1_ENABLE": 0})
+    sitl = Sitl(
+        sitl_binary,
+        workdir / "sitl",
+        speedup=SPEEDUP,
+        home=HOME,
+        extra_params={"SIM_GPS1_ENABLE": 0},
+    )
     pilot = Pilot(sitl.gcs_url)
     sitl.start()
     try:
@@ -266,8 +294,9 @@ def boot(vehicle: Vehicle) -> BootRecord:
         session.store.add(alert)
         session.actions.announce(alert)
         actions = session.actions  # ticked as the controller does each frame: the visit leaves
-        wait_for(lambda: actions.tick() or (actions.pending() == 0
-                                            and not actions.planner.pending), 30.0)
+        wait_for(
+            lambda: actions.tick() or (actions.pending() == 0 and not actions.planner.pending), 30.0
+        )
         rec.policy_refused = session.actions.refused
         rec.policy_delivered = session.actions.delivered
         rec.policy_pending = session.actions.pending()
@@ -275,8 +304,12 @@ def boot(vehicle: Vehicle) -> BootRecord:
         rec.gps_enabled_at = time.monotonic()
         pilot.set_param("SIM_GPS1_ENABLE", 1)
         rec.home_message = pilot.wait_home(DEADLINE_S)
-        wait_for(lambda: session.telemetry.pose_at(time.monotonic()) is not None
-                 and session.telemetry.home is not None)
+        wait_for(
+            lambda: (
+                session.telemetry.pose_at(time.monotonic()) is not None
+                and session.telemetry.home is not None
+            )
+        )
         now = time.monotonic()
         rec.pose_after = session.telemetry.lookup(now)
         rec.buffer_home_after = session.telemetry.home
@@ -320,15 +353,19 @@ Item = tuple[int, int, int, float, tuple[float, float, float, float]]
 def mission_items(pilot: Pilot) -> list[Item]:
     """The autopilot's mission as the pilot reads it back: (command, lat degE7, lon degE7, alt,
     params 1-4) per item, item 0 (home) included."""
-    return [(m.command, m.x, m.y, round(m.z, 2), (m.param1, m.param2, m.param3, m.param4))
-            for m in pilot.read_mission()]
+    return [
+        (m.command, m.x, m.y, round(m.z, 2), (m.param1, m.param2, m.param3, m.param4))
+        for m in pilot.read_mission()
+    ]
 
 
 def survey_items(survey: list[Waypoint]) -> list[Item]:
     """The pilot's uploaded survey in the form :func:`mission_items` reads it back, without the
     home placeholder (ArduPilot writes its home there)."""
-    return [(w.command, round(w.lat * 1e7), round(w.lon * 1e7), round(w.alt, 2), w.params)
-            for w in survey[1:]]
+    return [
+        (w.command, round(w.lat * 1e7), round(w.lon * 1e7), round(w.alt, 2), w.params)
+        for w in survey[1:]
+    ]
 
 
 def survey_lost(after: list[Item], survey: list[Waypoint]) -> str:
@@ -339,6 +376,7 @@ def survey_lost(after: list[Item], survey: list[Waypoint]) -> str:
     where: dict[int, int] = {}  # the pilot's seq -> seq in the read-back
     k = 1
     for seq, item in enumerate(survey_items(survey), start=1):
+
         def same(got: Item, item: Item = item) -> bool:
             if item[0] == jump:
                 return got[0] == jump and got[4][1:] == item[4][1:]
@@ -354,18 +392,22 @@ def survey_lost(after: list[Item], survey: list[Waypoint]) -> str:
         if w.command == jump:
             target, got = int(w.params[0]), int(after[where[seq]][4][0])
             if where.get(target) != got:
-                return (f"the pilot's DO_JUMP {seq} -> {target} now jumps to {got}, not to "
-                        f"{where.get(target)}")
+                return (
+                    f"the pilot's DO_JUMP {seq} -> {target} now jumps to {got}, not to "
+                    f"{where.get(target)}"
+                )
     return ""
 
 
 # -- before the GPS fix ---------------------------------------------------------------------------
-def test_no_pose_and_no_home_while_autopilot_reports_no_position(sitl_binary: Path,
-                                                                 boot: BootRecord) -> None:
+def test_no_pose_and_no_home_while_autopilot_reports_no_position(
+    sitl_binary: Path, boot: BootRecord
+) -> None:
     """ArduPilot without a GPS fix streams GLOBAL_POSITION_INT at 0, 0 and has no home: the
     buffer must give no pose and no home then, whatever else (attitude) it has."""
-    zero = [s for s in boot.samples if s.mtype == "GLOBAL_POSITION_INT" and s.lat == 0
-            and s.lon == 0]
+    zero = [
+        s for s in boot.samples if s.mtype == "GLOBAL_POSITION_INT" and s.lat == 0 and s.lon == 0
+    ]
     assert len(zero) >= 20
     assert all(s.pose is None and s.buffer_home is None for s in zero)
     assert boot.home_without_gps is None
@@ -375,21 +417,28 @@ def test_no_pose_and_no_home_while_autopilot_reports_no_position(sitl_binary: Pa
 def test_no_pose_between_gps_fix_and_home_position(sitl_binary: Path, boot: BootRecord) -> None:
     """ArduPilot reports its GPS position about 10 simulated seconds before HOME_POSITION.
     Without home the height above ground means nothing: no home, no pose (so no fix)."""
-    window = [s for s in boot.samples if s.mtype == "GLOBAL_POSITION_INT" and s.lat != 0
-              and s.buffer_home is None]
+    window = [
+        s
+        for s in boot.samples
+        if s.mtype == "GLOBAL_POSITION_INT" and s.lat != 0 and s.buffer_home is None
+    ]
     assert window, "ArduPilot sent no position before its home (the window this test needs)"
     with_pose = [s for s in window if s.pose is not None]
-    assert not with_pose, (f"{len(with_pose)} of {len(window)} positions before HOME_POSITION "
-                           f"gave a pose, e.g. {with_pose[0].pose}")
+    assert not with_pose, (
+        f"{len(with_pose)} of {len(window)} positions before HOME_POSITION "
+        f"gave a pose, e.g. {with_pose[0].pose}"
+    )
 
 
-def test_pose_and_home_match_the_autopilot_after_fix_and_home(sitl_binary: Path,
-                                                              boot: BootRecord) -> None:
+def test_pose_and_home_match_the_autopilot_after_fix_and_home(
+    sitl_binary: Path, boot: BootRecord
+) -> None:
     """Once the fix and HOME_POSITION are in, the buffer's home is the autopilot's and its pose
     is where the autopilot says it is (on the ground, so the two links agree closely)."""
     home = boot.home_message
     assert boot.buffer_home_after == pytest.approx(
-        (home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1000.0), abs=1e-6)
+        (home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1000.0), abs=1e-6
+    )
     pose, pilot_pos = boot.pose_after, boot.pilot_position_after
     assert isinstance(pose, PlatformPose), f"no pose after fix and home: {pose}"
     assert distance_m(pose.lat, pose.lon, pilot_pos.lat / 1e7, pilot_pos.lon / 1e7) < 1.0
@@ -397,8 +446,9 @@ def test_pose_and_home_match_the_autopilot_after_fix_and_home(sitl_binary: Path,
     assert distance_m(pose.lat, pose.lon, HOME[0], HOME[1]) < 5.0
 
 
-def test_reposition_refused_before_the_autopilot_has_a_position(sitl_binary: Path,
-                                                               boot: BootRecord) -> None:
+def test_reposition_refused_before_the_autopilot_has_a_position(
+    sitl_binary: Path, boot: BootRecord
+) -> None:
     """Without a position ArduPilot refuses DO_REPOSITION with MAV_RESULT_FAILED: our sender
     reports the refusal after one attempt (no retries on an answer), and the action policy's
     loiter for a target ends refused (not delivered, not left queued)."""
@@ -407,13 +457,15 @@ def test_reposition_refused_before_the_autopilot_has_a_position(sitl_binary: Pat
     assert result.result == M.MAV_RESULT_FAILED and result.attempts == 1
     assert "MAV_RESULT_FAILED" in result.error
     assert (boot.policy_refused, boot.policy_delivered, boot.policy_pending) == (1, 0, 0)
-    assert any("MAV_CMD_DO_REPOSITION refused: MAV_RESULT_FAILED" in line
-               for line in boot.console), boot.console
+    assert any(
+        "MAV_CMD_DO_REPOSITION refused: MAV_RESULT_FAILED" in line for line in boot.console
+    ), boot.console
 
 
 # -- on the ground, with home ---------------------------------------------------------------------
-def test_alert_statustext_is_routed_to_the_ground_station(sitl_binary: Path, with_home: Vehicle,
-                                                          link: MavlinkLink) -> None:
+def test_alert_statustext_is_routed_to_the_ground_station(
+    sitl_binary: Path, with_home: Vehicle, link: MavlinkLink
+) -> None:
     """An alert STATUSTEXT our link sends to the autopilot reaches the pilot's port, routed by
     ArduPilot, with our system/component ids and severity ALERT (and from no one else)."""
     pilot = with_home.pilot
@@ -427,31 +479,53 @@ def test_alert_statustext_is_routed_to_the_ground_station(sitl_binary: Path, wit
     assert all(s.severity == M.MAV_SEVERITY_ALERT for s in seen)
 
 
-def test_long_statustext_reaches_the_ground_station_in_chunks(sitl_binary: Path,
-                                                              with_home: Vehicle,
-                                                              link: MavlinkLink) -> None:
+def test_long_statustext_reaches_the_ground_station_in_chunks(
+    sitl_binary: Path, with_home: Vehicle, link: MavlinkLink
+) -> None:
     """A text longer than 50 characters goes as chunks sharing one id (MAVLink 2 STATUSTEXT
     ``id``/``chunk_seq``); ArduPilot passes them on unchanged, so the pilot can join them."""
     pilot = with_home.pilot
-    text = ("SAR swimmer with life jacket at 43.0012345, 10.0023456 (+-4 m) "
-            f"t{time.monotonic_ns() % 100000}")
+    text = (
+        "SAR swimmer with life jacket at 43.0012345, 10.0023456 (+-4 m) "
+        f"t{time.monotonic_ns() % 100000}"
+    )
     assert len(text) > 50
     result = CommandSender(link).statustext(text, M.MAV_SEVERITY_ALERT)
     assert result.accepted and result.attempts == 2
-    chunks = wait_for(lambda: (c := [s for s in pilot.statustexts_from(*OUR_IDS)
-                                     if s.text_id and text.startswith(s.text[:20])]) and c)
+    chunks = wait_for(
+        lambda: (
+            (
+                c := [
+                    s
+                    for s in pilot.statustexts_from(*OUR_IDS)
+                    if s.text_id and text.startswith(s.text[:20])
+                ]
+            )
+            and c
+        )
+    )
     assert chunks, "no chunked STATUSTEXT from us at the ground station"
     ids = {c.text_id for c in chunks}
     assert len(ids) == 1
-    joined = wait_for(lambda: "".join(
-        s.text for s in sorted((s for s in pilot.statustexts_from(*OUR_IDS)
-                                if s.text_id in ids), key=lambda s: s.chunk_seq)) == text, 10.0)
+    joined = wait_for(
+        lambda: (
+            "".join(
+                s.text
+                for s in sorted(
+                    (s for s in pilot.statustexts_from(*OUR_IDS) if s.text_id in ids),
+                    key=lambda s: s.chunk_seq,
+                )
+            )
+            == text
+        ),
+        10.0,
+    )
     assert joined, [c.text for c in pilot.statustexts_from(*OUR_IDS) if c.text_id in ids]
 
 
-def test_reposition_on_the_ground_is_accepted_but_does_not_fly(sitl_binary: Path,
-                                                               with_home: Vehicle,
-                                                               link: MavlinkLink) -> None:
+def test_reposition_on_the_ground_is_accepted_but_does_not_fly(
+    sitl_binary: Path, with_home: Vehicle, link: MavlinkLink
+) -> None:
     """With a position but disarmed, ArduPilot accepts DO_REPOSITION and switches to GUIDED,
     yet the vehicle stays on the ground: an accepted loiter is not proof of flight."""
     pilot = with_home.pilot
@@ -468,9 +542,9 @@ def test_reposition_on_the_ground_is_accepted_but_does_not_fly(sitl_binary: Path
 
 
 # -- in flight ------------------------------------------------------------------------------------
-def test_reposition_in_flight_switches_to_guided_and_flies_there(sitl_binary: Path,
-                                                                 airborne: Vehicle,
-                                                                 link: MavlinkLink) -> None:
+def test_reposition_in_flight_switches_to_guided_and_flies_there(
+    sitl_binary: Path, airborne: Vehicle, link: MavlinkLink
+) -> None:
     """In AUTO on the survey, DO_REPOSITION as COMMAND_INT is accepted, ArduPilot switches to
     GUIDED and the vehicle flies to the point."""
     pilot = airborne.pilot
@@ -482,12 +556,14 @@ def test_reposition_in_flight_switches_to_guided_and_flies_there(sitl_binary: Pa
     assert result.accepted and result.result == M.MAV_RESULT_ACCEPTED, result.error
     assert wait_for(lambda: pilot.mode() == 4, 10.0), pilot.mode()
     assert wait_for(lambda: airborne.distance_to(*target) < 5.0), (
-        f"{airborne.distance_to(*target):.0f} m from the point, {before:.0f} m before")
+        f"{airborne.distance_to(*target):.0f} m from the point, {before:.0f} m before"
+    )
     assert airborne.position()[2] == pytest.approx(ALT, abs=3.0)
 
 
-def test_roi_in_flight_turns_the_vehicle_to_the_point(sitl_binary: Path, airborne: Vehicle,
-                                                     link: MavlinkLink) -> None:
+def test_roi_in_flight_turns_the_vehicle_to_the_point(
+    sitl_binary: Path, airborne: Vehicle, link: MavlinkLink
+) -> None:
     """DO_SET_ROI_LOCATION as COMMAND_INT is accepted in flight; with no gimbal ArduPilot turns
     the whole vehicle until it faces the point."""
     pilot = airborne.pilot
@@ -509,11 +585,13 @@ def test_roi_in_flight_turns_the_vehicle_to_the_point(sitl_binary: Path, airborn
     result = CommandSender(link).set_roi(*target, 0.0)
     assert result.accepted and result.result == M.MAV_RESULT_ACCEPTED, result.error
     assert wait_for(lambda: heading_error() < 10.0), (
-        f"heading {heading_error():.0f} deg off the point, {start_error:.0f} deg before")
+        f"heading {heading_error():.0f} deg off the point, {start_error:.0f} deg before"
+    )
 
 
-def test_reposition_keeps_the_pilots_mission(sitl_binary: Path, airborne: Vehicle,
-                                             link: MavlinkLink) -> None:
+def test_reposition_keeps_the_pilots_mission(
+    sitl_binary: Path, airborne: Vehicle, link: MavlinkLink
+) -> None:
     """The pilot's survey, read back after our DO_REPOSITION, is item for item the one the
     pilot uploaded: a reposition flies the vehicle, it does not touch the stored mission."""
     pilot = airborne.pilot
@@ -525,8 +603,9 @@ def test_reposition_keeps_the_pilots_mission(sitl_binary: Path, airborne: Vehicl
     assert mission_items(pilot) == before
 
 
-def test_mission_policy_keeps_the_pilots_mission(sitl_binary: Path, airborne: Vehicle,
-                                                 link: MavlinkLink, tmp_path: Path) -> None:
+def test_mission_policy_keeps_the_pilots_mission(
+    sitl_binary: Path, airborne: Vehicle, link: MavlinkLink, tmp_path: Path
+) -> None:
     """Action policy ``mission`` for a target: the autopilot's mission afterwards holds a loiter
     at the target and still the pilot's survey, in order, its loop closing on the same item, and
     the loiter is the item the vehicle flies to now."""
@@ -540,35 +619,59 @@ def test_mission_policy_keeps_the_pilots_mission(sitl_binary: Path, airborne: Ve
     area = [(-500.0, -500.0), (-500.0, 800.0), (800.0, 800.0), (800.0, -500.0)]
     gate = MoveGate(area, home, max_error_m=25.0, margin_m=100.0)
     with AlertStore(tmp_path / "alerts.db") as store:
-        policy = ActionPolicy(ActionsConfig(policy=["mission"]), outbox, store,
-                              survey_altitude_m=ALT, console=lines.append, move_gate=gate,
-                              aircraft_position=lambda: airborne.position()[:2])
+        policy = ActionPolicy(
+            ActionsConfig(policy=["mission"]),
+            outbox,
+            store,
+            survey_altitude_m=ALT,
+            console=lines.append,
+            move_gate=gate,
+            aircraft_position=lambda: airborne.position()[:2],
+        )
         alert = alert_at(*target)
         store.add(alert)
         try:
             assert policy.announce(alert) == 1
-            assert wait_for(lambda: policy.tick() or (policy.pending() == 0
-                                                      and not policy.planner.pending), 60.0), (
-                "mission action still queued")
+            assert wait_for(
+                lambda: policy.tick() or (policy.pending() == 0 and not policy.planner.pending),
+                60.0,
+            ), "mission action still queued"
         finally:
             outbox.close()
     assert (policy.delivered, policy.refused) == (1, 0), lines
     after = mission_items(pilot)
     loiters = [k for k, it in enumerate(after) if it[0] == M.MAV_CMD_NAV_LOITER_TIME]
-    assert loiters and distance_m(after[loiters[0]][1] / 1e7, after[loiters[0]][2] / 1e7,
-                                  *target) < 1.0
+    assert (
+        loiters
+        and distance_m(after[loiters[0]][1] / 1e7, after[loiters[0]][2] / 1e7, *target) < 1.0
+    )
     lost = survey_lost(after, airborne.survey)
     assert not lost, f"{lost}; read back {after}"
     current = pilot.wait_message(
-        ["MISSION_CURRENT"], lambda m: m.seq == loiters[0], 10.0,
-        send=lambda: pilot.send(pilot.conn.mav.command_long_encode(
-            *pilot.target, M.MAV_CMD_REQUEST_MESSAGE, 0,
-            float(M.MAVLINK_MSG_ID_MISSION_CURRENT), 0, 0, 0, 0, 0, 0)))
+        ["MISSION_CURRENT"],
+        lambda m: m.seq == loiters[0],
+        10.0,
+        send=lambda: pilot.send(
+            pilot.conn.mav.command_long_encode(
+                *pilot.target,
+                M.MAV_CMD_REQUEST_MESSAGE,
+                0,
+                float(M.MAVLINK_MSG_ID_MISSION_CURRENT),
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
+        ),
+    )
     assert current is not None, f"the vehicle does not fly to the loiter at {loiters[0]}"
 
 
 def test_live_session_alert_reaches_the_pilot_with_the_position_below(
-        sitl_binary: Path, airborne: Vehicle, tmp_path: Path) -> None:
+    sitl_binary: Path, airborne: Vehicle, tmp_path: Path
+) -> None:
     """End to end: a LiveSession locks a target at the image centre (scripted detector), places
     it from SITL's telemetry, and its alert STATUSTEXT reaches the pilot through ArduPilot. The
     camera looks straight down from a hovering vehicle, so the target lies below the vehicle:
@@ -576,25 +679,38 @@ def test_live_session_alert_reaches_the_pilot_with_the_position_below(
     pilot = airborne.pilot
     lat0, lon0 = airborne.home_latlon()
     spot = offset(lat0, lon0, 100.0, 100.0)
-    ack = pilot.command_int(M.MAV_CMD_DO_REPOSITION, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-                            (-1.0, M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0.0, math.nan),
-                            *spot, ALT)
+    ack = pilot.command_int(
+        M.MAV_CMD_DO_REPOSITION,
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        (-1.0, M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE, 0.0, math.nan),
+        *spot,
+        ALT,
+    )
     assert ack is not None and ack.result == M.MAV_RESULT_ACCEPTED
 
     def hovering() -> bool:
         p = pilot.position()
-        return (airborne.distance_to(*spot) < 1.0 and math.hypot(p.vx, p.vy) < 20  # cm/s
-                and abs(p.relative_alt / 1000.0 - ALT) < 1.0)
+        return (
+            airborne.distance_to(*spot) < 1.0
+            and math.hypot(p.vx, p.vy) < 20  # cm/s
+            and abs(p.relative_alt / 1000.0 - ALT) < 1.0
+        )
 
     assert wait_for(hovering), f"not hovering at the spot: {pilot.position()}"
     box = (315.0, 175.0, 325.0, 185.0)  # the centre of the 640 x 360 image
     n = 12
     source = StampedFrames(n)
-    session, lines = open_session(airborne.sitl, tmp_path / "alerts.db", ["alert"],
-                                  ScriptedDetector([[(box, 0.9, 0)]] * n), source)
+    session, lines = open_session(
+        airborne.sitl,
+        tmp_path / "alerts.db",
+        ["alert"],
+        ScriptedDetector([[(box, 0.9, 0)]] * n),
+        source,
+    )
     try:
         assert wait_for(lambda: session.telemetry.pose_at(time.monotonic()) is not None), (
-            f"no pose: {session.telemetry.lookup(time.monotonic())}")
+            f"no pose: {session.telemetry.lookup(time.monotonic())}"
+        )
         session.run()
         here = airborne.position()
     finally:
@@ -652,8 +768,12 @@ def restarted(airborne: Vehicle) -> RestartRecord:
         link = session.link
         assert link is not None
         record_samples(session, rec.samples)
-        link.subscribe(lambda m, a: rec.interval_acks.append(a)
-                       if m.command == M.MAV_CMD_SET_MESSAGE_INTERVAL else None, ["COMMAND_ACK"])
+        link.subscribe(
+            lambda m, a: (
+                rec.interval_acks.append(a) if m.command == M.MAV_CMD_SET_MESSAGE_INTERVAL else None
+            ),
+            ["COMMAND_ACK"],
+        )
         runner.start()
         wait_for(lambda: session.telemetry.pose_at(time.monotonic()) is not None)
         rec.ids_before = link.autopilot
@@ -679,19 +799,45 @@ def restarted(airborne: Vehicle) -> RestartRecord:
         v.pilot.forget("HOME_POSITION", "GLOBAL_POSITION_INT")
         v.pilot.request_streams()  # the ground station asks again, as it does after a reboot
         moved = (round(MOVED_HOME[0] * 1e7), round(MOVED_HOME[1] * 1e7))
-        rec.home_message = wait_for(lambda: (h := v.pilot.latest("HOME_POSITION")) is not None
-                                    and (h.latitude, h.longitude) == moved and h)
-        wait_for(lambda: session.telemetry.pose_at(time.monotonic()) is not None
-                 and session.telemetry.home is not None
-                 and distance_m(*session.telemetry.home[:2], *MOVED_HOME[:2]) < 1.0)
+        rec.home_message = wait_for(
+            lambda: (
+                (h := v.pilot.latest("HOME_POSITION")) is not None
+                and (h.latitude, h.longitude) == moved
+                and h
+            )
+        )
+        wait_for(
+            lambda: (
+                session.telemetry.pose_at(time.monotonic()) is not None
+                and session.telemetry.home is not None
+                and distance_m(*session.telemetry.home[:2], *MOVED_HOME[:2]) < 1.0
+            )
+        )
         rec.pose_after = session.telemetry.lookup(time.monotonic())
         rec.buffer_home_after = session.telemetry.home
         rec.pilot_position_after = v.pilot.position()
-        wait_for(lambda: len([s for s in rec.samples if s.arrival > rec.restarted_at
-                              and s.mtype == "GLOBAL_POSITION_INT" and s.pose is not None]) >= 20)
-        rec.alert_seen = wait_for(lambda: [
-            s for s in v.pilot.statustexts_from(*OUR_IDS)
-            if s.text == rec.alert_text and s.arrival > rec.restarted_at], 30.0)
+        wait_for(
+            lambda: (
+                len(
+                    [
+                        s
+                        for s in rec.samples
+                        if s.arrival > rec.restarted_at
+                        and s.mtype == "GLOBAL_POSITION_INT"
+                        and s.pose is not None
+                    ]
+                )
+                >= 20
+            )
+        )
+        rec.alert_seen = wait_for(
+            lambda: [
+                s
+                for s in v.pilot.statustexts_from(*OUR_IDS)
+                if s.text == rec.alert_text and s.arrival > rec.restarted_at
+            ],
+            30.0,
+        )
     finally:
         stop.set()
         source.close()
@@ -703,8 +849,9 @@ def restarted(airborne: Vehicle) -> RestartRecord:
     return rec
 
 
-def test_link_loss_is_reported_when_the_autopilot_freezes(sitl_binary: Path,
-                                                         restarted: RestartRecord) -> None:
+def test_link_loss_is_reported_when_the_autopilot_freezes(
+    sitl_binary: Path, restarted: RestartRecord
+) -> None:
     """A frozen autopilot (SIGSTOP: no more HEARTBEAT) makes ``link_ok`` false; the session says
     so on the console; an alert submitted meanwhile stays queued."""
     assert restarted.ids_before == (1, 1)
@@ -713,8 +860,9 @@ def test_link_loss_is_reported_when_the_autopilot_freezes(sitl_binary: Path,
     assert restarted.pending_while_down == 1
 
 
-def test_link_readopts_the_rebooted_autopilot_and_streams_resume(sitl_binary: Path,
-                                                                 restarted: RestartRecord) -> None:
+def test_link_readopts_the_rebooted_autopilot_and_streams_resume(
+    sitl_binary: Path, restarted: RestartRecord
+) -> None:
     """After the reboot on the same ports the link is up again with the same autopilot; ArduPilot
     forgot our message intervals, so the link asks again (acknowledged after the reboot) and
     positions flow; the alert queued while down reaches the pilot after the reboot."""
@@ -722,25 +870,39 @@ def test_link_readopts_the_rebooted_autopilot_and_streams_resume(sitl_binary: Pa
     assert r.came_back and r.ids_after == r.ids_before
     assert any("link back" in line for line in r.console), r.console
     assert [a for a in r.interval_acks if a > r.restarted_at], "no stream request after reboot"
-    after = [s for s in r.samples if s.arrival > r.restarted_at and s.mtype ==
-             "GLOBAL_POSITION_INT" and s.lat != 0]
+    after = [
+        s
+        for s in r.samples
+        if s.arrival > r.restarted_at and s.mtype == "GLOBAL_POSITION_INT" and s.lat != 0
+    ]
     assert after, "no position from the rebooted autopilot on our link"
     assert r.alert_seen and all(s.severity == M.MAV_SEVERITY_ALERT for s in r.alert_seen)
     assert r.alert_delivered, "the alert store does not record the delivery"
 
 
-def test_pose_after_reboot_is_the_new_state_only(sitl_binary: Path,
-                                                 restarted: RestartRecord) -> None:
+def test_pose_after_reboot_is_the_new_state_only(
+    sitl_binary: Path, restarted: RestartRecord
+) -> None:
     """After the reboot the vehicle sits on the ground 445 m north of where it flew: every pose
     the buffer gives at a post-reboot position message is that message's position (nothing
     from before the reboot mixed in), and the final pose and home are the autopilot's."""
     r = restarted
     assert r.pose_before is not None and r.pose_before.rel_alt_m > ALT / 2
-    after = [s for s in r.samples if s.arrival > r.restarted_at
-             and s.mtype == "GLOBAL_POSITION_INT" and s.lat != 0 and s.pose is not None]
+    after = [
+        s
+        for s in r.samples
+        if s.arrival > r.restarted_at
+        and s.mtype == "GLOBAL_POSITION_INT"
+        and s.lat != 0
+        and s.pose is not None
+    ]
     assert after, "no pose after the reboot"
-    mixed = [s for s in after if distance_m(s.pose.lat, s.pose.lon, s.lat, s.lon) > 2.0
-             or abs(s.pose.rel_alt_m - s.rel_alt) > 1.0]
+    mixed = [
+        s
+        for s in after
+        if distance_m(s.pose.lat, s.pose.lon, s.lat, s.lon) > 2.0
+        or abs(s.pose.rel_alt_m - s.rel_alt) > 1.0
+    ]
     assert not mixed, [(s.pose, s.lat, s.lon, s.rel_alt) for s in mixed[:3]]
     pose, pilot_pos = r.pose_after, r.pilot_position_after
     assert isinstance(pose, PlatformPose), f"no pose after the reboot: {pose}"
@@ -749,16 +911,23 @@ def test_pose_after_reboot_is_the_new_state_only(sitl_binary: Path,
     assert abs(pose.rel_alt_m) < 1.0
     home = r.home_message
     assert r.buffer_home_after == pytest.approx(
-        (home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1000.0), abs=1e-6)
+        (home.latitude / 1e7, home.longitude / 1e7, home.altitude / 1000.0), abs=1e-6
+    )
 
 
-def test_no_pose_with_the_home_from_before_the_reboot(sitl_binary: Path,
-                                                      restarted: RestartRecord) -> None:
+def test_no_pose_with_the_home_from_before_the_reboot(
+    sitl_binary: Path, restarted: RestartRecord
+) -> None:
     """A rebooted autopilot has no home until its new GPS fix; a pose computed meanwhile with
     the old home (445 m away here) would place targets against the wrong ground reference."""
     r = restarted
     assert r.home_before is not None
-    stale = [s for s in r.samples if s.arrival > r.restarted_at and s.pose is not None
-             and s.buffer_home == r.home_before]
-    assert not stale, (f"{len(stale)} poses after the reboot with the old home "
-                       f"{r.home_before}, e.g. at {stale[0].lat:.6f}, {stale[0].lon:.6f}")
+    stale = [
+        s
+        for s in r.samples
+        if s.arrival > r.restarted_at and s.pose is not None and s.buffer_home == r.home_before
+    ]
+    assert not stale, (
+        f"{len(stale)} poses after the reboot with the old home "
+        f"{r.home_before}, e.g. at {stale[0].lat:.6f}, {stale[0].lon:.6f}"
+    )

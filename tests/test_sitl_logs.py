@@ -82,8 +82,9 @@ def fly(sitl_binary: Path, work: Path) -> tuple[Path, Path]:
     return logs[-1], tlog_path
 
 
-def test_replay_of_a_sitl_flight_with_its_logs(sitl_binary: Path, tmp_path: Path,
-                                               monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+def test_replay_of_a_sitl_flight_with_its_logs(
+    sitl_binary: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
     bin_path, tlog_path = fly(sitl_binary, tmp_path)
     log = open_flight_log(bin_path)
     tlog = open_flight_log(tlog_path)
@@ -94,14 +95,29 @@ def test_replay_of_a_sitl_flight_with_its_logs(sitl_binary: Path, tmp_path: Path
     mission_file.write_text(
         f"[area]\nhome_lat = {HOME[0]}\nhome_lon = {HOME[1]}\n"
         "[camera]\nwidth = 640\nheight = 360\nhfov_deg = 70.0\nmount_pitch_deg = -90.0\n"
-        "gimbal = false\n[flight]\naltitude_m = 40.0\n")
+        "gimbal = false\n[flight]\naltitude_m = 40.0\n"
+    )
     mission = load_mission(mission_file)
     flight = LogFlight(bin_path, mission, home=log.home)
     p0 = flight.state_at(start).position_ned
-    scenario = Scenario(kind="maritime", seed=3, sea_state=1, n_swimmers=10,
-                        area_ne=(p0[0] + 10, p0[1] - 12, p0[0] + 40, p0[1] + 12))
-    ann_path = generate_sequence(scenario, flight, FRAMES, size=(640, 360), out_dir=tmp_path,
-                                 fps=FPS, start_s=start, progress=False, name="clip")
+    scenario = Scenario(
+        kind="maritime",
+        seed=3,
+        sea_state=1,
+        n_swimmers=10,
+        area_ne=(p0[0] + 10, p0[1] - 12, p0[0] + 40, p0[1] + 12),
+    )
+    ann_path = generate_sequence(
+        scenario,
+        flight,
+        FRAMES,
+        size=(640, 360),
+        out_dir=tmp_path,
+        fps=FPS,
+        start_s=start,
+        progress=False,
+        name="clip",
+    )
     clip = tmp_path / "clip.mp4"
     assert log.utc_offset_s is not None
     set_creation_time(clip, start + log.utc_offset_s)
@@ -117,11 +133,23 @@ def test_replay_of_a_sitl_flight_with_its_logs(sitl_binary: Path, tmp_path: Path
 
     errors = {}
     for name, telemetry in (("bin", bin_path), ("tlog", tlog_path)):
-        monkeypatch.setattr("sarmission.commands.replay.build_detector",
-                            lambda *_: (ScriptedDetector(script), "scripted detector"))
+        monkeypatch.setattr(
+            "sarmission.commands.replay.build_detector",
+            lambda *_: (ScriptedDetector(script), "scripted detector"),
+        )
         report = tmp_path / f"report_{name}"
-        code = main(["replay", str(clip), "--mission", str(mission_file), "--telemetry",
-                     str(telemetry), "--report", str(report)])
+        code = main(
+            [
+                "replay",
+                str(clip),
+                "--mission",
+                str(mission_file),
+                "--telemetry",
+                str(telemetry),
+                "--report",
+                str(report),
+            ]
+        )
         out = capsys.readouterr().out
         assert code == 0, out
         assert "alignment: camera trigger 1 of 1" in out, out
@@ -131,18 +159,22 @@ def test_replay_of_a_sitl_flight_with_its_logs(sitl_binary: Path, tmp_path: Path
         for row in rows:
             cols = row.split(",")
             lat, lon, err = float(cols[10]), float(cols[11]), float(cols[12])
-            best = min(math.hypot(*geodetic_to_ned(lat, lon, 0, t[0], t[1], 0)[:2])
-                       for t in truth.values())
+            best = min(
+                math.hypot(*geodetic_to_ned(lat, lon, 0, t[0], t[1], 0)[:2]) for t in truth.values()
+            )
             errs.append((best, err))
         errors[name] = errs
     alignment_error = abs(tlog.triggers[0] - start)
     # the same clip aligned by its creation time alone (whole seconds in an MP4 header)
-    by_clock = align_video(dataclasses.replace(tlog, triggers=[]), created=creation_time(clip),
-                           duration_s=FRAMES / FPS)
+    by_clock = align_video(
+        dataclasses.replace(tlog, triggers=[]), created=creation_time(clip), duration_s=FRAMES / FPS
+    )
     clock_error = abs(by_clock.offset_s - start)
-    print(f"alignment error: tlog trigger vs .BIN trigger {alignment_error * 1e3:.1f} ms, "
-          f"creation time vs .BIN trigger {clock_error * 1e3:.0f} ms; position errors (m, "
-          f"estimate): {errors}")
+    print(
+        f"alignment error: tlog trigger vs .BIN trigger {alignment_error * 1e3:.1f} ms, "
+        f"creation time vs .BIN trigger {clock_error * 1e3:.0f} ms; position errors (m, "
+        f"estimate): {errors}"
+    )
     assert alignment_error < 0.25
     assert clock_error <= 0.75
     for errs in errors.values():

@@ -35,8 +35,10 @@ def test_two_connections_writing_at_once_lose_nothing(tmp_path):
         except BaseException as exc:  # noqa: BLE001 - reported below
             errors.append(exc)
 
-    threads = [threading.Thread(target=write, args=(s, a.alert_id))
-               for s, a in zip(stores, alerts, strict=True)]
+    threads = [
+        threading.Thread(target=write, args=(s, a.alert_id))
+        for s, a in zip(stores, alerts, strict=True)
+    ]
     try:
         for t in threads:
             t.start()

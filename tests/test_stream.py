@@ -53,13 +53,16 @@ def test_clock_follows_a_slow_camera_clock_and_restarts_on_jumps():
     assert clock.stamp(None, 22.0) == pytest.approx(22.0)  # no pts: the arrival
 
 
-@pytest.mark.parametrize(("url", "phrase"), [
-    ("file:///etc/passwd", "unsupported stream URL scheme 'file'"),
-    ("udp://127.0.0.1", "needs a port"),
-    ("rtsp:///live", "names no host"),
-    ("udp://127.0.0.1:99999", "malformed stream URL"),
-    ("rtsp://cam/live\nX-Injected: 1", "control characters"),
-])
+@pytest.mark.parametrize(
+    ("url", "phrase"),
+    [
+        ("file:///etc/passwd", "unsupported stream URL scheme 'file'"),
+        ("udp://127.0.0.1", "needs a port"),
+        ("rtsp:///live", "names no host"),
+        ("udp://127.0.0.1:99999", "malformed stream URL"),
+        ("rtsp://cam/live\nX-Injected: 1", "control characters"),
+    ],
+)
 def test_bad_stream_urls_are_refused_in_one_line(url: str, phrase: str):
     with pytest.raises(FrameSourceError) as info:
         open_frame_source(url)
@@ -88,10 +91,14 @@ def test_missing_frames_are_counted_from_the_streams_own_frame_period():
 
 def test_udp_streams_survive_a_full_receive_buffer_unless_told_otherwise():
     assert with_udp_defaults("udp://127.0.0.1:5600") == "udp://127.0.0.1:5600?overrun_nonfatal=1"
-    assert with_udp_defaults("udp://@239.0.0.1:5600?fifo_size=9000") == \
-        "udp://@239.0.0.1:5600?fifo_size=9000&overrun_nonfatal=1"
-    assert with_udp_defaults("udp://127.0.0.1:5600?overrun_nonfatal=0") == \
-        "udp://127.0.0.1:5600?overrun_nonfatal=0"
+    assert (
+        with_udp_defaults("udp://@239.0.0.1:5600?fifo_size=9000")
+        == "udp://@239.0.0.1:5600?fifo_size=9000&overrun_nonfatal=1"
+    )
+    assert (
+        with_udp_defaults("udp://127.0.0.1:5600?overrun_nonfatal=0")
+        == "udp://127.0.0.1:5600?overrun_nonfatal=0"
+    )
     assert with_udp_defaults("rtsp://cam/live") == "rtsp://cam/live"
 
 
@@ -178,8 +185,7 @@ def test_a_lost_stream_is_reported_and_picked_up_again(caplog):
         with UdpStream(port):
             assert wait_until(lambda: read_until(lambda: source.reconnects == 1), 60.0, 0.0)
             assert "stream back after" in caplog.text
-            assert wait_until(lambda: read_until(lambda: seen[-1].image_bgr is not None), 30.0,
-                              0.0)
+            assert wait_until(lambda: read_until(lambda: seen[-1].image_bgr is not None), 30.0, 0.0)
             assert seen[-1].timestamp_s > outage_at
     finally:
         first.stop()
@@ -197,9 +203,15 @@ def test_corrupt_and_missing_datagrams_never_stop_the_stream(caplog):
             source = StreamSource(f"udp://127.0.0.1:{port}", connect_timeout_s=30.0)
             try:
                 images = []
-                assert wait_until(lambda: (f := source.read()) is not None and (
-                    f.image_bgr is None or not images.append(f)) and len(images) >= 40, 60.0,
-                    step=0.0)
+                assert wait_until(
+                    lambda: (
+                        (f := source.read()) is not None
+                        and (f.image_bgr is None or not images.append(f))
+                        and len(images) >= 40
+                    ),
+                    60.0,
+                    step=0.0,
+                )
             finally:
                 source.close()
     finally:
@@ -217,15 +229,30 @@ def test_detect_reads_a_udp_stream(tmp_path: Path):
     out = tmp_path / "dets.json"
     with UdpStream(port):
         done = subprocess.run(
-            [sys.executable, "-m", "sarmission.cli", "detect", f"udp://127.0.0.1:{port}",
-             "--max-frames", "6", "--conf", "0", "--out", str(out)],
-            capture_output=True, text=True, timeout=180)
+            [
+                sys.executable,
+                "-m",
+                "sarmission.cli",
+                "detect",
+                f"udp://127.0.0.1:{port}",
+                "--max-frames",
+                "6",
+                "--conf",
+                "0",
+                "--out",
+                str(out),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=180,
+        )
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("6 frames, ")
     assert f"udp://127.0.0.1:{port}: " in done.stderr and "frames received" in done.stderr
     records = json.loads(out.read_text())
     assert {r["frame_index"] for r in records} and all(
-        set(r) == {"image_id", "frame_index", "bbox", "score", "category_id"} for r in records)
+        set(r) == {"image_id", "frame_index", "bbox", "score", "category_id"} for r in records
+    )
     assert "\r" not in done.stderr  # no progress bar redraws into a pipe
 
 
@@ -240,10 +267,26 @@ def test_run_takes_a_stream_url_as_its_camera(tmp_path: Path):
         finally:
             source.close()
         done = subprocess.run(
-            [sys.executable, "-m", "sarmission.cli", "run", "--connect",
-             f"udpin:127.0.0.1:{free_udp_port()}", "--connect-timeout", "0.5", "--video", url,
-             "--max-frames", "8", "--alerts-db", str(tmp_path / "alerts.db")],
-            capture_output=True, text=True, timeout=180)
+            [
+                sys.executable,
+                "-m",
+                "sarmission.cli",
+                "run",
+                "--connect",
+                f"udpin:127.0.0.1:{free_udp_port()}",
+                "--connect-timeout",
+                "0.5",
+                "--video",
+                url,
+                "--max-frames",
+                "8",
+                "--alerts-db",
+                str(tmp_path / "alerts.db"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=180,
+        )
     assert done.returncode == 0, done.stderr
     assert "frames received" in done.stderr  # the stream's summary when the run closes it
 
@@ -262,8 +305,16 @@ def test_an_rtsp_camera_is_read_and_reopened_when_its_server_restarts(tmp_path: 
         assert wait_until(lambda: "stream lost" in caplog.text, 30.0)
         server = RtspServer(tmp_path, port=port)
         back: list = []
-        assert wait_until(lambda: (f := source.read()) is not None and f.image_bgr is not None
-                          and source.reconnects == 1 and not back.append(f), 60.0, 0.0)
+        assert wait_until(
+            lambda: (
+                (f := source.read()) is not None
+                and f.image_bgr is not None
+                and source.reconnects == 1
+                and not back.append(f)
+            ),
+            60.0,
+            0.0,
+        )
         assert "stream back after" in caplog.text and back[0].index > frame.index
     finally:
         source.close()

@@ -186,8 +186,9 @@ def test_track_without_position_joins_a_placed_target_seen_there_just_before():
     assert distance_m(a.position, ll(10, 10)) < 0.05 and a.note != STALE
 
 
-@pytest.mark.parametrize("kwargs", [{"merge_radius_m": -1.0}, {"merge_window_s": -0.1},
-                                    {"merge_gate_px": float("nan")}])
+@pytest.mark.parametrize(
+    "kwargs", [{"merge_radius_m": -1.0}, {"merge_window_s": -0.1}, {"merge_gate_px": float("nan")}]
+)
 def test_negative_or_nan_settings_are_refused(kwargs):
     with pytest.raises(ValueError):
         TargetRegistry(**kwargs)

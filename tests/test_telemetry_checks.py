@@ -23,7 +23,8 @@ from sarmission.mavlink.telemetry_checks import message_problem
 
 def gpi(lat=HOME_LAT, lon=HOME_LON, rel_alt_mm=60_000, alt_mm=65_000, vx=0, vy=0, vz=0):
     return M.MAVLink_global_position_int_message(
-        1000, round(lat * 1e7), round(lon * 1e7), alt_mm, rel_alt_mm, vx, vy, vz, 0)
+        1000, round(lat * 1e7), round(lon * 1e7), alt_mm, rel_alt_mm, vx, vy, vz, 0
+    )
 
 
 @pytest.mark.parametrize(
@@ -46,19 +47,29 @@ def gpi(lat=HOME_LAT, lon=HOME_LON, rel_alt_mm=60_000, alt_mm=65_000, vx=0, vy=0
         (gpi(vx=15_001), "speed 150 m/s implausible"),
         (gpi(vx=9_000, vy=12_001), "speed 150 m/s implausible"),
         (M.MAVLink_attitude_message(0, 0.0, math.pi / 2, 0.0, 0, 0, 0), ""),
-        (M.MAVLink_attitude_message(0, 0.0, math.pi / 2 + 0.01, 0.0, 0, 0, 0),
-         "roll/pitch 0/1.58 rad out of range"),
+        (
+            M.MAVLink_attitude_message(0, 0.0, math.pi / 2 + 0.01, 0.0, 0, 0, 0),
+            "roll/pitch 0/1.58 rad out of range",
+        ),
         (M.MAVLink_attitude_message(0, -math.pi, 0.0, 0.0, 0, 0, 0), ""),
-        (M.MAVLink_attitude_message(0, math.pi + 0.01, 0.0, 0.0, 0, 0, 0),
-         "roll/pitch 3.15/0 rad out of range"),
+        (
+            M.MAVLink_attitude_message(0, math.pi + 0.01, 0.0, 0.0, 0, 0, 0),
+            "roll/pitch 3.15/0 rad out of range",
+        ),
         (M.MAVLink_attitude_message(0, 0.0, 0.0, 2 * math.pi, 0, 0, 0), ""),
-        (M.MAVLink_attitude_message(0, 0.0, 0.0, 2 * math.pi + 0.01, 0, 0, 0),
-         "yaw 6.29 rad out of range"),
+        (
+            M.MAVLink_attitude_message(0, 0.0, 0.0, 2 * math.pi + 0.01, 0, 0, 0),
+            "yaw 6.29 rad out of range",
+        ),
         (M.MAVLink_attitude_quaternion_message(0, 1.09, 0.0, 0.0, 0.0, 0, 0, 0), ""),
-        (M.MAVLink_attitude_quaternion_message(0, 1.11, 0.0, 0.0, 0.0, 0, 0, 0),
-         "quaternion norm 1.11"),
-        (M.MAVLink_home_position_message(0, 0, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0),
-         "home at 0, 0"),
+        (
+            M.MAVLink_attitude_quaternion_message(0, 1.11, 0.0, 0.0, 0.0, 0, 0, 0),
+            "quaternion norm 1.11",
+        ),
+        (
+            M.MAVLink_home_position_message(0, 0, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0),
+            "home at 0, 0",
+        ),
         (M.MAVLink_home_position_message(0, 1, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0), ""),
     ],
 )
@@ -77,10 +88,12 @@ def jump_accepted(dt_s: float, metres: float) -> bool:
     last = feed(buf, 10.0, 5)  # positions every 0.1 s, boot ms 10_000..10_400
     ms = 10_400 + round(dt_s * 1000)
     lat = lat_north_of(HOME_LAT, HOME_LON, metres)
-    msg = M.MAVLink_global_position_int_message(ms, round(lat * 1e7), round(HOME_LON * 1e7),
-                                                60_000, 60_000, 0, 0, 0, 0)
-    buf.handle_message(wire(M.MAVLink_gps_raw_int_message(0, 3, 0, 0, 0, 120, 200, 0, 0, 10)),
-                       last + dt_s)
+    msg = M.MAVLink_global_position_int_message(
+        ms, round(lat * 1e7), round(HOME_LON * 1e7), 60_000, 60_000, 0, 0, 0, 0
+    )
+    buf.handle_message(
+        wire(M.MAVLink_gps_raw_int_message(0, 3, 0, 0, 0, 120, 200, 0, 0, 10)), last + dt_s
+    )
     buf.handle_message(wire(msg), last + dt_s)
     rejected = buf.rejected["GLOBAL_POSITION_INT: position jump of N m in N s"]
     assert rejected in (0, 1)
@@ -105,8 +118,9 @@ def test_a_2d_gps_fix_is_not_enough():
         buf = TelemetryBuffer()
         feed(buf, 10.0, 3, gps_fix=fix)
         assert (buf.newest_time("position") is not None) is believed, fix
-        assert (buf.rejected["GLOBAL_POSITION_INT: no 3D GPS fix (fix type N)"] == 3) \
-            is not believed
+        assert (
+            buf.rejected["GLOBAL_POSITION_INT: no 3D GPS fix (fix type N)"] == 3
+        ) is not believed
 
 
 def steady_clock() -> tuple[BootClock, float, float]:
@@ -127,8 +141,9 @@ def test_boot_time_back_by_up_to_the_reboot_jump_is_kept():
     assert clock.rejected == 1
 
 
-@pytest.mark.parametrize(("delay_change", "kept"),
-                         [(2.9, True), (3.2, False), (-0.9, True), (-1.2, False)])
+@pytest.mark.parametrize(
+    ("delay_change", "kept"), [(2.9, True), (3.2, False), (-0.9, True), (-1.2, False)]
+)
 def test_delays_beyond_the_tolerances_are_off_the_timeline(delay_change, kept):
     clock, boot, arrival = steady_clock()
     # a sample 0.1 s newer on the boot clock whose delay differs from the least one

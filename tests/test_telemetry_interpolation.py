@@ -24,15 +24,18 @@ def rodrigues(axis, angle: float) -> np.ndarray:
 
 def zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``R = Rz(yaw) Ry(pitch) Rx(roll)`` written out (body to NED)."""
-    return (rodrigues((0, 0, 1), yaw) @ rodrigues((0, 1, 0), pitch)
-            @ rodrigues((1, 0, 0), roll))
+    return rodrigues((0, 0, 1), yaw) @ rodrigues((0, 1, 0), pitch) @ rodrigues((1, 0, 0), roll)
 
 
 def quaternion_of(r: np.ndarray) -> tuple[float, float, float, float]:
     """``(w, x, y, z)`` of a rotation matrix whose angle is well below pi (w > 0)."""
     w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2.0
-    return (w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w),
-            (r[1, 0] - r[0, 1]) / (4 * w))
+    return (
+        w,
+        (r[2, 1] - r[1, 2]) / (4 * w),
+        (r[0, 2] - r[2, 0]) / (4 * w),
+        (r[1, 0] - r[0, 1]) / (4 * w),
+    )
 
 
 def buffer_with_home() -> TelemetryBuffer:
@@ -66,8 +69,9 @@ def test_attitude_turns_in_proportion_to_the_time_elapsed(fraction):
     buf.push_attitude_quaternion(11.0, quaternion_of(r0 @ rodrigues(axis, angle)))
     pose = buf.pose_at(10.0 + fraction)
     assert pose is not None
-    np.testing.assert_allclose(zyx(*pose.vehicle_rpy), r0 @ rodrigues(axis, fraction * angle),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        zyx(*pose.vehicle_rpy), r0 @ rodrigues(axis, fraction * angle), atol=1e-9
+    )
 
 
 def test_yaw_alone_interpolates_linearly_at_a_quarter():
@@ -77,8 +81,9 @@ def test_yaw_alone_interpolates_linearly_at_a_quarter():
     buf.push_attitude(1.0, 0.0, 0.0, 1.0)
     pose = buf.pose_at(0.25)
     assert pose.yaw == pytest.approx(0.4, abs=1e-9)
-    assert pose.roll == pytest.approx(0.0, abs=1e-12) and pose.pitch == pytest.approx(0.0,
-                                                                                        abs=1e-12)
+    assert pose.roll == pytest.approx(0.0, abs=1e-12) and pose.pitch == pytest.approx(
+        0.0, abs=1e-12
+    )
 
 
 @pytest.mark.parametrize(("t", "frame", "yaw"), [(10.3, "vehicle", 0.2), (10.7, "earth", 1.4)])
@@ -102,8 +107,9 @@ def test_gimbal_in_one_frame_is_interpolated_at_a_quarter():
     buf.push_gimbal(10.0, (0.0, -1.0, 0.0), "earth")
     buf.push_gimbal(11.0, (0.0, -1.0, 0.8), "earth")
     pose = buf.pose_at(10.25)
-    np.testing.assert_allclose(zyx(*pose.gimbal_rpy), rodrigues((0, 0, 1), 0.2) @ zyx(0, -1, 0),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        zyx(*pose.gimbal_rpy), rodrigues((0, 0, 1), 0.2) @ zyx(0, -1, 0), atol=1e-9
+    )
 
 
 def test_boot_clock_minimum_follows_the_window():

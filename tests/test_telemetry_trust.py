@@ -35,8 +35,16 @@ def wire(msg, source=AUTOPILOT):
 
 def position(ms, lat=HOME_LAT, lon=HOME_LON, rel_alt_m=60.0):
     return M.MAVLink_global_position_int_message(
-        ms, round(lat * 1e7), round(lon * 1e7), round(rel_alt_m * 1000), round(rel_alt_m * 1000),
-        0, 0, 0, 0)
+        ms,
+        round(lat * 1e7),
+        round(lon * 1e7),
+        round(rel_alt_m * 1000),
+        round(rel_alt_m * 1000),
+        0,
+        0,
+        0,
+        0,
+    )
 
 
 def attitude(ms, yaw=0.3):
@@ -49,7 +57,8 @@ def gps(fix_type=3):
 
 def home():
     return M.MAVLink_home_position_message(
-        round(HOME_LAT * 1e7), round(HOME_LON * 1e7), 5000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0)
+        round(HOME_LAT * 1e7), round(HOME_LON * 1e7), 5000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0
+    )
 
 
 def feed(buf, t0, n, start_ms=10_000, step_ms=100, lat=HOME_LAT, source=AUTOPILOT, gps_fix=3):
@@ -93,22 +102,37 @@ def test_no_gps_raw_int_at_all_means_no_position():
 @pytest.mark.parametrize(
     ("bad", "reason"),
     [
-        (M.MAVLink_mount_orientation_message(10_500, NAN, -60.0, 10.0, NAN),
-         "MOUNT_ORIENTATION: mount angles not finite"),
-        (M.MAVLink_mount_orientation_message(10_500, 0.0, INF, 10.0, NAN),
-         "MOUNT_ORIENTATION: mount angles not finite"),
-        (M.MAVLink_mount_orientation_message(10_500, 0.0, -60.0, 10.0, INF),
-         "MOUNT_ORIENTATION: mount yaw_absolute out of range"),
+        (
+            M.MAVLink_mount_orientation_message(10_500, NAN, -60.0, 10.0, NAN),
+            "MOUNT_ORIENTATION: mount angles not finite",
+        ),
+        (
+            M.MAVLink_mount_orientation_message(10_500, 0.0, INF, 10.0, NAN),
+            "MOUNT_ORIENTATION: mount angles not finite",
+        ),
+        (
+            M.MAVLink_mount_orientation_message(10_500, 0.0, -60.0, 10.0, INF),
+            "MOUNT_ORIENTATION: mount yaw_absolute out of range",
+        ),
         (position(10_500, lat=214.7), "GLOBAL_POSITION_INT: lat N out of range"),
-        (M.MAVLink_attitude_message(10_500, NAN, 0.0, 0.0, 0, 0, 0),
-         "ATTITUDE: attitude not finite"),
-        (M.MAVLink_attitude_quaternion_message(10_500, 0.0, 0.0, 0.0, 0.0, 0, 0, 0),
-         "ATTITUDE_QUATERNION: quaternion norm N"),
-        (M.MAVLink_gimbal_device_attitude_status_message(
-            0, 0, 10_500, 0, [NAN, 0, 0, 0], NAN, NAN, NAN, 0, NAN, NAN, 1),
-         "GIMBAL_DEVICE_ATTITUDE_STATUS: gimbal quaternion not finite"),
-        (M.MAVLink_home_position_message(0, 2_000_000_000, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0),
-         "HOME_POSITION: lon N out of range"),
+        (
+            M.MAVLink_attitude_message(10_500, NAN, 0.0, 0.0, 0, 0, 0),
+            "ATTITUDE: attitude not finite",
+        ),
+        (
+            M.MAVLink_attitude_quaternion_message(10_500, 0.0, 0.0, 0.0, 0.0, 0, 0, 0),
+            "ATTITUDE_QUATERNION: quaternion norm N",
+        ),
+        (
+            M.MAVLink_gimbal_device_attitude_status_message(
+                0, 0, 10_500, 0, [NAN, 0, 0, 0], NAN, NAN, NAN, 0, NAN, NAN, 1
+            ),
+            "GIMBAL_DEVICE_ATTITUDE_STATUS: gimbal quaternion not finite",
+        ),
+        (
+            M.MAVLink_home_position_message(0, 2_000_000_000, 0, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0, 0),
+            "HOME_POSITION: lon N out of range",
+        ),
     ],
 )
 def test_absurd_fields_are_rejected_and_counted_never_believed(bad, reason):
@@ -185,8 +209,19 @@ def test_a_gimbal_component_has_its_own_clock():
     offset = buf.clock.offset
     for k in range(10):  # the gimbal booted later: its time_boot_ms is 9 s behind
         msg = M.MAVLink_gimbal_device_attitude_status_message(
-            0, 0, 1000 + 100 * k, 32, [math.cos(-math.pi / 4), 0, math.sin(-math.pi / 4), 0],
-            NAN, NAN, NAN, 0, NAN, NAN, 1)
+            0,
+            0,
+            1000 + 100 * k,
+            32,
+            [math.cos(-math.pi / 4), 0, math.sin(-math.pi / 4), 0],
+            NAN,
+            NAN,
+            NAN,
+            0,
+            NAN,
+            NAN,
+            1,
+        )
         buf.handle_message(wire(msg, source=(1, 154)), last - 0.9 + 0.1 * k)
     assert buf.clock.offset == offset
     assert not buf.rejected

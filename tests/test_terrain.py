@@ -26,8 +26,7 @@ HOME = (LAT0 - 0.001, LON0, 200.0)
 STEP = 1.0 / 3600  # one arc-second cells, about 30 m
 
 
-def write_geotiff(path: Path, heights_of: object, crs: str = "EPSG:4326",
-                  size: int = 201) -> None:
+def write_geotiff(path: Path, heights_of: object, crs: str = "EPSG:4326", size: int = 201) -> None:
     """A DEM of ``size`` cells a side centred on (LAT0, LON0): heights from ``heights_of(north
     m, east m)`` at each cell centre."""
     import rasterio
@@ -51,14 +50,32 @@ def write_geotiff(path: Path, heights_of: object, crs: str = "EPSG:4326",
         lons, lats = warp(crs, "EPSG:4326", xs.ravel().tolist(), ys.ravel().tolist())
         n, e, _ = geodetic_to_ned(np.array(lats), np.array(lons), 0.0, LAT0, LON0, 0.0)
         heights = heights_of(n, e).reshape(size, size).astype("float32")
-    with rasterio.open(path, "w", driver="GTiff", width=size, height=size, count=1,
-                       dtype="float32", crs=crs, transform=transform, nodata=-9999.0) as dst:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=size,
+        height=size,
+        count=1,
+        dtype="float32",
+        crs=crs,
+        transform=transform,
+        nodata=-9999.0,
+    ) as dst:
         dst.write(heights, 1)
 
 
 def pose(pitch_deg: float = -50.0, yaw_deg: float = 30.0, rel_alt: float = 80.0) -> PlatformPose:
-    return PlatformPose(LAT0, LON0, rel_alt, 0.02, -0.05, math.radians(yaw_deg),
-                        gimbal_rpy=(0.0, math.radians(pitch_deg), 0.0), gimbal_frame="vehicle")
+    return PlatformPose(
+        LAT0,
+        LON0,
+        rel_alt,
+        0.02,
+        -0.05,
+        math.radians(yaw_deg),
+        gimbal_rpy=(0.0, math.radians(pitch_deg), 0.0),
+        gimbal_frame="vehicle",
+    )
 
 
 def test_flat_dem_matches_the_flat_plane(tmp_path: Path) -> None:
@@ -66,8 +83,7 @@ def test_flat_dem_matches_the_flat_plane(tmp_path: Path) -> None:
     dem = read_dem(tmp_path / "flat.tif", vertical_sigma_m=2.0)
     for uv in ((960, 540), (1500, 900), (100, 1000)):
         on_dem = geolocate_terrain(uv, INTR, pose(), dem, HOME)
-        flat = geolocate(uv, INTR, pose(), 0.0,
-                         ground_sigma_m=math.hypot(HOME_AMSL_SIGMA_M, 2.0))
+        flat = geolocate(uv, INTR, pose(), 0.0, ground_sigma_m=math.hypot(HOME_AMSL_SIGMA_M, 2.0))
         assert on_dem.ok and flat.ok
         n, e, _ = geodetic_to_ned(on_dem.lat, on_dem.lon, 0, flat.lat, flat.lon, 0)
         assert math.hypot(n, e) < 0.01
@@ -122,17 +138,25 @@ def test_srtm_hgt_tile_and_no_fix_cases(tmp_path: Path) -> None:
     n_, e_, _ = geodetic_to_ned(fix.lat, fix.lon, 0, 43.5, 10.5, 0)
     assert math.hypot(n_, e_) < 0.05  # nadir, straight below
     horizon = PlatformPose(43.5, 10.5, 50.0, 0.0, 0.0, 0.0, gimbal_rpy=(0.0, 0.1, 0.0))
-    assert "no terrain within" in geolocate_terrain((960, 540), INTR, horizon, dem,
-                                                    (43.5, 10.5, 300.0)).note
+    assert (
+        "no terrain within"
+        in geolocate_terrain((960, 540), INTR, horizon, dem, (43.5, 10.5, 300.0)).note
+    )
     edge = PlatformPose(43.99, 10.5, 50.0, 0.0, 0.0, 0.0, gimbal_rpy=(0.0, -0.02, 0.0))
-    assert "leaves the DEM" in geolocate_terrain((960, 540), INTR, edge, dem,
-                                                 (43.99, 10.5, 300.0)).note
+    assert (
+        "leaves the DEM"
+        in geolocate_terrain((960, 540), INTR, edge, dem, (43.99, 10.5, 300.0)).note
+    )
     outside = PlatformPose(45.0, 10.5, 50.0, 0.0, 0.0, 0.0)
-    assert "outside the DEM" in geolocate_terrain((960, 540), INTR, outside, dem,
-                                                  (45.0, 10.5, 300.0)).note
+    assert (
+        "outside the DEM"
+        in geolocate_terrain((960, 540), INTR, outside, dem, (45.0, 10.5, 300.0)).note
+    )
     low = PlatformPose(43.5, 10.5, 3.0, 0.0, 0.0, 0.0, gimbal_rpy=(0.0, -math.pi / 2, 0.0))
-    assert "a fix needs 5 m" in geolocate_terrain((960, 540), INTR, low, dem,
-                                                  (43.5, 10.5, 300.0), min_height_m=5.0).note
+    assert (
+        "a fix needs 5 m"
+        in geolocate_terrain((960, 540), INTR, low, dem, (43.5, 10.5, 300.0), min_height_m=5.0).note
+    )
 
 
 def test_bad_dem_files_say_so_in_one_line(tmp_path: Path) -> None:

@@ -23,9 +23,16 @@ HOME = (LAT0 - 0.001, LON0, 200.0)
 
 def looking_east(depression_deg: float, rel_alt: float = 80.0) -> PlatformPose:
     """Level drone facing east, gimbal ``depression_deg`` down: the centre ray points east."""
-    return PlatformPose(LAT0, LON0, rel_alt, 0.0, 0.0, math.radians(90.0),
-                        gimbal_rpy=(0.0, -math.radians(depression_deg), 0.0),
-                        gimbal_frame="vehicle")
+    return PlatformPose(
+        LAT0,
+        LON0,
+        rel_alt,
+        0.0,
+        0.0,
+        math.radians(90.0),
+        gimbal_rpy=(0.0, -math.radians(depression_deg), 0.0),
+        gimbal_frame="vehicle",
+    )
 
 
 @pytest.fixture
@@ -38,13 +45,15 @@ def test_off_nadir_limit_refuses_as_on_the_plane(flat_dem) -> None:
     pose = looking_east(20.0)  # the centre ray is 70 degrees from straight down
     strict = FixLimits(max_off_nadir_deg=60.0)
     refused = geolocate_terrain(CENTRE, INTR, pose, flat_dem, HOME, limits=strict)
-    plane = geolocate(CENTRE, INTR, pose, 0.0, ground_sigma_m=math.hypot(HOME_AMSL_SIGMA_M, 2.0),
-                      limits=strict)
+    plane = geolocate(
+        CENTRE, INTR, pose, 0.0, ground_sigma_m=math.hypot(HOME_AMSL_SIGMA_M, 2.0), limits=strict
+    )
     assert not refused.ok and not plane.ok
     assert "70.0 deg from straight down (a fix needs at most 60" in refused.note
     assert refused.note == plane.note
-    assert geolocate_terrain(CENTRE, INTR, pose, flat_dem, HOME,
-                             limits=FixLimits(max_off_nadir_deg=75.0)).ok
+    assert geolocate_terrain(
+        CENTRE, INTR, pose, flat_dem, HOME, limits=FixLimits(max_off_nadir_deg=75.0)
+    ).ok
 
 
 def test_error_limit_refuses_a_fix_whose_estimate_exceeds_it(flat_dem) -> None:
@@ -54,8 +63,9 @@ def test_error_limit_refuses_a_fix_whose_estimate_exceeds_it(flat_dem) -> None:
     below = FixLimits(max_error_m=fix.error_m * 0.99)
     refused = geolocate_terrain(CENTRE, INTR, pose, flat_dem, HOME, limits=below)
     assert not refused.ok and refused.note.startswith(f"error estimate {fix.error_m:.0f} m")
-    assert geolocate_terrain(CENTRE, INTR, pose, flat_dem, HOME,
-                             limits=FixLimits(max_error_m=fix.error_m * 1.01)).ok
+    assert geolocate_terrain(
+        CENTRE, INTR, pose, flat_dem, HOME, limits=FixLimits(max_error_m=fix.error_m * 1.01)
+    ).ok
 
 
 def test_the_ground_models_limits_apply_unless_the_call_gives_its_own(flat_dem) -> None:
@@ -75,8 +85,9 @@ def test_a_level_ray_meeting_a_hillside_stands(tmp_path: Path) -> None:
     pose = looking_east(1.0)
     fix = geolocate_terrain(CENTRE, INTR, pose, dem, HOME)
     assert fix.ok, fix.note
-    assert fix.range_m == pytest.approx(80.0 / (math.tan(math.radians(1.0)) + 0.3)
-                                        / math.cos(math.radians(1.0)), rel=0.02)
+    assert fix.range_m == pytest.approx(
+        80.0 / (math.tan(math.radians(1.0)) + 0.3) / math.cos(math.radians(1.0)), rel=0.02
+    )
     assert not geolocate(CENTRE, INTR, pose, 0.0).ok
 
 
@@ -90,7 +101,8 @@ def test_a_ray_skimming_a_slope_that_falls_away_is_refused(tmp_path: Path) -> No
     assert not refused.ok
     assert "deg from grazing the terrain" in refused.note
     assert float(refused.note.split()[1]) == pytest.approx(
-        8.0 - math.degrees(math.atan(0.12)), abs=0.1)
+        8.0 - math.degrees(math.atan(0.12)), abs=0.1
+    )
     # With a tighter attitude sigma the same ray is far enough from grazing to stand.
     steady = PlatformPose(**{**pose.__dict__, "attitude_sigma_rad": math.radians(0.1)})
     assert geolocate_terrain(CENTRE, INTR, steady, dem, HOME).ok
@@ -117,17 +129,29 @@ def test_the_mission_controller_gives_the_missions_limits_to_the_terrain(tmp_pat
     dem = read_dem(tmp_path / "flat.tif", vertical_sigma_m=2.0)
     positions = {}
     for max_error_m in (250.0, 0.05):
-        mission = load_mission(overrides={
-            "camera.width": 960, "camera.height": 540, "camera.hfov_deg": 30.0,
-            "name": "terrain_limits", "area.home_lat": LAT0, "area.home_lon": LON0,
-            "area.home_alt_m": 200.0,
-            "geolocation.max_error_m": max_error_m})
+        mission = load_mission(
+            overrides={
+                "camera.width": 960,
+                "camera.height": 540,
+                "camera.hfov_deg": 30.0,
+                "name": "terrain_limits",
+                "area.home_lat": LAT0,
+                "area.home_lon": LON0,
+                "area.home_alt_m": 200.0,
+                "geolocation.max_error_m": max_error_m,
+            }
+        )
         confirm_at_lock(mission)
         n = 12
         with AlertStore(tmp_path / f"alerts_{max_error_m}.db") as store:
-            ctl = MissionController(mission, ScriptedDetector(script_3_of_5(mission, n)),
-                                    filled_buffer(mission, n / FPS), store,
-                                    console=lambda s: None, ground_model=TerrainGround(dem))
+            ctl = MissionController(
+                mission,
+                ScriptedDetector(script_3_of_5(mission, n)),
+                filled_buffer(mission, n / FPS),
+                store,
+                console=lambda s: None,
+                ground_model=TerrainGround(dem),
+            )
             run_frames(ctl, n)
             (alert,) = store.list()
             positions[max_error_m] = (alert.position, alert.error_m, truth_latlon(mission))

@@ -12,8 +12,10 @@ from sarmission import threads
 from sarmission.threads import ThreadPlan, apply_thread_plan, available_cores, plan_for
 
 
-@pytest.mark.parametrize(("cores", "decode", "opencv", "onnx"), [
-    (1, 1, 1, 1), (2, 2, 2, 2), (4, 4, 2, 2), (8, 4, 4, 2), (16, 4, 8, 2)])
+@pytest.mark.parametrize(
+    ("cores", "decode", "opencv", "onnx"),
+    [(1, 1, 1, 1), (2, 2, 2, 2), (4, 4, 2, 2), (8, 4, 4, 2), (16, 4, 8, 2)],
+)
 def test_plans_for_two_to_eight_cores(cores: int, decode: int, opencv: int, onnx: int):
     plan = plan_for(cores)
     assert (plan.decode, plan.opencv, plan.onnx) == (decode, opencv, onnx)
@@ -35,8 +37,7 @@ def test_applying_sets_opencv_and_the_onnx_sessions_made_after(monkeypatch):
     before = cv2.getNumThreads()
     monkeypatch.setattr(threads, "_applied", None)
     try:
-        plan = apply_thread_plan(ThreadPlan(cores=3, decode=1, opencv=3, onnx=1, numba=3,
-                                            torch=3))
+        plan = apply_thread_plan(ThreadPlan(cores=3, decode=1, opencv=3, onnx=1, numba=3, torch=3))
         assert cv2.getNumThreads() == 3 and threads.thread_plan() is plan
         session = build_head_runtime(None, "onnx").session
         assert session.get_session_options().intra_op_num_threads == 1
@@ -55,8 +56,10 @@ def test_the_onnx_detection_path_loads_no_torch(tmp_path):
         "rng = np.random.default_rng(0)\n"
         "for i in range(3):\n"
         "    net.process(rng.integers(0, 256, (240, 320, 3), dtype=np.uint8), i / 30)\n"
-        "print('torch' in sys.modules, 'onnx' in sys.modules)\n")
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=300)
+        "print('torch' in sys.modules, 'onnx' in sys.modules)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "False"]

@@ -13,29 +13,41 @@ from sarmission.tracking.tracker import Tracker, TrackState, associate
 SIZE = 6.0
 
 
-def dets(*targets: tuple[float, float], score: float = 0.9,
-         classes: list[int] | None = None, size: float = SIZE) -> Detections:
+def dets(
+    *targets: tuple[float, float],
+    score: float = 0.9,
+    classes: list[int] | None = None,
+    size: float = SIZE,
+) -> Detections:
     """Detections of square boxes centred on ``targets`` (cx, cy)."""
     centres = np.array(targets, dtype=np.float64).reshape(-1, 2)
     cxcywh = np.column_stack([centres, np.full((len(centres), 2), size)])
     n = len(centres)
-    return Detections(boxes=cxcywh_to_xyxy(cxcywh).astype(np.float32),
-                      scores=np.full(n, score, np.float32),
-                      class_ids=np.array(classes if classes is not None else [0] * n, np.int64))
+    return Detections(
+        boxes=cxcywh_to_xyxy(cxcywh).astype(np.float32),
+        scores=np.full(n, score, np.float32),
+        class_ids=np.array(classes if classes is not None else [0] * n, np.int64),
+    )
 
 
 def centre(state: TrackState) -> np.ndarray:
     return np.array([(state.box[0] + state.box[2]) / 2, (state.box[1] + state.box[3]) / 2])
 
 
-def run(tracker: Tracker, frames: list[Detections],
-        shifts: list[tuple[float, float] | None] | None = None) -> list[list[TrackState]]:
+def run(
+    tracker: Tracker,
+    frames: list[Detections],
+    shifts: list[tuple[float, float] | None] | None = None,
+) -> list[list[TrackState]]:
     shifts = shifts or [None] * len(frames)
-    return [tracker.update(d, frame_index=i, timestamp=i / 30.0, camera_shift=s)
-            for i, (d, s) in enumerate(zip(frames, shifts, strict=True))]
+    return [
+        tracker.update(d, frame_index=i, timestamp=i / 30.0, camera_shift=s)
+        for i, (d, s) in enumerate(zip(frames, shifts, strict=True))
+    ]
 
 
 # Kalman filter --------------------------------------------------------------------------------
+
 
 def test_kalman_matrices_follow_constant_velocity_model() -> None:
     f = transition_matrix(2.0)
@@ -59,6 +71,7 @@ def test_kalman_learns_velocity_and_applies_camera_shift() -> None:
 
 # Association ----------------------------------------------------------------------------------
 
+
 def test_associate_gates_and_solves_globally() -> None:
     tracks = cxcywh_to_xyxy(np.array([[100.0, 100, 6, 6], [108, 100, 6, 6]]))
     # A greedy pass would give detection 0 (at 104) to track 0 and leave track 1 without a
@@ -75,6 +88,7 @@ def test_associate_gates_and_solves_globally() -> None:
 
 
 # Tracker --------------------------------------------------------------------------------------
+
 
 def test_constant_velocity_target_keeps_one_id() -> None:
     rng = np.random.default_rng(0)
@@ -94,8 +108,10 @@ def test_crossing_targets_keep_their_ids() -> None:
     rng = np.random.default_rng(1)
     truth_a = [np.array([100.0 + 2 * i, 100.0 + 1 * i]) for i in range(60)]
     truth_b = [np.array([220.0 - 2 * i, 100.0 + 1 * i]) for i in range(60)]  # meet at frame 30
-    frames = [dets(tuple(a + rng.normal(0, 1, 2)), tuple(b + rng.normal(0, 1, 2)))
-              for a, b in zip(truth_a, truth_b, strict=True)]
+    frames = [
+        dets(tuple(a + rng.normal(0, 1, 2)), tuple(b + rng.normal(0, 1, 2)))
+        for a, b in zip(truth_a, truth_b, strict=True)
+    ]
     states = run(Tracker(), frames)
     assert {s.track_id for frame in states for s in frame} == {1, 2}
     for i, frame in enumerate(states):
@@ -110,8 +126,7 @@ def test_crossing_targets_keep_their_ids() -> None:
 def test_track_survives_up_to_max_age_missed_frames(gap: int, survives: bool) -> None:
     max_age = 5
     position = [(300.0 + 0.5 * i, 200.0) for i in range(40)]
-    frames = [dets(position[i]) if not 10 <= i < 10 + gap else Detections()
-              for i in range(40)]
+    frames = [dets(position[i]) if not 10 <= i < 10 + gap else Detections() for i in range(40)]
     states = run(Tracker(max_age=max_age), frames)
     ids_after = {s.track_id for s in states[10 + gap]}
     assert ids_after == ({1} if survives else {2})
@@ -136,8 +151,10 @@ def test_spurious_single_detection_never_locks() -> None:
 def test_three_hits_in_five_frames_lock_at_the_third_hit() -> None:
     pattern = [True, False, True, False, True, False, False, True, True]
     tracker = Tracker(max_age=3, lock_m=3, lock_k=5)
-    states = [tracker.update(dets((50.0 + i, 80.0)) if hit else Detections(), 100 + i, i / 30)[0]
-              for i, hit in enumerate(pattern)]
+    states = [
+        tracker.update(dets((50.0 + i, 80.0)) if hit else Detections(), 100 + i, i / 30)[0]
+        for i, hit in enumerate(pattern)
+    ]
     assert [s.locked for s in states] == [False] * 4 + [True] * 5
     assert [s.just_locked for s in states] == [False] * 4 + [True] + [False] * 4
     assert {s.lock_frame for s in states[4:]} == {104}
@@ -151,8 +168,10 @@ def test_low_scored_detections_keep_the_track_but_do_not_lock_it() -> None:
     strict = Tracker(lock_m=3, lock_k=5, lock_min_score=0.5)
     loose = Tracker(lock_m=3, lock_k=5)
     for tracker, lock_frame in ((strict, 4), (loose, 2)):
-        states = [tracker.update(dets((50.0 + i, 80.0), score=sc), i, i / 30)[0]
-                  for i, sc in enumerate(scores)]
+        states = [
+            tracker.update(dets((50.0 + i, 80.0), score=sc), i, i / 30)[0]
+            for i, sc in enumerate(scores)
+        ]
         assert {st.track_id for st in states} == {1} and states[-1].hits == 5
         assert [st.just_locked for st in states].index(True) == lock_frame
     with pytest.raises(ValueError, match="lock_min_score"):
@@ -161,8 +180,10 @@ def test_low_scored_detections_keep_the_track_but_do_not_lock_it() -> None:
 
 def test_hits_spread_wider_than_k_never_lock() -> None:
     tracker = Tracker(max_age=5, lock_m=3, lock_k=5)
-    states = [tracker.update(dets((50.0, 80.0)) if i % 3 == 0 else Detections(), i, i / 30)
-              for i in range(40)]
+    states = [
+        tracker.update(dets((50.0, 80.0)) if i % 3 == 0 else Detections(), i, i / 30)
+        for i in range(40)
+    ]
     assert {s.track_id for frame in states for s in frame} == {1}
     assert states[-1][0].hits == 14
     assert not any(s.locked for frame in states for s in frame)
@@ -172,8 +193,9 @@ def test_camera_shift_input_keeps_ids_under_platform_shake() -> None:
     rng = np.random.default_rng(2)
     offsets = np.cumsum(rng.normal(0.0, 8.0, (50, 2)) + [3.0, 0.0], axis=0)  # pan + shake
     ground = [np.array([400.0 + 0.3 * i, 300.0]) for i in range(50)]
-    frames = [dets(tuple(g + o + rng.normal(0, 1, 2))) for g, o in zip(ground, offsets,
-                                                                     strict=True)]
+    frames = [
+        dets(tuple(g + o + rng.normal(0, 1, 2))) for g, o in zip(ground, offsets, strict=True)
+    ]
     shifts = [None] + [tuple(d) for d in np.diff(offsets, axis=0)]
 
     with_shift = run(Tracker(), frames, shifts)
@@ -188,8 +210,9 @@ def test_camera_shift_input_keeps_ids_under_platform_shake() -> None:
 def test_class_vote_over_flickering_classes() -> None:
     classes = [0, 0, 1, 1, 1, 0]
     tracker = Tracker()
-    states = [tracker.update(dets((70.0, 70.0), classes=[c]), i, i / 30)[0]
-              for i, c in enumerate(classes)]
+    states = [
+        tracker.update(dets((70.0, 70.0), classes=[c]), i, i / 30)[0] for i, c in enumerate(classes)
+    ]
     assert {s.track_id for s in states} == {1}  # class flicker does not split the track
     assert [s.class_id for s in states] == [0, 0, 0, 1, 1, 0]  # ties (frames 3, 5): latest wins
 

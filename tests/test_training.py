@@ -82,8 +82,18 @@ def test_jitter_stays_within_scale_and_shift():
 
 
 def test_hard_negatives_keep_three_per_positive_highest_first():
-    logits = torch.tensor([[0.1, -2.0], [3.0, 0.0], [-1.0, 2.5], [0.0, 0.2], [-5.0, -4.0],
-                           [1.0, 1.5], [0.3, 0.0], [-0.5, -0.6]])
+    logits = torch.tensor(
+        [
+            [0.1, -2.0],
+            [3.0, 0.0],
+            [-1.0, 2.5],
+            [0.0, 0.2],
+            [-5.0, -4.0],
+            [1.0, 1.5],
+            [0.3, 0.0],
+            [-0.5, -0.6],
+        ]
+    )
     keep = hardest_negatives(logits, num_positives=2, ratio=3)
     # max over classes: 0.1, 3.0, 2.5, 0.2, -4.0, 1.5, 0.3, -0.5 → six highest in order.
     assert keep.tolist() == [1, 2, 5, 6, 3, 0]
@@ -100,10 +110,14 @@ def test_dfl_hand_computed():
     logits = torch.randn(1, 4, 17)
     target = torch.tensor([[3.4, 20.0, -1.0, 7.0]])
     s = torch.softmax(logits[0], dim=-1)
-    expected = -(0.6 * torch.log(s[0, 3]) + 0.4 * torch.log(s[0, 4])
-                 + 0.01 * torch.log(s[1, 15]) + 0.99 * torch.log(s[1, 16])  # clamp to 15.99
-                 + torch.log(s[2, 0])                                        # clamp to 0
-                 + torch.log(s[3, 7]))
+    expected = -(
+        0.6 * torch.log(s[0, 3])
+        + 0.4 * torch.log(s[0, 4])
+        + 0.01 * torch.log(s[1, 15])
+        + 0.99 * torch.log(s[1, 16])  # clamp to 15.99
+        + torch.log(s[2, 0])  # clamp to 0
+        + torch.log(s[3, 7])
+    )
     got = dfl_loss(logits, target, reg_max=16)
     assert got.shape == (1,)
     assert got.item() == pytest.approx(expected.item(), rel=1e-5)
@@ -118,8 +132,9 @@ def test_ltrb_nwd_in_full_resolution_pixels():
 
 
 def test_head_loss_terms_hand_computed():
-    cls_logits = torch.tensor([[2.0, -1.0], [0.5, 0.0], [-3.0, -2.0], [1.0, 2.0], [0.0, -1.0],
-                               [-1.0, -1.0]])
+    cls_logits = torch.tensor(
+        [[2.0, -1.0], [0.5, 0.0], [-3.0, -2.0], [1.0, 2.0], [0.0, -1.0], [-1.0, -1.0]]
+    )
     labels = torch.tensor([0, -1, -1, -1, -1, -1])
     bins = torch.zeros(6, 4, 17)
     ltrb = torch.full((6, 4), 8.0)
@@ -132,16 +147,25 @@ def test_head_loss_terms_hand_computed():
         return -(y * math.log(p) + (1 - y) * math.log(1 - p))
 
     # Positive (class 0) plus the 3 negatives with the highest max logit: rows 3, 1, 4.
-    expected_cls = (bce(2.0, 1) + bce(-1.0, 0) + bce(1.0, 0) + bce(2.0, 0) + bce(0.5, 0)
-                    + bce(0.0, 0) + bce(0.0, 0) + bce(-1.0, 0))
+    expected_cls = (
+        bce(2.0, 1)
+        + bce(-1.0, 0)
+        + bce(1.0, 0)
+        + bce(2.0, 0)
+        + bce(0.5, 0)
+        + bce(0.0, 0)
+        + bce(0.0, 0)
+        + bce(-1.0, 0)
+    )
     assert terms.num_pos == 1 and terms.num_neg == 3
     assert terms.cls.item() == pytest.approx(expected_cls, rel=1e-5)
     assert terms.nwd.item() == pytest.approx(0.0, abs=1e-4)
     assert terms.dfl.item() == pytest.approx(4 * math.log(17), rel=1e-5)  # uniform bins
     total = 1.0 * expected_cls + 5.0 * terms.nwd.item() + 0.5 * 4 * math.log(17)
     assert terms.total.item() == pytest.approx(total, rel=1e-5)
-    none = head_loss(cls_logits, bins, ltrb, torch.full((6,), -1), target, scale,
-                     LossWeights(min_negatives=2))
+    none = head_loss(
+        cls_logits, bins, ltrb, torch.full((6,), -1), target, scale, LossWeights(min_negatives=2)
+    )
     assert none.num_pos == 0 and none.num_neg == 2 and none.dfl.item() == 0.0
 
 
@@ -165,8 +189,12 @@ def test_dihedral_moves_boxes_with_crops():
     for i in range(8):
         rows = torch.nonzero(out[i, 0].sum(dim=1)).flatten()
         cols = torch.nonzero(out[i, 0].sum(dim=0)).flatten()
-        measured = [8 - cols.min().item(), 8 - rows.min().item(), cols.max().item() + 1 - 8,
-                    rows.max().item() + 1 - 8]
+        measured = [
+            8 - cols.min().item(),
+            8 - rows.min().item(),
+            cols.max().item() + 1 - 8,
+            rows.max().item() + 1 - 8,
+        ]
         assert t[i].tolist() == measured, i
         assert s[i].tolist() == ([1.0, 2.0] if i % 2 == 0 else [2.0, 1.0])
     assert len({tuple(v.tolist()) for v in t}) == 8
@@ -189,9 +217,11 @@ def test_polarity_near_takes_the_strongest_response():
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("train_data")
-    return {"train": write_dataset(root / "train", n_videos=2, n_frames=14, seed=1),
-            "val": write_dataset(root / "val", n_videos=1, n_frames=14, seed=2),
-            "cache": root / "cache"}
+    return {
+        "train": write_dataset(root / "train", n_videos=2, n_frames=14, seed=1),
+        "val": write_dataset(root / "val", n_videos=1, n_frames=14, seed=2),
+        "cache": root / "cache",
+    }
 
 
 SETTINGS = CropSettings(frame_stride=2, jitters_per_gt=3)
@@ -242,13 +272,15 @@ def test_crop_cache_matches_inference_and_is_reused(data):
     for item in iter_sequence(dataset, dataset.videos[0].id):
         result = net.process(item.frame_bgr, 0.0)
         if item.image.id == frame_id:
-            expected = motion_enhanced_crops(item.frame_bgr, result.motion,
-                                             result.proposals.boxes, result.proposals.polarity)
+            expected = motion_enhanced_crops(
+                item.frame_bgr, result.motion, result.proposals.boxes, result.proposals.polarity
+            )
             break
     rows = (crop_set.image_ids == frame_id) & ~crop_set.jittered
     np.testing.assert_array_equal(crop_set.boxes[rows].numpy(), result.proposals.boxes)
-    torch.testing.assert_close(crop_set.crops[rows].float(), torch.from_numpy(expected),
-                               atol=2e-3, rtol=1e-3)
+    torch.testing.assert_close(
+        crop_set.crops[rows].float(), torch.from_numpy(expected), atol=2e-3, rtol=1e-3
+    )
     # Positive RPN crops clear the NWD threshold against their box target.
     boxes = ltrb_to_boxes(crop_set.target_ltrb[rpn_pos].numpy(), crop_set.boxes[rpn_pos].numpy())
     nwd = assign_by_nwd(crop_set.boxes[rpn_pos].numpy(), boxes).nwd
@@ -256,8 +288,13 @@ def test_crop_cache_matches_inference_and_is_reused(data):
 
 
 def _config(data: dict[str, Path], out: Path, **kw) -> TrainConfig:
-    base = {"epochs": 3, "batch_size": 32, "crops": SETTINGS, "cache_dir": data["cache"],
-            "progress": False}
+    base = {
+        "epochs": 3,
+        "batch_size": 32,
+        "crops": SETTINGS,
+        "cache_dir": data["cache"],
+        "progress": False,
+    }
     return TrainConfig(train=data["train"], val=data["val"], out=out, **(base | kw))
 
 
@@ -296,12 +333,14 @@ def test_weight_average_hand_computed():
     assert torch.allclose(next(average.model.parameters()), torch.full_like(weight, -0.43))
     # Integer buffers (BatchNorm's batch counter) follow the model, the averaged head is frozen.
     counters = [k for k, v in model.state_dict().items() if not v.is_floating_point()]
-    assert counters and all(torch.equal(average.model.state_dict()[k], model.state_dict()[k])
-                            for k in counters)
+    assert counters and all(
+        torch.equal(average.model.state_dict()[k], model.state_dict()[k]) for k in counters
+    )
     assert not any(p.requires_grad for p in average.model.parameters())
     with pytest.raises(ValueError, match="ema_decay"):
-        replace(TrainConfig(train=Path("t"), val=Path("v"), out=Path("o.pt")),
-                ema_decay=1.0).validate()
+        replace(
+            TrainConfig(train=Path("t"), val=Path("v"), out=Path("o.pt")), ema_decay=1.0
+        ).validate()
 
 
 def test_the_checkpoint_is_the_weight_average(data, tmp_path):
@@ -312,8 +351,7 @@ def test_the_checkpoint_is_the_weight_average(data, tmp_path):
     assert not torch.equal(saved["stem.0.0.weight"], state["model"]["stem.0.0.weight"])
     raw = train(_config(data, tmp_path / "raw" / "head.pt", epochs=1))
     saved = load_head_checkpoint(raw.checkpoint).state_dict()
-    assert torch.equal(saved["stem.0.0.weight"],
-                       _weights(raw.state)["stem.0.0.weight"])
+    assert torch.equal(saved["stem.0.0.weight"], _weights(raw.state)["stem.0.0.weight"])
 
 
 def test_checkpoint_is_chosen_from_select_from_on(data, tmp_path):
@@ -369,33 +407,92 @@ def _parse(argv: list[str]) -> argparse.Namespace:
 
 def test_cli_trains_and_exports_onnx(data, tmp_path):
     out = tmp_path / "model.pt"
-    args = _parse(["--train", str(data["train"]), "--val", str(data["val"]), "--out", str(out),
-                   "--epochs", "1", "--frame-stride", "2", "--jitters", "3",
-                   "--cache-dir", str(data["cache"]), "--no-progress", "--onnx"])
+    args = _parse(
+        [
+            "--train",
+            str(data["train"]),
+            "--val",
+            str(data["val"]),
+            "--out",
+            str(out),
+            "--epochs",
+            "1",
+            "--frame-stride",
+            "2",
+            "--jitters",
+            "3",
+            "--cache-dir",
+            str(data["cache"]),
+            "--no-progress",
+            "--onnx",
+        ]
+    )
     assert args.func(args) == 0
     assert load_head_checkpoint(out).config.classes == ("swimmer", "swimmer_with_life_jacket")
     assert out.with_suffix(".onnx").is_file()
 
 
 def test_cli_errors_are_clear(data, tmp_path):
-    missing = _parse(["--train", str(tmp_path / "nope.json"), "--val", str(data["val"]),
-                      "--out", str(tmp_path / "m.pt")])
+    missing = _parse(
+        [
+            "--train",
+            str(tmp_path / "nope.json"),
+            "--val",
+            str(data["val"]),
+            "--out",
+            str(tmp_path / "m.pt"),
+        ]
+    )
     with pytest.raises(OSError, match="nope.json"):
         missing.func(missing)
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
-    broken = _parse(["--train", str(bad), "--val", str(data["val"]), "--out",
-                     str(tmp_path / "m.pt"), "--no-progress"])
+    broken = _parse(
+        [
+            "--train",
+            str(bad),
+            "--val",
+            str(data["val"]),
+            "--out",
+            str(tmp_path / "m.pt"),
+            "--no-progress",
+        ]
+    )
     with pytest.raises(ValueError, match="not valid JSON"):
         broken.func(broken)
-    foreign = _parse(["--train", str(data["train"]), "--val", str(data["val"]), "--out",
-                      str(tmp_path / "m.pt"), "--classes", "kayak", "--no-progress",
-                      "--cache-dir", str(data["cache"])])
+    foreign = _parse(
+        [
+            "--train",
+            str(data["train"]),
+            "--val",
+            str(data["val"]),
+            "--out",
+            str(tmp_path / "m.pt"),
+            "--classes",
+            "kayak",
+            "--no-progress",
+            "--cache-dir",
+            str(data["cache"]),
+        ]
+    )
     with pytest.raises(ValueError, match="kayak"):
         foreign.func(foreign)
-    resume = _parse(["--train", str(data["train"]), "--val", str(data["val"]), "--out",
-                     str(tmp_path / "fresh.pt"), "--resume", "--no-progress",
-                     "--cache-dir", str(data["cache"]), "--frame-stride", "2"])
+    resume = _parse(
+        [
+            "--train",
+            str(data["train"]),
+            "--val",
+            str(data["val"]),
+            "--out",
+            str(tmp_path / "fresh.pt"),
+            "--resume",
+            "--no-progress",
+            "--cache-dir",
+            str(data["cache"]),
+            "--frame-stride",
+            "2",
+        ]
+    )
     with pytest.raises(OSError, match="no training state"):
         resume.func(resume)
 

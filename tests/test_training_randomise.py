@@ -29,9 +29,11 @@ torch.set_num_threads(2)
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("randomise_data")
-    return {"train": write_dataset(root / "train", n_videos=1, n_frames=12, seed=1),
-            "val": write_dataset(root / "val", n_videos=1, n_frames=12, seed=2),
-            "cache": root / "cache"}
+    return {
+        "train": write_dataset(root / "train", n_videos=1, n_frames=12, seed=1),
+        "val": write_dataset(root / "val", n_videos=1, n_frames=12, seed=2),
+        "cache": root / "cache",
+    }
 
 
 def test_background_boxes_are_seeded_inside_the_frame_and_away_from_targets() -> None:
@@ -43,8 +45,14 @@ def test_background_boxes_are_seeded_inside_the_frame_and_away_from_targets() ->
     assert a[:, :2].min() >= 0 and a[:, 2].max() <= 400 and a[:, 3].max() <= 240
     assert nwd_matrix(a, gt).max() < BACKGROUND_MAX_NWD
     # a frame covered by one target leaves no room for background negatives
-    assert len(background_boxes((32, 32), np.array([[8.0, 8.0, 24.0, 24.0]]), 5, 16.0,
-                                np.random.default_rng(0))) == 0
+    assert (
+        len(
+            background_boxes(
+                (32, 32), np.array([[8.0, 8.0, 24.0, 24.0]]), 5, 16.0, np.random.default_rng(0)
+            )
+        )
+        == 0
+    )
 
 
 def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
@@ -68,15 +76,20 @@ def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
     x1, y1 = (int(round(v)) for v in more.boxes[last, :2].tolist())
     for item in iter_sequence(dataset, dataset.videos[0].id):
         if item.image.id == frame_id:
-            pixels = item.frame_bgr[y1:y1 + 16, x1:x1 + 16, ::-1].astype(np.float32) / 255
+            pixels = item.frame_bgr[y1 : y1 + 16, x1 : x1 + 16, ::-1].astype(np.float32) / 255
             break
     crop = more.crops[last, :3].float().permute(1, 2, 0).numpy()
     assert np.abs(crop.mean(axis=(0, 1)) - pixels.mean(axis=(0, 1))).max() < 0.05
 
 
 def _config(data: dict[str, Path], out: Path, **kw) -> TrainConfig:
-    base = {"epochs": 2, "batch_size": 32, "cache_dir": data["cache"], "progress": False,
-            "crops": CropSettings(frame_stride=3, jitters_per_gt=2)}
+    base = {
+        "epochs": 2,
+        "batch_size": 32,
+        "cache_dir": data["cache"],
+        "progress": False,
+        "crops": CropSettings(frame_stride=3, jitters_per_gt=2),
+    }
     return TrainConfig(train=data["train"], val=data["val"], out=out, **(base | kw))
 
 
@@ -89,8 +102,13 @@ def test_randomised_training_is_deterministic_and_differs_from_plain(data, tmp_p
     assert all(torch.equal(wa[k], wb[k]) for k in wa)
     assert not torch.equal(wa["stem.0.0.weight"], wp["stem.0.0.weight"])
     # resuming with other randomisation is refused
-    changed = _config(data, tmp_path / "a" / "h.pt", randomise=Randomisation(("tone",), 0.5),
-                      resume=True, epochs=2)
+    changed = _config(
+        data,
+        tmp_path / "a" / "h.pt",
+        randomise=Randomisation(("tone",), 0.5),
+        resume=True,
+        epochs=2,
+    )
     with pytest.raises(ValueError, match="randomise"):
         train(changed)
 
@@ -98,16 +116,34 @@ def test_randomised_training_is_deterministic_and_differs_from_plain(data, tmp_p
 def test_cli_options_reach_the_config(data, tmp_path) -> None:
     parser = argparse.ArgumentParser()
     train_command.add_parser(parser.add_subparsers())
-    args = parser.parse_args(["train", "--train", str(data["train"]), "--val", str(data["val"]),
-                              "--out", str(tmp_path / "m.pt"), "--randomise", "blur,noise",
-                              "--randomise-p", "0.3", "--background-negatives", "8"])
+    args = parser.parse_args(
+        [
+            "train",
+            "--train",
+            str(data["train"]),
+            "--val",
+            str(data["val"]),
+            "--out",
+            str(tmp_path / "m.pt"),
+            "--randomise",
+            "blur,noise",
+            "--randomise-p",
+            "0.3",
+            "--background-negatives",
+            "8",
+        ]
+    )
     config = train_command.config_from_args(args)
     assert config.randomise == Randomisation(("blur", "noise"), 0.3)
     assert config.crops.background_negatives == 8
     assert config.crops.classes == ("swimmer", "swimmer_with_life_jacket")
     args.classes = "maritime"
     assert train_command.config_from_args(args).crops.classes[2:] == (
-        "boat", "jetski", "buoy", "life_saving_appliances")
+        "boat",
+        "jetski",
+        "buoy",
+        "life_saving_appliances",
+    )
     args.randomise = "glitter"
     with pytest.raises(ValueError, match="glitter"):
         train_command.config_from_args(args)

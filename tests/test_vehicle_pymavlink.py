@@ -77,10 +77,15 @@ def test_telemetry_rates(link):
     """Each stream's rate, read from the vehicle's own ``time_boot_ms`` stamps (how often the
     receiver happens to be scheduled says nothing about the sender)."""
     link.recv("HEARTBEAT")
-    rates = {"GLOBAL_POSITION_INT": 10, "ATTITUDE": 20, "GIMBAL_DEVICE_ATTITUDE_STATUS": 5,
-             "SYSTEM_TIME": 1}
+    rates = {
+        "GLOBAL_POSITION_INT": 10,
+        "ATTITUDE": 20,
+        "GIMBAL_DEVICE_ATTITUDE_STATUS": 5,
+        "SYSTEM_TIME": 1,
+    }
     counts, stamps = collect_messages(
-        link.conn, {**{t: r * 3 for t, r in rates.items()}, "HEARTBEAT": 2, "HOME_POSITION": 1})
+        link.conn, {**{t: r * 3 for t, r in rates.items()}, "HEARTBEAT": 2, "HOME_POSITION": 1}
+    )
     for mtype, rate in rates.items():
         dt = (stamps[mtype][-1] - stamps[mtype][0]) / 1000 / (len(stamps[mtype]) - 1)
         assert 1 / dt == pytest.approx(rate, rel=0.05), mtype
@@ -346,10 +351,15 @@ def test_arducopter_like_start_no_fix_then_fix_then_home(mission):
         assert (gps.fix_type, gps.lat, gps.lon, gps.satellites_visible) == (0, 0, 0, 0)
         assert (pos.lat, pos.lon) == (0, 0)
         assert link.command_long(M.MAV_CMD_GET_HOME_POSITION) == M.MAV_RESULT_FAILED
-        link.conn.mav.command_long_send(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0,
-                                        0, 0)
-        first = link.recv(["COMMAND_ACK", "STATUSTEXT"], cond=lambda m: m.get_type() ==
-                          "STATUSTEXT" or m.command == M.MAV_CMD_COMPONENT_ARM_DISARM)
+        link.conn.mav.command_long_send(
+            1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0
+        )
+        first = link.recv(
+            ["COMMAND_ACK", "STATUSTEXT"],
+            cond=lambda m: (
+                m.get_type() == "STATUSTEXT" or m.command == M.MAV_CMD_COMPONENT_ARM_DISARM
+            ),
+        )
         assert first.get_type() == "COMMAND_ACK" and first.result == M.MAV_RESULT_FAILED
         text = link.recv("STATUSTEXT")
         assert (text.severity, text.text) == (M.MAV_SEVERITY_CRITICAL, ARM_NO_HOME)

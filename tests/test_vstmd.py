@@ -37,8 +37,9 @@ def peak_full_res(maps: MotionMaps) -> np.ndarray:
 @pytest.mark.parametrize("ds", [1, 2, 4])
 @pytest.mark.parametrize("size", [4, 8, 16])
 def test_peak_response_on_small_moving_target(ds: int, size: int) -> None:
-    frames, centres = moving_target(240, 320, 14, (100.0, 110.0), (size / 4, 0.3 * size / 4), size,
-                                    seed=3)
+    frames, centres = moving_target(
+        240, 320, 14, (100.0, 110.0), (size / 4, 0.3 * size / 4), size, seed=3
+    )
     maps = run(VSTMD(ds=ds, target_size=size), [to_bgr(f) for f in frames])
     assert maps.response.max() > 0
     # The response sits on the target or its trailing edge (the RPN shifts the box forward).
@@ -100,8 +101,9 @@ def test_size_selectivity_peaks_near_configured_size(ds: int, target_size: float
 def test_direction_of_motion(ds: int, k: int) -> None:
     theta = k * np.pi / 4
     velocity = (2.0 * np.cos(theta), -2.0 * np.sin(theta))
-    frames, _ = moving_target(200, 200, 12, (100.0 - 11 * velocity[0], 100.0 - 11 * velocity[1]),
-                              velocity, 6, seed=5)
+    frames, _ = moving_target(
+        200, 200, 12, (100.0 - 11 * velocity[0], 100.0 - 11 * velocity[1]), velocity, 6, seed=5
+    )
     maps = run(VSTMD(ds=ds, target_size=6), frames)
     i, j = np.unravel_index(int(np.argmax(maps.response)), maps.response.shape)
     got = float(direction_at(maps, np.array([j]), np.array([i]))[0])
@@ -128,10 +130,12 @@ def test_separable_lobula_equals_dense_kernel(ds: int) -> None:
     model = VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds_range=(1, 1)))
     assert model.lobula_pool == 1
     maps = run(model, frames)
-    dense = cv2.filter2D(maps.correlation.astype(np.float64), -1, model.dog_kernel(),
-                         borderType=cv2.BORDER_CONSTANT)
-    np.testing.assert_allclose(maps.response, np.maximum(dense, 0.0), rtol=0,
-                               atol=1e-3 * float(maps.response.max()))
+    dense = cv2.filter2D(
+        maps.correlation.astype(np.float64), -1, model.dog_kernel(), borderType=cv2.BORDER_CONSTANT
+    )
+    np.testing.assert_allclose(
+        maps.response, np.maximum(dense, 0.0), rtol=0, atol=1e-3 * float(maps.response.max())
+    )
 
 
 @pytest.mark.parametrize("ds", [1, 2])
@@ -150,15 +154,18 @@ def test_pooled_lobula_is_the_coarse_dense_lobula_resized(ds: int) -> None:
     maps = run(model, frames)
     h, w = maps.correlation.shape
     hl, wl = h // f, w // f
-    blocks = maps.correlation[:hl * f, :wl * f].astype(np.float64)
+    blocks = maps.correlation[: hl * f, : wl * f].astype(np.float64)
     pooled = blocks.reshape(hl, f, wl, f).mean(axis=(1, 3))
-    coarse = np.maximum(cv2.filter2D(pooled, -1, model.dog_kernel(),
-                                     borderType=cv2.BORDER_CONSTANT), 0.0)
+    coarse = np.maximum(
+        cv2.filter2D(pooled, -1, model.dog_kernel(), borderType=cv2.BORDER_CONSTANT), 0.0
+    )
     expected = np.zeros((h, w))
-    expected[:hl * f, :wl * f] = cv2.resize(coarse, (wl * f, hl * f),
-                                            interpolation=cv2.INTER_LINEAR)
-    np.testing.assert_allclose(maps.response, expected, rtol=0,
-                               atol=1e-3 * float(maps.response.max()))
+    expected[: hl * f, : wl * f] = cv2.resize(
+        coarse, (wl * f, hl * f), interpolation=cv2.INTER_LINEAR
+    )
+    np.testing.assert_allclose(
+        maps.response, expected, rtol=0, atol=1e-3 * float(maps.response.max())
+    )
     exact = run(VSTMD(ds=ds, target_size=8, params=VSTMDParams(lobula_ds_range=(1, 1))), frames)
     # On the target or its trailing edge, as in test_peak_response_on_small_moving_target.
     assert np.linalg.norm(peak_full_res(maps) - centres[-1]) <= 8 + 4
@@ -236,15 +243,17 @@ def test_lobe_radius_is_the_zero_crossing() -> None:
         r = lobe_radius(s1, s2, e)
 
         def dog(x: float, s1: float = s1, s2: float = s2, e: float = e) -> float:
-            return (math.exp(-x * x / (2 * s1 * s1)) / s1 ** 2
-                    - e * math.exp(-x * x / (2 * s2 * s2)) / s2 ** 2)
+            return (
+                math.exp(-x * x / (2 * s1 * s1)) / s1**2
+                - e * math.exp(-x * x / (2 * s2 * s2)) / s2**2
+            )
 
         assert dog(0.99 * r) > 0 > dog(1.01 * r)
     # The dense kernel's positive part is exactly the disc inside the lobe radius.
     model = VSTMD(ds=1, target_size=16.0)
     w = model.dog_kernel()
     c = w.shape[0] // 2
-    yy, xx = np.mgrid[-c:c + 1, -c:c + 1]
+    yy, xx = np.mgrid[-c : c + 1, -c : c + 1]
     radius = np.hypot(xx, yy)
     r = lobe_radius(model.sigma1, model.sigma2, model.params.dog_e)
     assert np.all(w[radius < r - 0.25] > 0) and np.all(w[radius > r + 0.25] <= 0)
@@ -264,12 +273,23 @@ def test_flops_shrink_with_ds() -> None:
     assert counts[-1] > (3 + 15 / 4) * 2160 * 3840
 
 
-def drifting(ds_frames: int = 14, camera: tuple[float, float] = (6.0, 1.5),
-             seed: int = 3) -> tuple[list[np.ndarray], np.ndarray]:
+def drifting(
+    ds_frames: int = 14, camera: tuple[float, float] = (6.0, 1.5), seed: int = 3
+) -> tuple[list[np.ndarray], np.ndarray]:
     """Textured background translating ``camera`` px/frame, 8-px target drifting (1.5, 0.5)
     px/frame relative to it."""
-    frames, centres = drifting_scene(240, 320, ds_frames, camera, (100.0, 110.0), (1.5, 0.5), 8,
-                                     seed=seed, grain=4.0, amplitude=0.15)
+    frames, centres = drifting_scene(
+        240,
+        320,
+        ds_frames,
+        camera,
+        (100.0, 110.0),
+        (1.5, 0.5),
+        8,
+        seed=seed,
+        grain=4.0,
+        amplitude=0.15,
+    )
     return [to_bgr(f) for f in frames], centres
 
 
@@ -296,8 +316,9 @@ def test_estimated_shift_matches_camera(ds: int) -> None:
         model.step(f)
         shifts.append(model.last_shift)
     assert shifts[0] == (0.0, 0.0)
-    np.testing.assert_allclose(np.array(shifts[1:]), np.tile(camera, (len(frames) - 1, 1)),
-                               atol=0.5)
+    np.testing.assert_allclose(
+        np.array(shifts[1:]), np.tile(camera, (len(frames) - 1, 1)), atol=0.5
+    )
 
 
 def test_static_camera_matches_no_compensation() -> None:
@@ -351,8 +372,9 @@ def test_target_on_cluttered_sea_needs_the_weaker_surround(ds: int, seed: int) -
     target as a top proposal (the reason for the default, see the module docstring).
     """
     size = 8
-    frames, centres = sea_scene(240, 320, 14, (6.0, 1.5), (100.0, 110.0), (1.5, 0.5), size,
-                                seed=seed)
+    frames, centres = sea_scene(
+        240, 320, 14, (6.0, 1.5), (100.0, 110.0), (1.5, 0.5), size, seed=seed
+    )
     frames = [to_bgr(f) for f in frames]
 
     def rank(params: VSTMDParams) -> int | None:

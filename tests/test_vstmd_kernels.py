@@ -50,8 +50,9 @@ def state(seed: int) -> dict[str, np.ndarray]:
     }
 
 
-def reference_update(p: np.ndarray, q: np.ndarray, l_prev: np.ndarray, v_on: np.ndarray,
-                     v_off: np.ndarray) -> tuple[np.ndarray, ...]:
+def reference_update(
+    p: np.ndarray, q: np.ndarray, l_prev: np.ndarray, v_on: np.ndarray, v_off: np.ndarray
+) -> tuple[np.ndarray, ...]:
     """The lamina and medulla equations in float64: ``(L, V_on, V_off, C)``."""
     a0, decay, g_leak, v_rest, v_exc = constants()
     lt = a0 * (p - q) + decay * l_prev
@@ -65,9 +66,9 @@ def keys_cubic(d: float) -> float:
     """Catmull-Rom (Keys, a = -0.5) interpolation kernel at distance ``d``."""
     d = abs(d)
     if d <= 1.0:
-        return 1.5 * d ** 3 - 2.5 * d ** 2 + 1.0
+        return 1.5 * d**3 - 2.5 * d**2 + 1.0
     if d < 2.0:
-        return -0.5 * d ** 3 + 2.5 * d ** 2 - 4.0 * d + 2.0
+        return -0.5 * d**3 + 2.5 * d**2 - 4.0 * d + 2.0
     return 0.0
 
 
@@ -82,21 +83,27 @@ def reference_carried(s: dict[str, np.ndarray], sx: float, sy: float) -> tuple[n
             c0, r0 = math.ceil(u), math.ceil(v)  # the cubic's taps: c0 - 2 .. c0 + 1
             if not (c0 - 2 >= 0 and c0 + 1 <= W - 1 and r0 - 2 >= 0 and r0 + 1 <= H - 1):
                 continue
-            cubic = sum(keys_cubic(v - r) * keys_cubic(u - c) * prev["p_prev"][r, c]
-                        for r in range(r0 - 2, r0 + 2) for c in range(c0 - 2, c0 + 2))
+            cubic = sum(
+                keys_cubic(v - r) * keys_cubic(u - c) * prev["p_prev"][r, c]
+                for r in range(r0 - 2, r0 + 2)
+                for c in range(c0 - 2, c0 + 2)
+            )
             carried[0][i, j] = cubic
             x0, y0 = math.floor(u), math.floor(v)
             fx, fy = u - x0, v - y0
             for n, name in enumerate(("l", "v_on", "v_off"), start=1):
                 m = prev[name]
-                carried[n][i, j] = ((1 - fy) * ((1 - fx) * m[y0, x0] + fx * m[y0, x0 + 1])
-                                    + fy * ((1 - fx) * m[y0 + 1, x0] + fx * m[y0 + 1, x0 + 1]))
+                carried[n][i, j] = (1 - fy) * ((1 - fx) * m[y0, x0] + fx * m[y0, x0 + 1]) + fy * (
+                    (1 - fx) * m[y0 + 1, x0] + fx * m[y0 + 1, x0 + 1]
+                )
     return tuple(carried)
 
 
 def outputs() -> dict[str, np.ndarray]:
-    return {n: np.full((H, W), np.nan, np.float32)
-            for n in ("p_out", "l_out", "v_on_out", "v_off_out", "corr")}
+    return {
+        n: np.full((H, W), np.nan, np.float32)
+        for n in ("p_out", "l_out", "v_on_out", "v_off_out", "corr")
+    }
 
 
 def kernel_constants() -> tuple[np.float32, ...]:
@@ -108,13 +115,28 @@ def test_unshifted_kernel_follows_the_equations(seed: int) -> None:
     s = state(seed)
     out = outputs()
     p_prev = s["p_prev"].copy()
-    lamina_medulla(s["pooled"], SCALE, p_prev, s["l"], s["v_on"], s["v_off"], out["l_out"],
-                   out["v_on_out"], out["v_off_out"], out["corr"], *kernel_constants())
+    lamina_medulla(
+        s["pooled"],
+        SCALE,
+        p_prev,
+        s["l"],
+        s["v_on"],
+        s["v_off"],
+        out["l_out"],
+        out["v_on_out"],
+        out["v_off_out"],
+        out["corr"],
+        *kernel_constants(),
+    )
     p_now = s["pooled"].astype(np.float64) / 255.0
-    expected = reference_update(p_now, s["p_prev"].astype(np.float64),
-                                *(s[k].astype(np.float64) for k in ("l", "v_on", "v_off")))
-    for got, want in zip((out["l_out"], out["v_on_out"], out["v_off_out"], out["corr"]),
-                         expected, strict=True):
+    expected = reference_update(
+        p_now,
+        s["p_prev"].astype(np.float64),
+        *(s[k].astype(np.float64) for k in ("l", "v_on", "v_off")),
+    )
+    for got, want in zip(
+        (out["l_out"], out["v_on_out"], out["v_off_out"], out["corr"]), expected, strict=True
+    ):
         np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
     np.testing.assert_allclose(p_prev, p_now, rtol=1e-6)  # this frame becomes the previous
 
@@ -125,15 +147,32 @@ def test_shifted_kernel_follows_the_equations(sx: float, sy: float) -> None:
     out = outputs()
     kx, ky = math.floor(sx), math.floor(sy)
     fx, fy = sx - kx, sy - ky
-    lamina_medulla_shifted(s["pooled"], SCALE, s["p_prev"], s["l"], s["v_on"], s["v_off"],
-                           out["p_out"], out["l_out"], out["v_on_out"], out["v_off_out"],
-                           out["corr"], np.empty(W + 3, np.float32), kx, ky, np.float32(fx),
-                           np.float32(fy), cubic_weights(fx), cubic_weights(fy),
-                           *kernel_constants())
+    lamina_medulla_shifted(
+        s["pooled"],
+        SCALE,
+        s["p_prev"],
+        s["l"],
+        s["v_on"],
+        s["v_off"],
+        out["p_out"],
+        out["l_out"],
+        out["v_on_out"],
+        out["v_off_out"],
+        out["corr"],
+        np.empty(W + 3, np.float32),
+        kx,
+        ky,
+        np.float32(fx),
+        np.float32(fy),
+        cubic_weights(fx),
+        cubic_weights(fy),
+        *kernel_constants(),
+    )
     p_now = s["pooled"].astype(np.float64) / 255.0
     expected = reference_update(p_now, *reference_carried(s, sx, sy))
-    for got, want in zip((out["l_out"], out["v_on_out"], out["v_off_out"], out["corr"]),
-                         expected, strict=True):
+    for got, want in zip(
+        (out["l_out"], out["v_on_out"], out["v_off_out"], out["corr"]), expected, strict=True
+    ):
         np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
     np.testing.assert_allclose(out["p_out"], p_now, rtol=1e-6)
 
@@ -141,11 +180,27 @@ def test_shifted_kernel_follows_the_equations(sx: float, sy: float) -> None:
 def test_a_shift_beyond_the_map_carries_nothing() -> None:
     s = state(3)
     out = outputs()
-    lamina_medulla_shifted(s["pooled"], SCALE, s["p_prev"], s["l"], s["v_on"], s["v_off"],
-                           out["p_out"], out["l_out"], out["v_on_out"], out["v_off_out"],
-                           out["corr"], np.empty(W + 3, np.float32), W + 5, 0, np.float32(0.0),
-                           np.float32(0.0), cubic_weights(0.0), cubic_weights(0.0),
-                           *kernel_constants())
+    lamina_medulla_shifted(
+        s["pooled"],
+        SCALE,
+        s["p_prev"],
+        s["l"],
+        s["v_on"],
+        s["v_off"],
+        out["p_out"],
+        out["l_out"],
+        out["v_on_out"],
+        out["v_off_out"],
+        out["corr"],
+        np.empty(W + 3, np.float32),
+        W + 5,
+        0,
+        np.float32(0.0),
+        np.float32(0.0),
+        cubic_weights(0.0),
+        cubic_weights(0.0),
+        *kernel_constants(),
+    )
     p_now = s["pooled"].astype(np.float64) / 255.0
     zero = np.zeros((H, W))
     expected = reference_update(p_now, p_now, zero, zero, zero)
@@ -156,8 +211,12 @@ def test_a_shift_beyond_the_map_carries_nothing() -> None:
 def test_cubic_weights_are_the_catmull_rom_kernel() -> None:
     for frac in (0.0, 0.25, 0.5, 0.9):
         # taps k + 1, k, k - 1, k - 2 for the sample at k - frac
-        want = [keys_cubic(-frac - 1.0), keys_cubic(-frac), keys_cubic(1.0 - frac),
-                keys_cubic(2.0 - frac)]
+        want = [
+            keys_cubic(-frac - 1.0),
+            keys_cubic(-frac),
+            keys_cubic(1.0 - frac),
+            keys_cubic(2.0 - frac),
+        ]
         np.testing.assert_allclose(cubic_weights(frac), want, atol=1e-6)
 
 

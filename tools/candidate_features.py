@@ -28,8 +28,17 @@ from sarmission.mission.config import load_mission
 from sarmission.mission.confirmation import drift_speed
 from sim.suite import DEVELOPMENT, suite
 
-FEATURES = ("sightings", "span_s", "seen_share", "score_mean", "score_top", "score_min",
-            "size_m", "speed_m_s", "speed_sigma")
+FEATURES = (
+    "sightings",
+    "span_s",
+    "seen_share",
+    "score_mean",
+    "score_top",
+    "score_min",
+    "size_m",
+    "speed_m_s",
+    "speed_sigma",
+)
 
 
 def features(evidence, fps: float) -> dict[str, float]:
@@ -40,12 +49,17 @@ def features(evidence, fps: float) -> dict[str, float]:
     scores = sorted((x.score for x in s), reverse=True)
     sizes = [x.size_m for x in s if x.size_m is not None]
     speed, sigma = drift_speed(s) if len(s) >= 3 else (math.nan, math.nan)
-    return {"sightings": len(s), "span_s": span,
-            "seen_share": len(s) / (span * fps + 1.0),
-            "score_mean": float(np.mean(scores)),
-            "score_top": float(np.mean(scores[: max(1, len(scores) // 2)])),
-            "score_min": scores[-1], "size_m": float(np.median(sizes)) if sizes else math.nan,
-            "speed_m_s": speed, "speed_sigma": sigma}
+    return {
+        "sightings": len(s),
+        "span_s": span,
+        "seen_share": len(s) / (span * fps + 1.0),
+        "score_mean": float(np.mean(scores)),
+        "score_top": float(np.mean(scores[: max(1, len(scores) // 2)])),
+        "score_min": scores[-1],
+        "size_m": float(np.median(sizes)) if sizes else math.nan,
+        "speed_m_s": speed,
+        "speed_sigma": sigma,
+    }
 
 
 def main() -> int:
@@ -69,19 +83,30 @@ def main() -> int:
                 cx, cy = alert.pixel_track[-1][1:]
                 person = frame is not None and nearest(frame.targets, cx, cy) is not None
                 other = None if frame is None or person else nearest(frame.others, cx, cy)
-                row = {"scenario": scenario.name, "target": alert.target_id,
-                       "person": int(person),
-                       "under": "person" if person else (other.category if other else "water")}
-                row.update(features(book.evidence.get(alert.target_id), 30.0)
-                           if alert.target_id in book.evidence else
-                           {k: math.nan for k in FEATURES})
-                stored = flown.controller.store.get(alert.alert_id) \
-                    if not flown.controller.store.closed else None
-                row["verdict"] = (stored.tier if stored else "?")
+                row = {
+                    "scenario": scenario.name,
+                    "target": alert.target_id,
+                    "person": int(person),
+                    "under": "person" if person else (other.category if other else "water"),
+                }
+                row.update(
+                    features(book.evidence.get(alert.target_id), 30.0)
+                    if alert.target_id in book.evidence
+                    else {k: math.nan for k in FEATURES}
+                )
+                stored = (
+                    flown.controller.store.get(alert.alert_id)
+                    if not flown.controller.store.closed
+                    else None
+                )
+                row["verdict"] = stored.tier if stored else "?"
                 rows.append(row)
-            print(f"{scenario.name}: {len(flown.controller.stats.candidates)} candidates, "
-                  f"score {flown.score.as_dict()['found']} found, "
-                  f"{flown.score.false_alerts} false", flush=True)
+            print(
+                f"{scenario.name}: {len(flown.controller.stats.candidates)} candidates, "
+                f"score {flown.score.as_dict()['found']} found, "
+                f"{flown.score.false_alerts} false",
+                flush=True,
+            )
     if args.csv:
         with open(args.csv, "w", newline="") as out:
             writer = csv.DictWriter(out, fieldnames=list(rows[0]))

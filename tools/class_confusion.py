@@ -43,8 +43,9 @@ PRESETS = ("maritime_oblique_low", "maritime_oblique_mid", "maritime_oblique_hig
 FPS = 10.0
 
 
-def count_calls(dataset: VideoDataset, detections: dict[int, FrameBoxes],
-                classes: tuple[str, ...]) -> tuple[Counter, Counter, Counter, int]:
+def count_calls(
+    dataset: VideoDataset, detections: dict[int, FrameBoxes], classes: tuple[str, ...]
+) -> tuple[Counter, Counter, Counter, int]:
     """(boxes per class, boxes called a person per class, boxes called their own class, person
     detections matched to nothing)."""
     names = {c.id: c.name for c in dataset.categories}
@@ -59,8 +60,9 @@ def count_calls(dataset: VideoDataset, detections: dict[int, FrameBoxes],
         anns = by_image.get(image.id, [])
         for a in anns:
             boxes[names[a.category_id]] += 1
-        xyxy = np.array([[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]]
-                         for a in anns]).reshape(-1, 4)
+        xyxy = np.array(
+            [[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]] for a in anns]
+        ).reshape(-1, 4)
         truth = FrameBoxes.of(xyxy)
         person = people_only(found, people)
         match = match_frame(person, truth)
@@ -87,9 +89,11 @@ def main() -> int:
     parser.add_argument("--frames", type=int, default=15, help="frames per preset and world")
     parser.add_argument("--seeds", type=int, default=3, help="worlds per preset")
     parser.add_argument("--width", type=int, default=960, help="rendered image width")
-    parser.add_argument("--models", default="shipped",
-                        help="comma-separated heads: 'shipped' or checkpoint paths "
-                             "(default: shipped)")
+    parser.add_argument(
+        "--models",
+        default="shipped",
+        help="comma-separated heads: 'shipped' or checkpoint paths (default: shipped)",
+    )
     parser.add_argument("--out", type=Path, default=OUT, help="Markdown file to write")
     args = parser.parse_args()
     from sarmission.commands.detector_options import (
@@ -104,8 +108,10 @@ def main() -> int:
 
     started = time.monotonic()
     models = [m.strip() for m in args.models.split(",") if m.strip()]
-    heads = {m: build_head_runtime(None if m == "shipped" else m,
-                                   "onnx" if m == "shipped" else "torch") for m in models}
+    heads = {
+        m: build_head_runtime(None if m == "shipped" else m, "onnx" if m == "shipped" else "torch")
+        for m in models
+    }
     boxes = Counter()
     called = {m: Counter() for m in models}
     own = {m: Counter() for m in models}
@@ -115,14 +121,24 @@ def main() -> int:
         chosen = preset(name)
         scenario = dataclasses.replace(chosen.scenario, seed=chosen.scenario.seed + k)
         with tempfile.TemporaryDirectory() as tmp:
-            path = generate_sequence(scenario, chosen.mission, args.frames,
-                                     size=(args.width, args.width * 9 // 16),
-                                     seed=scenario.seed, out_dir=tmp, fps=FPS,
-                                     video=False, progress=False, name=name, start_s=5.0)
+            path = generate_sequence(
+                scenario,
+                chosen.mission,
+                args.frames,
+                size=(args.width, args.width * 9 // 16),
+                seed=scenario.seed,
+                out_dir=tmp,
+                fps=FPS,
+                video=False,
+                progress=False,
+                name=name,
+                start_s=5.0,
+            )
             dataset = read_coco_video(path)
             for m, head in heads.items():
-                net = MiteNet(head, ds=DEFAULT_DS, topn=DEFAULT_TOPN,
-                              score_threshold=DEFAULT_SCORE_THRESHOLD)
+                net = MiteNet(
+                    head, ds=DEFAULT_DS, topn=DEFAULT_TOPN, score_threshold=DEFAULT_SCORE_THRESHOLD
+                )
                 run = run_mitenet(net, dataset, progress=False)
                 b, c, o, u = count_calls(dataset, run.detections, tuple(head.classes))
                 called[m] += c
@@ -131,9 +147,11 @@ def main() -> int:
         boxes += b
         frames += len(run.frame_ms)
         print(f"{name} world {k}: done", file=sys.stderr)
-    command = (f"nice -n 19 python tools/class_confusion.py --frames {args.frames} "
-               f"--seeds {args.seeds} --width {args.width}"
-               + (f" --models {args.models}" if args.models != "shipped" else ""))
+    command = (
+        f"nice -n 19 python tools/class_confusion.py --frames {args.frames} "
+        f"--seeds {args.seeds} --width {args.width}"
+        + (f" --models {args.models}" if args.models != "shipped" else "")
+    )
     labels = [head_label(m) for m in models]
     lines = [
         "# Which classes the head calls a person",
@@ -150,8 +168,9 @@ def main() -> int:
         "on part of a large object (a person on a boat's deck, a buoy's top mark) matches no "
         "box and counts below as matched to none.",
         "",
-        "| class | boxes | " + " | ".join(f"{lab}: called a person | {lab}: own class"
-                                          for lab in labels) + " |",
+        "| class | boxes | "
+        + " | ".join(f"{lab}: called a person | {lab}: own class" for lab in labels)
+        + " |",
         "|---|---|" + "---|---|" * len(labels),
     ]
     for name in sorted(boxes, key=lambda n: -boxes[n]):
@@ -160,13 +179,23 @@ def main() -> int:
             share = 100 * called[m][name] / boxes[name]
             key = normalise_class(name)
             named = key in {normalise_class(c) for c in heads[m].classes}
-            mine = (f"{100 * own[m][key] / boxes[name]:.1f} %"
-                    if named and role_of(name) != "person" else "-")
+            mine = (
+                f"{100 * own[m][key] / boxes[name]:.1f} %"
+                if named and role_of(name) != "person"
+                else "-"
+            )
             cells += [f"{called[m][name]} ({share:.1f} %)", mine]
         lines.append(f"| {name} | {boxes[name]} | " + " | ".join(cells) + " |")
-    lines += ["", "Person detections matched to no box (open water, wakes, foam): "
-              + ", ".join(f"{head_label(m)} {unmatched[m]} ({unmatched[m] / max(frames, 1):.2f} "
-                          "per frame)" for m in models) + ".", ""]
+    lines += [
+        "",
+        "Person detections matched to no box (open water, wakes, foam): "
+        + ", ".join(
+            f"{head_label(m)} {unmatched[m]} ({unmatched[m] / max(frames, 1):.2f} per frame)"
+            for m in models
+        )
+        + ".",
+        "",
+    ]
     args.out.write_text("\n".join(lines), encoding="utf-8")
     print(f"wrote {args.out}")
     return 0

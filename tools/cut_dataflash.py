@@ -28,7 +28,7 @@ def cut(data: bytes, start_s: float, end_s: float, types: set[str], params: set[
     out = bytearray()
     i = 0
     while i + 3 <= len(data):
-        if data[i:i + 2] != HEAD:
+        if data[i : i + 2] != HEAD:
             i += 1
             continue
         mid = data[i + 2]
@@ -36,7 +36,7 @@ def cut(data: bytes, start_s: float, end_s: float, types: set[str], params: set[
         if size is None or i + size > len(data):
             i += 1
             continue
-        msg = data[i:i + size]
+        msg = data[i : i + size]
         if mid == FMT_ID:
             ftype, flen = msg[3], msg[4]
             lengths[ftype] = flen
@@ -63,8 +63,13 @@ def main() -> None:
     parser.add_argument("--types", default=",".join(DEFAULT_TYPES))
     parser.add_argument("--params", default=",".join(DEFAULT_PARAMS))
     args = parser.parse_args()
-    piece = cut(args.src.read_bytes(), args.start, args.end, set(args.types.split(",")),
-                set(args.params.split(",")))
+    piece = cut(
+        args.src.read_bytes(),
+        args.start,
+        args.end,
+        set(args.types.split(",")),
+        set(args.params.split(",")),
+    )
     args.dst.write_bytes(piece)
     print(f"wrote {args.dst} ({len(piece)} bytes)")
 

@@ -34,8 +34,9 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "mutation.md"
 #: Most seconds one mutant's tests may run (a mutant that hangs them counts as killed).
 MUTANT_TIMEOUT_S = 600
-_COPY_IGNORE = shutil.ignore_patterns(".git", "__pycache__", "*.egg-info", ".pytest_cache",
-                                      ".ruff_cache", "*.rrd", "runs")
+_COPY_IGNORE = shutil.ignore_patterns(
+    ".git", "__pycache__", "*.egg-info", ".pytest_cache", ".ruff_cache", "*.rrd", "runs"
+)
 
 
 @dataclass(frozen=True)
@@ -55,8 +56,9 @@ def run_tests(tree: Path, tests: tuple[str, ...], timeout_s: float) -> tuple[int
     env = dict(os.environ, PYTHONPATH=str(tree), PYTHONDONTWRITEBYTECODE="1")
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests]
     try:
-        done = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True,
-                              timeout=timeout_s)
+        done = subprocess.run(
+            cmd, cwd=tree, env=env, capture_output=True, text=True, timeout=timeout_s
+        )
     except subprocess.TimeoutExpired:
         return None, f"timed out after {timeout_s:g} s"
     lines = [ln for ln in (done.stdout + done.stderr).splitlines() if ln.strip()]
@@ -84,8 +86,9 @@ def check_mutant(tree: Path, mutant: Mutant) -> Outcome:
 
 def render(outcomes: list[Outcome], command: str, commit: str) -> str:
     """The page: a summary, then survivors and stale mutants, then every mutant."""
-    counts = {s: sum(o.status == s for o in outcomes) for s in
-              ("killed", "timeout", "survived", "stale")}
+    counts = {
+        s: sum(o.status == s for o in outcomes) for s in ("killed", "timeout", "survived", "stale")
+    }
     lines = [
         "# Mutation check",
         "",
@@ -103,18 +106,26 @@ def render(outcomes: list[Outcome], command: str, commit: str) -> str:
     attention = [o for o in outcomes if o.status in ("survived", "stale")]
     lines += ["## Survivors and stale mutants", ""]
     if attention:
-        lines += [f"- **{o.status}** `{o.mutant.name}` ({o.mutant.path}): {o.mutant.what}"
-                  for o in attention]
+        lines += [
+            f"- **{o.status}** `{o.mutant.name}` ({o.mutant.path}): {o.mutant.what}"
+            for o in attention
+        ]
     else:
         lines.append("None.")
-    lines += ["", "## All mutants", "",
-              "| mutant | breaks | file | planted bug | tests | result | s |",
-              "|---|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "## All mutants",
+        "",
+        "| mutant | breaks | file | planted bug | tests | result | s |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for o in outcomes:
         m = o.mutant
         tests = ", ".join(Path(t).name for t in m.tests)
-        lines.append(f"| `{m.name}` | {m.breaks} | {m.path} | {m.what} | {tests} | "
-                     f"{o.status} | {o.seconds:.0f} |")
+        lines.append(
+            f"| `{m.name}` | {m.breaks} | {m.path} | {m.what} | {tests} | "
+            f"{o.status} | {o.seconds:.0f} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -154,16 +165,20 @@ def main(argv: list[str] | None = None) -> int:
         for i, mutant in enumerate(chosen, 1):
             outcome = check_mutant(copy, mutant)
             outcomes.append(outcome)
-            print(f"[{i}/{len(chosen)}] {outcome.status:8s} {mutant.name} "
-                  f"({outcome.seconds:.0f} s): {outcome.detail}", flush=True)
+            print(
+                f"[{i}/{len(chosen)}] {outcome.status:8s} {mutant.name} "
+                f"({outcome.seconds:.0f} s): {outcome.detail}",
+                flush=True,
+            )
     finally:
         if args.keep:
             print(f"copy kept in {tree}")
         else:
             shutil.rmtree(tree, ignore_errors=True)
     if not args.only:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                                capture_output=True, text=True).stdout.strip()
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+        ).stdout.strip()
         PAGE.write_text(render(outcomes, "nice -n 19 python tools/mutation_check.py", commit))
         print(f"wrote {PAGE.relative_to(ROOT)}")
     survivors = [o for o in outcomes if o.status in ("survived", "stale")]

@@ -94,8 +94,9 @@ def measure(cmd: list[str], cwd: Path, timeout_s: float = 900.0) -> Run:
     with tempfile.TemporaryFile("w+") as out:
         busy, own = machine_busy_s(), time.process_time()
         start = time.perf_counter()
-        process = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=out,
-                                   stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+        process = subprocess.Popen(
+            cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL
+        )
         deadline = start + timeout_s
         while True:
             pid, status, usage = os.wait4(process.pid, os.WNOHANG)
@@ -137,22 +138,66 @@ def make_clip(work: Path, frames: int) -> Path:
     if ffmpeg is None:
         raise SystemExit("needs the ffmpeg command to encode H.264 (apt-get install ffmpeg)")
     rendered = work / f"render_{frames}"
-    subprocess.run([sys.executable, "-m", "sarmission.cli", "sim", "generate", "--scenario",
-                    "maritime_test", "--frames", str(frames), "--size", "3840x2160", "--out",
-                    str(rendered), "--no-progress"], check=True, cwd=ROOT)
-    subprocess.run([ffmpeg, "-loglevel", "error", "-y", "-i",
-                    str(rendered / "maritime_test_00.mp4"), "-c:v", "libx264", "-preset",
-                    "veryfast", "-b:v", "100M", "-maxrate", "100M", "-bufsize", "200M",
-                    "-pix_fmt", "yuv420p", "-g", "30", str(clip)], check=True)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sarmission.cli",
+            "sim",
+            "generate",
+            "--scenario",
+            "maritime_test",
+            "--frames",
+            str(frames),
+            "--size",
+            "3840x2160",
+            "--out",
+            str(rendered),
+            "--no-progress",
+        ],
+        check=True,
+        cwd=ROOT,
+    )
+    subprocess.run(
+        [
+            ffmpeg,
+            "-loglevel",
+            "error",
+            "-y",
+            "-i",
+            str(rendered / "maritime_test_00.mp4"),
+            "-c:v",
+            "libx264",
+            "-preset",
+            "veryfast",
+            "-b:v",
+            "100M",
+            "-maxrate",
+            "100M",
+            "-bufsize",
+            "200M",
+            "-pix_fmt",
+            "yuv420p",
+            "-g",
+            "30",
+            str(clip),
+        ],
+        check=True,
+    )
     shutil.copy(rendered / "maritime_test.json", work / f"maritime_test_{frames}.json")
     return clip
 
 
 def supports(checkout: Path, command: str, option: str) -> bool:
     """Whether ``sarmission COMMAND`` of ``checkout`` has ``option``."""
-    done = subprocess.run([sys.executable, "-m", "sarmission.cli", command, "--help"],
-                          cwd=checkout, env=dict(os.environ, PYTHONPATH=str(checkout)),
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "sarmission.cli", command, "--help"],
+        cwd=checkout,
+        env=dict(os.environ, PYTHONPATH=str(checkout)),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     return option in done.stdout
 
 
@@ -162,18 +207,28 @@ def crops_head(rows: list[dict]) -> dict[int, float]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--baseline", type=Path, required=True,
-                        help="checkout of the revision to compare with")
+    parser.add_argument(
+        "--baseline", type=Path, required=True, help="checkout of the revision to compare with"
+    )
     parser.add_argument("--baseline-label", default="before")
     parser.add_argument("--label", default="after")
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "sar-bench")
     parser.add_argument("--frames", type=int, default=300, help="frames of the clip")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--run-frames", type=int, default=150,
-                        help="frames of the run measurement (played at 30 fps)")
+    parser.add_argument(
+        "--run-frames",
+        type=int,
+        default=150,
+        help="frames of the run measurement (played at 30 fps)",
+    )
     parser.add_argument("--bench-repeats", type=int, default=2)
-    parser.add_argument("--wait-quiet", type=float, default=0.0, metavar="S",
-                        help="first wait up to S seconds for the load average to fall below 0.5")
+    parser.add_argument(
+        "--wait-quiet",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="first wait up to S seconds for the load average to fall below 0.5",
+    )
     parser.add_argument("--out", type=Path, default=DOC)
     args = parser.parse_args()
 
@@ -185,8 +240,20 @@ def main() -> int:
     py = sys.executable
     for _label, checkout in sides:  # JIT caches compiled before anything is timed
         with tempfile.TemporaryDirectory() as tmp:
-            measure([py, "-m", "sarmission.cli", "detect", str(clip), "--max-frames", "3",
-                     "--out", str(Path(tmp) / "warm.json")], checkout)
+            measure(
+                [
+                    py,
+                    "-m",
+                    "sarmission.cli",
+                    "detect",
+                    str(clip),
+                    "--max-frames",
+                    "3",
+                    "--out",
+                    str(Path(tmp) / "warm.json"),
+                ],
+                checkout,
+            )
     decode = Series()
     detect = {label: Series() for label, _ in sides}
     run = {label: Series() for label, _ in sides}
@@ -200,46 +267,118 @@ def main() -> int:
             out = args.work / f"dets_{label}.json"
             extra = ["--no-progress"] if supports(checkout, "detect", "--no-progress") else []
             detect[label].loads.append(load1())
-            detect[label].runs.append(measure(
-                [py, "-m", "sarmission.cli", "detect", str(clip), "--ds", "2", "--topn", "25",
-                 "--out", str(out), *extra], checkout))
+            detect[label].runs.append(
+                measure(
+                    [
+                        py,
+                        "-m",
+                        "sarmission.cli",
+                        "detect",
+                        str(clip),
+                        "--ds",
+                        "2",
+                        "--topn",
+                        "25",
+                        "--out",
+                        str(out),
+                        *extra,
+                    ],
+                    checkout,
+                )
+            )
             outputs[label] = out.read_text()
         for label, checkout in sides:
             with tempfile.TemporaryDirectory() as tmp:
                 run[label].loads.append(load1())
-                run[label].runs.append(measure(
-                    [py, "-m", "sarmission.cli", "run", "--connect",
-                     f"udpin:127.0.0.1:{free_udp_port()}", "--connect-timeout", "1", "--video",
-                     str(clip), "--max-frames", str(args.run_frames), "--alerts-db",
-                     str(Path(tmp) / "alerts.db")], checkout))
-    imports = {label: json.loads(measure([py, "-c", IMPORT_COST], checkout).out)
-               for label, checkout in sides}
+                run[label].runs.append(
+                    measure(
+                        [
+                            py,
+                            "-m",
+                            "sarmission.cli",
+                            "run",
+                            "--connect",
+                            f"udpin:127.0.0.1:{free_udp_port()}",
+                            "--connect-timeout",
+                            "1",
+                            "--video",
+                            str(clip),
+                            "--max-frames",
+                            str(args.run_frames),
+                            "--alerts-db",
+                            str(Path(tmp) / "alerts.db"),
+                        ],
+                        checkout,
+                    )
+                )
+    imports = {
+        label: json.loads(measure([py, "-c", IMPORT_COST], checkout).out)
+        for label, checkout in sides
+    }
     bench: dict[str, list[dict[int, float]]] = {label: [] for label, _ in sides}
     for _ in range(args.bench_repeats):
         for label, checkout in sides:
-            extra = ["--no-clip", "--no-progress"] if supports(checkout, "bench", "--no-clip") \
-                else []
-            done = measure([py, "-m", "sarmission.cli", "bench", "--ds", "2", "--topn",
-                            "25,50,100", "--frames", "20", "--json", *extra], checkout, 1800)
+            extra = (
+                ["--no-clip", "--no-progress"] if supports(checkout, "bench", "--no-clip") else []
+            )
+            done = measure(
+                [
+                    py,
+                    "-m",
+                    "sarmission.cli",
+                    "bench",
+                    "--ds",
+                    "2",
+                    "--topn",
+                    "25,50,100",
+                    "--frames",
+                    "20",
+                    "--json",
+                    *extra,
+                ],
+                checkout,
+                1800,
+            )
             bench[label].append(crops_head(json.loads(done.out)))
     ended_load = os.getloadavg()
     same = outputs[args.baseline_label] == outputs[args.label]
     count = len(json.loads(outputs[args.label]))
-    report = render(args, clip, sides, decode, detect, run, imports, bench, same, count,
-                    started_load, ended_load)
+    report = render(
+        args,
+        clip,
+        sides,
+        decode,
+        detect,
+        run,
+        imports,
+        bench,
+        same,
+        count,
+        started_load,
+        ended_load,
+    )
     write_section(args.out, report)
     print(report)
     return 0
 
 
-def render(args, clip, sides, decode, detect, run, imports, bench, same, count, started,
-           ended) -> str:
+def render(
+    args, clip, sides, decode, detect, run, imports, bench, same, count, started, ended
+) -> str:
     frames = args.frames
     cpu = platform.processor() or platform.machine()
-    model = next((line.split(":", 1)[1].strip() for line in
-                  Path("/proc/cpuinfo").read_text().splitlines()
-                  if line.startswith("model name")), cpu) if Path("/proc/cpuinfo").exists() \
+    model = (
+        next(
+            (
+                line.split(":", 1)[1].strip()
+                for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")
+            ),
+            cpu,
+        )
+        if Path("/proc/cpuinfo").exists()
         else cpu
+    )
     others = [r.others for s in [decode, *detect.values(), *run.values()] for r in s.runs]
     lines = [
         f"Measured {time.strftime('%Y-%m-%d')} with `python tools/pipeline_benchmark.py "
@@ -258,31 +397,55 @@ def render(args, clip, sides, decode, detect, run, imports, bench, same, count, 
 
     def row(name: str, s: Series) -> str:
         wall, cpu_s = s.median("wall_s"), s.median("cpu_s")
-        return (f"| {name} | {wall:.1f} ({s.spread('wall_s')}) | {frames / wall:.1f} | "
-                f"{cpu_s:.1f} | {cpu_s / wall:.2f} cores | {s.median('rss_mb'):.0f} "
-                f"({s.spread('rss_mb')}) | {wall / base:.2f} |")
+        return (
+            f"| {name} | {wall:.1f} ({s.spread('wall_s')}) | {frames / wall:.1f} | "
+            f"{cpu_s:.1f} | {cpu_s / wall:.2f} cores | {s.median('rss_mb'):.0f} "
+            f"({s.spread('rss_mb')}) | {wall / base:.2f} |"
+        )
 
     lines.append(row("decode only (OpenCV loop)", decode))
     for label, _ in sides:
         lines.append(row(f"`detect --ds 2 --topn 25`, {label}", detect[label]))
-    lines += ["", f"`run --video CLIP --max-frames {args.run_frames}` (file played at 30 fps, no "
-              "autopilot): peak RSS "
-              + ", ".join(f"{label} {run[label].median('rss_mb'):.0f} MB "
-                          f"({run[label].spread('rss_mb')})" for label, _ in sides) + "."]
-    lines += ["", "Importing the detection path and loading the ONNX head: "
-              + ", ".join(f"{label} {imports[label]['rss_mb']:.0f} MB"
-                          f"{' with torch' if imports[label]['torch'] else ', no torch'}"
-                          for label, _ in sides) + "."]
-    lines += ["", "Crops + head, ms per frame (`sarmission bench --ds 2 --topn 25,50,100 "
-              f"--frames 20`, frames in memory, medians of {args.bench_repeats} runs):", "",
-              "| | N 25 | N 50 | N 100 | N 100 ÷ N 25 |", "|---|---|---|---|---|"]
+    lines += [
+        "",
+        f"`run --video CLIP --max-frames {args.run_frames}` (file played at 30 fps, no "
+        "autopilot): peak RSS "
+        + ", ".join(
+            f"{label} {run[label].median('rss_mb'):.0f} MB ({run[label].spread('rss_mb')})"
+            for label, _ in sides
+        )
+        + ".",
+    ]
+    lines += [
+        "",
+        "Importing the detection path and loading the ONNX head: "
+        + ", ".join(
+            f"{label} {imports[label]['rss_mb']:.0f} MB"
+            f"{' with torch' if imports[label]['torch'] else ', no torch'}"
+            for label, _ in sides
+        )
+        + ".",
+    ]
+    lines += [
+        "",
+        "Crops + head, ms per frame (`sarmission bench --ds 2 --topn 25,50,100 "
+        f"--frames 20`, frames in memory, medians of {args.bench_repeats} runs):",
+        "",
+        "| | N 25 | N 50 | N 100 | N 100 ÷ N 25 |",
+        "|---|---|---|---|---|",
+    ]
     for label, _ in sides:
         med = {n: statistics.median(r[n] for r in bench[label]) for n in (25, 50, 100)}
-        lines.append(f"| {label} | {med[25]:.1f} | {med[50]:.1f} | {med[100]:.1f} | "
-                     f"{med[100] / med[25]:.1f} |")
-    lines += ["", f"Detections of the two: {'identical' if same else 'DIFFERENT'} "
-              f"({count} detections over {frames} frames, results files compared byte for "
-              "byte)."]
+        lines.append(
+            f"| {label} | {med[25]:.1f} | {med[50]:.1f} | {med[100]:.1f} | "
+            f"{med[100] / med[25]:.1f} |"
+        )
+    lines += [
+        "",
+        f"Detections of the two: {'identical' if same else 'DIFFERENT'} "
+        f"({count} detections over {frames} frames, results files compared byte for "
+        "byte).",
+    ]
     return "\n".join(lines)
 
 
@@ -292,8 +455,7 @@ def write_section(path: Path, report: str, tag: str = "pipeline_benchmark") -> N
     text = path.read_text() if path.exists() else "# Benchmarks\n"
     block = f"{begin}\n{report}\n{end}"
     if begin in text and end in text:
-        text = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _m: block, text,
-                      flags=re.S)
+        text = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _m: block, text, flags=re.S)
     else:
         text = text.rstrip() + "\n\n" + block + "\n"
     path.parent.mkdir(parents=True, exist_ok=True)

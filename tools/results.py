@@ -82,42 +82,114 @@ PAPER_SWAP: dict[int, dict[str, float]] = {
 }
 #: Appendix C box-level comparison, MITE-Net (Raw 4K + 2ds); no "small" band published.
 PAPER_BOXES: dict[str, dict[str, Any]] = {
-    "SeaDroneSee-Tiny": {"fps": 30.33, "bands": {
-        "extremely_tiny": {"ap": 0.27, "ar": 0.47, "f2": 0.30},
-        "tiny": {"ap": 0.38, "ar": 0.48, "f2": 0.40},
-        "all": {"ap": 0.08, "ar": 0.48, "f2": 0.38}}},
-    "UAVID-Tiny": {"fps": 31.93, "bands": {
-        "extremely_tiny": {"ap": 0.01, "ar": 0.01, "f2": 0.00},
-        "tiny": {"ap": 0.00, "ar": 0.02, "f2": 0.00},
-        "all": {"ap": 0.00, "ar": 0.01, "f2": 0.00}}},
+    "SeaDroneSee-Tiny": {
+        "fps": 30.33,
+        "bands": {
+            "extremely_tiny": {"ap": 0.27, "ar": 0.47, "f2": 0.30},
+            "tiny": {"ap": 0.38, "ar": 0.48, "f2": 0.40},
+            "all": {"ap": 0.08, "ar": 0.48, "f2": 0.38},
+        },
+    },
+    "UAVID-Tiny": {
+        "fps": 31.93,
+        "bands": {
+            "extremely_tiny": {"ap": 0.01, "ar": 0.01, "f2": 0.00},
+            "tiny": {"ap": 0.00, "ar": 0.02, "f2": 0.00},
+            "all": {"ap": 0.00, "ar": 0.01, "f2": 0.00},
+        },
+    },
 }
 #: Table "Scalability" on SeaDroneSee-Tiny: (ds, N) -> SSR, FAR, FPS, FPS/W, GFLOPs per stage.
 PAPER_SCALABILITY: dict[tuple[int, int], dict[str, float]] = {
-    (1, 25): {"ssr": 100.0, "far": 67.83, "fps": 11.81, "eff": 7.43, "total": 2.1851,
-              "vstmd": 1.9972, "rpn_other": 0.0317, "head": 0.1561},
-    (2, 10): {"ssr": 100.0, "far": 35.41, "fps": 30.94, "eff": 10.18, "total": 0.5268,
-              "vstmd": 0.3689, "rpn_other": 0.0258, "head": 0.1321},
-    (2, 25): {"ssr": 100.0, "far": 67.72, "fps": 30.33, "eff": 10.32, "total": 0.5605,
-              "vstmd": 0.3689, "rpn_other": 0.0258, "head": 0.1657},
-    (2, 50): {"ssr": 100.0, "far": 82.76, "fps": 30.16, "eff": 10.12, "total": 0.5607,
-              "vstmd": 0.3689, "rpn_other": 0.0258, "head": 0.1659},
-    (2, 100): {"ssr": 100.0, "far": 82.76, "fps": 30.16, "eff": 10.12, "total": 0.5607,
-               "vstmd": 0.3689, "rpn_other": 0.0258, "head": 0.1659},
-    (4, 25): {"ssr": 100.0, "far": 68.80, "fps": 46.28, "eff": 12.63, "total": 0.4335,
-              "vstmd": 0.1290, "rpn_other": 0.0246, "head": 0.2799},
-    (8, 25): {"ssr": 83.33, "far": 82.29, "fps": 52.33, "eff": 13.54, "total": 0.5167,
-              "vstmd": 0.0925, "rpn_other": 0.0251, "head": 0.3991},
+    (1, 25): {
+        "ssr": 100.0,
+        "far": 67.83,
+        "fps": 11.81,
+        "eff": 7.43,
+        "total": 2.1851,
+        "vstmd": 1.9972,
+        "rpn_other": 0.0317,
+        "head": 0.1561,
+    },
+    (2, 10): {
+        "ssr": 100.0,
+        "far": 35.41,
+        "fps": 30.94,
+        "eff": 10.18,
+        "total": 0.5268,
+        "vstmd": 0.3689,
+        "rpn_other": 0.0258,
+        "head": 0.1321,
+    },
+    (2, 25): {
+        "ssr": 100.0,
+        "far": 67.72,
+        "fps": 30.33,
+        "eff": 10.32,
+        "total": 0.5605,
+        "vstmd": 0.3689,
+        "rpn_other": 0.0258,
+        "head": 0.1657,
+    },
+    (2, 50): {
+        "ssr": 100.0,
+        "far": 82.76,
+        "fps": 30.16,
+        "eff": 10.12,
+        "total": 0.5607,
+        "vstmd": 0.3689,
+        "rpn_other": 0.0258,
+        "head": 0.1659,
+    },
+    (2, 100): {
+        "ssr": 100.0,
+        "far": 82.76,
+        "fps": 30.16,
+        "eff": 10.12,
+        "total": 0.5607,
+        "vstmd": 0.3689,
+        "rpn_other": 0.0258,
+        "head": 0.1659,
+    },
+    (4, 25): {
+        "ssr": 100.0,
+        "far": 68.80,
+        "fps": 46.28,
+        "eff": 12.63,
+        "total": 0.4335,
+        "vstmd": 0.1290,
+        "rpn_other": 0.0246,
+        "head": 0.2799,
+    },
+    (8, 25): {
+        "ssr": 83.33,
+        "far": 82.29,
+        "fps": 52.33,
+        "eff": 13.54,
+        "total": 0.5167,
+        "vstmd": 0.0925,
+        "rpn_other": 0.0251,
+        "head": 0.3991,
+    },
 }
 #: Table "Module": recall at NWD 0.1 / 0.5 of the TTM-RPN (no category) and the head (category).
 PAPER_MODULE: dict[str, dict[str, dict[str, float]]] = {
-    "SeaDroneSee-Tiny": {"rpn": {"R@0.1": 0.9584, "R@0.5": 0.5812},
-                         "head": {"R@0.1": 0.7377, "R@0.5": 0.7072}},
-    "UAVID-Tiny": {"rpn": {"R@0.1": 0.1047, "R@0.5": 0.0580},
-                   "head": {"R@0.1": 0.0230, "R@0.5": 0.0103}},
+    "SeaDroneSee-Tiny": {
+        "rpn": {"R@0.1": 0.9584, "R@0.5": 0.5812},
+        "head": {"R@0.1": 0.7377, "R@0.5": 0.7072},
+    },
+    "UAVID-Tiny": {
+        "rpn": {"R@0.1": 0.1047, "R@0.5": 0.0580},
+        "head": {"R@0.1": 0.0230, "R@0.5": 0.0103},
+    },
 }
 
-BAND_LABELS = {"extremely_tiny": "extremely tiny (≤ 64 px²)", "tiny": "tiny (64–256 px²)",
-               "small": "small (256–1024 px²)", "all": "all"}
+BAND_LABELS = {
+    "extremely_tiny": "extremely tiny (≤ 64 px²)",
+    "tiny": "tiny (64–256 px²)",
+    "small": "small (256–1024 px²)",
+    "all": "all",
+}
 MODULE_LABELS = {"rpn": "TTM-RPN (no category)", "head": "R-CNN-like head (category)"}
 
 # --------------------------------------------------------------------------------------------
@@ -125,8 +197,9 @@ MODULE_LABELS = {"rpn": "TTM-RPN (no category)", "head": "R-CNN-like head (categ
 # --------------------------------------------------------------------------------------------
 
 
-def verdict(measured: float | None, paper: float | None, higher_is_better: bool,
-            tol: float) -> str | None:
+def verdict(
+    measured: float | None, paper: float | None, higher_is_better: bool, tol: float
+) -> str | None:
     """``"better"``, ``"worse"`` or ``"on par"`` (within ``tol``); ``None`` if either is missing."""
     if measured is None or paper is None:
         return None
@@ -143,8 +216,9 @@ def _row(cells: Sequence[Any]) -> str:
     return "| " + " | ".join(str(c) for c in cells) + " |"
 
 
-def _table(header: Sequence[str], rows: Sequence[Sequence[Any]],
-           align: str | None = None) -> list[str]:
+def _table(
+    header: Sequence[str], rows: Sequence[Sequence[Any]], align: str | None = None
+) -> list[str]:
     align = align or "l" + "r" * (len(header) - 1)
     rule = ["---:" if a == "r" else ":---" for a in align]
     return [_row(header), _row(rule), *(_row(r) for r in rows)]
@@ -161,15 +235,24 @@ def _rpn_limit(run: dict) -> str:
     if unlocked:
         short = sum(1 for t in unlocked if t["n_frames"] < m)
         hits = sum(1 for t in unlocked if t["n_frames"] >= m and t["n_hits"] >= m)
-        reasons = [(short, f"annotated in fewer than {m} frames (no detector can lock "
-                           f"{'it' if short == 1 else 'them'})"),
-                   (hits, f"with {m} or more hits that never fall inside one {k}-frame window"),
-                   (len(unlocked) - short - hits, f"with fewer than {m} hits")]
-        lines = (f"{len(unlocked)} {'trajectory' if len(unlocked) == 1 else 'trajectories'} not "
-                 f"locked: {', '.join(f'{n} {why}' for n, why in reasons if n)}. ")
-    return (lines + f"The RPN's top-N proposals come within NWD 0.1 of "
-            f"{100 * rpn['R@0.1']:.0f} % of the target boxes (section 4); a target it does not "
-            "propose cannot be detected. ")
+        reasons = [
+            (
+                short,
+                f"annotated in fewer than {m} frames (no detector can lock "
+                f"{'it' if short == 1 else 'them'})",
+            ),
+            (hits, f"with {m} or more hits that never fall inside one {k}-frame window"),
+            (len(unlocked) - short - hits, f"with fewer than {m} hits"),
+        ]
+        lines = (
+            f"{len(unlocked)} {'trajectory' if len(unlocked) == 1 else 'trajectories'} not "
+            f"locked: {', '.join(f'{n} {why}' for n, why in reasons if n)}. "
+        )
+    return (
+        lines + f"The RPN's top-N proposals come within NWD 0.1 of "
+        f"{100 * rpn['R@0.1']:.0f} % of the target boxes (section 4); a target it does not "
+        "propose cannot be detected. "
+    )
 
 
 class Findings:
@@ -178,21 +261,31 @@ class Findings:
     def __init__(self) -> None:
         self.items: dict[str, list[str]] = {"worse": [], "better": [], "on par": []}
 
-    def add(self, label: str, measured: float | None, paper: float | None,
-            higher_is_better: bool, tol: float, spec: str, unit: str = "",
-            why: Mapping[str, str] | None = None) -> str | None:
+    def add(
+        self,
+        label: str,
+        measured: float | None,
+        paper: float | None,
+        higher_is_better: bool,
+        tol: float,
+        spec: str,
+        unit: str = "",
+        why: Mapping[str, str] | None = None,
+    ) -> str | None:
         v = verdict(measured, paper, higher_is_better, tol)
         if v is None:
             return None
-        text = (f"{label}: {_f(measured, spec)}{unit} here vs {_f(paper, spec)}{unit} in the "
-                f"paper.")
+        text = f"{label}: {_f(measured, spec)}{unit} here vs {_f(paper, spec)}{unit} in the paper."
         reason = (why or {}).get(v)
         self.items[v].append(text + (f" {reason}" if reason else ""))
         return v
 
     def render(self, lead: str = "") -> list[str]:
-        lines = ["", "**Where sarmission is worse / better and why.**" + (f" {lead}" if lead
-                                                                            else ""), ""]
+        lines = [
+            "",
+            "**Where sarmission is worse / better and why.**" + (f" {lead}" if lead else ""),
+            "",
+        ]
         titles = {"worse": "Worse", "better": "Better", "on par": "On par"}
         empty = True
         for key in ("worse", "better", "on par"):
@@ -219,7 +312,9 @@ def _header(results: Mapping[str, Any]) -> list[str]:
     splits = results.get("splits", {})
     presets = "; ".join(
         f"`{name}` (seed {info['preset'].get('seed')}: {info['preset'].get('description', '')})"
-        f" stands in for {SPLITS.get(name, '?')}" for name, info in splits.items())
+        f" stands in for {SPLITS.get(name, '?')}"
+        for name, info in splits.items()
+    )
     sweep = results.get("sweep")
     return [
         "# Results: the shipped MITE-Net head on the simulator's test splits",
@@ -239,12 +334,15 @@ def _header(results: Mapping[str, Any]) -> list[str]:
         "seed, so the render is reproducible).",
         f"- Detector: {s['model']} ({s['runtime']} runtime), N = {s['topn']} proposals "
         f"({s.get('colour_share', 0.0):.0%} of them from colour anomalies, section 1b), "
-        + _crop_scales_text(s.get("crop_scales", [1.0])) +
-        f"detection score ≥ {s['conf']:g} kept, ego-motion `{s['ego_motion']}`; main runs at "
+        + _crop_scales_text(s.get("crop_scales", [1.0]))
+        + f"detection score ≥ {s['conf']:g} kept, ego-motion `{s['ego_motion']}`; main runs at "
         f"ds = {MAIN_DS}, plus ds = 8 for the paper's second column"
-        + ("; scalability sweep on `maritime_test`." if sweep else
-           "; no scalability sweep in this run (`--sweep`)."),
-        f"- Metrics (DESIGN.md \"Metrics\"): lock = matched in ≥ {s['m']} of {s['k']} "
+        + (
+            "; scalability sweep on `maritime_test`."
+            if sweep
+            else "; no scalability sweep in this run (`--sweep`)."
+        ),
+        f'- Metrics (DESIGN.md "Metrics"): lock = matched in ≥ {s["m"]} of {s["k"]} '
         f"consecutive frames; match = one-to-one Hungarian on NWD, score > {s['score_thr']:g} "
         f"and NWD > {s['nwd_thr']:g}. Library calls: `sarmission.evaluation.run_model."
         "run_mitenet` / `run_sweep` and `sarmission.evaluation.report.evaluate_detections`.",
@@ -260,21 +358,32 @@ def _split_notes(results: Mapping[str, Any], split: str) -> list[str]:
     notes = []
     aliases = info.get("category_as_class") or {}
     if aliases:
-        pairs = ", ".join(f"category `{a}` is scored as the head's class `{b}`"
-                          for a, b in aliases.items())
-        notes.append(f"Ground truth: the shipped head has no class for these targets, so the "
-                     f"rendered {pairs} (the SAR matching is class-agnostic; the box "
-                     "metrics and the head's recall need the head to call a pedestrian a "
-                     "swimmer). The head never saw this scene type in training.")
+        pairs = ", ".join(
+            f"category `{a}` is scored as the head's class `{b}`" for a, b in aliases.items()
+        )
+        notes.append(
+            f"Ground truth: the shipped head has no class for these targets, so the "
+            f"rendered {pairs} (the SAR matching is class-agnostic; the box "
+            "metrics and the head's recall need the head to call a pedestrian a "
+            "swimmer). The head never saw this scene type in training."
+        )
     run = (info.get("runs") or {}).get(str(MAIN_DS))
     if run is not None and not run["dataset"].get("n_gt_boxes"):
-        notes.append("**No ground-truth target in these frames**: SSR, search time and recall "
-                     "are undefined (—) and every detection is a false alarm.")
+        notes.append(
+            "**No ground-truth target in these frames**: SSR, search time and recall "
+            "are undefined (—) and every detection is a false alarm."
+        )
     return [*notes, ""] if notes else []
 
 
-def _sar_row(label: str, runs: Mapping[int, Mapping[str, Any] | None], of_run: Any,
-             of_paper: Any, spec: str, paper_spec: str | None = None) -> list[str]:
+def _sar_row(
+    label: str,
+    runs: Mapping[int, Mapping[str, Any] | None],
+    of_run: Any,
+    of_paper: Any,
+    spec: str,
+    paper_spec: str | None = None,
+) -> list[str]:
     """One row of the SAR table: measured and published value for each of ``PAPER_DS``."""
     cells = [label]
     for ds in PAPER_DS:
@@ -285,13 +394,17 @@ def _sar_row(label: str, runs: Mapping[int, Mapping[str, Any] | None], of_run: A
 
 
 def _sar_section(results: Mapping[str, Any]) -> list[str]:
-    lines = ["", "## 1. SAR criteria (paper: Table \"Comprehensive Comparison\")", "",
-             "Paper columns: MITE-Net, raw 4K + 2ds and + 8ds, TensorRT FP16 on a Jetson AGX "
-             "Xavier. ¹ The paper defines FAR as \"incorrect detections / total frames\" but "
-             "every published value is ≤ 100 % (99.98 % on UAVID-Tiny at N = 25), which fits a "
-             "share of detections better than a count per frame; its number is shown in the "
-             "per-detection row and compared with ours there. Our per-frame FAR (unmatched "
-             "detections / frames) can exceed 100 % and has no published counterpart."]
+    lines = [
+        "",
+        '## 1. SAR criteria (paper: Table "Comprehensive Comparison")',
+        "",
+        "Paper columns: MITE-Net, raw 4K + 2ds and + 8ds, TensorRT FP16 on a Jetson AGX "
+        'Xavier. ¹ The paper defines FAR as "incorrect detections / total frames" but '
+        "every published value is ≤ 100 % (99.98 % on UAVID-Tiny at N = 25), which fits a "
+        "share of detections better than a count per frame; its number is shown in the "
+        "per-detection row and compared with ours there. Our per-frame FAR (unmatched "
+        "detections / frames) can exceed 100 % and has no published counterpart.",
+    ]
     s = results["settings"]
     for split, dataset in SPLITS.items():
         if split not in results.get("splits", {}):
@@ -302,29 +415,72 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
         for ds in PAPER_DS:
             header += [f"sarmission ds={ds}", f"paper {ds}ds"]
         rows: list[list[str]] = [
-            _sar_row("Search Success Rate (%) ↑", runs,
-                     lambda r: r["sar"]["search_success_rate"],
-                     lambda ds, p=paper: p[ds]["ssr"], ".2f"),
-            ["Trajectories locked"] + sum(
-                (["not run" if runs[ds] is None else _locked_text(runs[ds]["sar"]), "—"]
-                 for ds in PAPER_DS), []),
-            _sar_row("False Alarm Rate, per detection (%) ↓ ¹", runs,
-                     lambda r: r["sar"]["false_alarm_rate_detections"],
-                     lambda ds, p=paper: p[ds]["far"], ".2f"),
-            _sar_row("False Alarm Rate, per frame (%) ↓", runs,
-                     lambda r: r["sar"]["false_alarm_rate_per_frame"], None, ".2f"),
-            _sar_row("Max Search Time (frames) ↓", runs,
-                     lambda r: r["sar"]["max_search_time_frames"],
-                     lambda ds, p=paper: p[ds]["max_time"], ".0f"),
-            _sar_row("Avg. Search Time (frames) ↓", runs,
-                     lambda r: r["sar"]["avg_search_time_frames"],
-                     lambda ds, p=paper: p[ds]["avg_time"], ".2f"),
-            _sar_row("Latency (ms, median, batch 1) ↓", runs, lambda r: r["median_ms"],
-                     lambda ds: PAPER_SWAP[ds]["latency_ms"], ".2f"),
-            _sar_row("Complexity (GFLOPs per frame) ↓", runs, lambda r: r["gflops"]["total"],
-                     lambda ds: PAPER_SWAP[ds]["gflops"], ".4f", ".2f"),
-            _sar_row("Parameters (M) ↓", runs, lambda r: r["parameters"] / 1e6,
-                     lambda ds: PAPER_SWAP[ds]["params_m"], ".3f", ".2f"),
+            _sar_row(
+                "Search Success Rate (%) ↑",
+                runs,
+                lambda r: r["sar"]["search_success_rate"],
+                lambda ds, p=paper: p[ds]["ssr"],
+                ".2f",
+            ),
+            ["Trajectories locked"]
+            + sum(
+                (
+                    ["not run" if runs[ds] is None else _locked_text(runs[ds]["sar"]), "—"]
+                    for ds in PAPER_DS
+                ),
+                [],
+            ),
+            _sar_row(
+                "False Alarm Rate, per detection (%) ↓ ¹",
+                runs,
+                lambda r: r["sar"]["false_alarm_rate_detections"],
+                lambda ds, p=paper: p[ds]["far"],
+                ".2f",
+            ),
+            _sar_row(
+                "False Alarm Rate, per frame (%) ↓",
+                runs,
+                lambda r: r["sar"]["false_alarm_rate_per_frame"],
+                None,
+                ".2f",
+            ),
+            _sar_row(
+                "Max Search Time (frames) ↓",
+                runs,
+                lambda r: r["sar"]["max_search_time_frames"],
+                lambda ds, p=paper: p[ds]["max_time"],
+                ".0f",
+            ),
+            _sar_row(
+                "Avg. Search Time (frames) ↓",
+                runs,
+                lambda r: r["sar"]["avg_search_time_frames"],
+                lambda ds, p=paper: p[ds]["avg_time"],
+                ".2f",
+            ),
+            _sar_row(
+                "Latency (ms, median, batch 1) ↓",
+                runs,
+                lambda r: r["median_ms"],
+                lambda ds: PAPER_SWAP[ds]["latency_ms"],
+                ".2f",
+            ),
+            _sar_row(
+                "Complexity (GFLOPs per frame) ↓",
+                runs,
+                lambda r: r["gflops"]["total"],
+                lambda ds: PAPER_SWAP[ds]["gflops"],
+                ".4f",
+                ".2f",
+            ),
+            _sar_row(
+                "Parameters (M) ↓",
+                runs,
+                lambda r: r["parameters"] / 1e6,
+                lambda ds: PAPER_SWAP[ds]["params_m"],
+                ".3f",
+                ".2f",
+            ),
         ]
         lines += ["", f"### `{split}` vs {dataset}", ""] + _split_notes(results, split)
         lines += _table(header, rows)
@@ -338,80 +494,138 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
                 continue
             sar, tag = run["sar"], f"ds={ds}"
             findings.add(
-                f"SSR at {tag}", sar["search_success_rate"], paper[ds]["ssr"], True, 0.5,
-                ".2f", " %", why={
+                f"SSR at {tag}",
+                sar["search_success_rate"],
+                paper[ds]["ssr"],
+                True,
+                0.5,
+                ".2f",
+                " %",
+                why={
                     "worse": (
                         _rpn_limit(run)
-                        + ("" if maritime else
-                           "The head never saw this scene type (it was trained on the "
-                           "simulator's maritime clips only). ")
+                        + (
+                            ""
+                            if maritime
+                            else "The head never saw this scene type (it was trained on the "
+                            "simulator's maritime clips only). "
+                        )
                         + f"Each clip has only {frames} frames, so a target that enters "
-                        "late or leaves early has few chances for 3 hits in 5 frames."),
+                        "late or leaves early has few chances for 3 hits in 5 frames."
+                    ),
                     "better": (
                         "The simulator's targets move cleanly over a procedural background "
                         "without compression artefacts, camera shake or motion blur; "
-                        + ("the paper's urban collapse (8.33 %) comes from real city clutter "
-                           "that `urban_test` only approximates, "
-                           if not maritime else "")
-                        + "so a higher SSR here says little about real footage."),
-                })
+                        + (
+                            "the paper's urban collapse (8.33 %) comes from real city clutter "
+                            "that `urban_test` only approximates, "
+                            if not maritime
+                            else ""
+                        )
+                        + "so a higher SSR here says little about real footage."
+                    ),
+                },
+            )
             findings.add(
-                f"FAR per detection at {tag}", sar["false_alarm_rate_detections"],
-                paper[ds]["far"], False, 0.5, ".2f", " %", why={
+                f"FAR per detection at {tag}",
+                sar["false_alarm_rate_detections"],
+                paper[ds]["far"],
+                False,
+                0.5,
+                ".2f",
+                " %",
+                why={
                     "worse": (
                         "The rendered distractors (sun glints, debris, birds, boats; cars and "
                         "shadows in the city) move and look like targets to the motion RPN, and "
                         "the head trained on few clips rejects them less well than the paper's "
-                        "head trained on real footage. Not strictly comparable: see ¹."),
+                        "head trained on real footage. Not strictly comparable: see ¹."
+                    ),
                     "better": (
                         "Fewer false alarms than published, but the definition of the paper's "
                         "FAR is ambiguous (¹) and the simulator's clutter is milder than real "
-                        "sea or city footage."),
-                })
+                        "sea or city footage."
+                    ),
+                },
+            )
             findings.add(
-                f"Avg. search time at {tag}", sar["avg_search_time_frames"],
-                paper[ds]["avg_time"], False, 0.5, ".2f", " frames", why={
+                f"Avg. search time at {tag}",
+                sar["avg_search_time_frames"],
+                paper[ds]["avg_time"],
+                False,
+                0.5,
+                ".2f",
+                " frames",
+                why={
                     "better": (
                         f"Our clips are {frames} frames long, which caps every search time at "
                         f"{frames - 1} frames, while the paper's test sequences run for hundreds "
-                        "of frames; shorter times here are largely a property of clip length."),
+                        "of frames; shorter times here are largely a property of clip length."
+                    ),
                     "worse": (
                         "Targets are locked later than in the paper although our clips are "
                         f"only {frames} frames long: the vSTMD needs a few frames of history "
                         "before a new target responds, and targets matched only now and then "
-                        "take long to collect 3 hits in 5 frames."),
-                })
+                        "take long to collect 3 hits in 5 frames."
+                    ),
+                },
+            )
             findings.add(
-                f"Max search time at {tag}", sar["max_search_time_frames"],
-                paper[ds]["max_time"], False, 0.5, ".0f", " frames",
-                why={"better": f"Bounded by the clip length ({frames} frames)."})
+                f"Max search time at {tag}",
+                sar["max_search_time_frames"],
+                paper[ds]["max_time"],
+                False,
+                0.5,
+                ".0f",
+                " frames",
+                why={"better": f"Bounded by the clip length ({frames} frames)."},
+            )
             findings.add(
-                f"Latency at {tag}", run["median_ms"], PAPER_SWAP[ds]["latency_ms"], False, 0.5,
-                ".2f", " ms", why={
+                f"Latency at {tag}",
+                run["median_ms"],
+                PAPER_SWAP[ds]["latency_ms"],
+                False,
+                0.5,
+                ".2f",
+                " ms",
+                why={
                     "worse": (
                         "Apples-to-oranges: the paper runs TensorRT FP16 on a Jetson GPU; here "
                         "vSTMD and the RPN run as NumPy/OpenCV and the head in onnxruntime on "
-                        f"{results['machine']['nproc']} CPU core(s)."),
+                        f"{results['machine']['nproc']} CPU core(s)."
+                    ),
                     "better": (
                         "Apples-to-oranges: different hardware (CPU here, Jetson GPU with "
-                        "TensorRT FP16 in the paper)."),
-                })
+                        "TensorRT FP16 in the paper)."
+                    ),
+                },
+            )
             findings.add(
-                f"GFLOPs at {tag}", run["gflops"]["total"], PAPER_SWAP[ds]["gflops"], False,
-                0.02, ".4f", "", why={
+                f"GFLOPs at {tag}",
+                run["gflops"]["total"],
+                PAPER_SWAP[ds]["gflops"],
+                False,
+                0.02,
+                ".4f",
+                "",
+                why={
                     "worse": (
                         "Counted the same way (per 4K frame, all stages, N proposals); the "
                         "difference is in the vSTMD/RPN filter sizes, the head layout and the "
                         "second crop scale (counted as if every proposal were cropped twice, "
-                        "the most it can cost), see section 3 for the split per stage."),
+                        "the most it can cost), see section 3 for the split per stage."
+                    ),
                     "better": (
                         "Counted the same way (per 4K frame, all stages, N proposals); see "
-                        "section 3 for the split per stage."),
-                })
+                        "section 3 for the split per stage."
+                    ),
+                },
+            )
         lines += findings.render(
             "Judged on the per-detection FAR (see ¹); SSR and FAR compare 2 clips of "
             "synthetic footage with the paper's real test split, so a single trajectory moves "
-            "the SSR by several points.")
+            "the SSR by several points."
+        )
     return lines
 
 
@@ -428,64 +642,93 @@ def _crop_scales_text(scales: Sequence[float]) -> str:
     if len(scales) == 1:
         return f"one crop per proposal at {scales[0]:g} S, "
     more = " and ".join(f"{v:g} S" for v in scales[1:])
-    return (f"crops at {scales[0]:g} S, and at {more} for the proposals the head keeps "
-            "(section 1b), ")
+    return (
+        f"crops at {scales[0]:g} S, and at {more} for the proposals the head keeps (section 1b), "
+    )
 
 
 def _colour_section(results: Mapping[str, Any]) -> list[str]:
     """Colour proposals against the paper's motion-only RPN and (when measured) the second crop
     scale against the single crop, same head, same frames."""
-    pairs = [(split, _run(results, split, MAIN_DS), info.get("motion_only"), info)
-             for split, info in results.get("splits", {}).items()]
+    pairs = [
+        (split, _run(results, split, MAIN_DS), info.get("motion_only"), info)
+        for split, info in results.get("splits", {}).items()
+    ]
     pairs = [p for p in pairs if p[1] is not None and p[2] is not None]
     if not pairs:
         return []
     share = results["settings"].get("colour_share", 0.0)
-    lines = ["", "## 1b. Colour proposals against the paper's motion-only RPN", "",
-             f"sarmission departs from the paper here: {share:.0%} of the N = {TOPN} proposals "
-             "come from a chromatic anomaly map (`sarmission/perception/chroma.py`: each "
-             "pixel's chroma deviation from its 120-px neighbourhood over the neighbourhood's "
-             "typical deviation, at 1/8 resolution), the rest from vSTMD. A swimmer who drifts "
-             "with the water barely moves against it once the camera's motion is compensated, "
-             "and one larger than vSTMD's preferred size is suppressed by the lobula's "
-             "surround; colour still singles both out. Same head, frames and ds = "
-             f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. The head also departs from "
-             "the paper: every proposal is cropped at its box (S) and the proposals the head "
-             "would keep are cropped again at 2 S; the wider crop wins when the head scores it "
-             "higher and boxes the target larger than S, so that the head sees swimmers of "
-             "25-40 px whole. Where measured, further rows show the paper's single crop "
-             "(`--crop-scales 1`) and every proposal cropped at both scales "
-             "(`--refine-threshold 0`).", ""]
+    lines = [
+        "",
+        "## 1b. Colour proposals against the paper's motion-only RPN",
+        "",
+        f"sarmission departs from the paper here: {share:.0%} of the N = {TOPN} proposals "
+        "come from a chromatic anomaly map (`sarmission/perception/chroma.py`: each "
+        "pixel's chroma deviation from its 120-px neighbourhood over the neighbourhood's "
+        "typical deviation, at 1/8 resolution), the rest from vSTMD. A swimmer who drifts "
+        "with the water barely moves against it once the camera's motion is compensated, "
+        "and one larger than vSTMD's preferred size is suppressed by the lobula's "
+        "surround; colour still singles both out. Same head, frames and ds = "
+        f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. The head also departs from "
+        "the paper: every proposal is cropped at its box (S) and the proposals the head "
+        "would keep are cropped again at 2 S; the wider crop wins when the head scores it "
+        "higher and boxes the target larger than S, so that the head sees swimmers of "
+        "25-40 px whole. Where measured, further rows show the paper's single crop "
+        "(`--crop-scales 1`) and every proposal cropped at both scales "
+        "(`--refine-threshold 0`).",
+        "",
+    ]
     rows = []
     for split, mixed, motion, info in pairs:
-        variants = [("motion + colour, crops S and 2 S", mixed),
-                    ("motion only (paper), crops S and 2 S", motion)]
+        variants = [
+            ("motion + colour, crops S and 2 S", mixed),
+            ("motion only (paper), crops S and 2 S", motion),
+        ]
         if info.get("single_crop") is not None:
             variants.append(("motion + colour, single crop (paper)", info["single_crop"]))
         if info.get("refine_all") is not None:
-            variants.append(("motion + colour, every proposal at S and 2 S",
-                             info["refine_all"]))
+            variants.append(("motion + colour, every proposal at S and 2 S", info["refine_all"]))
         for label, run in variants:
             sar, recall = run["sar"], run["module_recall"]
-            rows.append([f"`{split}`, {label}", _f(sar["search_success_rate"], ".2f"),
-                         f"{sar['n_locked']}/{sar['n_trajectories']}",
-                         _f(sar["false_alarm_rate_detections"], ".2f"),
-                         _f(sar["avg_search_time_frames"], ".2f"),
-                         _f((recall.get("rpn") or {}).get("R@0.1"), ".4f"),
-                         _f(recall["head"]["R@0.1"], ".4f"), _f(run["median_ms"], ".2f")])
-    lines += _table(["split, proposals", "SSR (%)", "locked", "FAR / det. (%)",
-                     "avg. search (frames)", "RPN R@0.1", "head R@0.1", "ms / frame"], rows)
+            rows.append(
+                [
+                    f"`{split}`, {label}",
+                    _f(sar["search_success_rate"], ".2f"),
+                    f"{sar['n_locked']}/{sar['n_trajectories']}",
+                    _f(sar["false_alarm_rate_detections"], ".2f"),
+                    _f(sar["avg_search_time_frames"], ".2f"),
+                    _f((recall.get("rpn") or {}).get("R@0.1"), ".4f"),
+                    _f(recall["head"]["R@0.1"], ".4f"),
+                    _f(run["median_ms"], ".2f"),
+                ]
+            )
+    lines += _table(
+        [
+            "split, proposals",
+            "SSR (%)",
+            "locked",
+            "FAR / det. (%)",
+            "avg. search (frames)",
+            "RPN R@0.1",
+            "head R@0.1",
+            "ms / frame",
+        ],
+        rows,
+    )
     return lines
 
 
 def _box_section(results: Mapping[str, Any]) -> list[str]:
-    lines = ["", "## 2. Box-level metrics (paper: Appendix C, \"Bounding-Box-Level "
-             "Comparison\")", "",
-             f"ds = {MAIN_DS}, N = {TOPN}. Ours: mean over classes and NWD thresholds "
-             "0.5:0.05:0.95 (101-point AP; AR = recall of all detections; F2 at score > "
-             f"{results['settings']['score_thr']:g}), GT binned by its own area. The paper "
-             "reports mAP / mAR / mF2 per band without stating its thresholds, and publishes no "
-             "\"small\" band (—), so the comparison is indicative only."]
+    lines = [
+        "",
+        '## 2. Box-level metrics (paper: Appendix C, "Bounding-Box-Level Comparison")',
+        "",
+        f"ds = {MAIN_DS}, N = {TOPN}. Ours: mean over classes and NWD thresholds "
+        "0.5:0.05:0.95 (101-point AP; AR = recall of all detections; F2 at score > "
+        f"{results['settings']['score_thr']:g}), GT binned by its own area. The paper "
+        "reports mAP / mAR / mF2 per band without stating its thresholds, and publishes no "
+        '"small" band (—), so the comparison is indicative only.',
+    ]
     for split, dataset in SPLITS.items():
         run = _run(results, split, MAIN_DS)
         if run is None:
@@ -496,21 +739,40 @@ def _box_section(results: Mapping[str, Any]) -> list[str]:
         for band, label in BAND_LABELS.items():
             b = run["boxes"]["bands"][band]
             p = paper.get(band, {})
-            rows.append([label, b["n_gt"], b["n_detections"],
-                         _f(b["ap"], ".4f"), _f(p.get("ap")),
-                         _f(b["ar"], ".4f"), _f(p.get("ar")),
-                         _f(b["f2"], ".4f"), _f(p.get("f2"))])
+            rows.append(
+                [
+                    label,
+                    b["n_gt"],
+                    b["n_detections"],
+                    _f(b["ap"], ".4f"),
+                    _f(p.get("ap")),
+                    _f(b["ar"], ".4f"),
+                    _f(p.get("ar")),
+                    _f(b["f2"], ".4f"),
+                    _f(p.get("f2")),
+                ]
+            )
             if band not in paper:
                 continue
             for key, name in (("ap", "AP"), ("ar", "AR"), ("f2", "F2")):
-                findings.add(f"{name} ({band.replace('_', ' ')})", b[key], p[key], True, 0.02,
-                             ".2f", why=_box_why(key, split))
+                findings.add(
+                    f"{name} ({band.replace('_', ' ')})",
+                    b[key],
+                    p[key],
+                    True,
+                    0.02,
+                    ".2f",
+                    why=_box_why(key, split),
+                )
         lines += ["", f"### `{split}` vs {dataset} (ds={MAIN_DS})", ""]
-        lines += _table(["band", "GT", "dets", "AP", "paper AP", "AR", "paper AR", "F2",
-                         "paper F2"], rows)
+        lines += _table(
+            ["band", "GT", "dets", "AP", "paper AP", "AR", "paper AR", "F2", "paper F2"], rows
+        )
         lines.append("")
-        lines.append(f"FPS: {_f(run['fps'])} here (CPU) vs {PAPER_BOXES[dataset]['fps']:.2f} "
-                     "in the paper (Jetson, TensorRT FP16).")
+        lines.append(
+            f"FPS: {_f(run['fps'])} here (CPU) vs {PAPER_BOXES[dataset]['fps']:.2f} "
+            "in the paper (Jetson, TensorRT FP16)."
+        )
         lines += findings.render("Differences within 0.02 count as on par.")
     return lines
 
@@ -519,16 +781,22 @@ def _box_why(key: str, split: str) -> dict[str, str]:
     maritime = split == "maritime_test"
     worse = {
         "ap": "AP also punishes the head's box regression and its score ranking; ours is "
-              "trained on six short synthetic clips and averaged over strict NWD thresholds "
-              "up to 0.95.",
+        "trained on six short synthetic clips and averaged over strict NWD thresholds "
+        "up to 0.95.",
         "ar": "AR is capped by the RPN's recall (section 4): a target the motion stage does "
-              "not propose cannot be detected.",
+        "not propose cannot be detected.",
         "f2": "F2 at score > 0.5 combines the lower recall with the false alarms of section 1.",
     }
-    better = ("Rendered targets have clean, exactly known boxes and no label noise"
-              + ("" if maritime else ", and the paper's UAVID-Tiny numbers are near zero, so "
-                 "almost any detection beats them")
-              + "; this does not transfer to real footage.")
+    better = (
+        "Rendered targets have clean, exactly known boxes and no label noise"
+        + (
+            ""
+            if maritime
+            else ", and the paper's UAVID-Tiny numbers are near zero, so "
+            "almost any detection beats them"
+        )
+        + "; this does not transfer to real footage."
+    )
     return {"worse": worse[key], "better": better}
 
 
@@ -542,11 +810,18 @@ def _sweep_rows(results: Mapping[str, Any]) -> tuple[list[dict[str, Any]], str]:
         if run is None:
             continue
         sar = run["sar"]
-        rows.append({"ds": ds, "topn": run["topn"], "ssr": sar["search_success_rate"],
-                     "far_per_frame": sar["false_alarm_rate_per_frame"],
-                     "far_detections": sar["false_alarm_rate_detections"],
-                     "median_ms": run["median_ms"], "fps": run["fps"],
-                     "gflops": run["gflops"]})
+        rows.append(
+            {
+                "ds": ds,
+                "topn": run["topn"],
+                "ssr": sar["search_success_rate"],
+                "far_per_frame": sar["false_alarm_rate_per_frame"],
+                "far_detections": sar["false_alarm_rate_detections"],
+                "median_ms": run["median_ms"],
+                "fps": run["fps"],
+                "gflops": run["gflops"],
+            }
+        )
     return rows, "the main runs (no `--sweep` in this run)"
 
 
@@ -554,44 +829,87 @@ def _scalability_section(results: Mapping[str, Any]) -> list[str]:
     measured, source = _sweep_rows(results)
     by_key = {(r["ds"], r["topn"]): r for r in measured}
     keys = sorted(set(by_key) | set(PAPER_SCALABILITY))
-    lines = ["", "## 3. Scalability over ds and N on `maritime_test` (paper: Table "
-             "\"Scalability\", SeaDroneSee-Tiny)", "",
-             f"Measured rows come from {source}. FAR: ours per detection (per frame in "
-             "brackets), the paper's as published (see ¹ in section 1). FPS: ours on this CPU, "
-             "the paper's on a Jetson AGX Xavier (TensorRT FP16); efficiency (FPS/W) is not "
-             "measured here. GFLOPs per 4K frame, \"other\" = RPN + crops.", ""]
+    lines = [
+        "",
+        "## 3. Scalability over ds and N on `maritime_test` (paper: Table "
+        '"Scalability", SeaDroneSee-Tiny)',
+        "",
+        f"Measured rows come from {source}. FAR: ours per detection (per frame in "
+        "brackets), the paper's as published (see ¹ in section 1). FPS: ours on this CPU, "
+        "the paper's on a Jetson AGX Xavier (TensorRT FP16); efficiency (FPS/W) is not "
+        'measured here. GFLOPs per 4K frame, "other" = RPN + crops.',
+        "",
+    ]
     rows = []
     for key in keys:
         r, p = by_key.get(key), PAPER_SCALABILITY.get(key, {})
         g = r["gflops"] if r else {}
         nr = "not run"
-        rows.append([
-            key[0], key[1],
-            _f(r["ssr"]) if r else nr, _f(p.get("ssr")),
-            f"{_f(r['far_detections'])} ({_f(r['far_per_frame'])})" if r else nr,
-            _f(p.get("far")),
-            _f(r["fps"]) if r else nr, _f(p.get("fps")),
-            _f(g.get("total"), ".4f") if r else nr, _f(p.get("total"), ".4f"),
-            _f(g.get("vstmd"), ".4f") if r else nr, _f(p.get("vstmd"), ".4f"),
-            _f(g.get("rpn_other"), ".4f") if r else nr, _f(p.get("rpn_other"), ".4f"),
-            _f(g.get("head"), ".4f") if r else nr, _f(p.get("head"), ".4f"),
-        ])
-    lines += _table(["ds", "N", "SSR %", "paper SSR", "FAR % det (frame)", "paper FAR", "FPS",
-                     "paper FPS", "GF total", "paper", "GF vSTMD", "paper", "GF other", "paper",
-                     "GF head", "paper"], rows, "rr" + "r" * 14)
+        rows.append(
+            [
+                key[0],
+                key[1],
+                _f(r["ssr"]) if r else nr,
+                _f(p.get("ssr")),
+                f"{_f(r['far_detections'])} ({_f(r['far_per_frame'])})" if r else nr,
+                _f(p.get("far")),
+                _f(r["fps"]) if r else nr,
+                _f(p.get("fps")),
+                _f(g.get("total"), ".4f") if r else nr,
+                _f(p.get("total"), ".4f"),
+                _f(g.get("vstmd"), ".4f") if r else nr,
+                _f(p.get("vstmd"), ".4f"),
+                _f(g.get("rpn_other"), ".4f") if r else nr,
+                _f(p.get("rpn_other"), ".4f"),
+                _f(g.get("head"), ".4f") if r else nr,
+                _f(p.get("head"), ".4f"),
+            ]
+        )
+    lines += _table(
+        [
+            "ds",
+            "N",
+            "SSR %",
+            "paper SSR",
+            "FAR % det (frame)",
+            "paper FAR",
+            "FPS",
+            "paper FPS",
+            "GF total",
+            "paper",
+            "GF vSTMD",
+            "paper",
+            "GF other",
+            "paper",
+            "GF head",
+            "paper",
+        ],
+        rows,
+        "rr" + "r" * 14,
+    )
     findings = Findings()
     for key in keys:
         r, p = by_key.get(key), PAPER_SCALABILITY.get(key)
         if r is None or p is None:
             continue
         tag = f"ds={key[0]}, N={key[1]}"
-        findings.add(f"SSR at {tag}", r["ssr"], p["ssr"], True, 0.5, ".2f", " %", why={
-            "worse": "See section 1: the RPN does not propose every target "
-                     "(section 4), and the clips are short."})
-        findings.add(f"FAR per detection at {tag}", r["far_detections"], p["far"], False, 0.5,
-                     ".2f", " %")
-        findings.add(f"Total GFLOPs at {tag}", r["gflops"]["total"], p["total"], False, 0.02,
-                     ".4f")
+        findings.add(
+            f"SSR at {tag}",
+            r["ssr"],
+            p["ssr"],
+            True,
+            0.5,
+            ".2f",
+            " %",
+            why={
+                "worse": "See section 1: the RPN does not propose every target "
+                "(section 4), and the clips are short."
+            },
+        )
+        findings.add(
+            f"FAR per detection at {tag}", r["far_detections"], p["far"], False, 0.5, ".2f", " %"
+        )
+        findings.add(f"Total GFLOPs at {tag}", r["gflops"]["total"], p["total"], False, 0.02, ".4f")
     lines += findings.render("FPS is not judged (different hardware).")
     lines += _trends(by_key)
     return lines
@@ -607,11 +925,15 @@ def _trends(by_key: Mapping[tuple[int, int], Mapping[str, Any]]) -> list[str]:
         out.append(
             f"- **Trend in N (ds=2)** — FAR per detection goes from {_f(lo['far_detections'])} % "
             f"at N={ns[0]} to {_f(hi['far_detections'])} % at N={ns[-1]} "
-            + ("(rises with N, as in the paper: 35.41 % at N=10 to 82.76 % at N≥50)."
-               if rises else "(does not rise with N, unlike the paper's 35.41 % at N=10 to "
-               "82.76 % at N≥50: the head rejects most of the extra proposals here).")
+            + (
+                "(rises with N, as in the paper: 35.41 % at N=10 to 82.76 % at N≥50)."
+                if rises
+                else "(does not rise with N, unlike the paper's 35.41 % at N=10 to "
+                "82.76 % at N≥50: the head rejects most of the extra proposals here)."
+            )
             + f" SSR goes from {_f(lo['ssr'])} % to {_f(hi['ssr'])} % (paper: 100 % "
-            "throughout).")
+            "throughout)."
+        )
     dss = sorted(ds for ds, n in by_key if n == TOPN)
     if len(dss) >= 2:
         first, last = by_key[(dss[0], TOPN)], by_key[(dss[-1], TOPN)]
@@ -619,21 +941,35 @@ def _trends(by_key: Mapping[tuple[int, int], Mapping[str, Any]]) -> list[str]:
         out.append(
             f"- **Trend in ds (N={TOPN})** — SSR {_f(first['ssr'])} % at ds={dss[0]} and "
             f"{_f(last['ssr'])} % at ds={dss[-1]} "
-            + ("(drops with coarser maps, as in the paper: 100 % up to ds=4, 83.33 % at ds=8)."
-               if drop else "(no drop, whereas the paper loses one target at ds=8: 83.33 %).")
+            + (
+                "(drops with coarser maps, as in the paper: 100 % up to ds=4, 83.33 % at ds=8)."
+                if drop
+                else "(no drop, whereas the paper loses one target at ds=8: 83.33 %)."
+            )
             + " Head GFLOPs overtake vSTMD GFLOPs at "
-            + (", ".join(f"ds={ds}" for ds in dss
-                         if by_key[(ds, TOPN)]["gflops"]["head"]
-                         > by_key[(ds, TOPN)]["gflops"]["vstmd"]) or "no measured ds")
-            + " (paper: ds=4 and ds=8).")
+            + (
+                ", ".join(
+                    f"ds={ds}"
+                    for ds in dss
+                    if by_key[(ds, TOPN)]["gflops"]["head"] > by_key[(ds, TOPN)]["gflops"]["vstmd"]
+                )
+                or "no measured ds"
+            )
+            + " (paper: ds=4 and ds=8)."
+        )
     return ["", *out] if out else []
 
 
 def _module_section(results: Mapping[str, Any]) -> list[str]:
-    lines = ["", "## 4. Module recall (paper: Table \"Module\")", "",
-             f"ds = {MAIN_DS}, N = {TOPN}. R@t = GT boxes matched / GT boxes at NWD ≥ t; RPN: "
-             "every proposal, class-agnostic; head: detections with score > "
-             f"{results['settings']['score_thr']:g} and the GT's class.", ""]
+    lines = [
+        "",
+        '## 4. Module recall (paper: Table "Module")',
+        "",
+        f"ds = {MAIN_DS}, N = {TOPN}. R@t = GT boxes matched / GT boxes at NWD ≥ t; RPN: "
+        "every proposal, class-agnostic; head: detections with score > "
+        f"{results['settings']['score_thr']:g} and the GT's class.",
+        "",
+    ]
     rows = []
     findings = Findings()
     for split, dataset in SPLITS.items():
@@ -645,14 +981,20 @@ def _module_section(results: Mapping[str, Any]) -> list[str]:
             paper = PAPER_MODULE[dataset][module]
             cells = [f"{label}, `{split}` / {dataset}"]
             for t in ("R@0.1", "R@0.5"):
-                cells += ["n/a" if values is None else _f(values[t], ".4f"),
-                          _f(paper[t], ".4f")]
+                cells += ["n/a" if values is None else _f(values[t], ".4f"), _f(paper[t], ".4f")]
             rows.append(cells)
             if values is None:
                 continue
             for t in ("R@0.1", "R@0.5"):
-                findings.add(f"{label} {t} on `{split}`", values[t], paper[t], True, 0.02,
-                             ".4f", why=_module_why(module, split))
+                findings.add(
+                    f"{label} {t} on `{split}`",
+                    values[t],
+                    paper[t],
+                    True,
+                    0.02,
+                    ".4f",
+                    why=_module_why(module, split),
+                )
     lines += _table(["module, data", "R@0.1", "paper R@0.1", "R@0.5", "paper R@0.5"], rows)
     lines += findings.render("Differences within 0.02 count as on par.")
     return lines
@@ -663,41 +1005,62 @@ def _module_why(module: str, split: str) -> dict[str, str]:
     if module == "rpn":
         return {
             "worse": "The RPN proposes what moves against the (ego-motion compensated) "
-                     "background and the strongest colour anomalies; "
-                     + ("dense targets close together share one response blob and only N=25 "
-                        "proposals are kept per frame." if maritime else
-                        "slow pedestrians among moving cars and shadows lose the top-N ranking."),
+            "background and the strongest colour anomalies; "
+            + (
+                "dense targets close together share one response blob and only N=25 "
+                "proposals are kept per frame."
+                if maritime
+                else "slow pedestrians among moving cars and shadows lose the top-N ranking."
+            ),
             "better": "Rendered targets move steadily against a background whose own motion "
-                      "the simulator makes easy to compensate; real footage is harder.",
+            "the simulator makes easy to compensate; real footage is harder.",
         }
     return {
         "worse": "The head was trained on a few synthetic maritime clips; "
-                 + ("it misses or misclassifies part of what the RPN finds." if maritime else
-                    "urban pedestrians are out of its training domain."),
+        + (
+            "it misses or misclassifies part of what the RPN finds."
+            if maritime
+            else "urban pedestrians are out of its training domain."
+        ),
         "better": "Synthetic targets are cleaner than real ones, and the head's class set "
-                  "matches the rendered categories exactly.",
+        "matches the rendered categories exactly.",
     }
 
 
 def _definitions_section(results: Mapping[str, Any]) -> list[str]:
     definitions = results.get("definitions") or {}
-    keys = ["search_success_rate", "search_time_frames", "false_alarm_rate_per_frame",
-            "false_alarm_rate_detections", "matching", "module_recall_rpn", "module_recall_head",
-            "target_categories"]
+    keys = [
+        "search_success_rate",
+        "search_time_frames",
+        "false_alarm_rate_per_frame",
+        "false_alarm_rate_detections",
+        "matching",
+        "module_recall_rpn",
+        "module_recall_head",
+        "target_categories",
+    ]
     lines = ["", "## Definitions (as computed by `sarmission.evaluation`)", ""]
     lines += [f"- **{k}**: {definitions[k]}" for k in keys if k in definitions]
-    lines += ["", "To regenerate: run the command above (the rendered splits are reused from "
-              "`--work`), or re-render this page from its JSON with `python tools/results.py "
-              "--from-json <work>/results.json`."]
+    lines += [
+        "",
+        "To regenerate: run the command above (the rendered splits are reused from "
+        "`--work`), or re-render this page from its JSON with `python tools/results.py "
+        "--from-json <work>/results.json`.",
+    ]
     return lines
 
 
 def render_results_md(results: Mapping[str, Any]) -> str:
     """The Markdown page for a results dict (see the module docstring for its keys)."""
-    lines = (_header(results) + _sar_section(results) + _colour_section(results)
-             + _box_section(results)
-             + _scalability_section(results) + _module_section(results)
-             + _definitions_section(results))
+    lines = (
+        _header(results)
+        + _sar_section(results)
+        + _colour_section(results)
+        + _box_section(results)
+        + _scalability_section(results)
+        + _module_section(results)
+        + _definitions_section(results)
+    )
     return "\n".join(lines) + "\n"
 
 
@@ -717,12 +1080,15 @@ def machine_info() -> dict[str, Any]:
     except OSError:
         pass
     nproc = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return {"nproc": nproc, "cpu": cpu, "python": platform.python_version(),
-            "platform": platform.platform()}
+    return {
+        "nproc": nproc,
+        "cpu": cpu,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+    }
 
 
-def render_split(work: Path, name: str, sequences: int, frames: int,
-                 progress: bool = True) -> Path:
+def render_split(work: Path, name: str, sequences: int, frames: int, progress: bool = True) -> Path:
     """Render a split with the simulator (skipped when its annotation file already exists)."""
     from sim.generate import generate_split
 
@@ -743,33 +1109,56 @@ def alias_categories(dataset: Any, aliases: Mapping[str, str]) -> Any:
     return replace(dataset, categories=categories)
 
 
-def evaluate_split(head: Any, dataset: Any, ds: int, settings: Mapping[str, Any],
-                   progress: bool) -> dict[str, Any]:
+def evaluate_split(
+    head: Any, dataset: Any, ds: int, settings: Mapping[str, Any], progress: bool
+) -> dict[str, Any]:
     """One MITE-Net run at ``ds`` over ``dataset`` and its report (library calls only)."""
     from sarmission.evaluation.report import evaluate_detections
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet
 
-    net = MiteNet(head, ds=ds, topn=settings["topn"], score_threshold=settings["conf"],
-                  ego_motion=settings["ego_motion"], colour_share=settings["colour_share"],
-                  crop_scales=tuple(settings.get("crop_scales", DEFAULT_CROP_SCALES)),
-                  refine_threshold=settings.get("refine_threshold"))
+    net = MiteNet(
+        head,
+        ds=ds,
+        topn=settings["topn"],
+        score_threshold=settings["conf"],
+        ego_motion=settings["ego_motion"],
+        colour_share=settings["colour_share"],
+        crop_scales=tuple(settings.get("crop_scales", DEFAULT_CROP_SCALES)),
+        refine_threshold=settings.get("refine_threshold"),
+    )
     run = run_mitenet(net, dataset, progress=progress, desc=f"ds={ds}")
     if run.frame_size is None or run.median_ms is None:
         raise ValueError("no frame of the dataset could be read")
-    report = evaluate_detections(dataset, run.detections, net.classes, run.proposals,
-                                 m=settings["m"], k=settings["k"],
-                                 score_thr=settings["score_thr"], nwd_thr=settings["nwd_thr"],
-                                 image_ids=run.image_ids)
+    report = evaluate_detections(
+        dataset,
+        run.detections,
+        net.classes,
+        run.proposals,
+        m=settings["m"],
+        k=settings["k"],
+        score_thr=settings["score_thr"],
+        nwd_thr=settings["nwd_thr"],
+        image_ids=run.image_ids,
+    )
     complexity = net.complexity(*run.frame_size)
     sar = dict(report["sar"])
-    sar["unlocked"] = [{"n_frames": t["n_frames"], "n_hits": t["n_hits"]}
-                       for t in sar.pop("trajectories", []) if t["lock_frame"] is None]
+    sar["unlocked"] = [
+        {"n_frames": t["n_frames"], "n_hits": t["n_hits"]}
+        for t in sar.pop("trajectories", [])
+        if t["lock_frame"] is None
+    ]
     return {
-        "ds": ds, "topn": settings["topn"], "sar": sar, "boxes": report["boxes"],
-        "module_recall": report["module_recall"], "dataset": report["dataset"],
-        "frames": len(run.frame_ms), "skipped_frames": run.skipped,
-        "median_ms": run.median_ms, "fps": 1e3 / run.median_ms,
+        "ds": ds,
+        "topn": settings["topn"],
+        "sar": sar,
+        "boxes": report["boxes"],
+        "module_recall": report["module_recall"],
+        "dataset": report["dataset"],
+        "frames": len(run.frame_ms),
+        "skipped_frames": run.skipped,
+        "median_ms": run.median_ms,
+        "fps": 1e3 / run.median_ms,
         "gflops": {k: v / 1e9 for k, v in complexity["flops"].items()},
         "parameters": complexity["parameters"]["total"],
         "definitions": report["definitions"],
@@ -784,9 +1173,15 @@ DS2_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
 }
 
 
-def evaluate_ds2_variant(head: Any, dataset: Any, settings: Mapping[str, Any],
-                         overrides: Mapping[str, Any], label: str, prefix: str,
-                         progress: bool) -> dict[str, Any]:
+def evaluate_ds2_variant(
+    head: Any,
+    dataset: Any,
+    settings: Mapping[str, Any],
+    overrides: Mapping[str, Any],
+    label: str,
+    prefix: str,
+    progress: bool,
+) -> dict[str, Any]:
     """One :data:`DS2_VARIANTS` run (without the shared metric definitions)."""
     print(f"{prefix}, {label}", file=sys.stderr)
     run = evaluate_split(head, dataset, MAIN_DS, {**settings, **overrides}, progress)
@@ -814,22 +1209,39 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
             raise SystemExit(f"no shipped model at {shipped}; pass --model")
     else:
         label = f"`{model}`"
-    settings = {"frames": args.frames, "sequences": args.sequences, "size": list(SIZE),
-                "fps": 30.0, "model": label, "runtime": args.runtime, "topn": TOPN,
-                "colour_share": args.colour_share, "crop_scales": list(DEFAULT_CROP_SCALES),
-                "conf": args.conf, "ego_motion": "estimate",
-                "m": 3, "k": 5,
-                "score_thr": 0.5, "nwd_thr": 0.5}
+    settings = {
+        "frames": args.frames,
+        "sequences": args.sequences,
+        "size": list(SIZE),
+        "fps": 30.0,
+        "model": label,
+        "runtime": args.runtime,
+        "topn": TOPN,
+        "colour_share": args.colour_share,
+        "crop_scales": list(DEFAULT_CROP_SCALES),
+        "conf": args.conf,
+        "ego_motion": "estimate",
+        "m": 3,
+        "k": 5,
+        "score_thr": 0.5,
+        "nwd_thr": 0.5,
+    }
     head = build_head_runtime(model, args.runtime)
     args.work.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {
-        "command": command, "generated": dt.datetime.now().astimezone().isoformat("T", "seconds"),
-        "machine": machine_info(), "settings": settings, "splits": {}, "sweep": None,
-        "definitions": {}}
+        "command": command,
+        "generated": dt.datetime.now().astimezone().isoformat("T", "seconds"),
+        "machine": machine_info(),
+        "settings": settings,
+        "splits": {},
+        "sweep": None,
+        "definitions": {},
+    }
     datasets = {}
     for name in SPLITS:
-        annotations = render_split(args.work, name, args.sequences, args.frames,
-                                   not args.no_progress)
+        annotations = render_split(
+            args.work, name, args.sequences, args.frames, not args.no_progress
+        )
         aliases = CATEGORY_AS_CLASS.get(name, {})
         dataset = alias_categories(read_coco_video(annotations), aliases)
         datasets[name] = dataset
@@ -840,22 +1252,41 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
             run = evaluate_split(head, dataset, ds, settings, not args.no_progress)
             results["definitions"] = run.pop("definitions")
             runs[str(ds)] = run
-        extra = {key: evaluate_ds2_variant(head, dataset, settings, overrides, label,
-                                           f"{name}: evaluating ds={MAIN_DS}, N={TOPN}",
-                                           not args.no_progress)
-                 for key, (label, overrides) in DS2_VARIANTS.items()
-                 if key != "motion_only" or args.colour_share > 0}
+        extra = {
+            key: evaluate_ds2_variant(
+                head,
+                dataset,
+                settings,
+                overrides,
+                label,
+                f"{name}: evaluating ds={MAIN_DS}, N={TOPN}",
+                not args.no_progress,
+            )
+            for key, (label, overrides) in DS2_VARIANTS.items()
+            if key != "motion_only" or args.colour_share > 0
+        }
         results["splits"][name] = {
             "preset": {"seed": chosen.scenario.seed, "description": _preset_doc(name)},
-            "annotations": str(annotations), "category_as_class": dict(aliases), "runs": runs,
-            "motion_only": None, **extra}
+            "annotations": str(annotations),
+            "category_as_class": dict(aliases),
+            "runs": runs,
+            "motion_only": None,
+            **extra,
+        }
     if args.sweep:
         grid = [(ds, n) for ds in args.sweep_ds for n in args.sweep_topn]
         grid += [(1, n) for n in args.sweep_ds1_topn if (1, n) not in grid]
         rows = []
         for ds, n in sorted(grid):
-            rows += run_sweep(head, datasets["maritime_test"], [ds], [n], args.conf,
-                              progress=not args.no_progress, colour_share=args.colour_share)
+            rows += run_sweep(
+                head,
+                datasets["maritime_test"],
+                [ds],
+                [n],
+                args.conf,
+                progress=not args.no_progress,
+                colour_share=args.colour_share,
+            )
         results["sweep"] = rows
     return results
 
@@ -870,31 +1301,64 @@ def _preset_doc(name: str) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Measure (or re-render from JSON) and write the Markdown page."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--work", type=Path, default=Path("/tmp/sarmission-results"),
-                        help="folder for the rendered splits and results.json")
+    parser.add_argument(
+        "--work",
+        type=Path,
+        default=Path("/tmp/sarmission-results"),
+        help="folder for the rendered splits and results.json",
+    )
     parser.add_argument("--frames", type=int, default=90, help="frames per clip (default: 90)")
-    parser.add_argument("--sequences", type=int, default=2,
-                        help="clips per split (default: 2)")
+    parser.add_argument("--sequences", type=int, default=2, help="clips per split (default: 2)")
     parser.add_argument("--model", default=None, help="head weights (default: the shipped one)")
     parser.add_argument("--runtime", choices=("onnx", "torch"), default="onnx")
-    parser.add_argument("--conf", type=float, default=0.3,
-                        help="minimum detection score kept (default: 0.3, as sarmission eval)")
-    parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
-                        help="share of the proposals from colour anomalies (default: %(default)s)")
-    parser.add_argument("--ds8", action=argparse.BooleanOptionalAction, default=True,
-                        help="also evaluate ds=8 (the paper's second column; default: on)")
-    parser.add_argument("--sweep", action="store_true",
-                        help="ds x N scalability sweep on maritime_test")
-    parser.add_argument("--sweep-ds", type=_int_list, default=[2, 4, 8],
-                        help="sweep down-sampling factors (default: 2,4,8)")
-    parser.add_argument("--sweep-topn", type=_int_list, default=[10, 25, 50],
-                        help="sweep proposal counts (default: 10,25,50)")
-    parser.add_argument("--sweep-ds1-topn", type=_int_list, default=[25],
-                        help="proposal counts swept at ds=1, the slow one (default: 25; '' none)")
-    parser.add_argument("--from-json", type=Path, default=None,
-                        help="re-render the page from a results.json instead of measuring")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                        help="Markdown output (default: docs/results.md)")
+    parser.add_argument(
+        "--conf",
+        type=float,
+        default=0.3,
+        help="minimum detection score kept (default: 0.3, as sarmission eval)",
+    )
+    parser.add_argument(
+        "--colour-share",
+        type=float,
+        default=DEFAULT_COLOUR_SHARE,
+        help="share of the proposals from colour anomalies (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--ds8",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also evaluate ds=8 (the paper's second column; default: on)",
+    )
+    parser.add_argument(
+        "--sweep", action="store_true", help="ds x N scalability sweep on maritime_test"
+    )
+    parser.add_argument(
+        "--sweep-ds",
+        type=_int_list,
+        default=[2, 4, 8],
+        help="sweep down-sampling factors (default: 2,4,8)",
+    )
+    parser.add_argument(
+        "--sweep-topn",
+        type=_int_list,
+        default=[10, 25, 50],
+        help="sweep proposal counts (default: 10,25,50)",
+    )
+    parser.add_argument(
+        "--sweep-ds1-topn",
+        type=_int_list,
+        default=[25],
+        help="proposal counts swept at ds=1, the slow one (default: 25; '' none)",
+    )
+    parser.add_argument(
+        "--from-json",
+        type=Path,
+        default=None,
+        help="re-render the page from a results.json instead of measuring",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=DEFAULT_OUT, help="Markdown output (default: docs/results.md)"
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide progress bars")
     args = parser.parse_args(argv)
     if args.frames < 1 or args.sequences < 1:

@@ -38,9 +38,14 @@ REAL = ROOT.parent / "shared" / "datasets" / "seadronessee" / "instances_val.jso
 OUT = ROOT / "docs" / "sim_vs_real.md"
 PRESETS = ("maritime_oblique_low", "maritime_oblique_mid", "maritime_oblique_high")
 #: Simulator categories under the real file's names (others are distractors the file lacks).
-SIM_AS_REAL = {"swimmer": "swimmer", "swimmer_with_life_jacket": "swimmer", "boat": "boat",
-               "jetski": "jetski", "buoy": "buoy",
-               "life_saving_appliances": "life_saving_appliances"}
+SIM_AS_REAL = {
+    "swimmer": "swimmer",
+    "swimmer_with_life_jacket": "swimmer",
+    "boat": "boat",
+    "jetski": "jetski",
+    "buoy": "buoy",
+    "life_saving_appliances": "life_saving_appliances",
+}
 REAL_CLASSES = ("swimmer", "boat", "jetski", "life_saving_appliances", "buoy")
 
 
@@ -56,16 +61,22 @@ def distributions(dataset: VideoDataset, rename: dict[str, str] | None = None) -
     kept = [a for a in dataset.annotations if names[a.category_id] in REAL_CLASSES]
     widths: dict[str, list[float]] = {}
     for a in kept:
-        widths.setdefault(names[a.category_id], []).append(a.bbox[2] * 3840.0
-                                                           / width_of[a.image_id])
-    classes = Counter(names[a.category_id] for a in dataset.annotations
-                      if names[a.category_id] != "ignored")
-    return {"frames": len(dataset.images), "placed": len(placed),
-            "height": [p.height_m for p in placed],
-            "pitch": [-p.gimbal_pitch_deg for p in placed],
-            "width": [w for values in widths.values() for w in values],
-            "class_width": widths, "classes": classes,
-            "per_frame": len(kept) / max(len(dataset.images), 1)}
+        widths.setdefault(names[a.category_id], []).append(
+            a.bbox[2] * 3840.0 / width_of[a.image_id]
+        )
+    classes = Counter(
+        names[a.category_id] for a in dataset.annotations if names[a.category_id] != "ignored"
+    )
+    return {
+        "frames": len(dataset.images),
+        "placed": len(placed),
+        "height": [p.height_m for p in placed],
+        "pitch": [-p.gimbal_pitch_deg for p in placed],
+        "width": [w for values in widths.values() for w in values],
+        "class_width": widths,
+        "classes": classes,
+        "per_frame": len(kept) / max(len(dataset.images), 1),
+    }
 
 
 def simulated(frames: int, seeds: int, width: int) -> dict:
@@ -80,10 +91,19 @@ def simulated(frames: int, seeds: int, width: int) -> dict:
             chosen = preset(name)
             for k in range(seeds):
                 scenario = dataclasses.replace(chosen.scenario, seed=chosen.scenario.seed + k)
-                path = generate_sequence(scenario, chosen.mission, frames,
-                                         size=(width, width * 9 // 16), seed=scenario.seed,
-                                         out_dir=tmp, fps=0.2, video=False, progress=False,
-                                         name=f"{name}_{k}", start_s=5.0)
+                path = generate_sequence(
+                    scenario,
+                    chosen.mission,
+                    frames,
+                    size=(width, width * 9 // 16),
+                    seed=scenario.seed,
+                    out_dir=tmp,
+                    fps=0.2,
+                    video=False,
+                    progress=False,
+                    name=f"{name}_{k}",
+                    start_s=5.0,
+                )
                 parts.append(read_coco_video(path))
     return distributions(merge_datasets(parts), SIM_AS_REAL)
 
@@ -92,8 +112,10 @@ def _quantiles(values: list[float], digits: int = 1) -> str:
     if not values:
         return "none"
     p10, p50, p90 = np.percentile(values, [10, 50, 90])
-    return (f"{p10:.{digits}f} / {p50:.{digits}f} / {p90:.{digits}f} "
-            f"({min(values):.{digits}f}-{max(values):.{digits}f}, n={len(values)})")
+    return (
+        f"{p10:.{digits}f} / {p50:.{digits}f} / {p90:.{digits}f} "
+        f"({min(values):.{digits}f}-{max(values):.{digits}f}, n={len(values)})"
+    )
 
 
 def render(real: dict, sim: dict, command: str) -> str:
@@ -116,11 +138,12 @@ def render(real: dict, sim: dict, command: str) -> str:
         f"{_quantiles(sim['width'], 0)} |",
     ]
     for name in REAL_CLASSES:
-        lines.append(f"| {name} box width, px | {_quantiles(real['class_width'].get(name, []), 0)}"
-                     f" | {_quantiles(sim['class_width'].get(name, []), 0)} |")
+        lines.append(
+            f"| {name} box width, px | {_quantiles(real['class_width'].get(name, []), 0)}"
+            f" | {_quantiles(sim['class_width'].get(name, []), 0)} |"
+        )
     lines += [
-        f"| boxes of these classes per frame | {real['per_frame']:.1f} | "
-        f"{sim['per_frame']:.1f} |",
+        f"| boxes of these classes per frame | {real['per_frame']:.1f} | {sim['per_frame']:.1f} |",
         "",
         "| class | real boxes (share) | simulator boxes (share) |",
         "|---|---|---|",
@@ -129,15 +152,16 @@ def render(real: dict, sim: dict, command: str) -> str:
     sim_total = sum(sim["classes"][c] for c in REAL_CLASSES) or 1
     for name in REAL_CLASSES:
         r, s = real["classes"].get(name, 0), sim["classes"].get(name, 0)
-        lines.append(f"| {name} | {r} ({100 * r / real_total:.0f} %) | "
-                     f"{s} ({100 * s / sim_total:.0f} %) |")
+        lines.append(
+            f"| {name} | {r} ({100 * r / real_total:.0f} %) | {s} ({100 * s / sim_total:.0f} %) |"
+        )
     other = sim["classes"].get("other (distractor)", 0)
     lines += [
         f"| birds, debris, sun glints (not annotated in the file) | - | {other} |",
         "",
         "The simulator flies each preset at one height and one pitch, so its spread is three "
         "points, not a distribution. Its people and objects stand up out of the water "
-        "(`figures = \"upright\"`, `sim/upright_figures.py`) at the sizes of the file's boxes "
+        '(`figures = "upright"`, `sim/upright_figures.py`) at the sizes of the file\'s boxes '
         "(a box width in metres is its pixel width times the slant range over the focal "
         "length, taking a 70 degree lens), and lie within the distances the file shows them at "
         "(swimmers p50 about 64, 44 and 17 m away in the 10-30, 30-60 and 60-90 degree "
@@ -160,8 +184,10 @@ def main() -> int:
         return 2
     real = distributions(read_coco_video(REAL))
     sim = simulated(args.frames, args.seeds, args.width)
-    command = (f"nice -n 19 python tools/sim_vs_real.py --frames {args.frames} "
-               f"--seeds {args.seeds} --width {args.width}")
+    command = (
+        f"nice -n 19 python tools/sim_vs_real.py --frames {args.frames} "
+        f"--seeds {args.seeds} --width {args.width}"
+    )
     OUT.write_text(render(real, sim, command), encoding="utf-8")
     print(f"wrote {OUT}")
     return 0

@@ -51,10 +51,27 @@ GROUNDED_M = 2.0
 def render_clip(out: Path, frames: int, seed: int) -> Path:
     """A 960x540 maritime clip with swimmers from the first frame (the simulator's renderer)."""
     clip_dir = out / "clip"
-    subprocess.run([sys.executable, "-m", "sarmission.cli", "sim", "generate",
-                    "--scenario", "maritime_test", "--frames", str(frames), "--size", "960x540",
-                    "--seed", str(seed), "--out", str(clip_dir)], check=True,
-                   stdout=subprocess.DEVNULL)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sarmission.cli",
+            "sim",
+            "generate",
+            "--scenario",
+            "maritime_test",
+            "--frames",
+            str(frames),
+            "--size",
+            "960x540",
+            "--seed",
+            str(seed),
+            "--out",
+            str(clip_dir),
+        ],
+        check=True,
+        stdout=subprocess.DEVNULL,
+    )
     (video,) = sorted(clip_dir.glob("*.mp4"))
     return video
 
@@ -85,14 +102,29 @@ class Track:
         self._thread.join()
 
 
-def start_run(checkout: Path, url: str, video: Path, db: Path, duration_s: float,
-              log: Path) -> subprocess.Popen[bytes]:
+def start_run(
+    checkout: Path, url: str, video: Path, db: Path, duration_s: float, log: Path
+) -> subprocess.Popen[bytes]:
     env = dict(os.environ, PYTHONPATH=str(checkout))
-    cmd = [sys.executable, "-c", "import sys; from sarmission.cli import main; "
-           "sys.exit(main())", "run", "--connect", url, "--video", str(video),
-           "--alerts-db", str(db), "--duration", f"{duration_s:g}", "--connect-timeout", "5"]
-    return subprocess.Popen(cmd, cwd=checkout, env=env, stdout=open(log, "wb"),
-                            stderr=subprocess.STDOUT)
+    cmd = [
+        sys.executable,
+        "-c",
+        "import sys; from sarmission.cli import main; sys.exit(main())",
+        "run",
+        "--connect",
+        url,
+        "--video",
+        str(video),
+        "--alerts-db",
+        str(db),
+        "--duration",
+        f"{duration_s:g}",
+        "--connect-timeout",
+        "5",
+    ]
+    return subprocess.Popen(
+        cmd, cwd=checkout, env=env, stdout=open(log, "wb"), stderr=subprocess.STDOUT
+    )
 
 
 def score(db: Path, track: Track, log: Path) -> dict[str, object]:
@@ -101,7 +133,8 @@ def score(db: Path, track: Track, log: Path) -> dict[str, object]:
         # a position attached after the lock was computed when it was attached (event time)
         rows = conn.execute(
             "SELECT a.lock_time, a.lat, a.lon, a.error_m, (SELECT MIN(e.time) FROM events e "
-            "WHERE e.alert_id = a.alert_id AND e.kind = 'position') FROM alerts a").fetchall()
+            "WHERE e.alert_id = a.alert_id AND e.kind = 'position') FROM alerts a"
+        ).fetchall()
     distances, errors, grounded = [], [], 0
     for lock_time, lat, lon, error_m, attached in rows:
         if lat is None or lon is None:
@@ -120,16 +153,25 @@ def score(db: Path, track: Track, log: Path) -> dict[str, object]:
         "placed": len(distances),
         "wrong": len(wrong),
         "grounded": grounded,
-        "wrong_claimed_error": max((e for d, e in zip(distances, errors, strict=False)
-                                    if d > WRONG_M and e is not None), default=None),
+        "wrong_claimed_error": max(
+            (e for d, e in zip(distances, errors, strict=False) if d > WRONG_M and e is not None),
+            default=None,
+        ),
         "median_m": statistics.median(distances) if distances else None,
         "max_m": max(distances) if distances else None,
         "tracebacks": text.count("Traceback"),
     }
 
 
-def run_phase(phase: str, sitl_binary: Path, checkout: Path, video: Path, work: Path,
-              duration_s: float, speedup: float) -> dict[str, object]:
+def run_phase(
+    phase: str,
+    sitl_binary: Path,
+    checkout: Path,
+    video: Path,
+    work: Path,
+    duration_s: float,
+    speedup: float,
+) -> dict[str, object]:
     sitl = Sitl(sitl_binary, work / f"sitl-{phase}", speedup=speedup).start()
     pilot = Pilot(sitl.gcs_url)
     run = None
@@ -162,8 +204,9 @@ def run_phase(phase: str, sitl_binary: Path, checkout: Path, video: Path, work: 
 
 def revision(checkout: Path) -> str:
     """The checkout's commit (short hash), as the table names it."""
-    done = subprocess.run(["git", "-C", str(checkout), "rev-parse", "--short", "HEAD"],
-                          capture_output=True, text=True)
+    done = subprocess.run(
+        ["git", "-C", str(checkout), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    )
     return done.stdout.strip() or str(checkout)
 
 
@@ -171,28 +214,40 @@ def table(rows: list[tuple[str, str, dict[str, object]]]) -> str:
     def fmt(v: object) -> str:
         return "-" if v is None else f"{v:.1f}" if isinstance(v, float) else str(v)
 
-    lines = ["| sarmission | phase | alerts | with a position | placed with the vehicle on the "
-             "ground | > 600 m from the vehicle | median m | max m | tracebacks | exit |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| sarmission | phase | alerts | with a position | placed with the vehicle on the "
+        "ground | > 600 m from the vehicle | median m | max m | tracebacks | exit |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for rev, phase, r in rows:
-        lines.append(f"| {rev} | {phase} | {r['alerts']} | {r['placed']} | {r['grounded']} | "
-                     f"{r['wrong']} | {fmt(r['median_m'])} | {fmt(r['max_m'])} | "
-                     f"{r['tracebacks']} | {r['exit']} |")
+        lines.append(
+            f"| {rev} | {phase} | {r['alerts']} | {r['placed']} | {r['grounded']} | "
+            f"{r['wrong']} | {fmt(r['median_m'])} | {fmt(r['max_m'])} | "
+            f"{r['tracebacks']} | {r['exit']} |"
+        )
     return "\n".join(lines)
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sitl", required=True, type=Path, help="the arducopter binary")
-    parser.add_argument("--checkout", type=Path, action="append", default=None,
-                        help="source tree whose sarmission runs; repeat to compare several "
-                        "(default: this one)")
+    parser.add_argument(
+        "--checkout",
+        type=Path,
+        action="append",
+        default=None,
+        help="source tree whose sarmission runs; repeat to compare several (default: this one)",
+    )
     parser.add_argument("--duration", type=float, default=40.0, help="seconds per run")
     parser.add_argument("--speedup", type=float, default=4.0, help="SITL speed-up")
     parser.add_argument("--seed", type=int, default=4321, help="clip seed")
-    parser.add_argument("--repeats", type=int, default=1,
-                        help="runs of each phase per checkout (whether an alert falls in the "
-                        "seconds before HOME_POSITION arrives varies from run to run)")
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="runs of each phase per checkout (whether an alert falls in the "
+        "seconds before HOME_POSITION arrives varies from run to run)",
+    )
     args = parser.parse_args()
     checkouts = [c.resolve() for c in (args.checkout or [ROOT])]
     rows = []
@@ -204,11 +259,14 @@ def main() -> int:
                 for r in range(args.repeats):
                     run_dir = work / f"{k}-{phase}-{r}"
                     run_dir.mkdir()
-                    result = run_phase(phase, args.sitl, checkout, video, run_dir,
-                                       args.duration, args.speedup)
+                    result = run_phase(
+                        phase, args.sitl, checkout, video, run_dir, args.duration, args.speedup
+                    )
                     rows.append((revision(checkout), phase, result))
-    print(f"ArduPilot SITL speed-up {args.speedup:g}, {args.duration:g} s per run, clip seed "
-          f"{args.seed}")
+    print(
+        f"ArduPilot SITL speed-up {args.speedup:g}, {args.duration:g} s per run, clip seed "
+        f"{args.seed}"
+    )
     print(table(rows))
     return 0
 

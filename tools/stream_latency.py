@@ -41,8 +41,9 @@ CLIP_FPS = 30.0  # the rendered clip's rate: its telemetry is per frame of it
 
 def own_cpu_s() -> float:
     """CPU seconds of this process and its finished children (the sender)."""
-    me, children = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
-                                                          resource.RUSAGE_CHILDREN))
+    me, children = (
+        resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+    )
     return me.ru_utime + me.ru_stime + children.ru_utime + children.ru_stime
 
 
@@ -56,11 +57,38 @@ def stream_clip(work: Path, frames: int, rate: int) -> Path:
     frame of the 30 frames/s clip, or every second or third; cached)."""
     path = work / f"maritime_test_{frames}_stream20M_{rate}fps.mp4"
     if not path.is_file():
-        subprocess.run([shutil.which("ffmpeg") or "ffmpeg", "-loglevel", "error", "-y", "-i",
-                        str(make_clip(work, frames)), "-r", str(rate), "-c:v", "libx264",
-                        "-preset", "veryfast", "-tune", "zerolatency", "-b:v", "20M", "-maxrate",
-                        "20M", "-bufsize", "20M", "-bf", "0", "-g", str(rate), "-pix_fmt",
-                        "yuv420p", str(path)], check=True)
+        subprocess.run(
+            [
+                shutil.which("ffmpeg") or "ffmpeg",
+                "-loglevel",
+                "error",
+                "-y",
+                "-i",
+                str(make_clip(work, frames)),
+                "-r",
+                str(rate),
+                "-c:v",
+                "libx264",
+                "-preset",
+                "veryfast",
+                "-tune",
+                "zerolatency",
+                "-b:v",
+                "20M",
+                "-maxrate",
+                "20M",
+                "-bufsize",
+                "20M",
+                "-bf",
+                "0",
+                "-g",
+                str(rate),
+                "-pix_fmt",
+                "yuv420p",
+                str(path),
+            ],
+            check=True,
+        )
     return path
 
 
@@ -82,9 +110,15 @@ def measure(clip: Path, annotations: Path) -> dict:
     meta = {im.frame_index: meta_pose(im.telemetry, conventions) for im in dataset.images}
     mission = load_mission()
     d = mission.detector
-    detector = MiteNet(build_head_runtime(None, "onnx"), ds=d.ds, topn=d.topn,
-                       score_threshold=d.score_threshold, colour_share=d.colour_share,
-                       crop_scales=tuple(d.crop_scales), refine_threshold=d.refine_threshold)
+    detector = MiteNet(
+        build_head_runtime(None, "onnx"),
+        ds=d.ds,
+        topn=d.topn,
+        score_threshold=d.score_threshold,
+        colour_share=d.colour_share,
+        crop_scales=tuple(d.crop_scales),
+        refine_threshold=d.refine_threshold,
+    )
     port = free_udp_port()
     url = f"udp://127.0.0.1:{port}"
     opened: dict[str, object] = {}
@@ -99,9 +133,21 @@ def measure(clip: Path, annotations: Path) -> dict:
     opener.start()
     time.sleep(1.0)  # the receiver listens before the camera starts: it sees the first frame
     sender = subprocess.Popen(
-        [shutil.which("ffmpeg") or "ffmpeg", "-loglevel", "error", "-re", "-i", str(clip),
-         "-c", "copy", "-f", "mpegts", f"{url}?pkt_size=1316"],
-        stdin=subprocess.DEVNULL)
+        [
+            shutil.which("ffmpeg") or "ffmpeg",
+            "-loglevel",
+            "error",
+            "-re",
+            "-i",
+            str(clip),
+            "-c",
+            "copy",
+            "-f",
+            "mpegts",
+            f"{url}?pkt_size=1316",
+        ],
+        stdin=subprocess.DEVNULL,
+    )
     opener.join()
     if "error" in opened:
         sender.kill()
@@ -139,9 +185,16 @@ def measure(clip: Path, annotations: Path) -> dict:
             store.close()
     elapsed = time.perf_counter() - started
     others = (machine_busy_s() - busy - (own_cpu_s() - own)) / elapsed
-    return {"received": source.received, "dropped": source.dropped, "lost": source.lost,
-            "processed": processed, "frame_latency": frame_latency,
-            "alert_latency": alert_latency, "fps": source.fps, "others": max(0.0, others)}
+    return {
+        "received": source.received,
+        "dropped": source.dropped,
+        "lost": source.lost,
+        "processed": processed,
+        "frame_latency": frame_latency,
+        "alert_latency": alert_latency,
+        "fps": source.fps,
+        "others": max(0.0, others),
+    }
 
 
 def render(result: dict, clip: Path) -> str:
@@ -151,28 +204,35 @@ def render(result: dict, clip: Path) -> str:
     def stats(values: list[float]) -> str:
         if not values:
             return "none"
-        return (f"median {statistics.median(values) * 1e3:.0f} ms, 90th percentile "
-                f"{percentile(values, 0.9) * 1e3:.0f} ms, max {max(values) * 1e3:.0f} ms "
-                f"({len(values)})")
+        return (
+            f"median {statistics.median(values) * 1e3:.0f} ms, 90th percentile "
+            f"{percentile(values, 0.9) * 1e3:.0f} ms, max {max(values) * 1e3:.0f} ms "
+            f"({len(values)})"
+        )
 
-    return "\n".join([
-        f"**{result['fps']:g} frames/s** (`{clip.name}`; other processes kept "
-        f"{result['others']:.2f} cores busy meanwhile):",
-        "",
-        f"- frames: {result['received']} received, {result['processed']} processed, "
-        f"{result['dropped']} dropped while the detector was busy (the newest frame wins), "
-        f"{result['lost']} lost on the way",
-        f"- capture to controller result, per processed frame: {stats(frames)}",
-        f"- capture of the confirming frame to the alert: {stats(alerts)}",
-    ])
+    return "\n".join(
+        [
+            f"**{result['fps']:g} frames/s** (`{clip.name}`; other processes kept "
+            f"{result['others']:.2f} cores busy meanwhile):",
+            "",
+            f"- frames: {result['received']} received, {result['processed']} processed, "
+            f"{result['dropped']} dropped while the detector was busy (the newest frame wins), "
+            f"{result['lost']} lost on the way",
+            f"- capture to controller result, per processed frame: {stats(frames)}",
+            f"- capture of the confirming frame to the alert: {stats(alerts)}",
+        ]
+    )
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "sar-bench")
     parser.add_argument("--frames", type=int, default=300)
-    parser.add_argument("--rates", default="10,30",
-                        help="stream frame rates to measure, comma-separated (default: 10,30)")
+    parser.add_argument(
+        "--rates",
+        default="10,30",
+        help="stream frame rates to measure, comma-separated (default: 10,30)",
+    )
     parser.add_argument("--out", type=Path, default=DOC)
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
@@ -184,7 +244,8 @@ def main() -> int:
         "real time, read by the stream source, MITE-Net (ds 2, N 25) and the mission "
         "controller with the clip's telemetry. Capture is the frame's stamp: the stream's "
         "presentation time on the local clock, anchored to the least-delayed decoded frame; a "
-        "camera's encoder and the radio link add their own delay before that."]
+        "camera's encoder and the radio link add their own delay before that."
+    ]
     for rate in (int(v) for v in args.rates.split(",")):
         clip = stream_clip(args.work, args.frames, rate)
         parts += ["", render(measure(clip, annotations), clip)]

@@ -95,31 +95,46 @@ def main() -> int:
     for repeat in range(args.repeats):
         print(f"repeat {repeat + 1}/{args.repeats}", flush=True)
         for plan in PLANS:
-            runs[plan].append(child(PIPELINE, str(clip), *map(str, plan), str(args.frames),
-                                    others=others))
+            runs[plan].append(
+                child(PIPELINE, str(clip), *map(str, plan), str(args.frames), others=others)
+            )
         for threads in heads:
             heads[threads].append(child(HEAD, str(threads), others=others))
-    med = {plan: {k: statistics.median(r[k] for r in rs) for k in rs[0]}
-           for plan, rs in runs.items()}
+    med = {
+        plan: {k: statistics.median(r[k] for r in rs) for k in rs[0]} for plan, rs in runs.items()
+    }
     lines = [
         f"Thread plans on {os.cpu_count()} cores, measured {time.strftime('%Y-%m-%d')} with "
         f"`python tools/thread_plan_benchmark.py` (other processes kept "
         f"{min(others):.2f}-{max(others):.2f} cores busy meanwhile): decoding one frame ahead + "
         f"MITE-Net ds 2 N 25 on "
         f"{args.frames} frames of `{clip.name}` after 8 warm-up frames, medians of "
-        f"{args.repeats} interleaved runs.", "",
+        f"{args.repeats} interleaved runs.",
+        "",
         "| FFmpeg threads | OpenCV threads | onnxruntime threads | ms per frame | CPU ms per "
-        "frame | peak RSS MB |", "|---|---|---|---|---|---|"]
+        "frame | peak RSS MB |",
+        "|---|---|---|---|---|---|",
+    ]
     for plan in PLANS:
         m = med[plan]
-        lines.append(f"| {plan[0]} | {plan[1]} | {plan[2]} | {m['ms']:.1f} | {m['cpu_ms']:.1f} | "
-                     f"{m['rss_mb']:.0f} |")
-    head = {t: {n: statistics.median(r[str(n)] for r in rs) for n in (25, 100)}
-            for t, rs in heads.items()}
-    lines += ["", "The head alone (onnxruntime, ms per call): "
-              + "; ".join(f"{t} thread{'s' if t > 1 else ''}: N 25 {h[25]:.2f}, N 100 "
-                          f"{h[100]:.2f} ({h[100] / h[25]:.1f}x)" for t, h in head.items())
-              + "."]
+        lines.append(
+            f"| {plan[0]} | {plan[1]} | {plan[2]} | {m['ms']:.1f} | {m['cpu_ms']:.1f} | "
+            f"{m['rss_mb']:.0f} |"
+        )
+    head = {
+        t: {n: statistics.median(r[str(n)] for r in rs) for n in (25, 100)}
+        for t, rs in heads.items()
+    }
+    lines += [
+        "",
+        "The head alone (onnxruntime, ms per call): "
+        + "; ".join(
+            f"{t} thread{'s' if t > 1 else ''}: N 25 {h[25]:.2f}, N 100 "
+            f"{h[100]:.2f} ({h[100] / h[25]:.1f}x)"
+            for t, h in head.items()
+        )
+        + ".",
+    ]
     report = "\n".join(lines)
     write_section(args.out, report, "thread_plan_benchmark")
     print(report)

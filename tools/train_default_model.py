@@ -45,11 +45,17 @@ from sim.generate import merge_datasets
 
 #: The recipe of the shipped model: (preset, clips, frames per clip, frame size) and the
 #: training settings.
-TRAIN_SPLITS = (("maritime_train", 6, 90, "3840x2160"), ("maritime_train_high", 4, 90, "3840x2160"),
-                ("maritime_train_narrow", 6, 90, "960x540"))
+TRAIN_SPLITS = (
+    ("maritime_train", 6, 90, "3840x2160"),
+    ("maritime_train_high", 4, 90, "3840x2160"),
+    ("maritime_train_narrow", 6, 90, "960x540"),
+)
 #: Added to :data:`TRAIN_SPLITS` by ``--presets broad``.
-BROAD_SPLITS = (("urban_train", 4, 90, "3840x2160"), ("maritime_oblique_mid", 3, 90, "3840x2160"),
-                ("maritime_oblique_high", 3, 90, "3840x2160"))
+BROAD_SPLITS = (
+    ("urban_train", 4, 90, "3840x2160"),
+    ("maritime_oblique_mid", 3, 90, "3840x2160"),
+    ("maritime_oblique_high", 3, 90, "3840x2160"),
+)
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 #: Held-out validation: (world, clips, frames per clip), 1920x1080 frames with a 4K camera's
 #: ground sampling; clip indices from :data:`HELDOUT_VAL_FIRST_CLIP` on.
@@ -59,8 +65,24 @@ HELDOUT_VAL_FIRST_CLIP = 100
 #: Land people are scored as the maritime head's ``swimmer`` class (as tools/heldout_eval.py
 #: scores them).
 HELDOUT_RENAME = {"person": "swimmer"}
-TRAIN_ARGS = ["--epochs", "30", "--batch-size", "64", "--lr", "0.02", "--seed", "0",
-              "--frame-stride", "3", "--jitters", "4", "--ds", "1", "--select-from", "10"]
+TRAIN_ARGS = [
+    "--epochs",
+    "30",
+    "--batch-size",
+    "64",
+    "--lr",
+    "0.02",
+    "--seed",
+    "0",
+    "--frame-stride",
+    "3",
+    "--jitters",
+    "4",
+    "--ds",
+    "1",
+    "--select-from",
+    "10",
+]
 
 
 def render(folder: Path, split: tuple[str, int, int, str]) -> Path:
@@ -69,9 +91,22 @@ def render(folder: Path, split: tuple[str, int, int, str]) -> Path:
     name, clips, frames, size = split
     annotations = folder / f"{name}.json"
     if not annotations.is_file():
-        code = sarmission(["sim", "generate", "--scenario", name, "--sequences", str(clips),
-                           "--frames", str(frames), "--out", str(folder),
-                           "--size", size])
+        code = sarmission(
+            [
+                "sim",
+                "generate",
+                "--scenario",
+                name,
+                "--sequences",
+                str(clips),
+                "--frames",
+                str(frames),
+                "--out",
+                str(folder),
+                "--size",
+                size,
+            ]
+        )
         if code:
             sys.exit(code)
     return annotations
@@ -83,8 +118,9 @@ def render_training_set(work: Path) -> Path:
     merged = folder / "maritime_train_mix.json"
     if not merged.is_file():
         parts = [read_coco_video(render(folder, split)) for split in TRAIN_SPLITS]
-        write_coco_video(merge_datasets(parts, info={"presets": [s[0] for s in TRAIN_SPLITS]}),
-                         merged)
+        write_coco_video(
+            merge_datasets(parts, info={"presets": [s[0] for s in TRAIN_SPLITS]}), merged
+        )
     return merged
 
 
@@ -96,20 +132,23 @@ def render_broad_training_set(work: Path) -> Path:
         parts = [render_training_set(work)]
         parts += [render(work / split[0], split) for split in BROAD_SPLITS]
         names = [s[0] for s in TRAIN_SPLITS + BROAD_SPLITS]
-        write_coco_video(merge_annotation_files(parts, HELDOUT_RENAME, info={"presets": names}),
-                         merged)
+        write_coco_video(
+            merge_annotation_files(parts, HELDOUT_RENAME, info={"presets": names}), merged
+        )
     return merged
 
 
 def heldout_val_seeds(splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> list[int]:
     """Seeds of the held-out validation clips (a clip's seed is its world's seed * 1000 plus its
     index, :func:`heldout.presets.draw_clip`)."""
-    return [world(name).seed * 1000 + HELDOUT_VAL_FIRST_CLIP + i
-            for name, clips, _ in splits for i in range(clips)]
+    return [
+        world(name).seed * 1000 + HELDOUT_VAL_FIRST_CLIP + i
+        for name, clips, _ in splits
+        for i in range(clips)
+    ]
 
 
-def render_heldout_val(work: Path,
-                       splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> Path:
+def render_heldout_val(work: Path, splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> Path:
     """Render the held-out validation clips into ``work/heldout_val`` and merge them into one
     annotation file there (people on land as ``swimmer``); skipped when that file exists."""
     folder = work / "heldout_val"
@@ -119,48 +158,85 @@ def render_heldout_val(work: Path,
         for name, clips, frames in splits:
             path = folder / name / f"{name}.json"
             if not path.is_file():
-                print(f"rendering held-out validation {name}: {clips} x {frames} frames",
-                      file=sys.stderr)
+                print(
+                    f"rendering held-out validation {name}: {clips} x {frames} frames",
+                    file=sys.stderr,
+                )
                 render_world(name, clips, frames, path.parent, first_clip=HELDOUT_VAL_FIRST_CLIP)
             parts.append(path)
-        write_coco_video(merge_annotation_files(
-            parts, HELDOUT_RENAME, info={"worlds": [s[0] for s in splits],
-                                         "first_clip": HELDOUT_VAL_FIRST_CLIP}), merged)
+        write_coco_video(
+            merge_annotation_files(
+                parts,
+                HELDOUT_RENAME,
+                info={"worlds": [s[0] for s in splits], "first_clip": HELDOUT_VAL_FIRST_CLIP},
+            ),
+            merged,
+        )
     return merged
 
 
 def main() -> int:
     """Render, train, export and copy the default model into the package."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--work", type=Path, default=Path("/tmp/sarmission-default-model"),
-                        help="folder for the rendered data, crop caches and checkpoints")
-    parser.add_argument("--val", choices=("sim", "heldout"), default="sim",
-                        help="validation split that picks the epoch: the simulator's maritime_val "
-                             "(the shipped head's recipe) or held-out clips (default: sim)")
-    parser.add_argument("--presets", choices=("maritime", "broad"), default="maritime",
-                        help="training presets: the maritime ones (the shipped head's recipe) or "
-                             "those plus urban_train and the oblique maritime presets "
-                             "(default: maritime)")
-    parser.add_argument("--no-install", action="store_true",
-                        help="do not copy the result into sarmission/models")
+    parser.add_argument(
+        "--work",
+        type=Path,
+        default=Path("/tmp/sarmission-default-model"),
+        help="folder for the rendered data, crop caches and checkpoints",
+    )
+    parser.add_argument(
+        "--val",
+        choices=("sim", "heldout"),
+        default="sim",
+        help="validation split that picks the epoch: the simulator's maritime_val "
+        "(the shipped head's recipe) or held-out clips (default: sim)",
+    )
+    parser.add_argument(
+        "--presets",
+        choices=("maritime", "broad"),
+        default="maritime",
+        help="training presets: the maritime ones (the shipped head's recipe) or "
+        "those plus urban_train and the oblique maritime presets "
+        "(default: maritime)",
+    )
+    parser.add_argument(
+        "--no-install", action="store_true", help="do not copy the result into sarmission/models"
+    )
     args, extra = parser.parse_known_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    train = (render_broad_training_set(args.work) if args.presets == "broad"
-             else render_training_set(args.work))
+    train = (
+        render_broad_training_set(args.work)
+        if args.presets == "broad"
+        else render_training_set(args.work)
+    )
     if args.val == "heldout":
         val = render_heldout_val(args.work)
     else:
         val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
     out = args.work / "mitenet_head.pt"
-    code = sarmission(["train", "--train", str(train), "--val", str(val), "--out", str(out),
-                       "--onnx", *TRAIN_ARGS, *extra])
+    code = sarmission(
+        [
+            "train",
+            "--train",
+            str(train),
+            "--val",
+            str(val),
+            "--out",
+            str(out),
+            "--onnx",
+            *TRAIN_ARGS,
+            *extra,
+        ]
+    )
     if code:
         return code
     if not args.no_install:
         shutil.copyfile(out, DEFAULT_TORCH_MODEL)
         shutil.copyfile(out.with_suffix(".onnx"), DEFAULT_ONNX_MODEL)
-        print(f"installed {DEFAULT_TORCH_MODEL.name} and {DEFAULT_ONNX_MODEL.name} "
-              f"into {DEFAULT_TORCH_MODEL.parent}")
+        print(
+            f"installed {DEFAULT_TORCH_MODEL.name} and {DEFAULT_ONNX_MODEL.name} "
+            f"into {DEFAULT_TORCH_MODEL.parent}"
+        )
     return 0
 
 

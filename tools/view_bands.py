@@ -43,10 +43,16 @@ from sarmission.mission.replay_telemetry import push_frame_telemetry  # noqa: E4
 
 OUT = ROOT / "docs" / "view_bands.md"
 #: (label, low, high, value flown) of each band: gimbal pitch below the horizon, height.
-PITCH_BANDS = (("10-30", 10.0, 30.0, 20.0), ("30-60", 30.0, 60.0, 45.0),
-               ("60-90", 60.0, 90.0, 75.0))
-HEIGHT_BANDS = (("10-30 m", 10.0, 30.0, 20.0), ("30-60 m", 30.0, 60.0, 45.0),
-                ("60-100 m", 60.0, 100.0, 80.0))
+PITCH_BANDS = (
+    ("10-30", 10.0, 30.0, 20.0),
+    ("30-60", 30.0, 60.0, 45.0),
+    ("60-90", 60.0, 90.0, 75.0),
+)
+HEIGHT_BANDS = (
+    ("10-30 m", 10.0, 30.0, 20.0),
+    ("30-60 m", 30.0, 60.0, 45.0),
+    ("60-100 m", 60.0, 100.0, 80.0),
+)
 FPS = 10.0
 
 
@@ -87,10 +93,19 @@ def render_clip(altitude: float, pitch: float, frames: int, width: int, out_dir:
     from sim.scenarios import maritime_oblique
 
     chosen = maritime_oblique(altitude, pitch)
-    return generate_sequence(chosen.scenario, chosen.mission, frames,
-                             size=(width, width * 9 // 16), seed=chosen.scenario.seed,
-                             out_dir=out_dir, fps=FPS, video=False, progress=False,
-                             name=chosen.name, start_s=5.0)
+    return generate_sequence(
+        chosen.scenario,
+        chosen.mission,
+        frames,
+        size=(width, width * 9 // 16),
+        seed=chosen.scenario.seed,
+        out_dir=out_dir,
+        fps=FPS,
+        video=False,
+        progress=False,
+        name=chosen.name,
+        start_s=5.0,
+    )
 
 
 def with_noise(pose: MetaPose, rng: np.random.Generator) -> MetaPose:
@@ -99,24 +114,31 @@ def with_noise(pose: MetaPose, rng: np.random.Generator) -> MetaPose:
     metres_per_deg = 111_320.0
     north, east = rng.normal(0.0, 1.0, 2)
     return dataclasses.replace(
-        pose, latitude=pose.latitude + north / metres_per_deg,
+        pose,
+        latitude=pose.latitude + north / metres_per_deg,
         longitude=pose.longitude + east / (metres_per_deg * math.cos(math.radians(pose.latitude))),
         height_m=max(0.5, pose.height_m + float(rng.normal(0.0, 1.0))),
         gimbal_pitch_deg=pose.gimbal_pitch_deg + float(rng.normal(0.0, 0.5)),
-        gimbal_heading_deg=(pose.gimbal_heading_deg + float(rng.normal(0.0, 0.5))) % 360.0)
+        gimbal_heading_deg=(pose.gimbal_heading_deg + float(rng.normal(0.0, 0.5))) % 360.0,
+    )
 
 
-def geolocate_clip(dataset: VideoDataset, detections: dict[int, FrameBoxes],
-                   limits: FixLimits, rng: np.random.Generator | None = None, draws: int = 1,
-                   ) -> tuple[GeoErrors, GeoErrors]:
+def geolocate_clip(
+    dataset: VideoDataset,
+    detections: dict[int, FrameBoxes],
+    limits: FixLimits,
+    rng: np.random.Generator | None = None,
+    draws: int = 1,
+) -> tuple[GeoErrors, GeoErrors]:
     """Fixes of the truth boxes' centres and of the detections matched to them; with ``rng``,
     from telemetry with noise (:func:`with_noise`), ``draws`` independent draws per frame."""
     conventions = dataset_conventions(dataset)
     targets = {c.id for c in dataset.categories if c.supercategory == "person"}
     truth_errors, det_errors = GeoErrors(), GeoErrors()
     by_image = dataset.annotations_by_image()
-    for image, draw in ((im, k) for im in dataset.images
-                        for k in range(draws if rng is not None else 1)):
+    for image, draw in (
+        (im, k) for im in dataset.images for k in range(draws if rng is not None else 1)
+    ):
         pose = meta_pose(image.telemetry, conventions)
         if not isinstance(pose, MetaPose):
             continue
@@ -128,15 +150,23 @@ def geolocate_clip(dataset: VideoDataset, detections: dict[int, FrameBoxes],
         push_frame_telemetry(buffer, 0.0, pose)
         platform = buffer.lookup(0.0)
         intr = CameraIntrinsics.from_hfov(image.width, image.height, 70.0)
-        anns = [a for a in by_image.get(image.id, []) if a.category_id in targets
-                and a.gt_lat is not None and a.gt_lon is not None]
+        anns = [
+            a
+            for a in by_image.get(image.id, [])
+            if a.category_id in targets and a.gt_lat is not None and a.gt_lon is not None
+        ]
         if not anns:
             continue
-        gt_xyxy = np.array([[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]]
-                            for a in anns])
+        gt_xyxy = np.array(
+            [[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]] for a in anns]
+        )
         for a, box in zip(anns, gt_xyxy, strict=True):
-            truth_errors.add(geolocate(((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), intr,
-                                       platform, limits=limits), (a.gt_lat, a.gt_lon))
+            truth_errors.add(
+                geolocate(
+                    ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), intr, platform, limits=limits
+                ),
+                (a.gt_lat, a.gt_lon),
+            )
         found = detections.get(image.id)
         if found is None or not len(found.boxes):
             continue
@@ -144,13 +174,18 @@ def geolocate_clip(dataset: VideoDataset, detections: dict[int, FrameBoxes],
         for det_index, gt_index in zip(match.det_indices, match.gt_indices, strict=True):
             box = found.boxes[det_index]
             a = anns[gt_index]
-            det_errors.add(geolocate(((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), intr,
-                                     platform, limits=limits), (a.gt_lat, a.gt_lon))
+            det_errors.add(
+                geolocate(
+                    ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), intr, platform, limits=limits
+                ),
+                (a.gt_lat, a.gt_lon),
+            )
     return truth_errors, det_errors
 
 
-def measure_band(net, pitch: tuple, height: tuple, frames: int, width: int,
-                 limits: FixLimits, draws: int = 20) -> BandResult:
+def measure_band(
+    net, pitch: tuple, height: tuple, frames: int, width: int, limits: FixLimits, draws: int = 20
+) -> BandResult:
     from sarmission.evaluation.report import evaluate_detections
     from sarmission.evaluation.run_model import run_mitenet
 
@@ -161,11 +196,18 @@ def measure_band(net, pitch: tuple, height: tuple, frames: int, width: int,
     report = evaluate_detections(dataset, run.detections, net.classes, image_ids=run.image_ids)
     sar = report["sar"]
     truth_errors, det_errors = geolocate_clip(dataset, run.detections, limits)
-    noisy, _ = geolocate_clip(dataset, run.detections, limits, np.random.default_rng(0),
-                              draws)
-    return BandResult(pitch[0], height[0], len(run.frame_ms), sar["n_trajectories"],
-                      sar["search_success_rate"], sar["false_alarm_rate_per_frame"],
-                      truth_errors, det_errors, noisy)
+    noisy, _ = geolocate_clip(dataset, run.detections, limits, np.random.default_rng(0), draws)
+    return BandResult(
+        pitch[0],
+        height[0],
+        len(run.frame_ms),
+        sar["n_trajectories"],
+        sar["search_success_rate"],
+        sar["false_alarm_rate_per_frame"],
+        truth_errors,
+        det_errors,
+        noisy,
+    )
 
 
 def _pct(values: list[float], q: float) -> str:
@@ -208,7 +250,8 @@ def render_doc(results: list[BandResult], command: str, minutes: float, draws: i
             f"| {r.pitch} | {r.height} | {r.frames} | {r.targets} | {_rate(r.ssr)} | "
             f"{_rate(r.far)} | {_pct(t.errors, 50)} / {_pct(t.errors, 95)} | "
             f"{_pct(t.estimates, 50)} | {_share(t.refused, t.tried)} | "
-            f"{_pct(d.errors, 50)} / {_pct(d.errors, 95)} | {_share(d.refused, d.tried)} |")
+            f"{_pct(d.errors, 50)} / {_pct(d.errors, 95)} | {_share(d.refused, d.tried)} |"
+        )
     lines += [
         "",
         "With exact telemetry the error is what the box centre itself adds: it lies above the "
@@ -231,7 +274,8 @@ def render_doc(results: list[BandResult], command: str, minutes: float, draws: i
         lines.append(
             f"| {r.pitch} | {r.height} | {_pct(n.errors, 50)} / {_pct(n.errors, 95)} | "
             f"{_pct(n.estimates, 50)} | {_share(within, len(n.errors))} | "
-            f"{_share(within2, len(n.errors))} | {_share(n.refused, n.tried)} |")
+            f"{_share(within2, len(n.errors))} | {_share(n.refused, n.tried)} |"
+        )
     lines += [
         "",
         "One clip per band, so few targets: SSR moves in large steps. The bands keep people "
@@ -246,8 +290,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=15, help="frames per clip")
     parser.add_argument("--width", type=int, default=960, help="rendered image width")
-    parser.add_argument("--draws", type=int, default=20,
-                        help="telemetry noise draws per frame for the calibration table")
+    parser.add_argument(
+        "--draws",
+        type=int,
+        default=20,
+        help="telemetry noise draws per frame for the calibration table",
+    )
     args = parser.parse_args()
     from sarmission.commands.detector_options import (
         DEFAULT_DS,
@@ -263,15 +311,21 @@ def main() -> int:
     results = []
     for pitch in PITCH_BANDS:
         for height in HEIGHT_BANDS:
-            net = MiteNet(head, ds=DEFAULT_DS, topn=DEFAULT_TOPN,
-                          score_threshold=DEFAULT_SCORE_THRESHOLD)
-            results.append(measure_band(net, pitch, height, args.frames, args.width, limits,
-                                        args.draws))
+            net = MiteNet(
+                head, ds=DEFAULT_DS, topn=DEFAULT_TOPN, score_threshold=DEFAULT_SCORE_THRESHOLD
+            )
+            results.append(
+                measure_band(net, pitch, height, args.frames, args.width, limits, args.draws)
+            )
             print(f"pitch {pitch[0]}, height {height[0]}: done", file=sys.stderr)
-    command = (f"nice -n 19 python tools/view_bands.py --frames {args.frames} "
-               f"--width {args.width} --draws {args.draws}")
-    OUT.write_text(render_doc(results, command, (time.monotonic() - started) / 60,
-                              args.draws), encoding="utf-8")
+    command = (
+        f"nice -n 19 python tools/view_bands.py --frames {args.frames} "
+        f"--width {args.width} --draws {args.draws}"
+    )
+    OUT.write_text(
+        render_doc(results, command, (time.monotonic() - started) / 60, args.draws),
+        encoding="utf-8",
+    )
     print(f"wrote {OUT}")
     return 0
 

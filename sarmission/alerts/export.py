@@ -63,13 +63,15 @@ def _describe(alert: Alert) -> str:
     else:
         lines.append(f"position unknown: {alert.position_note or 'no geolocation'}")
     if alert.tier == "candidate":
-        lines.append("unconfirmed candidate" + (f", discarded: {alert.discarded}"
-                                                if alert.discarded else ""))
+        lines.append(
+            "unconfirmed candidate" + (f", discarded: {alert.discarded}" if alert.discarded else "")
+        )
     elif alert.evidence:
         lines.append(f"confirmed: {alert.evidence}")
     if alert.decision is not None:
-        lines.append(f"{alert.decision} by {alert.decided_by} at "
-                     f"{utc_iso(alert.decided_at or 0.0)}")
+        lines.append(
+            f"{alert.decision} by {alert.decided_by} at {utc_iso(alert.decided_at or 0.0)}"
+        )
     if alert.acknowledged:
         lines.append(f"acknowledged by {alert.ack_by} at {utc_iso(alert.ack_time or 0.0)}")
     lines.append(f"alert {alert.alert_id}")

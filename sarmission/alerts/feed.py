@@ -122,14 +122,16 @@ class _Server(ThreadingHTTPServer):
     def __init__(self, address: tuple[str, int], feed: FeedServer) -> None:
         self.feed = feed
         self.address_family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
-        self.busy = BusyRejecter(f"the feed is at its limit of {feed.max_connections} "
-                                 "connections; retry shortly")
+        self.busy = BusyRejecter(
+            f"the feed is at its limit of {feed.max_connections} connections; retry shortly"
+        )
         super().__init__(address, _Handler)
 
     def process_request(self, request: Any, client_address: Any) -> None:
         if not self.feed.connections.take():
-            self.feed.refusals.warn("feed: %d connections open, refusing more",
-                                    self.feed.max_connections)
+            self.feed.refusals.warn(
+                "feed: %d connections open, refusing more", self.feed.max_connections
+            )
             self.busy.reject(request)
             return
         try:
@@ -169,10 +171,19 @@ class FeedServer:
         send_timeout: seconds a write to a client may block.
     """
 
-    def __init__(self, store: AlertStore, host: str = "127.0.0.1", port: int = 8765, *,
-                 token: str | None = None, allowed_hosts: Iterable[str] = (),
-                 max_connections: int = 64, max_streams: int = 16,
-                 request_timeout: float = 10.0, send_timeout: float = 30.0) -> None:
+    def __init__(
+        self,
+        store: AlertStore,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        *,
+        token: str | None = None,
+        allowed_hosts: Iterable[str] = (),
+        max_connections: int = 64,
+        max_streams: int = 16,
+        request_timeout: float = 10.0,
+        send_timeout: float = 30.0,
+    ) -> None:
         if not 1 <= max_streams <= max_connections:
             raise ValueError("need 1 <= max_streams <= max_connections")
         if not (request_timeout > 0 and send_timeout > 0):
@@ -227,10 +238,14 @@ class FeedServer:
         if self.token is None:
             return f"operator feed on {self.url}/{where}"
         if self.token_generated:
-            return (f"operator feed on {self.page_url}{where}; reachable from the network: open "
-                    "this address once in the browser, tools send Authorization: Bearer <token>")
-        return (f"operator feed on {self.url}/{where}; access token from the token file: open "
-                "/?token=<token> once in the browser, tools send Authorization: Bearer <token>")
+            return (
+                f"operator feed on {self.page_url}{where}; reachable from the network: open "
+                "this address once in the browser, tools send Authorization: Bearer <token>"
+            )
+        return (
+            f"operator feed on {self.url}/{where}; access token from the token file: open "
+            "/?token=<token> once in the browser, tools send Authorization: Bearer <token>"
+        )
 
     def start(self) -> FeedServer:
         """Bind and serve in a daemon thread; returns self. Beyond loopback, a token is generated
@@ -248,10 +263,14 @@ class FeedServer:
         if not self.loopback:
             if self.token is None:
                 self.token, self.token_generated = new_token(), True
-            log.warning("alert feed on %s is reachable from the network: every request needs "
-                        "the access token", self.url)
-        self.guard = Guard(self.token, self.host, self._server.server_address[0], self.port,
-                           self.allowed_hosts)
+            log.warning(
+                "alert feed on %s is reachable from the network: every request needs "
+                "the access token",
+                self.url,
+            )
+        self.guard = Guard(
+            self.token, self.host, self._server.server_address[0], self.port, self.allowed_hosts
+        )
         self._thread = threading.Thread(
             target=self._server.serve_forever,
             kwargs={"poll_interval": 0.2},
@@ -358,16 +377,21 @@ class _Handler(BaseHTTPRequestHandler):
     def _json(self, status: int, value: Any, headers: dict[str, str] | None = None) -> None:
         self._send(status, json.dumps(value).encode(), "application/json", headers)
 
-    def _error(self, status: HTTPStatus, message: str,
-               headers: dict[str, str] | None = None) -> None:
+    def _error(
+        self, status: HTTPStatus, message: str, headers: dict[str, str] | None = None
+    ) -> None:
         path = _redact(getattr(self, "path", "") or "")[:200]
         self._json(status, {"error": message, "status": int(status), "path": path}, headers)
 
     def _refuse(self, refusal: Refusal) -> None:
-        self.feed.refusals.warn("feed: refused a request from %s: %s", self.client_address[0],
-                                refusal.message)
-        headers = {"WWW-Authenticate": 'Bearer realm="sarmission feed"'} if (
-            refusal.status == HTTPStatus.UNAUTHORIZED) else None
+        self.feed.refusals.warn(
+            "feed: refused a request from %s: %s", self.client_address[0], refusal.message
+        )
+        headers = (
+            {"WWW-Authenticate": 'Bearer realm="sarmission feed"'}
+            if (refusal.status == HTTPStatus.UNAUTHORIZED)
+            else None
+        )
         self._error(HTTPStatus(refusal.status), refusal.message, headers)
 
     def _start_stream(self, content_type: str) -> None:
@@ -419,8 +443,13 @@ class _Handler(BaseHTTPRequestHandler):
             self.headers.get("Authorization"), self.headers.get("Cookie"), params.pop("token", None)
         )
         if credential is None:
-            self._refuse(Refusal(401, "access token required: open the feed's /?token= address "
-                                      "once, or send Authorization: Bearer <token>"))
+            self._refuse(
+                Refusal(
+                    401,
+                    "access token required: open the feed's /?token= address "
+                    "once, or send Authorization: Bearer <token>",
+                )
+            )
             return None
         return credential, params
 
@@ -557,8 +586,12 @@ class _Handler(BaseHTTPRequestHandler):
         except KeyError:
             self._error(HTTPStatus.NOT_FOUND, f"no alert {alert_id}")
             return
-        log.info("alert %s: %s by %s", alert_id, "acknowledged" if verb == "ack"
-                 else _DECISIONS[verb], by)
+        log.info(
+            "alert %s: %s by %s",
+            alert_id,
+            "acknowledged" if verb == "ack" else _DECISIONS[verb],
+            by,
+        )
         self._json(HTTPStatus.OK, doc)
 
     # ------------------------------------------------------------------ streams
@@ -567,9 +600,11 @@ class _Handler(BaseHTTPRequestHandler):
         """Run a stream if a stream slot is free, else answer 503."""
         streams = self.feed.streams
         if not streams.take():
-            self._error(HTTPStatus.SERVICE_UNAVAILABLE,
-                        f"the feed is at its limit of {streams.cap} open streams; retry shortly",
-                        {"Retry-After": "5"})
+            self._error(
+                HTTPStatus.SERVICE_UNAVAILABLE,
+                f"the feed is at its limit of {streams.cap} open streams; retry shortly",
+                {"Retry-After": "5"},
+            )
             return
         try:
             serve(*args)
@@ -638,9 +673,8 @@ def _is_line(event: AlertEvent, sent: set[str], since: float | None) -> bool:
     """Whether a followed JSON-lines stream writes ``event``: a new alert not yet written, an
     alert's position found after it was stored, its tier settled or an operator's decision."""
     return (
-        (event.kind in _RELINED or event.kind == "new" and event.alert.alert_id not in sent)
-        and (since is None or event.alert.lock_time >= since)
-    )
+        event.kind in _RELINED or event.kind == "new" and event.alert.alert_id not in sent
+    ) and (since is None or event.alert.lock_time >= since)
 
 
 #: Changes after which a followed JSON-lines stream writes the alert again.

@@ -60,8 +60,9 @@ def new_token() -> str:
 def check_token(token: str) -> str:
     """``token`` if usable (16-256 printable ASCII characters, no spaces), else ValueError."""
     if not _TOKEN.fullmatch(token):
-        raise ValueError("the feed access token must be 16-256 printable ASCII characters, "
-                         "no spaces")
+        raise ValueError(
+            "the feed access token must be 16-256 printable ASCII characters, no spaces"
+        )
     return token
 
 
@@ -111,8 +112,14 @@ class Guard:
         allowed_hosts: further names the ``Host`` header may carry (e.g. ``drone.local``).
     """
 
-    def __init__(self, token: str | None, bind_host: str, bound_ip: str, port: int,
-                 allowed_hosts: Iterable[str] = ()) -> None:
+    def __init__(
+        self,
+        token: str | None,
+        bind_host: str,
+        bound_ip: str,
+        port: int,
+        allowed_hosts: Iterable[str] = (),
+    ) -> None:
         self.token = token
         self.wildcard = is_wildcard(bind_host)
         names = {_normal(bind_host), _normal(bound_ip)} - {""}
@@ -123,7 +130,8 @@ class Guard:
         self.cookie_name = f"sarmission_feed_{port}"
         self._cookie_value = (
             hmac.new(token.encode(), b"sarmission feed cookie", hashlib.sha256).hexdigest()
-            if token else ""
+            if token
+            else ""
         )
 
     # ------------------------------------------------------------------ Host
@@ -141,8 +149,9 @@ class Guard:
 
     # ------------------------------------------------------------------ token
 
-    def credential(self, authorization: str | None, cookie: str | None,
-                   query_token: str | None) -> Credential | None:
+    def credential(
+        self, authorization: str | None, cookie: str | None, query_token: str | None
+    ) -> Credential | None:
         """Which presented credential matches the token (any one suffices); None when none
         does. ``Credential.NONE`` when no token is configured."""
         if self.token is None:
@@ -160,13 +169,16 @@ class Guard:
 
     def set_cookie(self) -> str:
         """The ``Set-Cookie`` value that lets a browser that showed the token keep using it."""
-        return (f"{self.cookie_name}={self._cookie_value}; Path=/; HttpOnly; SameSite=Strict; "
-                "Max-Age=86400")
+        return (
+            f"{self.cookie_name}={self._cookie_value}; Path=/; HttpOnly; SameSite=Strict; "
+            "Max-Age=86400"
+        )
 
     # ------------------------------------------------------------------ Origin
 
-    def check_change(self, credential: Credential, origin: str | None,
-                     host_header: str) -> Refusal | None:
+    def check_change(
+        self, credential: Credential, origin: str | None, host_header: str
+    ) -> Refusal | None:
         """None when a state-changing request may go ahead: its ``Origin``, when sent, is the
         feed's own (the one the browser reached it by: the checked ``Host``); without ``Origin``
         (not a browser) a configured token must come in the ``Authorization`` header."""
@@ -242,8 +254,10 @@ def _same_origin(origin: str, host_header: str) -> bool:
     if parts.scheme != "http" or parts.path or parts.query or parts.hostname is None:
         return False
     host = host_of(host_header)
-    return host is not None and _normal(parts.hostname) == host and (
-        origin_port == _port_of(host_header)
+    return (
+        host is not None
+        and _normal(parts.hostname) == host
+        and (origin_port == _port_of(host_header))
     )
 
 

@@ -39,8 +39,9 @@ def parse_query(query: str, allowed: Collection[str]) -> dict[str, str]:
     if not query:
         return {}
     try:
-        pairs = parse_qsl(query, keep_blank_values=True, max_num_fields=_MAX_PARAMS,
-                          errors="strict")
+        pairs = parse_qsl(
+            query, keep_blank_values=True, max_num_fields=_MAX_PARAMS, errors="strict"
+        )
     except (ValueError, UnicodeDecodeError):
         raise BadRequest("malformed query string") from None
     params: dict[str, str] = {}
@@ -144,6 +145,5 @@ def mission(params: dict[str, str]) -> str | None:
     if text is None:
         return None
     if not 1 <= len(text) <= MAX_MISSION or not text.isprintable():
-        raise BadRequest(f"mission must be a mission id of 1 to {MAX_MISSION} printable "
-                         "characters")
+        raise BadRequest(f"mission must be a mission id of 1 to {MAX_MISSION} printable characters")
     return text

@@ -59,7 +59,8 @@ class BusyRejecter:
         self._reply = (
             b"HTTP/1.0 503 Service Unavailable\r\nContent-Type: application/json\r\n"
             b"Retry-After: 5\r\nCache-Control: no-store\r\nConnection: close\r\n"
-            + f"Content-Length: {len(body)}\r\n\r\n".encode() + body
+            + f"Content-Length: {len(body)}\r\n\r\n".encode()
+            + body
         )
         self._lingering: list[tuple[socket.socket, float]] = []
         self.rejected = 0
@@ -148,8 +149,12 @@ def tune_socket(sock: socket.socket, send_timeout_s: float) -> None:
     sock.settimeout(send_timeout_s)
     try:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
-        for name, value in (("TCP_KEEPIDLE", 30), ("TCP_KEEPINTVL", 10), ("TCP_KEEPCNT", 3),
-                            ("TCP_USER_TIMEOUT", int(send_timeout_s * 1000))):
+        for name, value in (
+            ("TCP_KEEPIDLE", 30),
+            ("TCP_KEEPINTVL", 10),
+            ("TCP_KEEPCNT", 3),
+            ("TCP_USER_TIMEOUT", int(send_timeout_s * 1000)),
+        ):
             if hasattr(socket, name):
                 sock.setsockopt(socket.IPPROTO_TCP, getattr(socket, name), value)
     except OSError:

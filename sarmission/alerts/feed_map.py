@@ -35,8 +35,9 @@ def thin(points: Sequence[DronePoint], most: int) -> list[DronePoint]:
     return kept
 
 
-def map_document(store: AlertStore, mission_id: str | None = None,
-                 since: float | None = None) -> dict[str, Any]:
+def map_document(
+    store: AlertStore, mission_id: str | None = None, since: float | None = None
+) -> dict[str, Any]:
     """``{"mission_id", "area", "track", "alerts", "dismissed"}`` of ``mission_id`` (default:
     the store's current mission, :meth:`AlertStore.current_mission`): area ``[[lat, lon], ...]``
     or None, track ``[[t, lat, lon], ...]`` (with ``since``: points at or after that time),
@@ -58,8 +59,12 @@ def map_document(store: AlertStore, mission_id: str | None = None,
 class MapFollower:
     """What an event stream should send about the map, polled once per tick (see module doc)."""
 
-    def __init__(self, store: AlertStore, interval_s: float = 1.0,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        store: AlertStore,
+        interval_s: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.store = store
         self.interval_s = interval_s
         self.clock = clock
@@ -89,8 +94,15 @@ class MapFollower:
         area = self.store.mission_area(mission)
         if area != self._area:
             self._area = area
-            out.append(("area", {"mission_id": mission,
-                                 "area": None if area is None else [list(v) for v in area]}))
+            out.append(
+                (
+                    "area",
+                    {
+                        "mission_id": mission,
+                        "area": None if area is None else [list(v) for v in area],
+                    },
+                )
+            )
         return out
 
     def _snapshot(self, mission: str | None) -> dict[str, Any]:

@@ -189,8 +189,7 @@ class Alert:
         if self.tier not in TIERS:
             raise ValueError(f"alert tier must be one of {TIERS}, got {self.tier!r}")
         if self.decision is not None and self.decision not in DECISIONS:
-            raise ValueError(f"operator decision must be one of {DECISIONS}, got "
-                             f"{self.decision!r}")
+            raise ValueError(f"operator decision must be one of {DECISIONS}, got {self.decision!r}")
 
     @property
     def dismissed(self) -> bool:

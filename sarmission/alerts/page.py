@@ -130,6 +130,14 @@ setInterval(() => {
 PAGE_HTML = (
     '<!doctype html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
     '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-    "<title>SAR alerts</title>\n<style>" + PAGE_CSS + "</style>\n</head>\n" + _BODY
-    + "<script>" + _CORE_JS + CARDS_JS + map_js() + _LIVE_JS + "</script>\n</body>\n</html>\n"
+    "<title>SAR alerts</title>\n<style>"
+    + PAGE_CSS
+    + "</style>\n</head>\n"
+    + _BODY
+    + "<script>"
+    + _CORE_JS
+    + CARDS_JS
+    + map_js()
+    + _LIVE_JS
+    + "</script>\n</body>\n</html>\n"
 )

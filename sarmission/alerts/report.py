@@ -26,9 +26,23 @@ from sarmission.alerts.export import alerts_geojson, alerts_kml
 from sarmission.alerts.model import Alert, utc_iso
 from sarmission.alerts.report_map import MapPoint, flight_map_svg
 
-CSV_COLUMNS = ("short_id", "target_id", "tier", "class_name", "score", "frame_index",
-               "footage_time_s", "pixel_x", "pixel_y", "lock_time_utc", "lat", "lon",
-               "error_m", "position_note", "alert_id")
+CSV_COLUMNS = (
+    "short_id",
+    "target_id",
+    "tier",
+    "class_name",
+    "score",
+    "frame_index",
+    "footage_time_s",
+    "pixel_x",
+    "pixel_y",
+    "lock_time_utc",
+    "lat",
+    "lon",
+    "error_m",
+    "position_note",
+    "alert_id",
+)
 _STYLE = """
 body{font-family:system-ui,sans-serif;margin:24px;color:#222;background:#fff}
 h1{font-size:22px;margin:0 0 12px} h2{font-size:17px;margin:22px 0 8px}
@@ -81,20 +95,25 @@ def _rows(report: ReportInput) -> list[dict[str, object]]:
     for a in report.alerts:
         px = _pixel(a)
         ft = _footage_time(a, report.frame_times)
-        rows.append({
-            "short_id": a.short_id, "target_id": a.target_id,
-            "tier": getattr(a, "tier", "confirmed"), "class_name": a.class_name,
-            "score": f"{a.score:.3f}", "frame_index": a.frame_index,
-            "footage_time_s": "" if ft is None else f"{ft:.3f}",
-            "pixel_x": "" if px is None else f"{px[0]:.1f}",
-            "pixel_y": "" if px is None else f"{px[1]:.1f}",
-            "lock_time_utc": utc_iso(a.lock_time),
-            "lat": "" if a.position is None else repr(a.position[0]),
-            "lon": "" if a.position is None else repr(a.position[1]),
-            "error_m": "" if a.error_m is None or a.position is None else f"{a.error_m:.2f}",
-            "position_note": _where(a) if a.position is None else a.position_note,
-            "alert_id": a.alert_id,
-        })
+        rows.append(
+            {
+                "short_id": a.short_id,
+                "target_id": a.target_id,
+                "tier": getattr(a, "tier", "confirmed"),
+                "class_name": a.class_name,
+                "score": f"{a.score:.3f}",
+                "frame_index": a.frame_index,
+                "footage_time_s": "" if ft is None else f"{ft:.3f}",
+                "pixel_x": "" if px is None else f"{px[0]:.1f}",
+                "pixel_y": "" if px is None else f"{px[1]:.1f}",
+                "lock_time_utc": utc_iso(a.lock_time),
+                "lat": "" if a.position is None else repr(a.position[0]),
+                "lon": "" if a.position is None else repr(a.position[1]),
+                "error_m": "" if a.error_m is None or a.position is None else f"{a.error_m:.2f}",
+                "position_note": _where(a) if a.position is None else a.position_note,
+                "alert_id": a.alert_id,
+            }
+        )
     return rows
 
 
@@ -117,37 +136,64 @@ def report_geojson(report: ReportInput) -> dict[str, object]:
             if isinstance(value, float):
                 props[key] = finite_or_none(value)
     if len(report.track) > 1:
-        doc["features"].append({
-            "type": "Feature", "id": "flight-track",
-            "geometry": {"type": "LineString",
-                         "coordinates": [[lon, lat] for _, lat, lon in report.track]},
-            "properties": {"kind": "flight track", "start_t": report.track[0][0],
-                           "end_t": report.track[-1][0]}})
+        doc["features"].append(
+            {
+                "type": "Feature",
+                "id": "flight-track",
+                "geometry": {
+                    "type": "LineString",
+                    "coordinates": [[lon, lat] for _, lat, lon in report.track],
+                },
+                "properties": {
+                    "kind": "flight track",
+                    "start_t": report.track[0][0],
+                    "end_t": report.track[-1][0],
+                },
+            }
+        )
     return doc
 
 
 def _card(alert: Alert, frame_times: dict[int, float]) -> str:
     ft = _footage_time(alert, frame_times)
     px = _pixel(alert)
-    img = (f'<img alt="thumbnail of {html.escape(alert.short_id)}" src="data:image/jpeg;base64,'
-           f'{base64.b64encode(alert.thumbnail).decode()}">' if alert.thumbnail
-           else '<div class="none">no thumbnail</div>')
+    img = (
+        f'<img alt="thumbnail of {html.escape(alert.short_id)}" src="data:image/jpeg;base64,'
+        f'{base64.b64encode(alert.thumbnail).decode()}">'
+        if alert.thumbnail
+        else '<div class="none">no thumbnail</div>'
+    )
     where = html.escape(_where(alert))
     cls = "nopos" if alert.position is None else "pos"
-    return (f'<div class="card" data-alert-id="{html.escape(alert.alert_id)}">{img}'
-            f"<b>{html.escape(alert.short_id)}</b> {html.escape(alert.class_name)} "
-            f"{alert.score:.2f}<br>"
-            f"{'' if ft is None else f't = {ft:.2f} s, '}frame {alert.frame_index}"
-            f"{'' if px is None else f', pixel {px[0]:.0f},{px[1]:.0f}'}<br>"
-            f'<span class="{cls}">{where}</span></div>')
+    return (
+        f'<div class="card" data-alert-id="{html.escape(alert.alert_id)}">{img}'
+        f"<b>{html.escape(alert.short_id)}</b> {html.escape(alert.class_name)} "
+        f"{alert.score:.2f}<br>"
+        f"{'' if ft is None else f't = {ft:.2f} s, '}frame {alert.frame_index}"
+        f"{'' if px is None else f', pixel {px[0]:.0f},{px[1]:.0f}'}<br>"
+        f'<span class="{cls}">{where}</span></div>'
+    )
 
 
 def _table(rows: Sequence[dict[str, object]]) -> str:
-    cols = ("short_id", "tier", "class_name", "score", "footage_time_s", "frame_index",
-            "pixel_x", "pixel_y", "lat", "lon", "error_m", "position_note")
+    cols = (
+        "short_id",
+        "tier",
+        "class_name",
+        "score",
+        "footage_time_s",
+        "frame_index",
+        "pixel_x",
+        "pixel_y",
+        "lat",
+        "lon",
+        "error_m",
+        "position_note",
+    )
     head = "".join(f"<th>{c}</th>" for c in cols)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in cols)
-                   + "</tr>" for r in rows)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(str(r[c]))}</td>" for c in cols) + "</tr>" for r in rows
+    )
     return f'<table class="summary"><tr>{head}</tr>{body}</table>'
 
 
@@ -156,18 +202,23 @@ def report_html(report: ReportInput) -> str:
     placed = [a for a in report.alerts if a.position is not None]
     points = [MapPoint(a.short_id, a.position[0], a.position[1], a.error_m) for a in placed]
     svg = flight_map_svg([(lat, lon) for _, lat, lon in report.track], points)
-    facts = "".join(f"<tr><td>{html.escape(k)}</td><td><pre>{html.escape(v)}</pre></td></tr>"
-                    for k, v in report.facts)
+    facts = "".join(
+        f"<tr><td>{html.escape(k)}</td><td><pre>{html.escape(v)}</pre></td></tr>"
+        for k, v in report.facts
+    )
     unplaced = len(report.alerts) - len(placed)
-    counts = (f"{len(report.alerts)} alerts, {len(placed)} with a position"
-              + (f", {unplaced} without" if unplaced else ""))
+    counts = f"{len(report.alerts)} alerts, {len(placed)} with a position" + (
+        f", {unplaced} without" if unplaced else ""
+    )
     cards = "".join(_card(a, report.frame_times) for a in report.alerts) or "<p>No alerts.</p>"
-    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<title>{html.escape(report.title)}</title><style>{_STYLE}</style></head><body>"
-            f"<h1>{html.escape(report.title)}</h1><p id=\"counts\">{counts}</p>"
-            f'<table class="facts">{facts}</table>'
-            f"<h2>Map</h2>{svg}<h2>Alerts</h2><div class=\"strip\">{cards}</div>"
-            f"<h2>Summary</h2>{_table(_rows(report))}</body></html>\n")
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f"<title>{html.escape(report.title)}</title><style>{_STYLE}</style></head><body>"
+        f'<h1>{html.escape(report.title)}</h1><p id="counts">{counts}</p>'
+        f'<table class="facts">{facts}</table>'
+        f'<h2>Map</h2>{svg}<h2>Alerts</h2><div class="strip">{cards}</div>'
+        f"<h2>Summary</h2>{_table(_rows(report))}</body></html>\n"
+    )
 
 
 def write_report(out_dir: Path, report: ReportInput) -> list[Path]:
@@ -177,8 +228,9 @@ def write_report(out_dir: Path, report: ReportInput) -> list[Path]:
     files = {
         "report.html": report_html(report).encode(),
         "alerts.kml": alerts_kml(report.alerts, name=report.title),
-        "alerts.geojson": json.dumps(report_geojson(report), ensure_ascii=False,
-                                     allow_nan=False).encode(),
+        "alerts.geojson": json.dumps(
+            report_geojson(report), ensure_ascii=False, allow_nan=False
+        ).encode(),
         "alerts.csv": report_csv(report).encode(),
     }
     paths = []

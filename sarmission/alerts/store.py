@@ -77,13 +77,23 @@ MAX_AREA_VERTICES = 10_000
 #: acknowledgement; ``confirmed``: a candidate became confirmed (by the system, or by the
 #: operator named in ``by``); ``discarded``: the system gave up on a candidate; ``decided``: an
 #: operator confirmed or dismissed it (``detail``).
-EventKind = Literal["new", "ack", "delivered", "refused", "sent", "position", "confirmed",
-                    "discarded", "decided"]
+EventKind = Literal[
+    "new", "ack", "delivered", "refused", "sent", "position", "confirmed", "discarded", "decided"
+]
 _EVENT_KINDS = {
     2: ("new", "ack", "delivered", "position"),
     3: ("new", "ack", "delivered", "refused", "sent", "position"),
-    4: ("new", "ack", "delivered", "refused", "sent", "position", "confirmed", "discarded",
-        "decided"),
+    4: (
+        "new",
+        "ack",
+        "delivered",
+        "refused",
+        "sent",
+        "position",
+        "confirmed",
+        "discarded",
+        "decided",
+    ),
 }
 
 
@@ -140,7 +150,8 @@ CREATE TABLE areas (
 ) WITHOUT ROWID
 """
 
-_SCHEMA = """
+_SCHEMA = (
+    """
 CREATE TABLE alerts (
     seq           INTEGER PRIMARY KEY AUTOINCREMENT,
     alert_id      TEXT NOT NULL UNIQUE,
@@ -174,25 +185,35 @@ CREATE TABLE alerts (
     decided_at    REAL
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
-""" + _ACKS_AND_SENDS + ";" + _events_table("events") + ";" + _MAP_TABLES
+"""
+    + _ACKS_AND_SENDS
+    + ";"
+    + _events_table("events")
+    + ";"
+    + _MAP_TABLES
+)
 
 _UNACKED_SQL = ", ".join(f"'{c}'" for c in sorted(UNACKNOWLEDGED_CHANNELS))
 
 #: Statements taking a store from schema ``n`` to ``n + 1``.
 _UPGRADES: dict[int, str] = {
-    1: _events_table("events_2", 2) + """;
+    1: _events_table("events_2", 2)
+    + """;
 INSERT INTO events_2 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
 DROP TABLE events;
 ALTER TABLE events_2 RENAME TO events
 """,
     # Schema 2 recorded a STATUSTEXT as "delivered" once sent: all that was known is one send.
-    2: _ACKS_AND_SENDS + f""";
+    2: _ACKS_AND_SENDS
+    + f""";
 INSERT INTO acks (alert_id, channel, time, result)
     SELECT alert_id, channel, time, 0 FROM deliveries WHERE channel NOT IN ({_UNACKED_SQL});
 INSERT INTO sends (alert_id, channel, count, first, last)
     SELECT alert_id, channel, 1, time, time FROM deliveries WHERE channel IN ({_UNACKED_SQL});
 DROP TABLE deliveries;
-""" + _events_table("events_3", 3) + """;
+"""
+    + _events_table("events_3", 3)
+    + """;
 INSERT INTO events_3 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
 DROP TABLE events;
 ALTER TABLE events_3 RENAME TO events
@@ -208,12 +229,16 @@ ALTER TABLE alerts ADD COLUMN discarded_at REAL;
 ALTER TABLE alerts ADD COLUMN decision TEXT CHECK (decision IN ('confirmed', 'dismissed'));
 ALTER TABLE alerts ADD COLUMN decided_by TEXT;
 ALTER TABLE alerts ADD COLUMN decided_at REAL;
-""" + _events_table("events_4", 4) + """;
+"""
+    + _events_table("events_4", 4)
+    + """;
 INSERT INTO events_4 (seq, kind, alert_id, time) SELECT seq, kind, alert_id, time FROM events;
 DROP TABLE events;
 ALTER TABLE events_4 RENAME TO events;
-""" + _MAP_TABLES,
+"""
+    + _MAP_TABLES,
 }
+
 
 def _execute_script(conn: sqlite3.Connection, script: str) -> None:
     """Run ``;``-separated statements inside the open transaction (``executescript`` would
@@ -420,16 +445,21 @@ class AlertStore:
             if cur.rowcount == 0:
                 return False
             conn.executemany(
-                "INSERT INTO acks (alert_id, channel, time, result, reason) "
-                "VALUES (?, ?, ?, ?, ?)",
+                "INSERT INTO acks (alert_id, channel, time, result, reason) VALUES (?, ?, ?, ?, ?)",
                 [(alert.alert_id, ch, t, 0, "") for ch, t in alert.delivered.items()]
-                + [(alert.alert_id, ch, r.time, r.result, r.reason)
-                   for ch, r in alert.refused.items() if ch not in alert.delivered],
+                + [
+                    (alert.alert_id, ch, r.time, r.result, r.reason)
+                    for ch, r in alert.refused.items()
+                    if ch not in alert.delivered
+                ],
             )
             conn.executemany(
                 "INSERT INTO sends (alert_id, channel, count, first, last) VALUES (?, ?, ?, ?, ?)",
-                [(alert.alert_id, ch, n.count, n.first, n.last)
-                 for ch, n in alert.sent.items() if n.count > 0],
+                [
+                    (alert.alert_id, ch, n.count, n.first, n.last)
+                    for ch, n in alert.sent.items()
+                    if n.count > 0
+                ],
             )
             self._log(conn, "new", alert.alert_id)
         self._notify()
@@ -455,8 +485,9 @@ class AlertStore:
         assert alert is not None
         return alert
 
-    def record_ack(self, alert_id: str, channel: str, result: int, reason: str = "",
-                   when: float | None = None) -> bool:
+    def record_ack(
+        self, alert_id: str, channel: str, result: int, reason: str = "", when: float | None = None
+    ) -> bool:
         """Record the autopilot's answer to the command sent for the alert on ``channel``:
         ``result`` is its MAV_RESULT (or MAV_MISSION_RESULT; 0, accepted, means delivered),
         ``reason`` the readable refusal. An acceptance is final (its first time is kept); a
@@ -474,8 +505,13 @@ class AlertStore:
                 "VALUES (?, ?, ?, ?, ?) ON CONFLICT (alert_id, channel) DO UPDATE SET "
                 "time = excluded.time, result = excluded.result, reason = excluded.reason "
                 "WHERE acks.result != 0",
-                (alert_id, channel, time.time() if when is None else when, result,
-                 "" if result == 0 else reason),
+                (
+                    alert_id,
+                    channel,
+                    time.time() if when is None else when,
+                    result,
+                    "" if result == 0 else reason,
+                ),
             )
             if cur.rowcount:
                 self._log(conn, "delivered" if result == 0 else "refused", alert_id)
@@ -510,8 +546,9 @@ class AlertStore:
         self._notify()
         return Sends(count, first, last)
 
-    def attach_position(self, alert_id: str, position: tuple[float, float],
-                        error_m: float | None, note: str) -> bool:
+    def attach_position(
+        self, alert_id: str, position: tuple[float, float], error_m: float | None, note: str
+    ) -> bool:
         """Give an alert stored without a position its ``(lat, lon)``, error and note, durably.
 
         For a target first alerted while it could not be geolocated and located later. Only the
@@ -582,13 +619,15 @@ class AlertStore:
             self._notify()
         return self.get(alert_id)
 
-    def decide(self, alert_id: str, decision: Decision, by: str,
-               when: float | None = None) -> Alert:
+    def decide(
+        self, alert_id: str, decision: Decision, by: str, when: float | None = None
+    ) -> Alert:
         """An operator's decision on an alert; returns it. See :meth:`record_decision`."""
         return self.record_decision(alert_id, decision, by, when).alert
 
-    def record_decision(self, alert_id: str, decision: Decision, by: str,
-                        when: float | None = None) -> Decided:
+    def record_decision(
+        self, alert_id: str, decision: Decision, by: str, when: float | None = None
+    ) -> Decided:
         """Record an operator's ``decision`` (``"confirmed"`` or ``"dismissed"``) by ``by``,
         durably; event ``decided`` (``detail``: the decision). Confirming a candidate also
         confirms it (event ``confirmed`` with ``by``), dismissing one suppresses its place
@@ -625,8 +664,9 @@ class AlertStore:
                         "evidence = ?, discarded = NULL, discarded_at = NULL WHERE alert_id = ?",
                         (t, f"confirmed by operator {name}", alert_id),
                     )
-                    self._log(conn, "confirmed", alert_id, by=name,
-                              detail=f"confirmed by operator {name}")
+                    self._log(
+                        conn, "confirmed", alert_id, by=name, detail=f"confirmed by operator {name}"
+                    )
         if changed:
             self._notify()
         alert = self.get(alert_id)
@@ -635,8 +675,9 @@ class AlertStore:
 
     # ------------------------------------------------------------------ drone and area
 
-    def record_drone(self, mission_id: str, t: float, lat: float, lon: float,
-                     alt_m: float | None) -> None:
+    def record_drone(
+        self, mission_id: str, t: float, lat: float, lon: float, alt_m: float | None
+    ) -> None:
         """Append a point to the mission's drone track (the controller calls this about once a
         second; nothing is logged as an event, the feed polls :meth:`drone_points_after`). Only
         the newest :data:`DRONE_POINTS_KEPT` points per mission are kept. A time or altitude not
@@ -671,26 +712,26 @@ class AlertStore:
             rows = self._conn.execute(sql + " ORDER BY seq", params).fetchall()
         return [DronePoint(*r) for r in rows]
 
-    def drone_points_after(self, mission_id: str, after: int = 0
-                           ) -> tuple[int, list[DronePoint]]:
+    def drone_points_after(self, mission_id: str, after: int = 0) -> tuple[int, list[DronePoint]]:
         """For a follower of the track: the newest track ``seq`` of the mission and its points
         recorded after ``after`` (a ``seq`` this returned before; 0: all of them)."""
         with self._lock:
             rows = self._conn.execute(
                 "SELECT seq, t, lat, lon, alt_m FROM drone WHERE mission_id = ? AND seq > ? "
-                "ORDER BY seq", (mission_id, after),
+                "ORDER BY seq",
+                (mission_id, after),
             ).fetchall()
         return (rows[-1][0] if rows else after), [DronePoint(*r[1:]) for r in rows]
 
-    def set_mission_area(self, mission_id: str,
-                         polygon_latlon: list[tuple[float, float]]) -> None:
+    def set_mission_area(self, mission_id: str, polygon_latlon: list[tuple[float, float]]) -> None:
         """Store the mission's area: a polygon of ``(lat, lon)`` vertices (at least 3, at most
         :data:`MAX_AREA_VERTICES`, each in range), replacing an earlier one. ValueError
         otherwise."""
         vertices = [check_position(tuple(v)) for v in polygon_latlon]  # type: ignore[arg-type]
         if not 3 <= len(vertices) <= MAX_AREA_VERTICES:
-            raise ValueError(f"a mission area needs 3 to {MAX_AREA_VERTICES} vertices, got "
-                             f"{len(vertices)}")
+            raise ValueError(
+                f"a mission area needs 3 to {MAX_AREA_VERTICES} vertices, got {len(vertices)}"
+            )
         with self._transaction() as conn:
             conn.execute(
                 "INSERT INTO areas (mission_id, polygon, set_time) VALUES (?, ?, ?) "
@@ -725,8 +766,13 @@ class AlertStore:
             raise KeyError(alert_id)
 
     @staticmethod
-    def _log(conn: sqlite3.Connection, kind: EventKind, alert_id: str, by: str | None = None,
-             detail: str = "") -> None:
+    def _log(
+        conn: sqlite3.Connection,
+        kind: EventKind,
+        alert_id: str,
+        by: str | None = None,
+        detail: str = "",
+    ) -> None:
         conn.execute(
             "INSERT INTO events (kind, alert_id, time, by, detail) VALUES (?, ?, ?, ?, ?)",
             (kind, alert_id, time.time(), by, detail),
@@ -750,15 +796,15 @@ class AlertStore:
         if mission_id is not None:
             where.append("a.mission_id = ?")
             params.append(mission_id)
-        return self._query(_SELECT + f"WHERE {' AND '.join(where)} ORDER BY a.seq",
-                           tuple(params))
+        return self._query(_SELECT + f"WHERE {' AND '.join(where)} ORDER BY a.seq", tuple(params))
 
     def pending_candidates(self, mission_id: str) -> list[Alert]:
         """The mission's candidates still open: neither confirmed, nor discarded, nor decided
         on by an operator, oldest first (a restarted controller resumes judging them)."""
         return self._query(
             _SELECT + "WHERE a.mission_id = ? AND a.tier = 'candidate' AND a.discarded IS NULL "
-            "AND a.decision IS NULL ORDER BY a.seq", (mission_id,),
+            "AND a.decision IS NULL ORDER BY a.seq",
+            (mission_id,),
         )
 
     def dismissed_zones(self, mission_id: str) -> list[tuple[float, float, float]]:
@@ -780,7 +826,8 @@ class AlertStore:
         with self._lock:
             rows = self._conn.execute(
                 "SELECT time, detail, by FROM events WHERE alert_id = ? AND kind = 'decided' "
-                "ORDER BY seq", (alert_id,),
+                "ORDER BY seq",
+                (alert_id,),
             ).fetchall()
         return [OperatorDecision(*r) for r in rows]
 
@@ -839,15 +886,14 @@ class AlertStore:
                 known.setdefault(target_id, None)
         return known
 
-    def known_fixes(self, mission_id: str
-                    ) -> dict[int, tuple[float, float, float | None] | None]:
+    def known_fixes(self, mission_id: str) -> dict[int, tuple[float, float, float | None] | None]:
         """Like :meth:`known_targets`, with the 1-sigma error of each latest position:
         target id -> ``(lat, lon, error_m)`` (error None when unknown), or None without a
         position. The restarted registry matches new fixes against each by its own error."""
         with self._lock:
             rows = self._conn.execute(
-                "SELECT target_id, lat, lon, error_m FROM alerts WHERE mission_id = ? "
-                "ORDER BY seq", (mission_id,),
+                "SELECT target_id, lat, lon, error_m FROM alerts WHERE mission_id = ? ORDER BY seq",
+                (mission_id,),
             ).fetchall()
         known: dict[int, tuple[float, float, float | None] | None] = {}
         for target_id, lat, lon, error_m in rows:
@@ -865,8 +911,10 @@ class AlertStore:
                 (after,),
             ).fetchall()
             alerts = {a.alert_id: a for a in self._alerts_by_id({r[2] for r in rows})}
-        return [AlertEvent(seq, kind, alerts[alert_id], by, detail)
-                for seq, kind, alert_id, by, detail in rows]
+        return [
+            AlertEvent(seq, kind, alerts[alert_id], by, detail)
+            for seq, kind, alert_id, by, detail in rows
+        ]
 
     def last_event_seq(self) -> int:
         """The newest event's ``seq`` (0 when there is none)."""
@@ -890,12 +938,14 @@ class AlertStore:
                 marks = ",".join("?" * len(batch))
                 for row in self._conn.execute(
                     "SELECT alert_id, channel, time, result, reason FROM acks "
-                    f"WHERE alert_id IN ({marks})", batch,
+                    f"WHERE alert_id IN ({marks})",
+                    batch,
                 ):
                     acks.setdefault(row[0], []).append(row[1:])
                 for row in self._conn.execute(
                     "SELECT alert_id, channel, count, first, last FROM sends "
-                    f"WHERE alert_id IN ({marks})", batch,
+                    f"WHERE alert_id IN ({marks})",
+                    batch,
                 ):
                     sends.setdefault(row[0], []).append(row[1:])
         return [_row_to_alert(r, acks.get(r[0], []), sends.get(r[0], [])) for r in rows]

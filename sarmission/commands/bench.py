@@ -36,35 +36,73 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "against decoding overlapped with MITE-Net, as detect runs. Each configuration runs in "
         "its own processes.",
     )
-    parser.add_argument("--ds", type=_int_list, default=list(VALID_DS),
-                        help="down-sampling factors (default: 1,2,4,8)")
-    parser.add_argument("--topn", type=_int_list, default=[10, 25, 50, 100],
-                        help="proposal counts (default: 10,25,50,100)")
-    parser.add_argument("--size", type=parse_frame_size, default=(3840, 2160),
-                        help="frame size WIDTHxHEIGHT (default: 3840x2160)")
-    parser.add_argument("--frames", type=int, default=20,
-                        help="timed frames per configuration, after 8 warm-up frames "
-                        "(default: %(default)s)")
-    parser.add_argument("--quick", action="store_true",
-                        help="only ds 2 and 4 at N=25 with 10 frames")
-    parser.add_argument("--model", default=None,
-                        help="head weights; default: the shipped model, else an untrained head "
-                        "(weights do not change the timing)")
-    parser.add_argument("--runtime", choices=("onnx", "torch"), default="onnx",
-                        help="head runtime (default: %(default)s)")
-    parser.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
-                        help="vSTMD ego-motion compensation (default: %(default)s)")
-    parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
-                        help="share of the proposals from colour anomalies (default: %(default)s)")
-    parser.add_argument("--crop-scales", type=parse_crop_scales, default=DEFAULT_CROP_SCALES,
-                        metavar="S[,S...]",
-                        help="crop sides as multiples of the proposal box: every proposal at the "
-                        "first, would-be detections also at the others (default: 1,2)")
+    parser.add_argument(
+        "--ds",
+        type=_int_list,
+        default=list(VALID_DS),
+        help="down-sampling factors (default: 1,2,4,8)",
+    )
+    parser.add_argument(
+        "--topn",
+        type=_int_list,
+        default=[10, 25, 50, 100],
+        help="proposal counts (default: 10,25,50,100)",
+    )
+    parser.add_argument(
+        "--size",
+        type=parse_frame_size,
+        default=(3840, 2160),
+        help="frame size WIDTHxHEIGHT (default: 3840x2160)",
+    )
+    parser.add_argument(
+        "--frames",
+        type=int,
+        default=20,
+        help="timed frames per configuration, after 8 warm-up frames (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="only ds 2 and 4 at N=25 with 10 frames"
+    )
+    parser.add_argument(
+        "--model",
+        default=None,
+        help="head weights; default: the shipped model, else an untrained head "
+        "(weights do not change the timing)",
+    )
+    parser.add_argument(
+        "--runtime",
+        choices=("onnx", "torch"),
+        default="onnx",
+        help="head runtime (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--ego-motion",
+        choices=("estimate", "none"),
+        default="estimate",
+        help="vSTMD ego-motion compensation (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--colour-share",
+        type=float,
+        default=DEFAULT_COLOUR_SHARE,
+        help="share of the proposals from colour anomalies (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--crop-scales",
+        type=parse_crop_scales,
+        default=DEFAULT_CROP_SCALES,
+        metavar="S[,S...]",
+        help="crop sides as multiples of the proposal box: every proposal at the "
+        "first, would-be detections also at the others (default: 1,2)",
+    )
     add_refine_threshold_option(parser)
     clip = parser.add_mutually_exclusive_group()
-    clip.add_argument("--clip", default=None, metavar="VIDEO",
-                      help="video for the end-to-end passes (default: the benchmark's frames, "
-                      "encoded)")
+    clip.add_argument(
+        "--clip",
+        default=None,
+        metavar="VIDEO",
+        help="video for the end-to-end passes (default: the benchmark's frames, encoded)",
+    )
     clip.add_argument("--no-clip", action="store_true", help="frames in memory only")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     add_progress_option(parser)
@@ -92,12 +130,22 @@ def run(args: argparse.Namespace) -> int:
     if args.clip is not None and not Path(args.clip).is_file():
         raise ValueError(f"--clip {args.clip}: no such file")
     with tempfile.TemporaryDirectory(prefix="sarmission-bench-") as tmp:
-        clip = None if args.no_clip else args.clip or encode_clip(width, height,
-                                                                  frames + 8, tmp)
+        clip = None if args.no_clip else args.clip or encode_clip(width, height, frames + 8, tmp)
         with progress_for(args, "bench", len(ds_values) * len(topn_values), "config") as bar:
-            rows = run_sweep(ds_values, topn_values, width, height, frames, args.model,
-                             args.runtime, args.ego_motion, on_row=lambda _row: bar.update(1),
-                             colour_share=args.colour_share, crop_scales=args.crop_scales,
-                             refine_threshold=args.refine_threshold, clip=clip)
+            rows = run_sweep(
+                ds_values,
+                topn_values,
+                width,
+                height,
+                frames,
+                args.model,
+                args.runtime,
+                args.ego_motion,
+                on_row=lambda _row: bar.update(1),
+                colour_share=args.colour_share,
+                crop_scales=args.crop_scales,
+                refine_threshold=args.refine_threshold,
+                clip=clip,
+            )
     print(rows_to_json(rows) if args.json else format_table(rows))
     return 0

@@ -26,10 +26,13 @@ def parse_frame_size(text: str) -> tuple[int, int]:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
         width = height = 0
-    if not (MIN_FRAME_SIDE <= width <= MAX_FRAME_SIDE
-            and MIN_FRAME_SIDE <= height <= MAX_FRAME_SIDE):
-        raise FrameSizeError(f"expected a frame size WIDTHxHEIGHT with sides {MIN_FRAME_SIDE} "
-                             f"to {MAX_FRAME_SIDE} px (e.g. 960x540), got {text!r}")
+    if not (
+        MIN_FRAME_SIDE <= width <= MAX_FRAME_SIDE and MIN_FRAME_SIDE <= height <= MAX_FRAME_SIDE
+    ):
+        raise FrameSizeError(
+            f"expected a frame size WIDTHxHEIGHT with sides {MIN_FRAME_SIDE} "
+            f"to {MAX_FRAME_SIDE} px (e.g. 960x540), got {text!r}"
+        )
     return width, height
 
 

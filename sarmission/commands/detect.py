@@ -26,12 +26,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "(image_id, frame_index, bbox [x, y, w, h], score, category_id). A live stream is read "
         "until --max-frames or Ctrl-C, taking the newest frame each time.",
     )
-    parser.add_argument("input", help="video file, folder of images, or stream URL "
-                        "(rtsp://HOST/PATH, udp://IP:PORT for MPEG-TS, ...)")
+    parser.add_argument(
+        "input",
+        help="video file, folder of images, or stream URL "
+        "(rtsp://HOST/PATH, udp://IP:PORT for MPEG-TS, ...)",
+    )
     parser.add_argument("--out", default="dets.json", help="results file (default: %(default)s)")
-    parser.add_argument("--annotations", default=None,
-                        help="COCO video annotation file: take image ids from it (matched by "
-                        "frame index) so the results can be evaluated against it")
+    parser.add_argument(
+        "--annotations",
+        default=None,
+        help="COCO video annotation file: take image ids from it (matched by "
+        "frame index) so the results can be evaluated against it",
+    )
     parser.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
     add_progress_option(parser)
     add_detector_options(parser)
@@ -74,9 +80,11 @@ def run(args: argparse.Namespace) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results))
     skipped = getattr(source, "skipped", 0)
-    print(f"{bar.n} frames, {len(results)} detections -> {out}"
-          + (f" ({skipped} unreadable frames skipped)" if skipped and not live else "")
-          + (" (interrupted)" if interrupted else ""))
+    print(
+        f"{bar.n} frames, {len(results)} detections -> {out}"
+        + (f" ({skipped} unreadable frames skipped)" if skipped and not live else "")
+        + (" (interrupted)" if interrupted else "")
+    )
     return 130 if interrupted else 0
 
 
@@ -94,5 +102,8 @@ def _image_ids_by_frame(annotation_path: str) -> dict[int, int]:
 
     dataset = read_coco_video(annotation_path)
     first_video = dataset.videos[0].id if dataset.videos else None
-    return {img.frame_index: img.id for img in dataset.images
-            if first_video is None or img.video_id == first_video}
+    return {
+        img.frame_index: img.id
+        for img in dataset.images
+        if first_video is None or img.video_id == first_video
+    }

@@ -24,29 +24,56 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--model --runtime --ds --topn --colour-share --crop-scales --refine-threshold
     --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
-    group.add_argument("--model", default=None,
-                       help="head weights (.pt or .onnx); default: the shipped model")
-    group.add_argument("--runtime", choices=("onnx", "torch"), default="onnx",
-                       help="head runtime; onnxruntime is ~3x faster on CPU (default: %(default)s)")
-    group.add_argument("--ds", type=int, choices=VALID_DS, default=DEFAULT_DS,
-                       help="vSTMD down-sampling factor (default: %(default)s)")
-    group.add_argument("--topn", type=int, default=DEFAULT_TOPN,
-                       help="proposals per frame (default: %(default)s)")
-    group.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
-                       help="share of the proposals taken from colour anomalies rather than motion "
-                       "(0 = motion only, as in the paper; default: %(default)s)")
-    group.add_argument("--crop-scales", type=parse_crop_scales, default=DEFAULT_CROP_SCALES,
-                       metavar="S[,S...]",
-                       help="crop sides as multiples of the proposal box: every proposal at the "
-                       "first, would-be detections again at the others, keeping the best-scored "
-                       "crop; 1,2 lets the head box swimmers of 25-40 px whole, 1 is the paper's "
-                       "single crop (default: 1,2)")
+    group.add_argument(
+        "--model", default=None, help="head weights (.pt or .onnx); default: the shipped model"
+    )
+    group.add_argument(
+        "--runtime",
+        choices=("onnx", "torch"),
+        default="onnx",
+        help="head runtime; onnxruntime is ~3x faster on CPU (default: %(default)s)",
+    )
+    group.add_argument(
+        "--ds",
+        type=int,
+        choices=VALID_DS,
+        default=DEFAULT_DS,
+        help="vSTMD down-sampling factor (default: %(default)s)",
+    )
+    group.add_argument(
+        "--topn", type=int, default=DEFAULT_TOPN, help="proposals per frame (default: %(default)s)"
+    )
+    group.add_argument(
+        "--colour-share",
+        type=float,
+        default=DEFAULT_COLOUR_SHARE,
+        help="share of the proposals taken from colour anomalies rather than motion "
+        "(0 = motion only, as in the paper; default: %(default)s)",
+    )
+    group.add_argument(
+        "--crop-scales",
+        type=parse_crop_scales,
+        default=DEFAULT_CROP_SCALES,
+        metavar="S[,S...]",
+        help="crop sides as multiples of the proposal box: every proposal at the "
+        "first, would-be detections again at the others, keeping the best-scored "
+        "crop; 1,2 lets the head box swimmers of 25-40 px whole, 1 is the paper's "
+        "single crop (default: 1,2)",
+    )
     add_refine_threshold_option(group)
-    group.add_argument("--ego-motion", choices=("estimate", "none"), default="estimate",
-                       help="compensate the camera's own motion (moving drone) or assume a still "
-                       "camera (default: %(default)s)")
-    group.add_argument("--conf", type=float, default=DEFAULT_SCORE_THRESHOLD,
-                       help="minimum detection score kept (default: %(default)s)")
+    group.add_argument(
+        "--ego-motion",
+        choices=("estimate", "none"),
+        default="estimate",
+        help="compensate the camera's own motion (moving drone) or assume a still "
+        "camera (default: %(default)s)",
+    )
+    group.add_argument(
+        "--conf",
+        type=float,
+        default=DEFAULT_SCORE_THRESHOLD,
+        help="minimum detection score kept (default: %(default)s)",
+    )
 
 
 def build_mitenet(args: argparse.Namespace) -> MiteNet:
@@ -61,17 +88,29 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
     check_refine_threshold(args.refine_threshold)
     model_path = args.model or default_model_path(args.runtime)
     head = load_head_runtime(model_path, runtime=args.runtime)
-    return MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
-                   ego_motion=args.ego_motion, colour_share=args.colour_share,
-                   crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
+    return MiteNet(
+        head,
+        ds=args.ds,
+        topn=args.topn,
+        score_threshold=args.conf,
+        ego_motion=args.ego_motion,
+        colour_share=args.colour_share,
+        crop_scales=args.crop_scales,
+        refine_threshold=args.refine_threshold,
+    )
 
 
 def add_refine_threshold_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """``--refine-threshold`` (MiteNet's ``refine_threshold``), for every command that runs it."""
-    parser.add_argument("--refine-threshold", type=float, default=None, metavar="SCORE",
-                        help="first-crop score from which a proposal is cropped again at the "
-                        "further scales; 0 = every proposal: more found, ~2 ms more per 4K "
-                        "frame (default: the detection score threshold, 0.3)")
+    parser.add_argument(
+        "--refine-threshold",
+        type=float,
+        default=None,
+        metavar="SCORE",
+        help="first-crop score from which a proposal is cropped again at the "
+        "further scales; 0 = every proposal: more found, ~2 ms more per 4K "
+        "frame (default: the detection score threshold, 0.3)",
+    )
 
 
 def check_refine_threshold(value: float | None) -> None:
@@ -88,8 +127,8 @@ def parse_crop_scales(text: str) -> tuple[float, ...]:
         scales = ()
     if not scales or any(not 0.0 < s <= MAX_CROP_SCALE for s in scales):
         raise argparse.ArgumentTypeError(
-            f"expected comma-separated numbers in (0, {MAX_CROP_SCALE:g}], e.g. 1,2; got "
-            f"{text!r}")
+            f"expected comma-separated numbers in (0, {MAX_CROP_SCALE:g}], e.g. 1,2; got {text!r}"
+        )
     return scales
 
 

@@ -41,7 +41,8 @@ def _int_list(text: str) -> list[int]:
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected comma-separated integers, got {text!r}") from None
+            f"expected comma-separated integers, got {text!r}"
+        ) from None
     if not values:
         raise argparse.ArgumentTypeError("expected at least one integer")
     return values
@@ -56,25 +57,50 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "NWD matching), AP/AR/F2 per size band, and the recall of the RPN proposals and of "
         "the head. Evaluates a results file (--detections) or runs MITE-Net itself.",
     )
-    parser.add_argument("--annotations", required=True,
-                        help="COCO video annotation file (SeaDronesSee style)")
-    parser.add_argument("--detections", default=None,
-                        help="COCO results file to evaluate instead of running the detector")
-    parser.add_argument("--m", type=int, default=3,
-                        help="hits needed inside the window to lock a target (default: 3)")
+    parser.add_argument(
+        "--annotations", required=True, help="COCO video annotation file (SeaDronesSee style)"
+    )
+    parser.add_argument(
+        "--detections",
+        default=None,
+        help="COCO results file to evaluate instead of running the detector",
+    )
+    parser.add_argument(
+        "--m",
+        type=int,
+        default=3,
+        help="hits needed inside the window to lock a target (default: 3)",
+    )
     parser.add_argument("--k", type=int, default=5, help="lock window in frames (default: 5)")
-    parser.add_argument("--score-thr", type=float, default=0.5,
-                        help="a detection counts when its score is above this (default: 0.5)")
-    parser.add_argument("--nwd-thr", type=float, default=0.5,
-                        help="a match needs NWD above this (default: 0.5)")
-    parser.add_argument("--max-frames", type=int, default=None,
-                        help="evaluate only the first frames of each video")
-    parser.add_argument("--sweep", action="store_true",
-                        help="run MITE-Net for every ds x N of the grid (scalability table)")
-    parser.add_argument("--sweep-ds", type=_int_list, default=list(VALID_DS),
-                        help="sweep down-sampling factors (default: 1,2,4,8)")
-    parser.add_argument("--sweep-topn", type=_int_list, default=[10, 25, 50, 100],
-                        help="sweep proposal counts (default: 10,25,50,100)")
+    parser.add_argument(
+        "--score-thr",
+        type=float,
+        default=0.5,
+        help="a detection counts when its score is above this (default: 0.5)",
+    )
+    parser.add_argument(
+        "--nwd-thr", type=float, default=0.5, help="a match needs NWD above this (default: 0.5)"
+    )
+    parser.add_argument(
+        "--max-frames", type=int, default=None, help="evaluate only the first frames of each video"
+    )
+    parser.add_argument(
+        "--sweep",
+        action="store_true",
+        help="run MITE-Net for every ds x N of the grid (scalability table)",
+    )
+    parser.add_argument(
+        "--sweep-ds",
+        type=_int_list,
+        default=list(VALID_DS),
+        help="sweep down-sampling factors (default: 1,2,4,8)",
+    )
+    parser.add_argument(
+        "--sweep-topn",
+        type=_int_list,
+        default=[10, 25, 50, 100],
+        help="sweep proposal counts (default: 10,25,50,100)",
+    )
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
     add_progress_option(parser)
     add_detector_options(parser)
@@ -91,8 +117,10 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be at least 1, got {args.max_frames}")
     if args.detections is not None and (args.model is not None or args.sweep):
-        raise ValueError("--detections evaluates a results file; it cannot be combined with "
-                         "--model or --sweep, which run the detector")
+        raise ValueError(
+            "--detections evaluates a results file; it cannot be combined with "
+            "--model or --sweep, which run the detector"
+        )
     topn = args.sweep_topn if args.sweep else [args.topn]
     if min(topn) < 1:
         raise ValueError(f"proposal counts must be at least 1, got {topn}")
@@ -123,8 +151,12 @@ def run(args: argparse.Namespace) -> int:
 
     _check_args(args)
     dataset = read_coco_video(args.annotations)
-    metric_options = {"m": args.m, "k": args.k, "score_thr": args.score_thr,
-                      "nwd_thr": args.nwd_thr}
+    metric_options = {
+        "m": args.m,
+        "k": args.k,
+        "score_thr": args.score_thr,
+        "nwd_thr": args.nwd_thr,
+    }
     if args.detections is not None:
         report = _evaluate_file(args, dataset, metric_options)
         print(report_to_json(report) if args.json else format_report(report))
@@ -136,69 +168,116 @@ def run(args: argparse.Namespace) -> int:
     label = _model_label(args)
     head = build_head_runtime(args.model, args.runtime)
     if args.sweep:
-        rows = run_sweep(head, dataset, args.sweep_ds, args.sweep_topn, args.conf,
-                         max_frames=args.max_frames, progress=bars_wanted(args),
-                         ego_motion=args.ego_motion, colour_share=args.colour_share,
-                         crop_scales=args.crop_scales, refine_threshold=args.refine_threshold,
-                         **metric_options)
+        rows = run_sweep(
+            head,
+            dataset,
+            args.sweep_ds,
+            args.sweep_topn,
+            args.conf,
+            max_frames=args.max_frames,
+            progress=bars_wanted(args),
+            ego_motion=args.ego_motion,
+            colour_share=args.colour_share,
+            crop_scales=args.crop_scales,
+            refine_threshold=args.refine_threshold,
+            **metric_options,
+        )
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
         return 0
     report = _evaluate_model(args, dataset, head, label, metric_options)
-    print(report_to_json(report) if args.json else _format_detector(report["detector"])
-          + "\n" + format_report(report))
+    print(
+        report_to_json(report)
+        if args.json
+        else _format_detector(report["detector"]) + "\n" + format_report(report)
+    )
     return 0
 
 
-def _evaluate_file(args: argparse.Namespace, dataset: Any,
-                   metric_options: dict[str, Any]) -> dict[str, Any]:
+def _evaluate_file(
+    args: argparse.Namespace, dataset: Any, metric_options: dict[str, Any]
+) -> dict[str, Any]:
     from sarmission.data.coco_results import read_coco_results
     from sarmission.data.sequence import sequence_ids, sequence_images
     from sarmission.evaluation.report import detections_from_results, evaluate_detections
     from sarmission.perception.head import DEFAULT_CLASSES
 
-    detections = detections_from_results(read_coco_results(args.detections), dataset,
-                                         DEFAULT_CLASSES)
+    detections = detections_from_results(
+        read_coco_results(args.detections), dataset, DEFAULT_CLASSES
+    )
     image_ids = None
     if args.max_frames is not None:
-        image_ids = [im.id for vid in sequence_ids(dataset)
-                     for im in sequence_images(dataset, vid)[:args.max_frames]]
-    report = evaluate_detections(dataset, detections, DEFAULT_CLASSES, image_ids=image_ids,
-                                 **metric_options)
+        image_ids = [
+            im.id
+            for vid in sequence_ids(dataset)
+            for im in sequence_images(dataset, vid)[: args.max_frames]
+        ]
+    report = evaluate_detections(
+        dataset, detections, DEFAULT_CLASSES, image_ids=image_ids, **metric_options
+    )
     return {**report, "detector": None}
 
 
-def _evaluate_model(args: argparse.Namespace, dataset: Any, head: Any, label: str,
-                    metric_options: dict[str, Any]) -> dict[str, Any]:
+def _evaluate_model(
+    args: argparse.Namespace, dataset: Any, head: Any, label: str, metric_options: dict[str, Any]
+) -> dict[str, Any]:
     from sarmission.evaluation.report import evaluate_detections, person_category_map
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet
 
-    net = MiteNet(head, ds=args.ds, topn=args.topn, score_threshold=args.conf,
-                  ego_motion=args.ego_motion, colour_share=args.colour_share,
-                  crop_scales=args.crop_scales, refine_threshold=args.refine_threshold)
+    net = MiteNet(
+        head,
+        ds=args.ds,
+        topn=args.topn,
+        score_threshold=args.conf,
+        ego_motion=args.ego_motion,
+        colour_share=args.colour_share,
+        crop_scales=args.crop_scales,
+        refine_threshold=args.refine_threshold,
+    )
     person_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
     if not run.frame_ms:
         raise ValueError(f"{args.annotations}: none of the {run.skipped} frames could be read")
-    report = evaluate_detections(dataset, run.detections, net.classes, run.proposals,
-                                 image_ids=run.image_ids, **metric_options)
+    report = evaluate_detections(
+        dataset,
+        run.detections,
+        net.classes,
+        run.proposals,
+        image_ids=run.image_ids,
+        **metric_options,
+    )
     median = run.median_ms
-    return {**report, "detector": {
-        "model": label, "runtime": args.runtime, "ds": args.ds, "topn": args.topn,
-        "colour_share": args.colour_share, "crop_scales": list(args.crop_scales),
-        "refine_threshold": net.refine_threshold,
-        "conf": args.conf, "frames": len(run.frame_ms),
-        "skipped_frames": run.skipped,
-        "median_ms": median, "fps": 1e3 / median if median else None}}
+    return {
+        **report,
+        "detector": {
+            "model": label,
+            "runtime": args.runtime,
+            "ds": args.ds,
+            "topn": args.topn,
+            "colour_share": args.colour_share,
+            "crop_scales": list(args.crop_scales),
+            "refine_threshold": net.refine_threshold,
+            "conf": args.conf,
+            "frames": len(run.frame_ms),
+            "skipped_frames": run.skipped,
+            "median_ms": median,
+            "fps": 1e3 / median if median else None,
+        },
+    }
 
 
 def _format_detector(detector: dict[str, Any]) -> str:
     skipped = detector["skipped_frames"]
-    return (f"detector: {detector['model']} ({detector['runtime']}), ds={detector['ds']}, "
-            f"N={detector['topn']}, colour share={detector['colour_share']:g}, "
-            f"crop scales={','.join(f'{v:g}' for v in detector['crop_scales'])}"
-            + (f" (further scales from score {detector['refine_threshold']:g})"
-               if len(detector["crop_scales"]) > 1 else "")
-            + f", conf={detector['conf']:g}; {detector['frames']} frames"
-            + (f" ({skipped} unreadable, skipped)" if skipped else "")
-            + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)")
+    return (
+        f"detector: {detector['model']} ({detector['runtime']}), ds={detector['ds']}, "
+        f"N={detector['topn']}, colour share={detector['colour_share']:g}, "
+        f"crop scales={','.join(f'{v:g}' for v in detector['crop_scales'])}"
+        + (
+            f" (further scales from score {detector['refine_threshold']:g})"
+            if len(detector["crop_scales"]) > 1
+            else ""
+        )
+        + f", conf={detector['conf']:g}; {detector['frames']} frames"
+        + (f" ({skipped} unreadable, skipped)" if skipped else "")
+        + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)"
+    )

@@ -13,8 +13,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Export the MITE-Net head to ONNX (opset 17, dynamic proposal axis) and check "
         "that onnxruntime and torch agree on random crops.",
     )
-    parser.add_argument("--model", default=None,
-                        help="torch weights (.pt); default: the shipped model")
+    parser.add_argument(
+        "--model", default=None, help="torch weights (.pt); default: the shipped model"
+    )
     parser.add_argument("--out", default="mitenet_head.onnx", help="ONNX file to write")
     parser.add_argument("--opset", type=int, default=17)
     parser.set_defaults(func=run)

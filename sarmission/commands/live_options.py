@@ -27,27 +27,52 @@ if TYPE_CHECKING:
 def add_session_options(parser: argparse.ArgumentParser) -> None:
     """``--alerts-db --feed --feed-token-file --signing-key-file --connect-timeout
     --target-system --target-component`` of a live session."""
-    parser.add_argument("--alerts-db", default="alerts.db",
-                        help="durable alert store (default: %(default)s)")
-    parser.add_argument("--feed", metavar="HOST:PORT", default=None,
-                        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765; beyond "
-                        "loopback (e.g. 0.0.0.0:8765) every request needs an access token")
-    parser.add_argument("--feed-token-file", metavar="PATH", default=None,
-                        help="the feed's access token (16-256 printable characters; chmod 600). "
-                        "Default: none on loopback, else one is generated and printed once")
-    parser.add_argument("--signing-key-file", default=None,
-                        help="MAVLink 2 signing key: 32 raw bytes, 64 hex digits, or a "
-                        "passphrase (sha256, as MAVProxy)")
-    parser.add_argument("--connect-timeout", type=float, default=30.0,
-                        help="seconds to wait for the autopilot's HEARTBEAT (default: "
-                        "%(default)s)")
-    parser.add_argument("--target-system", type=_mavlink_id, default=None, metavar="ID",
-                        help="only adopt the autopilot with this MAVLink system id (default: "
-                        "the first autopilot heard; pin it where anyone else could be on the "
-                        "link)")
-    parser.add_argument("--target-component", type=_mavlink_id, default=None, metavar="ID",
-                        help="only adopt this component of it (default: any; ArduPilot and "
-                        "PX4 flight controllers are 1)")
+    parser.add_argument(
+        "--alerts-db", default="alerts.db", help="durable alert store (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--feed",
+        metavar="HOST:PORT",
+        default=None,
+        help="serve the operator feed (HTTP/SSE), e.g. 127.0.0.1:8765; beyond "
+        "loopback (e.g. 0.0.0.0:8765) every request needs an access token",
+    )
+    parser.add_argument(
+        "--feed-token-file",
+        metavar="PATH",
+        default=None,
+        help="the feed's access token (16-256 printable characters; chmod 600). "
+        "Default: none on loopback, else one is generated and printed once",
+    )
+    parser.add_argument(
+        "--signing-key-file",
+        default=None,
+        help="MAVLink 2 signing key: 32 raw bytes, 64 hex digits, or a "
+        "passphrase (sha256, as MAVProxy)",
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=30.0,
+        help="seconds to wait for the autopilot's HEARTBEAT (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--target-system",
+        type=_mavlink_id,
+        default=None,
+        metavar="ID",
+        help="only adopt the autopilot with this MAVLink system id (default: "
+        "the first autopilot heard; pin it where anyone else could be on the "
+        "link)",
+    )
+    parser.add_argument(
+        "--target-component",
+        type=_mavlink_id,
+        default=None,
+        metavar="ID",
+        help="only adopt this component of it (default: any; ArduPilot and "
+        "PX4 flight controllers are 1)",
+    )
 
 
 def _mavlink_id(text: str) -> int:
@@ -114,10 +139,13 @@ def stop_on_signals() -> Iterator[threading.Event]:
             signal.signal(s, h)
 
 
-def run_live(args: argparse.Namespace, mission: MissionConfig,
-             open_source: Callable[[MissionConfig], tuple[LiveSource, Any]],
-             detector: Detector | None = None,
-             console: Callable[[str], None] | None = None) -> LiveSession:
+def run_live(
+    args: argparse.Namespace,
+    mission: MissionConfig,
+    open_source: Callable[[MissionConfig], tuple[LiveSource, Any]],
+    detector: Detector | None = None,
+    console: Callable[[str], None] | None = None,
+) -> LiveSession:
     """One live session of ``mission`` with the link/store/feed/recorder options of ``args``.
 
     ``open_source(mission)`` returns the frame source and the started simulated vehicle (or None
@@ -137,25 +165,37 @@ def run_live(args: argparse.Namespace, mission: MissionConfig,
     recorder = build_recorder(args)
     source, vehicle = open_source(mission)
     try:
-        session = LiveSession(mission, detector, source, args.connect, args.alerts_db,
-                              signing_key=key, recorder=recorder, feed_address=feed,
-                              feed_token=feed_token,
-                              mission_id=args.mission_id,
-                              transport_latency_s=(mission.telemetry.latency_s
-                                                   if vehicle is not None else 0),
-                              connect_timeout_s=args.connect_timeout,
-                              target_system=args.target_system,
-                              target_component=args.target_component, console=say)
-        say(f"mission '{mission.name}': policy {', '.join(mission.actions.policy)}; "
-            f"alerts in {args.alerts_db}")
+        session = LiveSession(
+            mission,
+            detector,
+            source,
+            args.connect,
+            args.alerts_db,
+            signing_key=key,
+            recorder=recorder,
+            feed_address=feed,
+            feed_token=feed_token,
+            mission_id=args.mission_id,
+            transport_latency_s=(mission.telemetry.latency_s if vehicle is not None else 0),
+            connect_timeout_s=args.connect_timeout,
+            target_system=args.target_system,
+            target_component=args.target_component,
+            console=say,
+        )
+        say(
+            f"mission '{mission.name}': policy {', '.join(mission.actions.policy)}; "
+            f"alerts in {args.alerts_db}"
+        )
         with stop_on_signals() as stop:
             try:
                 session.run(stop, args.max_frames, args.duration)
             finally:
                 say(session.close())
         if vehicle is not None:
-            say(f"simulator: {len(vehicle.statustexts)} STATUSTEXT and "
-                f"{len(vehicle.commands)} commands received, {vehicle.bad_packets} bad packets")
+            say(
+                f"simulator: {len(vehicle.statustexts)} STATUSTEXT and "
+                f"{len(vehicle.commands)} commands received, {vehicle.bad_packets} bad packets"
+            )
     finally:
         if vehicle is not None:
             vehicle.stop()

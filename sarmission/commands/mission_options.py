@@ -19,23 +19,39 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
     (``--ds --topn --colour-share --conf`` default to the mission file's ``[detector]``
     values)."""
     group = parser.add_argument_group("mission")
-    group.add_argument("--mission", required=mission_required, default=None,
-                       help="mission file (TOML); default: built-in defaults")
-    group.add_argument("--set", dest="overrides", action="append", default=[],
-                       metavar="SECTION.KEY=VALUE",
-                       help="override a mission value, e.g. --set flight.altitude_m=80 "
-                       "(repeatable)")
-    group.add_argument("--mission-id", default=None,
-                       help="id the alerts are stored under (default: the mission's name)")
-    group.add_argument("--rerun", nargs="+", metavar=("MODE", "FILE"), default=None,
-                       help="log to rerun: 'spawn' a viewer or 'save FILE.rrd'")
+    group.add_argument(
+        "--mission",
+        required=mission_required,
+        default=None,
+        help="mission file (TOML); default: built-in defaults",
+    )
+    group.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=VALUE",
+        help="override a mission value, e.g. --set flight.altitude_m=80 (repeatable)",
+    )
+    group.add_argument(
+        "--mission-id",
+        default=None,
+        help="id the alerts are stored under (default: the mission's name)",
+    )
+    group.add_argument(
+        "--rerun",
+        nargs="+",
+        metavar=("MODE", "FILE"),
+        default=None,
+        help="log to rerun: 'spawn' a viewer or 'save FILE.rrd'",
+    )
     group.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
-    group.add_argument("--duration", type=float, default=None,
-                       help="stop after this many seconds")
+    group.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     add_detector_options(parser)
     # None = the mission file's [detector] value (the file overrides code, the CLI the file).
-    parser.set_defaults(ds=None, topn=None, colour_share=None, crop_scales=None,
-                        refine_threshold=None, conf=None)
+    parser.set_defaults(
+        ds=None, topn=None, colour_share=None, crop_scales=None, refine_threshold=None, conf=None
+    )
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
@@ -44,11 +60,14 @@ def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
-    for option, key in (("ds", "detector.ds"), ("topn", "detector.topn"),
-                        ("colour_share", "detector.colour_share"),
-                        ("crop_scales", "detector.crop_scales"),
-                        ("refine_threshold", "detector.refine_threshold"),
-                        ("conf", "detector.score_threshold")):
+    for option, key in (
+        ("ds", "detector.ds"),
+        ("topn", "detector.topn"),
+        ("colour_share", "detector.colour_share"),
+        ("crop_scales", "detector.crop_scales"),
+        ("refine_threshold", "detector.refine_threshold"),
+        ("conf", "detector.score_threshold"),
+    ):
         value = getattr(args, option)
         if isinstance(value, tuple):
             value = "[" + ", ".join(repr(v) for v in value) + "]"
@@ -71,18 +90,30 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
     if args.model is not None:
         note = f"model: {args.model}"
     elif DEFAULT_ONNX_MODEL.is_file() or DEFAULT_TORCH_MODEL.is_file():
-        shipped = (DEFAULT_ONNX_MODEL if args.runtime == "onnx" and DEFAULT_ONNX_MODEL.is_file()
-                   else DEFAULT_TORCH_MODEL)
+        shipped = (
+            DEFAULT_ONNX_MODEL
+            if args.runtime == "onnx" and DEFAULT_ONNX_MODEL.is_file()
+            else DEFAULT_TORCH_MODEL
+        )
         note = f"model: the shipped default ({shipped.name}, {args.runtime})"
     else:
-        note = ("model: NONE TRAINED - the package has no default model "
-                f"({DEFAULT_TORCH_MODEL.name} / {DEFAULT_ONNX_MODEL.name}); running an untrained "
-                "head with fixed random weights, so its alerts mean nothing (expect none or "
-                "many false ones). Pass --model PATH.")
+        note = (
+            "model: NONE TRAINED - the package has no default model "
+            f"({DEFAULT_TORCH_MODEL.name} / {DEFAULT_ONNX_MODEL.name}); running an untrained "
+            "head with fixed random weights, so its alerts mean nothing (expect none or "
+            "many false ones). Pass --model PATH."
+        )
     d = mission.detector
-    detector = MiteNet(head, ds=d.ds, topn=d.topn, score_threshold=d.score_threshold,
-                       ego_motion=args.ego_motion, colour_share=d.colour_share,
-                       crop_scales=tuple(d.crop_scales), refine_threshold=d.refine_threshold)
+    detector = MiteNet(
+        head,
+        ds=d.ds,
+        topn=d.topn,
+        score_threshold=d.score_threshold,
+        ego_motion=args.ego_motion,
+        colour_share=d.colour_share,
+        crop_scales=tuple(d.crop_scales),
+        refine_threshold=d.refine_threshold,
+    )
     return detector, note
 
 

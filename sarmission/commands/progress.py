@@ -23,9 +23,12 @@ LINE_INTERVAL_S = 30.0
 
 def add_progress_option(parser: argparse.ArgumentParser) -> None:
     """``--no-progress``."""
-    parser.add_argument("--no-progress", action="store_true",
-                        help="no progress display (default: a bar on a terminal, a line every "
-                        f"{LINE_INTERVAL_S:.0f} s otherwise)")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress display (default: a bar on a terminal, a line every "
+        f"{LINE_INTERVAL_S:.0f} s otherwise)",
+    )
 
 
 def progress_mode(args: argparse.Namespace | None = None, stream: TextIO | None = None) -> Mode:
@@ -53,9 +56,15 @@ class Progress:
     for a console line that must not break the bar, ``close()`` (or a ``with`` block) at the end.
     """
 
-    def __init__(self, desc: str, total: int | None = None, unit: str = "frame",
-                 mode: Mode = "lines", stream: TextIO | None = None,
-                 interval_s: float = LINE_INTERVAL_S) -> None:
+    def __init__(
+        self,
+        desc: str,
+        total: int | None = None,
+        unit: str = "frame",
+        mode: Mode = "lines",
+        stream: TextIO | None = None,
+        interval_s: float = LINE_INTERVAL_S,
+    ) -> None:
         self.desc, self.total, self.unit, self.mode = desc, total, unit, mode
         self.stream = stream or sys.stderr
         self.interval_s = interval_s
@@ -66,8 +75,9 @@ class Progress:
         if mode == "bar":
             from tqdm import tqdm
 
-            self._bar = tqdm(total=total, desc=desc, unit=unit, file=self.stream,
-                             dynamic_ncols=True)
+            self._bar = tqdm(
+                total=total, desc=desc, unit=unit, file=self.stream, dynamic_ncols=True
+            )
 
     def update(self, n: int = 1, **info: Any) -> None:
         """``n`` more items done; ``info`` (e.g. ``dets=12``) is shown with the count."""
@@ -89,8 +99,9 @@ class Progress:
         count = f"{self.n}/{self.total}" if self.total else f"{self.n}"
         share = f" ({100 * self.n / self.total:.0f}%)" if self.total else ""
         info = "".join(f", {k} {v}" for k, v in self._info.items())
-        return (f"{self.desc}: {count} {self.unit}s{share}, {self.n / elapsed:.1f} "
-                f"{self.unit}s/s{info}")
+        return (
+            f"{self.desc}: {count} {self.unit}s{share}, {self.n / elapsed:.1f} {self.unit}s/s{info}"
+        )
 
     def write(self, line: str) -> None:
         """Print ``line`` on stdout without breaking the bar."""
@@ -112,7 +123,8 @@ class Progress:
         self.close()
 
 
-def progress_for(args: argparse.Namespace | None, desc: str, total: int | None = None,
-                 unit: str = "frame") -> Progress:
+def progress_for(
+    args: argparse.Namespace | None, desc: str, total: int | None = None, unit: str = "frame"
+) -> Progress:
     """A :class:`Progress` in the mode the command line and the terminal ask for."""
     return Progress(desc, total, unit, progress_mode(args))

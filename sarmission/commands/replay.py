@@ -42,45 +42,82 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "without any, alerts have no position.",
     )
     parser.add_argument("input", help="video file, image folder or COCO video annotations (.json)")
-    parser.add_argument("--fps", type=float, default=30.0,
-                        help="frame rate of an image folder or dataset (default: %(default)s)")
-    parser.add_argument("--video-id", type=int, default=None,
-                        help="which video of a COCO dataset (default: the first)")
-    parser.add_argument("--telemetry", default="auto", metavar="auto|none|meta|sim|FILE",
-                        help="telemetry: a flight log FILE (format found from its content), "
-                        "meta (the dataset's), sim (the mission's simulated flight: made-up "
-                        "positions, for rehearsal), none, or auto: meta when the dataset has "
-                        "positions, else a DJI .SRT beside the video, else none (default)")
-    parser.add_argument("--meta-pitch", default="auto",
-                        choices=("auto", "depression", "elevation"),
-                        help="how a dataset's meta gives the gimbal pitch: depression (positive "
-                        "below the horizon, 90 straight down: SeaDronesSee), elevation (negative "
-                        "below the horizon: DJI logs, MAVLink) or auto: as the file states, else "
-                        "from the signs of its pitches; a file with both signs is refused "
-                        "(default: %(default)s)")
-    parser.add_argument("--time-offset", type=float, default=None, metavar="S",
-                        help="the flight log's time (its own clock, as printed) at which the "
-                        "video starts; default: from camera triggers or the video's creation "
-                        "time")
-    parser.add_argument("--dem", default=None, metavar="FILE",
-                        help="terrain for a land search: a GeoTIFF DEM or SRTM .hgt tile; pixels "
-                        "are placed where their ray meets it instead of a plane at home altitude")
-    parser.add_argument("--dem-sigma", type=float, default=None, metavar="M",
-                        help="1-sigma vertical accuracy of the DEM in metres (default: 6 for "
-                        "SRTM, 2 for a GeoTIFF)")
-    parser.add_argument("--report", default=None, metavar="DIR",
-                        help="write the post-flight report (HTML with an offline map, KML, "
-                        "GeoJSON, CSV) into DIR")
-    parser.add_argument("--alerts-db", default=None,
-                        help="alert store file (default: a temporary one)")
+    parser.add_argument(
+        "--fps",
+        type=float,
+        default=30.0,
+        help="frame rate of an image folder or dataset (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--video-id",
+        type=int,
+        default=None,
+        help="which video of a COCO dataset (default: the first)",
+    )
+    parser.add_argument(
+        "--telemetry",
+        default="auto",
+        metavar="auto|none|meta|sim|FILE",
+        help="telemetry: a flight log FILE (format found from its content), "
+        "meta (the dataset's), sim (the mission's simulated flight: made-up "
+        "positions, for rehearsal), none, or auto: meta when the dataset has "
+        "positions, else a DJI .SRT beside the video, else none (default)",
+    )
+    parser.add_argument(
+        "--meta-pitch",
+        default="auto",
+        choices=("auto", "depression", "elevation"),
+        help="how a dataset's meta gives the gimbal pitch: depression (positive "
+        "below the horizon, 90 straight down: SeaDronesSee), elevation (negative "
+        "below the horizon: DJI logs, MAVLink) or auto: as the file states, else "
+        "from the signs of its pitches; a file with both signs is refused "
+        "(default: %(default)s)",
+    )
+    parser.add_argument(
+        "--time-offset",
+        type=float,
+        default=None,
+        metavar="S",
+        help="the flight log's time (its own clock, as printed) at which the "
+        "video starts; default: from camera triggers or the video's creation "
+        "time",
+    )
+    parser.add_argument(
+        "--dem",
+        default=None,
+        metavar="FILE",
+        help="terrain for a land search: a GeoTIFF DEM or SRTM .hgt tile; pixels "
+        "are placed where their ray meets it instead of a plane at home altitude",
+    )
+    parser.add_argument(
+        "--dem-sigma",
+        type=float,
+        default=None,
+        metavar="M",
+        help="1-sigma vertical accuracy of the DEM in metres (default: 6 for "
+        "SRTM, 2 for a GeoTIFF)",
+    )
+    parser.add_argument(
+        "--report",
+        default=None,
+        metavar="DIR",
+        help="write the post-flight report (HTML with an offline map, KML, GeoJSON, CSV) into DIR",
+    )
+    parser.add_argument(
+        "--alerts-db", default=None, help="alert store file (default: a temporary one)"
+    )
     add_progress_option(parser)
     add_mission_options(parser)
     parser.set_defaults(func=run)
 
 
-def _dataset_frames(path: Path, video_id: int | None, fps: float, counters: dict[str, int],
-                    pitch_option: str | None = None
-                    ) -> tuple[Iterator[ReplayFrame], int, bool, MetaConventions | str]:
+def _dataset_frames(
+    path: Path,
+    video_id: int | None,
+    fps: float,
+    counters: dict[str, int],
+    pitch_option: str | None = None,
+) -> tuple[Iterator[ReplayFrame], int, bool, MetaConventions | str]:
     """The dataset's frames with each one's placement from meta, whether any frame has one,
     and the file's meta conventions (or the line saying why the meta cannot be read)."""
     from sarmission.data.coco_video import read_coco_video
@@ -102,8 +139,11 @@ def _dataset_frames(path: Path, video_id: int | None, fps: float, counters: dict
         conventions: MetaConventions | str = dataset_conventions(dataset, pitch_option)
     except ConventionError as exc:
         conventions = str(exc)
-    poses = ({im.id: meta_pose(im.telemetry, conventions) for im in images}
-             if not isinstance(conventions, str) else {})
+    poses = (
+        {im.id: meta_pose(im.telemetry, conventions) for im in images}
+        if not isinstance(conventions, str)
+        else {}
+    )
     with_meta = any(isinstance(p, MetaPose) for p in poses.values())
 
     def frames() -> Iterator[ReplayFrame]:
@@ -137,19 +177,22 @@ def _ground_model(args: argparse.Namespace) -> object | None:
     from sarmission.geo.terrain import TerrainGround, read_dem
 
     dem = read_dem(args.dem, args.dem_sigma)
-    print(f"terrain: {dem.source}, {dem.resolution_m:.1f} m cells, vertical 1-sigma "
-          f"{dem.vertical_sigma_m:g} m")
+    print(
+        f"terrain: {dem.source}, {dem.resolution_m:.1f} m cells, vertical 1-sigma "
+        f"{dem.vertical_sigma_m:g} m"
+    )
     return TerrainGround(dem)
 
 
-def _footage(args: argparse.Namespace, path: Path, counters: dict[str, int]
-             ) -> tuple[Iterator[ReplayFrame], int | None, bool, MetaConventions | str | None,
-                        Any]:
+def _footage(
+    args: argparse.Namespace, path: Path, counters: dict[str, int]
+) -> tuple[Iterator[ReplayFrame], int | None, bool, MetaConventions | str | None, Any]:
     """The input's frames, their count, whether dataset meta places any, the meta conventions
     (or why they cannot be read) and the file source (None for a dataset)."""
     if path.suffix.lower() == ".json":
         frames, total, with_meta, conventions = _dataset_frames(
-            path, args.video_id, args.fps, counters, args.meta_pitch)
+            path, args.video_id, args.fps, counters, args.meta_pitch
+        )
         return frames, total, with_meta, conventions, None
     frames, count, file_source = _file_frames(path, args.fps)
     return frames, count, False, None, file_source
@@ -182,15 +225,24 @@ def run(args: argparse.Namespace) -> int:
     frames, total, with_meta, conventions, file_source = _footage(args, path, counters)
     names = _image_names(file_source)
     source = telemetry_source(
-        args.telemetry, input_path=path, is_video=file_source is not None and not names,
-        names=names, fps=args.fps, with_meta=with_meta, offset_s=args.time_offset,
+        args.telemetry,
+        input_path=path,
+        is_video=file_source is not None and not names,
+        names=names,
+        fps=args.fps,
+        with_meta=with_meta,
+        offset_s=args.time_offset,
         duration_s=total / getattr(file_source, "fps", args.fps) if total else None,
-        mission=mission, meta_conventions=conventions)
+        mission=mission,
+        meta_conventions=conventions,
+    )
     ground_model = _ground_model(args)
     detector, model_note = build_detector(args, mission)
     recorder = build_recorder(args)
-    print(f"replay of {path} ({total if total is not None else '?'} frames), mission "
-          f"'{mission.name}', telemetry: {source.description}")
+    print(
+        f"replay of {path} ({total if total is not None else '?'} frames), mission "
+        f"'{mission.name}', telemetry: {source.description}"
+    )
     for line in source.lines:
         print(f"  {line}")
     print(model_note)
@@ -205,12 +257,17 @@ def run(args: argparse.Namespace) -> int:
         limit = args.max_frames
         bar_total = min(total, limit) if total is not None and limit else (total or limit)
         bar = progress_for(args, "replay", bar_total)
-        controller = MissionController(mission, detector, buffer, store, recorder=recorder,
-                                       mission_id=args.mission_id,
-                                       to_posix=(lambda t: t + utc) if utc is not None
-                                       else (lambda t: start_posix + t),
-                                       console=bar.write,
-                                       ground_model=ground_model)
+        controller = MissionController(
+            mission,
+            detector,
+            buffer,
+            store,
+            recorder=recorder,
+            mission_id=args.mission_id,
+            to_posix=(lambda t: t + utc) if utc is not None else (lambda t: start_posix + t),
+            console=bar.write,
+            ground_model=ground_model,
+        )
 
         def stamped() -> Iterator[Frame]:
             """The footage up to --duration, each frame on the telemetry's clock and its meta
@@ -226,7 +283,8 @@ def run(args: argparse.Namespace) -> int:
         started = time.monotonic()
         try:
             SessionRunner(controller, on_frame=lambda: bar.update(1)).run(
-                stamped(), max_frames=limit)
+                stamped(), max_frames=limit
+            )
         finally:
             bar.close()
             wall = time.monotonic() - started
@@ -240,19 +298,35 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_report(args: argparse.Namespace, db_path: Path, controller: Any, source: Any,
-                  frame_times: dict[int, tuple[float, float]], path: Path) -> None:
+def _write_report(
+    args: argparse.Namespace,
+    db_path: Path,
+    controller: Any,
+    source: Any,
+    frame_times: dict[int, tuple[float, float]],
+    path: Path,
+) -> None:
     """The post-flight report of this replay: every alert the store holds for the mission."""
     from sarmission.alerts.report import ReportInput, write_report
     from sarmission.alerts.store import AlertStore
+
     with AlertStore(db_path) as store:
         alerts = store.list(mission_id=controller.mission_id)
     track = source.flown
-    written = write_report(Path(args.report), ReportInput(
-        title=f"sarmission replay of {path.name}", alerts=alerts, track=track,
-        frame_times={k: v[0] for k, v in frame_times.items()},
-        facts=[("footage", str(path)), ("telemetry", source.description),
-               *(("", line) for line in source.lines),
-               ("summary", controller.summary())]))
+    written = write_report(
+        Path(args.report),
+        ReportInput(
+            title=f"sarmission replay of {path.name}",
+            alerts=alerts,
+            track=track,
+            frame_times={k: v[0] for k, v in frame_times.items()},
+            facts=[
+                ("footage", str(path)),
+                ("telemetry", source.description),
+                *(("", line) for line in source.lines),
+                ("summary", controller.summary()),
+            ],
+        ),
+    )
     for out in written:
         print(f"wrote {out}")

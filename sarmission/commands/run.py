@@ -27,35 +27,63 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "durably and announce it per the mission's action policy. A restart with the same "
         "--alerts-db resumes without re-announcing known targets.",
     )
-    parser.add_argument("--connect", required=True, metavar="URL",
-                        help="autopilot MAVLink connection string (pymavlink), e.g. "
-                        "udp:127.0.0.1:14550, tcp:127.0.0.1:5760, /dev/ttyACM0")
+    parser.add_argument(
+        "--connect",
+        required=True,
+        metavar="URL",
+        help="autopilot MAVLink connection string (pymavlink), e.g. "
+        "udp:127.0.0.1:14550, tcp:127.0.0.1:5760, /dev/ttyACM0",
+    )
     src = parser.add_mutually_exclusive_group(required=True)
-    src.add_argument("--video", metavar="PATH|URL",
-                     help="play a video file as the camera, or read a live stream: "
-                     "rtsp://HOST/PATH, udp://IP:PORT (MPEG-TS), ...")
+    src.add_argument(
+        "--video",
+        metavar="PATH|URL",
+        help="play a video file as the camera, or read a live stream: "
+        "rtsp://HOST/PATH, udp://IP:PORT (MPEG-TS), ...",
+    )
     src.add_argument("--frames", metavar="DIR", help="play an image folder as the camera")
     src.add_argument("--camera", type=int, metavar="N", help="camera device N (OpenCV)")
-    src.add_argument("--sim", action="store_true",
-                     help="start the simulated vehicle on the --connect port and use its camera")
-    parser.add_argument("--fps", type=float, default=30.0,
-                        help="frame rate of --frames (and of a video without one; "
-                        "default: %(default)s)")
+    src.add_argument(
+        "--sim",
+        action="store_true",
+        help="start the simulated vehicle on the --connect port and use its camera",
+    )
+    parser.add_argument(
+        "--fps",
+        type=float,
+        default=30.0,
+        help="frame rate of --frames (and of a video without one; default: %(default)s)",
+    )
     add_session_options(parser)
     sim = parser.add_argument_group("simulator (--sim)")
-    sim.add_argument("--sim-size", type=parse_frame_size, default=None, metavar="WxH",
-                     help="simulated frame size (default: the mission camera's)")
-    sim.add_argument("--sim-fps", type=float, default=None,
-                     help="most simulated frames per second (default: as fast as processed)")
+    sim.add_argument(
+        "--sim-size",
+        type=parse_frame_size,
+        default=None,
+        metavar="WxH",
+        help="simulated frame size (default: the mission camera's)",
+    )
+    sim.add_argument(
+        "--sim-fps",
+        type=float,
+        default=None,
+        help="most simulated frames per second (default: as fast as processed)",
+    )
     sim.add_argument("--sim-seed", type=int, default=0, help="scenario and flight seed")
-    sim.add_argument("--sim-corrupt-every", type=int, default=0, metavar="N",
-                     help="deliver every N-th simulated frame truncated (sensor glitch)")
+    sim.add_argument(
+        "--sim-corrupt-every",
+        type=int,
+        default=0,
+        metavar="N",
+        help="deliver every N-th simulated frame truncated (sensor glitch)",
+    )
     add_mission_options(parser)
     parser.set_defaults(func=run)
 
 
-def _open_source(args: argparse.Namespace, mission: MissionConfig, renderer: Any
-                 ) -> tuple[LiveSource, Any]:
+def _open_source(
+    args: argparse.Namespace, mission: MissionConfig, renderer: Any
+) -> tuple[LiveSource, Any]:
     """The frame source and, for --sim, the started simulated vehicle."""
     from sarmission.mission.live_sources import CameraSource, FileSource, open_video_source
 
@@ -68,19 +96,29 @@ def _open_source(args: argparse.Namespace, mission: MissionConfig, renderer: Any
     from sim.camera import SimCamera
     from sim.vehicle import SimVehicle
 
-    vehicle = SimVehicle(vehicle_url(args.connect), mission, seed=args.sim_seed,
-                         stream_on_request=True).start()
+    vehicle = SimVehicle(
+        vehicle_url(args.connect), mission, seed=args.sim_seed, stream_on_request=True
+    ).start()
     try:
-        camera = SimCamera(vehicle, renderer=renderer, size=args.sim_size, fps=args.sim_fps,
-                           corrupt_every=args.sim_corrupt_every)
+        camera = SimCamera(
+            vehicle,
+            renderer=renderer,
+            size=args.sim_size,
+            fps=args.sim_fps,
+            corrupt_every=args.sim_corrupt_every,
+        )
     except BaseException:
         vehicle.stop()
         raise
     return camera, vehicle
 
 
-def run(args: argparse.Namespace, detector: Detector | None = None, renderer: Any = None,
-        console: Callable[[str], None] | None = None) -> int:
+def run(
+    args: argparse.Namespace,
+    detector: Detector | None = None,
+    renderer: Any = None,
+    console: Callable[[str], None] | None = None,
+) -> int:
     """Run the live mission of ``args``. ``detector`` replaces MITE-Net and ``renderer`` the
     simulator's scene renderer when given (tests)."""
     mission = load_mission_from_args(args)

@@ -42,11 +42,18 @@ def add_score_parser(sim_sub: argparse._SubParsersAction) -> None:
         "the real onboard pipeline, and score the confirmed alerts: people found, false "
         "alerts per hour, time to alert, geolocation error.",
     )
-    score.add_argument("--scenarios", default=None, metavar="NAME[,NAME...]",
-                       help="run only these (default: all: " + ", ".join(s.name for s in SUITE)
-                       + ")")
-    score.add_argument("--seconds", type=float, default=None,
-                       help="fly each scenario this long instead of its own duration")
+    score.add_argument(
+        "--scenarios",
+        default=None,
+        metavar="NAME[,NAME...]",
+        help="run only these (default: all: " + ", ".join(s.name for s in SUITE) + ")",
+    )
+    score.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        help="fly each scenario this long instead of its own duration",
+    )
     score.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_mission_options(score)
     score.set_defaults(func=run)
@@ -63,8 +70,9 @@ class Flown:
     truth: list[Any]
 
 
-def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: float,
-        workdir: Path) -> Flown:
+def fly(
+    scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: float, workdir: Path
+) -> Flown:
     """One scenario through the live pipeline (see :class:`Flown`)."""
     from sarmission.commands.cli_helpers import free_udp_port
     from sarmission.evaluation.alert_scoring import score_flight
@@ -76,14 +84,21 @@ def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: fl
     mission = scenario.mission(base)
     port = free_udp_port()
     detector.reset()
-    vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission, seed=scenario.seed,
-                         stream_on_request=True).start()
+    vehicle = SimVehicle(
+        f"udpout:127.0.0.1:{port}", mission, seed=scenario.seed, stream_on_request=True
+    ).start()
     try:
         camera = SimCamera(vehicle, scenario=scenario.scenario(mission), size=SIZE, fps=30.0)
-        session = LiveSession(mission, detector, camera, f"udpin:127.0.0.1:{port}",
-                              str(workdir / f"{scenario.name}.db"),
-                              transport_latency_s=mission.telemetry.latency_s,
-                              connect_timeout_s=10.0, console=lambda line: None)
+        session = LiveSession(
+            mission,
+            detector,
+            camera,
+            f"udpin:127.0.0.1:{port}",
+            str(workdir / f"{scenario.name}.db"),
+            transport_latency_s=mission.telemetry.latency_s,
+            connect_timeout_s=10.0,
+            console=lambda line: None,
+        )
         try:
             session.run(duration_s=seconds)
         finally:
@@ -93,25 +108,37 @@ def fly(scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: fl
     finally:
         vehicle.stop()
     truth = camera.truth
-    alerts = [(alert, index, truth[index].sim_time) for alert, index, _ in confirmed
-              if 0 <= index < len(truth)]
+    alerts = [
+        (alert, index, truth[index].sim_time)
+        for alert, index, _ in confirmed
+        if 0 <= index < len(truth)
+    ]
     evidence = session.controller.candidates.evidence
-    track_scores = {a.alert_id: float(np.mean([x.score for x in evidence[a.target_id].sightings]))
-                    for a in stored if a.target_id in evidence
-                    and evidence[a.target_id].sightings}
-    return Flown(score_flight(truth, alerts, candidates=stored, track_scores=track_scores),
-                 summary, session.controller, truth)
+    track_scores = {
+        a.alert_id: float(np.mean([x.score for x in evidence[a.target_id].sightings]))
+        for a in stored
+        if a.target_id in evidence and evidence[a.target_id].sightings
+    }
+    return Flown(
+        score_flight(truth, alerts, candidates=stored, track_scores=track_scores),
+        summary,
+        session.controller,
+        truth,
+    )
 
 
 def table(rows: list[tuple[str, FlightScore]]) -> str:
     """The scores as a markdown table, one row per scenario and the suite's total."""
+
     def pct(d: dict[str, Any], key: str) -> str:
         v = d.get(key)
         return "-" if v is None else f"{v:.1f}"
 
-    lines = ["| scenario | flight min | people in view | found | false alerts | false per hour "
-             "| time to alert p50 / p90 s | geolocation error p50 / p95 m |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| scenario | flight min | people in view | found | false alerts | false per hour "
+        "| time to alert p50 / p90 s | geolocation error p50 / p95 m |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for name, s in rows:
         d = s.as_dict()
         fph = d["false_per_hour"]
@@ -120,7 +147,8 @@ def table(rows: list[tuple[str, FlightScore]]) -> str:
             f" ({'-' if math.isnan(s.found_share) else f'{100 * s.found_share:.0f} %'})"
             f" | {s.false_alerts} | {'-' if fph is None else f'{fph:.1f}'}"
             f" | {pct(d['time_to_alert_s'], 'p50')} / {pct(d['time_to_alert_s'], 'p90')}"
-            f" | {pct(d['geo_error_m'], 'p50')} / {pct(d['geo_error_m'], 'p95')} |")
+            f" | {pct(d['geo_error_m'], 'p50')} / {pct(d['geo_error_m'], 'p95')} |"
+        )
     return "\n".join(lines)
 
 
@@ -150,17 +178,27 @@ def run(args: argparse.Namespace) -> int:
             total.add(score)
     rows.append(("suite", total))
     if args.json:
-        print(json.dumps({"scenarios": {n: s.as_dict() for n, s in rows[:-1]},
-                          "suite": total.as_dict(),
-                          "wall_s": round(time.monotonic() - started, 1)}, indent=2))
+        print(
+            json.dumps(
+                {
+                    "scenarios": {n: s.as_dict() for n, s in rows[:-1]},
+                    "suite": total.as_dict(),
+                    "wall_s": round(time.monotonic() - started, 1),
+                },
+                indent=2,
+            )
+        )
     else:
         print(table(rows))
         if total.false_on:
-            print("false alerts on: " + ", ".join(f"{what} {n}"
-                                                  for what, n in total.false_on.most_common()))
+            print(
+                "false alerts on: "
+                + ", ".join(f"{what} {n}" for what, n in total.false_on.most_common())
+            )
         print("What a candidate's track score means (share with a person under it):")
-        print("\n".join(format_reliability(total.as_dict()["candidate_reliability"],
-                                           "track score")))
+        print(
+            "\n".join(format_reliability(total.as_dict()["candidate_reliability"], "track score"))
+        )
         if total.missed:
             print(f"missed ({len(total.missed)}):")
             for line in total.missed:

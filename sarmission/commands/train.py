@@ -32,46 +32,93 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--batch-size", type=int, default=64)
     parser.add_argument("--lr", type=float, default=0.02, help="peak learning rate")
     parser.add_argument("--optimizer", choices=("sgd", "adamw"), default="sgd")
-    parser.add_argument("--select-from", type=int, default=1,
-                        help="first epoch whose head may be kept as the best checkpoint "
-                             "(default: %(default)s)")
-    parser.add_argument("--ema-decay", type=float, default=0.0,
-                        help="validate and save a moving average of the weights with this decay "
-                             "per step, e.g. 0.999 (0 = the raw weights)")
+    parser.add_argument(
+        "--select-from",
+        type=int,
+        default=1,
+        help="first epoch whose head may be kept as the best checkpoint (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--ema-decay",
+        type=float,
+        default=0.0,
+        help="validate and save a moving average of the weights with this decay "
+        "per step, e.g. 0.999 (0 = the raw weights)",
+    )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--ds", type=int, default=1, choices=VALID_DS,
-                        help="vSTMD down-sampling factor for the training crops")
-    parser.add_argument("--frame-stride", type=int, default=5,
-                        help="cut crops at every k-th frame (all frames still go through vSTMD)")
+    parser.add_argument(
+        "--ds",
+        type=int,
+        default=1,
+        choices=VALID_DS,
+        help="vSTMD down-sampling factor for the training crops",
+    )
+    parser.add_argument(
+        "--frame-stride",
+        type=int,
+        default=5,
+        help="cut crops at every k-th frame (all frames still go through vSTMD)",
+    )
     parser.add_argument("--jitters", type=int, default=4, help="jittered copies per GT box")
-    parser.add_argument("--jitter-shift", type=float, default=0.5,
-                        help="largest centre shift of a jittered box per axis, as a fraction of "
-                             "its side (the RPN's boxes land up to about half a side off)")
-    parser.add_argument("--background-negatives", type=int, default=0,
-                        help="negatives cut per training frame at random places away from the "
-                             "targets (0 = only the RPN's proposals)")
-    parser.add_argument("--randomise", default="none",
-                        help="crop-level domain randomisation: comma-separated transforms of "
-                             "tone, white_balance, hue, blur, noise, blocks, geometry; 'all' or "
-                             "'none'")
-    parser.add_argument("--randomise-p", type=float, default=0.5,
-                        help="share of the crops each randomisation transform changes")
+    parser.add_argument(
+        "--jitter-shift",
+        type=float,
+        default=0.5,
+        help="largest centre shift of a jittered box per axis, as a fraction of "
+        "its side (the RPN's boxes land up to about half a side off)",
+    )
+    parser.add_argument(
+        "--background-negatives",
+        type=int,
+        default=0,
+        help="negatives cut per training frame at random places away from the "
+        "targets (0 = only the RPN's proposals)",
+    )
+    parser.add_argument(
+        "--randomise",
+        default="none",
+        help="crop-level domain randomisation: comma-separated transforms of "
+        "tone, white_balance, hue, blur, noise, blocks, geometry; 'all' or "
+        "'none'",
+    )
+    parser.add_argument(
+        "--randomise-p",
+        type=float,
+        default=0.5,
+        help="share of the crops each randomisation transform changes",
+    )
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
-    parser.add_argument("--colour-share", type=float, default=DEFAULT_COLOUR_SHARE,
-                        help="share of the proposals taken from colour anomalies (0 = motion "
-                             "only; default: %(default)s)")
-    parser.add_argument("--pos-nwd", type=float, default=0.4,
-                        help="NWD at or above which a proposal is positive")
-    parser.add_argument("--classes", default=_DEFAULT_CLASSES,
-                        help="comma-separated head classes (index = class id), or 'maritime': "
-                             "the swimmers, boats, jetskis, buoys and life-saving appliances "
-                             "of SeaDronesSee (classes that are no person are never alerted)")
-    parser.add_argument("--cache-dir", type=Path, default=None,
-                        help="crop cache folder (default: <out folder>/.crop_cache)")
-    parser.add_argument("--resume", action="store_true",
-                        help="continue from <out stem>.last.pt with the same settings")
-    parser.add_argument("--onnx", action="store_true",
-                        help="also export the best checkpoint as ONNX next to --out")
+    parser.add_argument(
+        "--colour-share",
+        type=float,
+        default=DEFAULT_COLOUR_SHARE,
+        help="share of the proposals taken from colour anomalies (0 = motion "
+        "only; default: %(default)s)",
+    )
+    parser.add_argument(
+        "--pos-nwd", type=float, default=0.4, help="NWD at or above which a proposal is positive"
+    )
+    parser.add_argument(
+        "--classes",
+        default=_DEFAULT_CLASSES,
+        help="comma-separated head classes (index = class id), or 'maritime': "
+        "the swimmers, boats, jetskis, buoys and life-saving appliances "
+        "of SeaDronesSee (classes that are no person are never alerted)",
+    )
+    parser.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        help="crop cache folder (default: <out folder>/.crop_cache)",
+    )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from <out stem>.last.pt with the same settings",
+    )
+    parser.add_argument(
+        "--onnx", action="store_true", help="also export the best checkpoint as ONNX next to --out"
+    )
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
     add_progress_option(parser)
     parser.set_defaults(func=run)
@@ -84,8 +131,11 @@ def config_from_args(args: argparse.Namespace):
     from sarmission.training.randomise import Randomisation
     from sarmission.training.train import TrainConfig
 
-    classes = (MARITIME_CLASSES if args.classes.strip() == "maritime"
-               else tuple(c.strip() for c in args.classes.split(",") if c.strip()))
+    classes = (
+        MARITIME_CLASSES
+        if args.classes.strip() == "maritime"
+        else tuple(c.strip() for c in args.classes.split(",") if c.strip())
+    )
     if not classes:
         raise ValueError("--classes must name at least one class")
     for flag, path in (("--train", args.train), ("--val", args.val)):
@@ -93,20 +143,36 @@ def config_from_args(args: argparse.Namespace):
             raise FileNotFoundError(f"{flag} annotation file not found: {path}")
     if args.out.suffix.lower() not in (".pt", ".pth"):
         raise ValueError(f"--out must be a .pt or .pth file, got {args.out}")
-    crops = CropSettings(classes=classes, ds=args.ds, topn=args.topn,
-                         colour_share=args.colour_share,
-                         frame_stride=args.frame_stride, pos_nwd=args.pos_nwd,
-                         jitters_per_gt=args.jitters,
-                         jitter_shift=args.jitter_shift,
-                         background_negatives=args.background_negatives, seed=args.seed)
-    return TrainConfig(train=args.train, val=args.val, out=args.out, epochs=args.epochs,
-                       batch_size=args.batch_size, lr=args.lr, optimizer=args.optimizer,
-                       select_from=args.select_from, ema_decay=args.ema_decay,
-                       seed=args.seed, crops=crops,
-                       randomise=Randomisation.parse(args.randomise, args.randomise_p),
-                       cache_dir=args.cache_dir,
-                       resume=args.resume, num_threads=args.threads,
-                       progress=bars_wanted(args))
+    crops = CropSettings(
+        classes=classes,
+        ds=args.ds,
+        topn=args.topn,
+        colour_share=args.colour_share,
+        frame_stride=args.frame_stride,
+        pos_nwd=args.pos_nwd,
+        jitters_per_gt=args.jitters,
+        jitter_shift=args.jitter_shift,
+        background_negatives=args.background_negatives,
+        seed=args.seed,
+    )
+    return TrainConfig(
+        train=args.train,
+        val=args.val,
+        out=args.out,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        optimizer=args.optimizer,
+        select_from=args.select_from,
+        ema_decay=args.ema_decay,
+        seed=args.seed,
+        crops=crops,
+        randomise=Randomisation.parse(args.randomise, args.randomise_p),
+        cache_dir=args.cache_dir,
+        resume=args.resume,
+        num_threads=args.threads,
+        progress=bars_wanted(args),
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -114,9 +180,11 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.training.train import train
 
     result = train(config_from_args(args))
-    print(f"wrote {result.checkpoint}: best validation F2 {result.best_f2:.4f} at epoch "
-          f"{result.best_epoch} ({result.train_crops} training / {result.val_crops} validation "
-          f"crops); resume state {result.state}")
+    print(
+        f"wrote {result.checkpoint}: best validation F2 {result.best_f2:.4f} at epoch "
+        f"{result.best_epoch} ({result.train_crops} training / {result.val_crops} validation "
+        f"crops); resume state {result.state}"
+    )
     if args.onnx:
         from sarmission.perception.export import export_head_onnx
 

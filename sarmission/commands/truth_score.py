@@ -45,8 +45,10 @@ def score(alerts: list[Alert], camera: Any, min_frames: int) -> list[str]:
             other = nearest(camera.others_at(alert.frame_index), cx, cy)
             on = other.category if other is not None else "open water"
             false_on[on] += 1
-            lines.append(f"  target {alert.target_id}: FALSE ALERT ({alert.class_name} "
-                         f"{alert.score:.2f}, frame {alert.frame_index}, on {on})")
+            lines.append(
+                f"  target {alert.target_id}: FALSE ALERT ({alert.class_name} "
+                f"{alert.score:.2f}, frame {alert.frame_index}, on {on})"
+            )
             continue
         tag = ""
         if best.track_id in found:
@@ -60,15 +62,23 @@ def score(alerts: list[Alert], camera: Any, min_frames: int) -> list[str]:
         else:
             where = f"no position: {alert.position_note}"
         lines.append(f"  target {alert.target_id}: {best.category} #{best.track_id}, {where}{tag}")
-    head = [f"people in view (>= {min_frames} frames): {len(present)}, found: "
-            f"{len(found & present)} of them" + (f" (+{len(found - present)} seen briefly)"
-                                                 if found - present else ""),
-            f"alerts: {len(alerts)}, false alerts: {sum(false_on.values())}"
-            + (" (on " + ", ".join(f"{what} {n}" for what, n in false_on.most_common()) + ")"
-               if false_on else "") + f", duplicates: {duplicates}"]
+    head = [
+        f"people in view (>= {min_frames} frames): {len(present)}, found: "
+        f"{len(found & present)} of them"
+        + (f" (+{len(found - present)} seen briefly)" if found - present else ""),
+        f"alerts: {len(alerts)}, false alerts: {sum(false_on.values())}"
+        + (
+            " (on " + ", ".join(f"{what} {n}" for what, n in false_on.most_common()) + ")"
+            if false_on
+            else ""
+        )
+        + f", duplicates: {duplicates}",
+    ]
     if errors:
-        head.append(f"geolocation error: mean {sum(errors) / len(errors):.1f} m, "
-                    f"max {max(errors):.1f} m over {len(errors)} alerts")
+        head.append(
+            f"geolocation error: mean {sum(errors) / len(errors):.1f} m, "
+            f"max {max(errors):.1f} m over {len(errors)} alerts"
+        )
     if len(lines) > MAX_LISTED:
         lines = lines[:MAX_LISTED] + [f"  ... and {len(lines) - MAX_LISTED} more alerts"]
     return head + lines

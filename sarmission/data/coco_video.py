@@ -261,8 +261,14 @@ def parse_telemetry(meta: Mapping[str, Any] | None, where: str = "meta") -> Fram
         name, unit = _normalise_key(str(key))
         first = by_name.setdefault(name, (str(key), unit, value))
         if first[2] != value and _to_float(first[2]) != _to_float(value):
-            log.warning("%s: %r = %r and %r = %r disagree; both ignored", where, first[0],
-                        first[2], key, value)
+            log.warning(
+                "%s: %r = %r and %r = %r disagree; both ignored",
+                where,
+                first[0],
+                first[2],
+                key,
+                value,
+            )
             conflicting.add(name)
     for name in conflicting:
         by_name[name] = (by_name[name][0], by_name[name][1], None)
@@ -277,8 +283,10 @@ def parse_telemetry(meta: Mapping[str, Any] | None, where: str = "meta") -> Fram
         if values[attr] is None and raw is not None:
             log.warning("%s: %r = %r is not a number; ignored", where, raw_key, raw)
 
-    for attr, ref_name, negative in (("latitude", "gpslatituderef", "S"),
-                                     ("longitude", "gpslongituderef", "W")):
+    for attr, ref_name, negative in (
+        ("latitude", "gpslatituderef", "S"),
+        ("longitude", "gpslongituderef", "W"),
+    ):
         ref = by_name.get(ref_name)
         value = values.get(attr)
         if ref is not None and value is not None and str(ref[2]).strip().upper() == negative:
@@ -373,8 +381,18 @@ def _extra(item: dict[str, Any], known: tuple[str, ...]) -> dict[str, Any]:
 _VIDEO_KEYS = ("id", "name")
 _CATEGORY_KEYS = ("id", "name", "supercategory")
 _IMAGE_KEYS = ("id", "file_name", "height", "width", "video_id", "frame_index", "meta")
-_ANNOTATION_KEYS = ("id", "image_id", "video_id", "track_id", "category_id", "bbox", "area",
-                    "iscrowd", "gt_lat", "gt_lon")
+_ANNOTATION_KEYS = (
+    "id",
+    "image_id",
+    "video_id",
+    "track_id",
+    "category_id",
+    "bbox",
+    "area",
+    "iscrowd",
+    "gt_lat",
+    "gt_lon",
+)
 
 
 def read_coco_video(path: str | Path) -> VideoDataset:
@@ -396,12 +414,16 @@ def read_coco_video(path: str | Path) -> VideoDataset:
         raise reader.fail(f"top level must be an object, got {type(doc).__name__}")
 
     videos = [_read_video(reader, i, v) for i, v in enumerate(reader.records(doc, "videos", False))]
-    categories = [_read_category(reader, i, c)
-                  for i, c in enumerate(reader.records(doc, "categories", True))]
-    images = [_read_image(reader, i, im)
-              for i, im in enumerate(reader.records(doc, "images", True))]
-    annotations = [_read_annotation(reader, i, a)
-                   for i, a in enumerate(reader.records(doc, "annotations", True))]
+    categories = [
+        _read_category(reader, i, c) for i, c in enumerate(reader.records(doc, "categories", True))
+    ]
+    images = [
+        _read_image(reader, i, im) for i, im in enumerate(reader.records(doc, "images", True))
+    ]
+    annotations = [
+        _read_annotation(reader, i, a)
+        for i, a in enumerate(reader.records(doc, "annotations", True))
+    ]
 
     info = doc.get("info") or {}
     if not isinstance(info, dict):
@@ -425,9 +447,12 @@ def _read_category(reader: _Reader, index: int, item: dict[str, Any]) -> Categor
     where = _label("categories", index, item)
     reader.require(item, where, ("id", "name"))
     supercategory = item.get("supercategory")
-    return Category(reader.integer(item, "id", where), str(item["name"]),
-                    None if supercategory is None else str(supercategory),
-                    _extra(item, _CATEGORY_KEYS))
+    return Category(
+        reader.integer(item, "id", where),
+        str(item["name"]),
+        None if supercategory is None else str(supercategory),
+        _extra(item, _CATEGORY_KEYS),
+    )
 
 
 def _read_image(reader: _Reader, index: int, item: dict[str, Any]) -> ImageRecord:
@@ -457,8 +482,11 @@ def _read_annotation(reader: _Reader, index: int, item: dict[str, Any]) -> Annot
     where = _label("annotations", index, item)
     reader.require(item, where, ("id", "image_id", "category_id", "bbox"))
     bbox = item["bbox"]
-    if (not isinstance(bbox, list | tuple) or len(bbox) != 4
-            or any(_to_float(v) is None for v in bbox)):
+    if (
+        not isinstance(bbox, list | tuple)
+        or len(bbox) != 4
+        or any(_to_float(v) is None for v in bbox)
+    ):
         raise reader.fail(f"{where}: 'bbox' must be 4 numbers [x, y, w, h], got {bbox!r}")
     x, y, w, h = (float(v) for v in bbox)
     area = reader.number(item, "area", where)
@@ -478,9 +506,12 @@ def _read_annotation(reader: _Reader, index: int, item: dict[str, Any]) -> Annot
 
 
 def _check_references(reader: _Reader, dataset: VideoDataset) -> None:
-    for section, records in (("videos", dataset.videos), ("images", dataset.images),
-                             ("annotations", dataset.annotations),
-                             ("categories", dataset.categories)):
+    for section, records in (
+        ("videos", dataset.videos),
+        ("images", dataset.images),
+        ("annotations", dataset.annotations),
+        ("categories", dataset.categories),
+    ):
         seen: set[int] = set()
         for record in records:
             if record.id in seen:
@@ -497,7 +528,8 @@ def _check_references(reader: _Reader, dataset: VideoDataset) -> None:
             raise reader.fail(f"annotation id={ann.id} refers to unknown image_id {ann.image_id}")
         if ann.category_id not in category_ids:
             raise reader.fail(
-                f"annotation id={ann.id} refers to unknown category_id {ann.category_id}")
+                f"annotation id={ann.id} refers to unknown category_id {ann.category_id}"
+            )
 
 
 # --------------------------------------------------------------------------- writing
@@ -518,18 +550,40 @@ def write_coco_video(dataset: VideoDataset, path: str | Path) -> None:
         doc["licenses"] = dataset.licenses
     doc["videos"] = [{"id": v.id, "name": v.name, **v.extra} for v in dataset.videos]
     doc["images"] = [
-        {**_drop_none({"id": im.id, "file_name": im.file_name, "height": im.height,
-                       "width": im.width, "video_id": im.video_id,
-                       "frame_index": im.frame_index}),
-         "meta": im.meta, **im.extra}
+        {
+            **_drop_none(
+                {
+                    "id": im.id,
+                    "file_name": im.file_name,
+                    "height": im.height,
+                    "width": im.width,
+                    "video_id": im.video_id,
+                    "frame_index": im.frame_index,
+                }
+            ),
+            "meta": im.meta,
+            **im.extra,
+        }
         for im in dataset.images
     ]
     doc["annotations"] = [
-        {**_drop_none({"id": a.id, "image_id": a.image_id, "video_id": a.video_id,
-                       "track_id": a.track_id, "category_id": a.category_id,
-                       "bbox": list(a.bbox), "area": a.area, "iscrowd": a.iscrowd,
-                       "gt_lat": a.gt_lat, "gt_lon": a.gt_lon}),
-         **a.extra}
+        {
+            **_drop_none(
+                {
+                    "id": a.id,
+                    "image_id": a.image_id,
+                    "video_id": a.video_id,
+                    "track_id": a.track_id,
+                    "category_id": a.category_id,
+                    "bbox": list(a.bbox),
+                    "area": a.area,
+                    "iscrowd": a.iscrowd,
+                    "gt_lat": a.gt_lat,
+                    "gt_lon": a.gt_lon,
+                }
+            ),
+            **a.extra,
+        }
         for a in dataset.annotations
     ]
     doc["categories"] = [

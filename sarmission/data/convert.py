@@ -35,10 +35,16 @@ def write_mot_files(dataset: VideoDataset, out_dir: str | Path) -> list[Path]:
     for ann in dataset.annotations:
         image = images[ann.image_id]
         frame = (image.frame_index if image.frame_index is not None else image.id - 1) + 1
-        rows.setdefault(image.video_id, []).append(MotRow(
-            frame=frame, track_id=ann.track_id if ann.track_id is not None else -1,
-            bbox=tuple(float(v) for v in ann.bbox), conf=1.0, class_id=ann.category_id,
-            visibility=float(ann.extra.get("visibility", 1.0))))
+        rows.setdefault(image.video_id, []).append(
+            MotRow(
+                frame=frame,
+                track_id=ann.track_id if ann.track_id is not None else -1,
+                bbox=tuple(float(v) for v in ann.bbox),
+                conf=1.0,
+                class_id=ann.category_id,
+                visibility=float(ann.extra.get("visibility", 1.0)),
+            )
+        )
     paths = []
     for video_id, name in _video_names(dataset).items():
         if video_id not in rows:
@@ -57,8 +63,7 @@ def write_yolo_files(dataset: VideoDataset, out_dir: str | Path) -> int:
     for image in dataset.images:
         anns = by_image.get(image.id, [])
         boxes = xywh_to_xyxy(np.array([a.bbox for a in anns], np.float64).reshape(-1, 4))
-        labels = xyxy_to_yolo(boxes, [a.category_id - 1 for a in anns], image.width,
-                              image.height)
+        labels = xyxy_to_yolo(boxes, [a.category_id - 1 for a in anns], image.width, image.height)
         index = image.frame_index if image.frame_index is not None else image.id - 1
         folder = out / names[image.video_id if image.video_id in names else None]
         folder.mkdir(parents=True, exist_ok=True)

@@ -82,8 +82,7 @@ class FrameSource(ABC):
 
 def _natural_key(path: Path) -> list[object]:
     """``frame2.png`` before ``frame10.png``: digit runs compare as numbers."""
-    return [int(part) if part.isdigit() else part.lower()
-            for part in re.split(r"(\d+)", path.name)]
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", path.name)]
 
 
 class ImageFolderSource(FrameSource):
@@ -91,12 +90,14 @@ class ImageFolderSource(FrameSource):
 
     def __init__(self, path: Path, fps: float = 30.0) -> None:
         super().__init__(path, fps)
-        self.files = sorted((p for p in path.iterdir()
-                             if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS),
-                            key=_natural_key)
+        self.files = sorted(
+            (p for p in path.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS),
+            key=_natural_key,
+        )
         if not self.files:
             raise FrameSourceError(
-                f"{path}: no images ({', '.join(sorted(IMAGE_EXTENSIONS))}) in folder")
+                f"{path}: no images ({', '.join(sorted(IMAGE_EXTENSIONS))}) in folder"
+            )
 
     @property
     def length(self) -> int:
@@ -165,8 +166,7 @@ class VideoFileSource(FrameSource):
                     for skipped in failed:  # a frame came after them: they were frames
                         self._skip(skipped, "decoder returned no image")
                     failed.clear()
-                    yield Frame(index, clock.time(index, capture.get(cv2.CAP_PROP_POS_MSEC)),
-                                image)
+                    yield Frame(index, clock.time(index, capture.get(cv2.CAP_PROP_POS_MSEC)), image)
                 else:
                     if self._count is None:
                         break
@@ -177,8 +177,12 @@ class VideoFileSource(FrameSource):
             if failed:
                 # No frame after them: the file ends here (the header's count is an estimate in
                 # some containers, or the file was cut short). One line, not one per frame.
-                log.info("%s: the video ends at frame %d of the %d its header announces",
-                         self.path, failed[0], self._count)
+                log.info(
+                    "%s: the video ends at frame %d of the %d its header announces",
+                    self.path,
+                    failed[0],
+                    self._count,
+                )
         finally:
             capture.release()
 
@@ -196,8 +200,12 @@ class _PresentationTimes:
     def time(self, index: int, position_ms: float) -> float:
         seconds = position_ms / 1000.0
         last = self._last
-        if self._trusted and math.isfinite(seconds) and seconds >= 0 and (
-                last is None or seconds > last[1]):
+        if (
+            self._trusted
+            and math.isfinite(seconds)
+            and seconds >= 0
+            and (last is None or seconds > last[1])
+        ):
             stamp = seconds
         else:
             self._trusted = False

@@ -29,15 +29,18 @@ def _absolute(dataset: VideoDataset) -> VideoDataset:
                 path = (dataset.source_path.parent / name).resolve()
                 video = dataclasses.replace(video, extra=dict(video.extra, file_name=str(path)))
         videos.append(video)
-    images = [im if im.video_id in with_file else
-              dataclasses.replace(im, file_name=str(dataset.image_path(im).resolve()))
-              for im in dataset.images]
+    images = [
+        im
+        if im.video_id in with_file
+        else dataclasses.replace(im, file_name=str(dataset.image_path(im).resolve()))
+        for im in dataset.images
+    ]
     return dataclasses.replace(dataset, videos=videos, images=images)
 
 
-def merge_datasets_by_name(datasets: list[VideoDataset],
-                           rename: Mapping[str, str] | None = None,
-                           info: dict | None = None) -> VideoDataset:
+def merge_datasets_by_name(
+    datasets: list[VideoDataset], rename: Mapping[str, str] | None = None, info: dict | None = None
+) -> VideoDataset:
     """One dataset of the videos of several (module docstring); ``ValueError`` for none."""
     if not datasets:
         raise ValueError("nothing to merge")
@@ -55,19 +58,34 @@ def merge_datasets_by_name(datasets: list[VideoDataset],
         video_ids = {v.id: len(videos) + i + 1 for i, v in enumerate(dataset.videos)}
         image_ids = {im.id: len(images) + i + 1 for i, im in enumerate(dataset.images)}
         videos += [dataclasses.replace(v, id=video_ids[v.id]) for v in dataset.videos]
-        images += [dataclasses.replace(im, id=image_ids[im.id],
-                                       video_id=video_ids.get(im.video_id, im.video_id))
-                   for im in dataset.images]
-        annotations += [dataclasses.replace(
-            a, id=len(annotations) + i + 1, image_id=image_ids[a.image_id],
-            category_id=category[a.category_id], video_id=video_ids.get(a.video_id, a.video_id))
-            for i, a in enumerate(dataset.annotations)]
+        images += [
+            dataclasses.replace(
+                im, id=image_ids[im.id], video_id=video_ids.get(im.video_id, im.video_id)
+            )
+            for im in dataset.images
+        ]
+        annotations += [
+            dataclasses.replace(
+                a,
+                id=len(annotations) + i + 1,
+                image_id=image_ids[a.image_id],
+                category_id=category[a.category_id],
+                video_id=video_ids.get(a.video_id, a.video_id),
+            )
+            for i, a in enumerate(dataset.annotations)
+        ]
     categories = [Category(cid, name, supercategory[name]) for name, cid in category_ids.items()]
-    return VideoDataset(videos=videos, images=images, annotations=annotations,
-                        categories=categories, info=info or {})
+    return VideoDataset(
+        videos=videos,
+        images=images,
+        annotations=annotations,
+        categories=categories,
+        info=info or {},
+    )
 
 
-def merge_annotation_files(paths: Iterable[str | Path], rename: Mapping[str, str] | None = None,
-                           info: dict | None = None) -> VideoDataset:
+def merge_annotation_files(
+    paths: Iterable[str | Path], rename: Mapping[str, str] | None = None, info: dict | None = None
+) -> VideoDataset:
     """Read and merge annotation files (:func:`merge_datasets_by_name`)."""
     return merge_datasets_by_name([read_coco_video(p) for p in paths], rename, info)

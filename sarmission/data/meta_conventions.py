@@ -88,27 +88,35 @@ def _stated(info: Mapping[str, Any] | None) -> str | None:
         return None
     value = block.get("gimbal_pitch") if isinstance(block, Mapping) else None
     if value not in PITCH_CONVENTIONS:
-        raise ConventionError(f"info.{INFO_KEY}.gimbal_pitch must be one of "
-                              f"{', '.join(PITCH_CONVENTIONS)}, got {value!r}")
+        raise ConventionError(
+            f"info.{INFO_KEY}.gimbal_pitch must be one of "
+            f"{', '.join(PITCH_CONVENTIONS)}, got {value!r}"
+        )
     return str(value)
 
 
-def detect_conventions(telemetry: Iterable[FrameTelemetry],
-                       info: Mapping[str, Any] | None = None,
-                       option: str | None = None) -> MetaConventions:
+def detect_conventions(
+    telemetry: Iterable[FrameTelemetry],
+    info: Mapping[str, Any] | None = None,
+    option: str | None = None,
+) -> MetaConventions:
     """The conventions of one file's frames (see the module docstring for the order).
 
     ``option`` (``depression`` / ``elevation``, or None / ``auto``) is what the user stated; it
     must agree with a statement in ``info``. Raises :class:`ConventionError` for a mixed file.
     """
     if option not in (None, "auto", *PITCH_CONVENTIONS):
-        raise ConventionError(f"gimbal pitch convention must be auto, "
-                              f"{' or '.join(PITCH_CONVENTIONS)}, got {option!r}")
+        raise ConventionError(
+            f"gimbal pitch convention must be auto, "
+            f"{' or '.join(PITCH_CONVENTIONS)}, got {option!r}"
+        )
     stated = _stated(info)
     if option in PITCH_CONVENTIONS:
         if stated is not None and stated != option:
-            raise ConventionError(f"the file states gimbal pitch as {stated}, the option as "
-                                  f"{option}: mixed conventions")
+            raise ConventionError(
+                f"the file states gimbal pitch as {stated}, the option as "
+                f"{option}: mixed conventions"
+            )
         return MetaConventions(str(option), "as stated by the option")
     if stated is not None:
         return MetaConventions(stated, f"as stated in the file's info.{INFO_KEY}")
@@ -119,14 +127,16 @@ def detect_conventions(telemetry: Iterable[FrameTelemetry],
         raise ConventionError(
             f"gimbal pitch has both signs ({positive} frames positive, {negative} negative): "
             f"mixed conventions; state one ({DEPRESSION}: {PITCH_MEANING[DEPRESSION]}; "
-            f"{ELEVATION}: {PITCH_MEANING[ELEVATION]})")
+            f"{ELEVATION}: {PITCH_MEANING[ELEVATION]})"
+        )
     if negative:
         return MetaConventions(ELEVATION, f"from the values: {negative} pitches, none positive")
     if positive:
         return MetaConventions(DEPRESSION, f"from the values: {positive} pitches, none negative")
     # No pitch, or only 0 (the horizon in both conventions): nothing to tell apart.
-    return MetaConventions(ELEVATION, f"from the values: {len(pitches)} pitches, all 0 "
-                           "(the horizon either way)")
+    return MetaConventions(
+        ELEVATION, f"from the values: {len(pitches)} pitches, all 0 (the horizon either way)"
+    )
 
 
 def dataset_conventions(dataset: VideoDataset, option: str | None = None) -> MetaConventions:
@@ -140,10 +150,16 @@ def _heading(value: float) -> float:
 
 def meta_pose(meta: FrameTelemetry, conventions: MetaConventions) -> MetaPose | NoMetaPose:
     """One frame's placement with ``conventions``, or the reason it has none."""
-    missing = [name for name, value in (("latitude", meta.latitude),
-                                        ("longitude", meta.longitude),
-                                        ("height above take-off", meta.altitude),
-                                        ("gimbal pitch", meta.gimbal_pitch)) if value is None]
+    missing = [
+        name
+        for name, value in (
+            ("latitude", meta.latitude),
+            ("longitude", meta.longitude),
+            ("height above take-off", meta.altitude),
+            ("gimbal pitch", meta.gimbal_pitch),
+        )
+        if value is None
+    ]
     if meta.compass_heading is None and meta.gimbal_heading is None:
         missing.append("heading")
     if missing:
@@ -158,11 +174,11 @@ def meta_pose(meta: FrameTelemetry, conventions: MetaConventions) -> MetaPose | 
         return NoMetaPose(f"height above take-off {meta.altitude:g} m: not in the air")
     pitch = -meta.gimbal_pitch if conventions.pitch == DEPRESSION else meta.gimbal_pitch
     if not -90.0 <= pitch <= 90.0:
-        return NoMetaPose(f"gimbal pitch {meta.gimbal_pitch:g} out of range "
-                          f"({conventions.pitch})")
+        return NoMetaPose(f"gimbal pitch {meta.gimbal_pitch:g} out of range ({conventions.pitch})")
     if pitch > 0.0:
-        return NoMetaPose(f"gimbal pitch {meta.gimbal_pitch:g} ({conventions.pitch}) looks "
-                          "above the horizon")
+        return NoMetaPose(
+            f"gimbal pitch {meta.gimbal_pitch:g} ({conventions.pitch}) looks above the horizon"
+        )
     notes: tuple[str, ...] = ()
     heading = meta.compass_heading if meta.compass_heading is not None else meta.gimbal_heading
     gimbal_heading = meta.gimbal_heading
@@ -170,5 +186,13 @@ def meta_pose(meta: FrameTelemetry, conventions: MetaConventions) -> MetaPose | 
         gimbal_heading = heading
         notes = ("no gimbal heading: the compass heading stands in",)
     assert heading is not None and gimbal_heading is not None
-    return MetaPose(meta.latitude, meta.longitude, meta.altitude, _heading(heading), pitch,
-                    _heading(gimbal_heading), meta.gimbal_roll or 0.0, notes)
+    return MetaPose(
+        meta.latitude,
+        meta.longitude,
+        meta.altitude,
+        _heading(heading),
+        pitch,
+        _heading(gimbal_heading),
+        meta.gimbal_roll or 0.0,
+        notes,
+    )

@@ -48,7 +48,8 @@ def read_mot(path: str | Path) -> list[MotRow]:
         if len(cols) < 6:
             raise DatasetFormatError(
                 f"{path}:{number}: expected at least 6 comma-separated columns "
-                f"(frame,id,x,y,w,h), got {len(cols)}")
+                f"(frame,id,x,y,w,h), got {len(cols)}"
+            )
         try:
             frame = _integer(cols[0])
             row = MotRow(
@@ -75,5 +76,16 @@ def write_mot(rows: Iterable[MotRow], path: str | Path) -> None:
     """Write rows as MOT text (nine columns, shortest exact float text); read back identically."""
     with Path(path).open("w", encoding="utf-8") as out:
         for r in rows:
-            out.write(",".join([str(r.frame), str(r.track_id), *map(_fmt, r.bbox), _fmt(r.conf),
-                                str(r.class_id), _fmt(r.visibility)]) + "\n")
+            out.write(
+                ",".join(
+                    [
+                        str(r.frame),
+                        str(r.track_id),
+                        *map(_fmt, r.bbox),
+                        _fmt(r.conf),
+                        str(r.class_id),
+                        _fmt(r.visibility),
+                    ]
+                )
+                + "\n"
+            )

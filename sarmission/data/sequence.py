@@ -54,11 +54,12 @@ def sequence_ids(dataset: VideoDataset) -> list[int | None]:
 def sequence_images(dataset: VideoDataset, video_id: int | None) -> list[ImageRecord]:
     """Images of one video sorted by frame index (all images when ``video_id`` is None)."""
     images = [im for im in dataset.images if video_id is None or im.video_id == video_id]
-    return sorted(images, key=lambda im: (im.frame_index if im.frame_index is not None else im.id))
+    return sorted(images, key=lambda im: im.frame_index if im.frame_index is not None else im.id)
 
 
-def iter_sequence(dataset: VideoDataset, video_id: int | None,
-                  counters: dict[str, int] | None = None) -> Iterator[AnnotatedFrame]:
+def iter_sequence(
+    dataset: VideoDataset, video_id: int | None, counters: dict[str, int] | None = None
+) -> Iterator[AnnotatedFrame]:
     """Yield the frames of one video in order; unreadable frames are skipped and counted.
 
     ``counters`` (if given) receives ``counters["skipped"]`` += 1 per unreadable frame.
@@ -79,8 +80,9 @@ def iter_sequence(dataset: VideoDataset, video_id: int | None,
         yield AnnotatedFrame(image, frame)
 
 
-def _from_video_file(path: Path, images: list[ImageRecord],
-                     counters: dict[str, int] | None) -> Iterator[AnnotatedFrame]:
+def _from_video_file(
+    path: Path, images: list[ImageRecord], counters: dict[str, int] | None
+) -> Iterator[AnnotatedFrame]:
     by_index = {im.frame_index: im for im in images}
     try:
         source = open_frame_source(path)

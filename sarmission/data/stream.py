@@ -72,11 +72,15 @@ def check_stream_url(url: str) -> str:
         raise FrameSourceError(f"{redact(url)}: malformed stream URL ({exc})") from None
     scheme = parts.scheme.lower()
     if scheme not in STREAM_SCHEMES:
-        raise FrameSourceError(f"{redact(url)}: unsupported stream URL scheme '{scheme}' (use "
-                               + ", ".join(f"{s}://" for s in sorted(STREAM_SCHEMES)) + ")")
+        raise FrameSourceError(
+            f"{redact(url)}: unsupported stream URL scheme '{scheme}' (use "
+            + ", ".join(f"{s}://" for s in sorted(STREAM_SCHEMES))
+            + ")"
+        )
     if scheme in _PORT_REQUIRED and port is None:
-        raise FrameSourceError(f"{redact(url)}: a {scheme}:// stream URL needs a port, e.g. "
-                               f"{scheme}://127.0.0.1:5600")
+        raise FrameSourceError(
+            f"{redact(url)}: a {scheme}:// stream URL needs a port, e.g. {scheme}://127.0.0.1:5600"
+        )
     if scheme not in _PORT_REQUIRED and not parts.hostname:
         raise FrameSourceError(f"{redact(url)}: the stream URL names no host")
     return url
@@ -166,8 +170,14 @@ class StreamSource:
     times), ``skipped`` (image-less frames returned during outages), ``reconnects``.
     """
 
-    def __init__(self, url: str, connect_timeout_s: float = 15.0, read_timeout_s: float = 3.0,
-                 threads: int | None = None, default_fps: float = 30.0) -> None:
+    def __init__(
+        self,
+        url: str,
+        connect_timeout_s: float = 15.0,
+        read_timeout_s: float = 3.0,
+        threads: int | None = None,
+        default_fps: float = 30.0,
+    ) -> None:
         from sarmission.threads import thread_plan
 
         self.url = check_stream_url(str(url))
@@ -188,14 +198,14 @@ class StreamSource:
         self._thread = threading.Thread(target=self._read_loop, name="stream", daemon=True)
         self._thread.start()
         with self._cond:
-            self._cond.wait_for(lambda: self._latest is not None or self._ended,
-                                timeout=connect_timeout_s)
+            self._cond.wait_for(
+                lambda: self._latest is not None or self._ended, timeout=connect_timeout_s
+            )
             first = self._latest
         if first is None:
             why = self._why
             self.close()
-            raise FrameSourceError(f"{self.path}: no video within {connect_timeout_s:g} s "
-                                   f"({why})")
+            raise FrameSourceError(f"{self.path}: no video within {connect_timeout_s:g} s ({why})")
 
     @property
     def length(self) -> None:
@@ -207,9 +217,14 @@ class StreamSource:
     def _open(self) -> cv2.VideoCapture | None:
         url = with_udp_defaults(self.url)
         timeout_ms = int(self.read_timeout_s * 1000)
-        params = [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, max(timeout_ms, 5000),
-                  cv2.CAP_PROP_READ_TIMEOUT_MSEC, timeout_ms,
-                  cv2.CAP_PROP_N_THREADS, self.threads]
+        params = [
+            cv2.CAP_PROP_OPEN_TIMEOUT_MSEC,
+            max(timeout_ms, 5000),
+            cv2.CAP_PROP_READ_TIMEOUT_MSEC,
+            timeout_ms,
+            cv2.CAP_PROP_N_THREADS,
+            self.threads,
+        ]
         capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
         if capture.isOpened():
             fps = capture.get(cv2.CAP_PROP_FPS)
@@ -231,14 +246,20 @@ class StreamSource:
                 if pumped and not self._stop.is_set():
                     self._lost_since = last_report = time.monotonic()
                     self._why = "stream lost"
-                    log.warning("%s: stream lost (no frame for %.1f s); reconnecting", self.path,
-                                self.read_timeout_s)
+                    log.warning(
+                        "%s: stream lost (no frame for %.1f s); reconnecting",
+                        self.path,
+                        self.read_timeout_s,
+                    )
                     continue
             now = time.monotonic()
             if self._lost_since is not None and now - last_report >= OUTAGE_REPORT_S:
                 last_report = now
-                log.warning("%s: stream still away after %.0f s; still trying", self.path,
-                            now - self._lost_since)
+                log.warning(
+                    "%s: stream still away after %.0f s; still trying",
+                    self.path,
+                    now - self._lost_since,
+                )
             self._stop.wait(min(1.0, self.read_timeout_s))
         with self._cond:
             self._ended = True
@@ -259,8 +280,7 @@ class StreamSource:
                 continue
             if self._lost_since is not None:
                 self.reconnects += 1
-                log.warning("%s: stream back after %.1f s", self.path,
-                            arrival - self._lost_since)
+                log.warning("%s: stream back after %.1f s", self.path, arrival - self._lost_since)
                 self._lost_since = None
             pts = pts_ms / 1000.0 if math.isfinite(pts_ms) and pts_ms >= 0 else None
             if pts is not None and last_pts is not None:
@@ -284,8 +304,12 @@ class StreamSource:
         reported_at, reported = self._loss_report
         if reported_at is None or now - reported_at >= OUTAGE_REPORT_S:
             since = "so far" if reported_at is None else f"in the last {now - reported_at:.0f} s"
-            log.warning("%s: %d frame(s) missing from the stream %s (damaged or lost packets)",
-                        self.path, self.lost - reported, since)
+            log.warning(
+                "%s: %d frame(s) missing from the stream %s (damaged or lost packets)",
+                self.path,
+                self.lost - reported,
+                since,
+            )
             self._loss_report = (now, self.lost)
 
     # -- consumer ------------------------------------------------------------------------------
@@ -294,8 +318,9 @@ class StreamSource:
         """The newest frame not yet read, waiting for one; during an outage a frame without an
         image every ``read_timeout_s`` (counted in ``skipped``); None once closed."""
         with self._cond:
-            self._cond.wait_for(lambda: self._ended or self._latest is not None,
-                                timeout=self.read_timeout_s)
+            self._cond.wait_for(
+                lambda: self._ended or self._latest is not None, timeout=self.read_timeout_s
+            )
             if self._ended:
                 return None
             frame, self._latest = self._latest, None
@@ -315,8 +340,10 @@ class StreamSource:
 
     def summary(self) -> str:
         """One line: frames received, dropped, lost, reconnections."""
-        return (f"{self.path}: {self.received} frames received, {self.dropped} dropped while "
-                f"busy, {self.lost} lost on the way, {self.reconnects} reconnection(s)")
+        return (
+            f"{self.path}: {self.received} frames received, {self.dropped} dropped while "
+            f"busy, {self.lost} lost on the way, {self.reconnects} reconnection(s)"
+        )
 
     def close(self) -> None:
         """Stop the reader (within the read timeout), release the stream and log its

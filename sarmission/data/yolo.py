@@ -40,7 +40,8 @@ def read_yolo(path: str | Path) -> list[YoloBox]:
             continue
         if len(cols) not in (5, 6):
             raise DatasetFormatError(
-                f"{path}:{number}: expected 'class cx cy w h [score]', got {len(cols)} columns")
+                f"{path}:{number}: expected 'class cx cy w h [score]', got {len(cols)} columns"
+            )
         try:
             class_value = float(cols[0])
             if not class_value.is_integer():
@@ -63,18 +64,21 @@ def write_yolo(boxes: Iterable[YoloBox], path: str | Path) -> None:
             out.write(" ".join(cols) + "\n")
 
 
-def yolo_to_xyxy(boxes: Sequence[YoloBox], width: int,
-                 height: int) -> tuple[np.ndarray, np.ndarray]:
+def yolo_to_xyxy(
+    boxes: Sequence[YoloBox], width: int, height: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Pixel corner boxes ``[N, 4]`` and class ids ``[N]`` for a ``width`` x ``height`` image."""
     norm = np.array([[b.cx, b.cy, b.w, b.h] for b in boxes], dtype=np.float64).reshape(-1, 4)
     scaled = norm * np.array([width, height, width, height], dtype=np.float64)
     return cxcywh_to_xyxy(scaled), np.array([b.class_id for b in boxes], dtype=np.int64)
 
 
-def xyxy_to_yolo(boxes_xyxy: np.ndarray, class_ids: Sequence[int], width: int,
-                 height: int) -> list[YoloBox]:
+def xyxy_to_yolo(
+    boxes_xyxy: np.ndarray, class_ids: Sequence[int], width: int, height: int
+) -> list[YoloBox]:
     """YOLO boxes from pixel corner boxes ``[N, 4]`` of a ``width`` x ``height`` image."""
     cxcywh = xyxy_to_cxcywh(np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4))
     norm = cxcywh / np.array([width, height, width, height], dtype=np.float64)
-    return [YoloBox(int(c), *(float(v) for v in row)) for c, row in zip(class_ids, norm,
-                                                                      strict=True)]
+    return [
+        YoloBox(int(c), *(float(v) for v in row)) for c, row in zip(class_ids, norm, strict=True)
+    ]

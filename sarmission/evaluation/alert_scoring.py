@@ -65,8 +65,16 @@ class FlightScore:
 
     def add(self, other: FlightScore) -> None:
         """Fold another flight's figures into this one."""
-        for name in ("flight_s", "people_in_view", "found", "found_briefly_seen", "alerts",
-                     "false_alerts", "duplicates", "appliances_found"):
+        for name in (
+            "flight_s",
+            "people_in_view",
+            "found",
+            "found_briefly_seen",
+            "alerts",
+            "false_alerts",
+            "duplicates",
+            "appliances_found",
+        ):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         self.false_on.update(other.false_on)
         self.time_to_alert_s += other.time_to_alert_s
@@ -97,13 +105,13 @@ class FlightScore:
             "false_on": dict(self.false_on.most_common()),
             "duplicates": self.duplicates,
             "appliances_found": self.appliances_found,
-            "time_to_alert_s": {"p50": _pct(self.time_to_alert_s, 50),
-                                "p90": _pct(self.time_to_alert_s, 90)},
-            "geo_error_m": {"p50": _pct(self.geo_error_m, 50),
-                            "p95": _pct(self.geo_error_m, 95)},
+            "time_to_alert_s": {
+                "p50": _pct(self.time_to_alert_s, 50),
+                "p90": _pct(self.time_to_alert_s, 90),
+            },
+            "geo_error_m": {"p50": _pct(self.geo_error_m, 50), "p95": _pct(self.geo_error_m, 95)},
             "missed": list(self.missed),
-            "candidate_reliability": reliability_table(self.candidate_scores,
-                                                       self.candidate_right),
+            "candidate_reliability": reliability_table(self.candidate_scores, self.candidate_right),
         }
 
 
@@ -119,8 +127,9 @@ def _centre(box: Sequence[float]) -> tuple[float, float]:
     return (box[0] + box[2]) / 2 - 0.5, (box[1] + box[3]) / 2 - 0.5
 
 
-def nearest(annotations: Iterable[Any], cx: float, cy: float,
-            match_px: float = MATCH_PX) -> Any | None:
+def nearest(
+    annotations: Iterable[Any], cx: float, cy: float, match_px: float = MATCH_PX
+) -> Any | None:
     """The annotation whose box centre is nearest ``(cx, cy)`` within ``match_px``, or None."""
     best, best_d = None, match_px
     for a in annotations:
@@ -136,8 +145,9 @@ def _metres(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.hypot(float(n), float(e))
 
 
-def _by_position(frames: Sequence[Any], index: int, alert: Any, window_s: float,
-                 match_m: float) -> Any | None:
+def _by_position(
+    frames: Sequence[Any], index: int, alert: Any, window_s: float, match_m: float
+) -> Any | None:
     """The person nearest the alert's position, in the frames within ``window_s`` of its
     lock, if within ``max(match_m, 3 x error)``."""
     if alert.position is None:
@@ -178,11 +188,17 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
     return first, longest
 
 
-def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]],
-                 min_view_s: float = 3.0, max_gap_s: float = 0.5,
-                 match_px: float = MATCH_PX, match_m: float = MATCH_M,
-                 window_s: float = WINDOW_S, candidates: Sequence[Any] = (),
-                 track_scores: dict[str, float] | None = None) -> FlightScore:
+def score_flight(
+    frames: Sequence[Any],
+    alerts: Sequence[tuple[Any, int, float]],
+    min_view_s: float = 3.0,
+    max_gap_s: float = 0.5,
+    match_px: float = MATCH_PX,
+    match_m: float = MATCH_M,
+    window_s: float = WINDOW_S,
+    candidates: Sequence[Any] = (),
+    track_scores: dict[str, float] | None = None,
+) -> FlightScore:
     """The figures of one flight (see the module docstring). ``candidates`` (every stored
     alert, confirmed or not) explain the misses (what became of a missed person's candidate,
     or that none was locked) and, with ``track_scores`` (alert id -> its track score; else its
@@ -190,8 +206,11 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
     by_index = {f.index: f for f in frames}
     first, longest = _views(frames, max_gap_s)
     in_view = {tid for tid, s in longest.items() if s >= min_view_s}
-    out = FlightScore(flight_s=(frames[-1].sim_time - frames[0].sim_time) if frames else 0.0,
-                      people_in_view=len(in_view), alerts=len(alerts))
+    out = FlightScore(
+        flight_s=(frames[-1].sim_time - frames[0].sim_time) if frames else 0.0,
+        people_in_view=len(in_view),
+        alerts=len(alerts),
+    )
     found: set[int] = set()
     for alert, _confirm_index, confirm_t in alerts:
         frame = by_index.get(alert.frame_index)
@@ -201,8 +220,11 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
             person = _by_position(frames, alert.frame_index, alert, window_s, match_m)
         if person is None:
             other = None if frame is None else nearest(frame.others, cx, cy, match_px)
-            if (other is not None and role_of(alert.class_name) == "appliance"
-                    and role_of(other.category) == "appliance"):
+            if (
+                other is not None
+                and role_of(alert.class_name) == "appliance"
+                and role_of(other.category) == "appliance"
+            ):
                 out.appliances_found += 1
                 continue
             out.false_alerts += 1
@@ -220,18 +242,18 @@ def score_flight(frames: Sequence[Any], alerts: Sequence[tuple[Any, int, float]]
     fate: dict[int, str] = {}
     for candidate in candidates:
         frame = by_index.get(candidate.frame_index)
-        cx, cy = (candidate.pixel_track[-1][1:] if candidate.pixel_track
-                  else (math.nan, math.nan))
+        cx, cy = candidate.pixel_track[-1][1:] if candidate.pixel_track else (math.nan, math.nan)
         person = None if frame is None else nearest(frame.targets, cx, cy, match_px)
-        person = person or _by_position(frames, candidate.frame_index, candidate, window_s,
-                                        match_m)
-        out.candidate_scores.append((track_scores or {}).get(candidate.alert_id,
-                                                             candidate.score))
+        person = person or _by_position(frames, candidate.frame_index, candidate, window_s, match_m)
+        out.candidate_scores.append((track_scores or {}).get(candidate.alert_id, candidate.score))
         out.candidate_right.append(person is not None)
         if person is not None and person.track_id not in found:
-            why = (f"discarded: {candidate.discarded}" if candidate.discarded
-                   else "still unconfirmed")
+            why = (
+                f"discarded: {candidate.discarded}" if candidate.discarded else "still unconfirmed"
+            )
             fate.setdefault(person.track_id, why)
-    out.missed = [f"person {tid} ({longest[tid]:.1f} s in view; "
-                  f"{fate.get(tid, 'never locked')})" for tid in sorted(in_view - found)]
+    out.missed = [
+        f"person {tid} ({longest[tid]:.1f} s in view; {fate.get(tid, 'never locked')})"
+        for tid in sorted(in_view - found)
+    ]
     return out

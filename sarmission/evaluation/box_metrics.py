@@ -43,8 +43,10 @@ _RECALL_LEVELS = np.linspace(0.0, 1.0, 101)
 
 DEFINITIONS: dict[str, str] = {
     "matching": "greedy by decreasing score, one GT per detection, highest NWD >= threshold",
-    "bands": ("GT by own area; detections matched to another band's GT ignored; unmatched "
-              "detections are FPs of the band of their own area"),
+    "bands": (
+        "GT by own area; detections matched to another band's GT ignored; unmatched "
+        "detections are FPs of the band of their own area"
+    ),
     "ap": "mean over classes and NWD thresholds of 101-point interpolated precision",
     "ar": "mean over classes and NWD thresholds of the recall reached by all detections",
     "f2": "mean over classes and thresholds of 5PR/(4P+R) for detections with score > score_thr",
@@ -86,8 +88,13 @@ class BoxMetrics:
         return out
 
 
-def greedy_match(det_boxes: np.ndarray, det_scores: np.ndarray, gt_boxes: np.ndarray,
-                 thresholds: Sequence[float], constant: float = NWD_CONSTANT) -> np.ndarray:
+def greedy_match(
+    det_boxes: np.ndarray,
+    det_scores: np.ndarray,
+    gt_boxes: np.ndarray,
+    thresholds: Sequence[float],
+    constant: float = NWD_CONSTANT,
+) -> np.ndarray:
     """Greedy one-to-one matching at each threshold → ``[T, N_det]`` GT index or -1.
 
     Detections in decreasing score order (ties by input order) take the unmatched GT with the
@@ -148,10 +155,14 @@ def _in_band(area: np.ndarray, band: str) -> np.ndarray:
     return (area > low) & (area <= high)
 
 
-def evaluate_boxes(ground_truth: Mapping[Any, FrameBoxes], detections: Mapping[Any, FrameBoxes],
-                   nwd_thresholds: Sequence[float] = DEFAULT_NWD_THRESHOLDS,
-                   score_thr: float = 0.5, class_agnostic: bool = False,
-                   constant: float = NWD_CONSTANT) -> BoxMetrics:
+def evaluate_boxes(
+    ground_truth: Mapping[Any, FrameBoxes],
+    detections: Mapping[Any, FrameBoxes],
+    nwd_thresholds: Sequence[float] = DEFAULT_NWD_THRESHOLDS,
+    score_thr: float = 0.5,
+    class_agnostic: bool = False,
+    constant: float = NWD_CONSTANT,
+) -> BoxMetrics:
     """AP, AR, F2, precision and recall per size band (definitions in the module docstring).
 
     ``ground_truth`` and ``detections`` map image ids to boxes; images only in ``detections``
@@ -173,8 +184,9 @@ def evaluate_boxes(ground_truth: Mapping[Any, FrameBoxes], detections: Mapping[A
             n_det_band[band] += int(_in_band(det_area, band).sum())
         for cls in np.union1d(gt_cls, det_cls).tolist():
             g_idx, d_idx = np.flatnonzero(gt_cls == cls), np.flatnonzero(det_cls == cls)
-            matches = greedy_match(det.boxes[d_idx], det.scores[d_idx], gt.boxes[g_idx],
-                                   thresholds, constant)
+            matches = greedy_match(
+                det.boxes[d_idx], det.scores[d_idx], gt.boxes[g_idx], thresholds, constant
+            )
             for band in SIZE_BANDS:
                 gt_in = _in_band(gt_area[g_idx], band)
                 det_in = _in_band(det_area[d_idx], band)
@@ -188,13 +200,20 @@ def evaluate_boxes(ground_truth: Mapping[Any, FrameBoxes], detections: Mapping[A
                     entry.is_tp.append(matched_in[counts])
                     entry.n_gt += int(gt_in.sum())
 
-    bands = {band: _band_metrics(band, counted, thresholds, score_thr, n_det_band[band])
-             for band in SIZE_BANDS}
+    bands = {
+        band: _band_metrics(band, counted, thresholds, score_thr, n_det_band[band])
+        for band in SIZE_BANDS
+    }
     return BoxMetrics(bands, thresholds, score_thr, class_agnostic)
 
 
-def _band_metrics(band: str, counted: dict[tuple[str, int, int], _Counted],
-                  thresholds: tuple[float, ...], score_thr: float, n_det: int) -> BandMetrics:
+def _band_metrics(
+    band: str,
+    counted: dict[tuple[str, int, int], _Counted],
+    thresholds: tuple[float, ...],
+    score_thr: float,
+    n_det: int,
+) -> BandMetrics:
     per_t: dict[int, list[tuple[float, float, float, float, float]]] = {}
     n_gt_total = 0
     for (b, _, t), entry in counted.items():
@@ -215,17 +234,25 @@ def _band_metrics(band: str, counted: dict[tuple[str, int, int], _Counted],
     means = {t: np.mean(np.array(rows), axis=0) for t, rows in per_t.items()}
     overall = np.mean(np.array(list(means.values())), axis=0)
     return BandMetrics(
-        n_gt=n_gt_total, n_detections=n_det,
-        ap=float(overall[0]), ar=float(overall[1]), f2=float(overall[2]),
-        precision=float(overall[3]), recall=float(overall[4]),
+        n_gt=n_gt_total,
+        n_detections=n_det,
+        ap=float(overall[0]),
+        ar=float(overall[1]),
+        f2=float(overall[2]),
+        precision=float(overall[3]),
+        recall=float(overall[4]),
         ap_per_threshold={thresholds[t]: float(v[0]) for t, v in sorted(means.items())},
     )
 
 
-def recall_at_nwd(ground_truth: Mapping[Any, FrameBoxes], boxes: Mapping[Any, FrameBoxes],
-                  thresholds: Sequence[float] = (0.1, 0.5), score_thr: float | None = None,
-                  class_agnostic: bool = True, constant: float = NWD_CONSTANT
-                  ) -> dict[float, float]:
+def recall_at_nwd(
+    ground_truth: Mapping[Any, FrameBoxes],
+    boxes: Mapping[Any, FrameBoxes],
+    thresholds: Sequence[float] = (0.1, 0.5),
+    score_thr: float | None = None,
+    class_agnostic: bool = True,
+    constant: float = NWD_CONSTANT,
+) -> dict[float, float]:
     """Recall R_t = matched GT / all GT at each NWD threshold t (paper Table 3).
 
     For RPN proposals leave ``class_agnostic`` True and ``score_thr`` None (every box counts);
@@ -246,7 +273,8 @@ def recall_at_nwd(ground_truth: Mapping[Any, FrameBoxes], boxes: Mapping[Any, Fr
         det_cls = np.zeros(len(det), np.int64) if class_agnostic else det.class_ids
         for cls in np.unique(gt_cls).tolist():
             d_idx = np.flatnonzero(det_cls == cls)
-            m = greedy_match(det.boxes[d_idx], det.scores[d_idx], gt.boxes[gt_cls == cls],
-                             thresholds, constant)
+            m = greedy_match(
+                det.boxes[d_idx], det.scores[d_idx], gt.boxes[gt_cls == cls], thresholds, constant
+            )
             matched += (m >= 0).sum(axis=1)
     return {t: (float(matched[i]) / n_gt if n_gt else 0.0) for i, t in enumerate(thresholds)}

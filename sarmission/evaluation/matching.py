@@ -36,16 +36,23 @@ class FrameBoxes:
     ids: np.ndarray
 
     @classmethod
-    def of(cls, boxes: np.ndarray | Iterable, scores: np.ndarray | Iterable | None = None,
-           class_ids: np.ndarray | Iterable | None = None,
-           ids: np.ndarray | Iterable | None = None) -> FrameBoxes:
+    def of(
+        cls,
+        boxes: np.ndarray | Iterable,
+        scores: np.ndarray | Iterable | None = None,
+        class_ids: np.ndarray | Iterable | None = None,
+        ids: np.ndarray | Iterable | None = None,
+    ) -> FrameBoxes:
         """Validated container from array-likes (``boxes`` may be empty)."""
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
         n = b.shape[0]
         columns = {
             "scores": np.ones(n) if scores is None else np.asarray(scores, dtype=np.float64),
-            "class_ids": (np.zeros(n, np.int64) if class_ids is None
-                          else np.asarray(class_ids, dtype=np.int64)),
+            "class_ids": (
+                np.zeros(n, np.int64)
+                if class_ids is None
+                else np.asarray(class_ids, dtype=np.int64)
+            ),
             "ids": np.full(n, -1, np.int64) if ids is None else np.asarray(ids, dtype=np.int64),
         }
         for name, column in columns.items():
@@ -63,8 +70,7 @@ class FrameBoxes:
 
     def select(self, mask: np.ndarray) -> FrameBoxes:
         """Subset by boolean mask or index array."""
-        return FrameBoxes(self.boxes[mask], self.scores[mask], self.class_ids[mask],
-                          self.ids[mask])
+        return FrameBoxes(self.boxes[mask], self.scores[mask], self.class_ids[mask], self.ids[mask])
 
 
 @dataclass(frozen=True)
@@ -84,8 +90,13 @@ class FrameMatch:
     n_candidates: int
 
 
-def match_frame(detections: FrameBoxes, ground_truth: FrameBoxes, score_thr: float = 0.5,
-                nwd_thr: float = 0.5, constant: float = NWD_CONSTANT) -> FrameMatch:
+def match_frame(
+    detections: FrameBoxes,
+    ground_truth: FrameBoxes,
+    score_thr: float = 0.5,
+    nwd_thr: float = 0.5,
+    constant: float = NWD_CONSTANT,
+) -> FrameMatch:
     """One-to-one Hungarian matching of one frame's detections to its GT boxes (class-agnostic).
 
     A pair is valid when ``score > score_thr`` and ``NWD > nwd_thr``; the assignment maximises
@@ -95,8 +106,9 @@ def match_frame(detections: FrameBoxes, ground_truth: FrameBoxes, score_thr: flo
     n_gt = len(ground_truth)
     empty = np.zeros(0, np.int64)
     if candidates.size == 0 or n_gt == 0:
-        return FrameMatch(empty, empty, np.zeros(0), candidates, np.arange(n_gt),
-                          int(candidates.size))
+        return FrameMatch(
+            empty, empty, np.zeros(0), candidates, np.arange(n_gt), int(candidates.size)
+        )
     sim = nwd_matrix(detections.boxes[candidates], ground_truth.boxes, constant)
     valid = sim > nwd_thr
     invalid_cost = float(min(sim.shape) + 1)
@@ -115,8 +127,9 @@ def match_frame(detections: FrameBoxes, ground_truth: FrameBoxes, score_thr: flo
     )
 
 
-def ground_truth_by_image(dataset: VideoDataset,
-                          category_ids: Iterable[int] | None = None) -> dict[int, FrameBoxes]:
+def ground_truth_by_image(
+    dataset: VideoDataset, category_ids: Iterable[int] | None = None
+) -> dict[int, FrameBoxes]:
     """GT boxes of every image (xyxy; class = category id; id = track id or -1).
 
     ``category_ids`` keeps only those categories. Crowd annotations (``iscrowd``) are left out.

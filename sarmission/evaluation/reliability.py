@@ -18,8 +18,9 @@ import numpy as np
 DEFAULT_EDGES = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)
 
 
-def reliability_table(scores: Sequence[float], correct: Sequence[bool],
-                      edges: Sequence[float] = DEFAULT_EDGES) -> dict[str, Any]:
+def reliability_table(
+    scores: Sequence[float], correct: Sequence[bool], edges: Sequence[float] = DEFAULT_EDGES
+) -> dict[str, Any]:
     """``{"bins": [{"low", "high", "n", "mean_score", "share_correct"}], "ece": float | None}``;
     empty bins are left out. Scores outside ``[edges[0], edges[-1]]`` are clipped into it."""
     s = np.clip(np.asarray(scores, dtype=float), edges[0], edges[-1])
@@ -35,8 +36,15 @@ def reliability_table(scores: Sequence[float], correct: Sequence[bool],
             continue
         mean, share = float(s[sel].mean()), float(ok[sel].mean())
         gap += n * abs(mean - share)
-        rows.append({"low": float(edges[k]), "high": float(edges[k + 1]), "n": n,
-                     "mean_score": round(mean, 4), "share_correct": round(share, 4)})
+        rows.append(
+            {
+                "low": float(edges[k]),
+                "high": float(edges[k + 1]),
+                "n": n,
+                "mean_score": round(mean, 4),
+                "share_correct": round(share, 4),
+            }
+        )
     return {"bins": rows, "ece": round(gap / s.size, 4) if s.size else None}
 
 
@@ -44,8 +52,10 @@ def format_reliability(table: dict[str, Any], what: str = "score") -> list[str]:
     """Text lines of a reliability table."""
     lines = [f"  {what:<14}{'n':>8}{'mean':>8}{'right':>8}"]
     for row in table["bins"]:
-        lines.append(f"  {row['low']:.2f}-{row['high']:.2f}{'':<4}{row['n']:>8}"
-                     f"{row['mean_score']:>8.2f}{row['share_correct']:>8.2f}")
+        lines.append(
+            f"  {row['low']:.2f}-{row['high']:.2f}{'':<4}{row['n']:>8}"
+            f"{row['mean_score']:>8.2f}{row['share_correct']:>8.2f}"
+        )
     ece = table["ece"]
     lines.append(f"  expected calibration error: {'-' if ece is None else f'{ece:.3f}'}")
     return lines

@@ -47,16 +47,20 @@ REPORT_DEFINITIONS: dict[str, str] = {
         "characters than letters/digits -> '_') is a head class that is a person, or an alias "
         "of one (floater -> swimmer_with_life_jacket); crowd annotations and other categories "
         "are left out, so person detections on them are false alarms; detections of the "
-        "head's other classes (boat, buoy, ...) are left out."),
+        "head's other classes (boat, buoy, ...) are left out."
+    ),
     "evaluated_frames": (
         "The dataset's images, or only those the detector processed (frames it could not "
-        "read and frames past --max-frames are left out of every metric)."),
+        "read and frames past --max-frames are left out of every metric)."
+    ),
     "module_recall_rpn": (
         "R@t = GT boxes matched / GT boxes, every RPN proposal counted regardless of class "
-        "and score; greedy one-to-one matching at NWD >= t, per frame."),
+        "and score; greedy one-to-one matching at NWD >= t, per frame."
+    ),
     "module_recall_head": (
         "R@t as for the RPN, over the head's detections with score > score_thr whose class "
-        "equals the GT box's class."),
+        "equals the GT box's class."
+    ),
     **{f"box_{key}": text for key, text in box_metrics.DEFINITIONS.items()},
     **sar_metrics.DEFINITIONS,
 }
@@ -81,13 +85,14 @@ def target_category_map(categories: Sequence[Category], classes: Sequence[str]) 
             mapping[category.id] = index[name]
     if not mapping:
         names = ", ".join(repr(c.name) for c in categories) or "none"
-        raise ValueError(f"no annotation category is one of the detector's classes "
-                         f"{list(classes)} (dataset categories: {names})")
+        raise ValueError(
+            f"no annotation category is one of the detector's classes "
+            f"{list(classes)} (dataset categories: {names})"
+        )
     return mapping
 
 
-def person_category_map(categories: Sequence[Category], classes: Sequence[str]
-                        ) -> dict[int, int]:
+def person_category_map(categories: Sequence[Category], classes: Sequence[str]) -> dict[int, int]:
     """:func:`target_category_map` restricted to the head classes that are people.
 
     Raises ``ValueError`` when no category of the dataset is a person class of the head.
@@ -97,8 +102,7 @@ def person_category_map(categories: Sequence[Category], classes: Sequence[str]
     kept = {cid: k for cid, k in mapping.items() if k in people}
     if not kept:
         named = ", ".join(classes[k] for k in sorted(set(mapping.values())))
-        raise ValueError(f"no annotation category is a person class of the detector "
-                         f"(only {named})")
+        raise ValueError(f"no annotation category is a person class of the detector (only {named})")
     return kept
 
 
@@ -107,12 +111,12 @@ def people_only(boxes: FrameBoxes, person_ids: np.ndarray) -> FrameBoxes:
     keep = np.isin(boxes.class_ids, person_ids)
     if keep.all():
         return boxes
-    return FrameBoxes(boxes.boxes[keep], boxes.scores[keep], boxes.class_ids[keep],
-                      boxes.ids[keep])
+    return FrameBoxes(boxes.boxes[keep], boxes.scores[keep], boxes.class_ids[keep], boxes.ids[keep])
 
 
-def detections_from_results(records: Sequence[Mapping[str, Any]], dataset: VideoDataset,
-                            classes: Sequence[str]) -> dict[int, FrameBoxes]:
+def detections_from_results(
+    records: Sequence[Mapping[str, Any]], dataset: VideoDataset, classes: Sequence[str]
+) -> dict[int, FrameBoxes]:
     """Per-image detections from COCO result records (``category_id`` = class index + 1).
 
     Raises ``ValueError`` when a record names an image id absent from ``dataset`` or a
@@ -122,27 +126,35 @@ def detections_from_results(records: Sequence[Mapping[str, Any]], dataset: Video
     unknown = sorted({r["image_id"] for r in records if r["image_id"] not in known}, key=str)
     if unknown:
         shown = ", ".join(map(str, unknown[:5])) + (" ..." if len(unknown) > 5 else "")
-        raise ValueError(f"{len(unknown)} image id(s) of the detections are not in the "
-                         f"annotations: {shown}")
+        raise ValueError(
+            f"{len(unknown)} image id(s) of the detections are not in the annotations: {shown}"
+        )
     grouped: dict[int, list[tuple[list[float], float, int]]] = {}
     for i, record in enumerate(records):
         category = record["category_id"]
         if not isinstance(category, int) or not 1 <= category <= len(classes):
             labels = ", ".join(f"{j + 1}={c}" for j, c in enumerate(classes))
-            raise ValueError(f"detection record {i}: category_id {category!r} is not a class "
-                             f"of the detector ({labels})")
+            raise ValueError(
+                f"detection record {i}: category_id {category!r} is not a class "
+                f"of the detector ({labels})"
+            )
         try:
             bbox = [float(v) for v in record["bbox"]]
             score = float(record["score"])
         except (TypeError, ValueError):
-            raise ValueError(f"detection record {i}: bbox must be 4 numbers and score a "
-                             f"number, got {record['bbox']!r}, {record['score']!r}") from None
+            raise ValueError(
+                f"detection record {i}: bbox must be 4 numbers and score a "
+                f"number, got {record['bbox']!r}, {record['score']!r}"
+            ) from None
         if len(bbox) != 4:
             raise ValueError(f"detection record {i}: bbox must be [x, y, w, h], got {bbox}")
         grouped.setdefault(record["image_id"], []).append((bbox, score, category - 1))
     return {
-        image_id: FrameBoxes.of(xywh_to_xyxy(np.array([b for b, _, _ in rows]).reshape(-1, 4)),
-                                scores=[s for _, s, _ in rows], class_ids=[c for _, _, c in rows])
+        image_id: FrameBoxes.of(
+            xywh_to_xyxy(np.array([b for b, _, _ in rows]).reshape(-1, 4)),
+            scores=[s for _, s, _ in rows],
+            class_ids=[c for _, _, c in rows],
+        )
         for image_id, rows in grouped.items()
     }
 
@@ -150,31 +162,53 @@ def detections_from_results(records: Sequence[Mapping[str, Any]], dataset: Video
 def subset(dataset: VideoDataset, image_ids: Collection[int]) -> VideoDataset:
     """The dataset restricted to ``image_ids`` (their annotations, every video and category)."""
     keep = set(image_ids)
-    return replace(dataset, images=[im for im in dataset.images if im.id in keep],
-                   annotations=[a for a in dataset.annotations if a.image_id in keep])
+    return replace(
+        dataset,
+        images=[im for im in dataset.images if im.id in keep],
+        annotations=[a for a in dataset.annotations if a.image_id in keep],
+    )
 
 
-def _with_classes(boxes: Mapping[int, FrameBoxes], mapping: Mapping[int, int]
-                  ) -> dict[int, FrameBoxes]:
+def _with_classes(
+    boxes: Mapping[int, FrameBoxes], mapping: Mapping[int, int]
+) -> dict[int, FrameBoxes]:
     """GT boxes with dataset category ids replaced by head class indices."""
-    return {image_id: FrameBoxes(b.boxes, b.scores,
-                                 np.array([mapping[c] for c in b.class_ids.tolist()], np.int64),
-                                 b.ids)
-            for image_id, b in boxes.items()}
+    return {
+        image_id: FrameBoxes(
+            b.boxes, b.scores, np.array([mapping[c] for c in b.class_ids.tolist()], np.int64), b.ids
+        )
+        for image_id, b in boxes.items()
+    }
 
 
-def _recall(ground_truth: Mapping[int, FrameBoxes], boxes: Mapping[int, FrameBoxes],
-            score_thr: float | None, class_agnostic: bool) -> dict[str, float]:
-    recall = box_metrics.recall_at_nwd(ground_truth, boxes, MODULE_RECALL_THRESHOLDS,
-                                       score_thr=score_thr, class_agnostic=class_agnostic)
+def _recall(
+    ground_truth: Mapping[int, FrameBoxes],
+    boxes: Mapping[int, FrameBoxes],
+    score_thr: float | None,
+    class_agnostic: bool,
+) -> dict[str, float]:
+    recall = box_metrics.recall_at_nwd(
+        ground_truth,
+        boxes,
+        MODULE_RECALL_THRESHOLDS,
+        score_thr=score_thr,
+        class_agnostic=class_agnostic,
+    )
     return {f"R@{t:g}": value for t, value in recall.items()}
 
 
-def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBoxes],
-                        classes: Sequence[str],
-                        proposals: Mapping[int, FrameBoxes] | None = None, *, m: int = 3,
-                        k: int = 5, score_thr: float = 0.5, nwd_thr: float = 0.5,
-                        image_ids: Collection[int] | None = None) -> dict[str, Any]:
+def evaluate_detections(
+    dataset: VideoDataset,
+    detections: Mapping[int, FrameBoxes],
+    classes: Sequence[str],
+    proposals: Mapping[int, FrameBoxes] | None = None,
+    *,
+    m: int = 3,
+    k: int = 5,
+    score_thr: float = 0.5,
+    nwd_thr: float = 0.5,
+    image_ids: Collection[int] | None = None,
+) -> dict[str, Any]:
     """Evaluate per-image detections (class = head class index) against ``dataset``.
 
     ``proposals`` (RPN boxes per image, class-agnostic) adds the RPN's module recall.
@@ -197,7 +231,11 @@ def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBox
 
     sar = sar_metrics.evaluate_sar(
         sar_metrics.sequences_from_dataset(dataset, detections, targets),
-        m=m, k=k, score_thr=score_thr, nwd_thr=nwd_thr).to_dict()
+        m=m,
+        k=k,
+        score_thr=score_thr,
+        nwd_thr=nwd_thr,
+    ).to_dict()
     sar.pop("definitions")
     ground_truth = _with_classes(ground_truth_by_image(dataset, targets), mapping)
     boxes = box_metrics.evaluate_boxes(ground_truth, detections, score_thr=score_thr).to_dict()
@@ -217,14 +255,21 @@ def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBox
         },
         "classes": list(classes),
         "categories": {
-            "targets": [{"id": cid, "name": names[cid], "class": classes[mapping[cid]]}
-                        for cid in targets],
-            "ignored": [{"id": c.id, "name": c.name} for c in dataset.categories
-                        if c.id not in mapping],
+            "targets": [
+                {"id": cid, "name": names[cid], "class": classes[mapping[cid]]} for cid in targets
+            ],
+            "ignored": [
+                {"id": c.id, "name": c.name} for c in dataset.categories if c.id not in mapping
+            ],
         },
-        "settings": {"m": m, "k": k, "score_thr": score_thr, "nwd_thr": nwd_thr,
-                     "box_nwd_thresholds": list(box_metrics.DEFAULT_NWD_THRESHOLDS),
-                     "module_recall_thresholds": list(MODULE_RECALL_THRESHOLDS)},
+        "settings": {
+            "m": m,
+            "k": k,
+            "score_thr": score_thr,
+            "nwd_thr": nwd_thr,
+            "box_nwd_thresholds": list(box_metrics.DEFAULT_NWD_THRESHOLDS),
+            "module_recall_thresholds": list(MODULE_RECALL_THRESHOLDS),
+        },
         "sar": sar,
         "boxes": boxes,
         "module_recall": module_recall,
@@ -233,8 +278,9 @@ def evaluate_detections(dataset: VideoDataset, detections: Mapping[int, FrameBox
     }
 
 
-def _reliability(ground_truth: Mapping[int, FrameBoxes], detections: Mapping[int, FrameBoxes],
-                 nwd_thr: float) -> dict[str, Any]:
+def _reliability(
+    ground_truth: Mapping[int, FrameBoxes], detections: Mapping[int, FrameBoxes], nwd_thr: float
+) -> dict[str, Any]:
     """Every detection's score against whether it matched a GT box (NWD > ``nwd_thr``, any
     score): what a detection's confidence means on this data."""
     scores: list[float] = []
@@ -293,23 +339,34 @@ def format_report(report: Mapping[str, Any]) -> str:
     for band, (low, high) in SIZE_BANDS.items():
         b = report["boxes"]["bands"][band]
         area = "any" if band == "all" else f"{low:g}-{high:g}"
-        lines.append(f"  {band.replace('_', ' '):<16}{area:>12}{b['n_gt']:>7}"
-                     f"{b['n_detections']:>7}{_num(b['ap'], '.4f'):>8}"
-                     f"{_num(b['ar'], '.4f'):>8}{_num(b['f2'], '.4f'):>8}")
+        lines.append(
+            f"  {band.replace('_', ' '):<16}{area:>12}{b['n_gt']:>7}"
+            f"{b['n_detections']:>7}{_num(b['ap'], '.4f'):>8}"
+            f"{_num(b['ar'], '.4f'):>8}{_num(b['f2'], '.4f'):>8}"
+        )
     thresholds = [f"R@{t:g}" for t in settings["module_recall_thresholds"]]
-    lines += ["", "Module recall (paper Table 3)",
-              f"  {'module':<38}" + "".join(f"{t:>8}" for t in thresholds)]
+    lines += [
+        "",
+        "Module recall (paper Table 3)",
+        f"  {'module':<38}" + "".join(f"{t:>8}" for t in thresholds),
+    ]
     for label, key in (("TTM-RPN (no category)", "rpn"), ("R-CNN-like head (category)", "head")):
         values = report["module_recall"][key]
         cells = ["n/a" if values is None else f"{values[t]:.4f}" for t in thresholds]
         lines.append(f"  {label:<38}" + "".join(f"{c:>8}" for c in cells))
     if report.get("reliability"):
-        lines += ["", "Reliability (what a detection's score means: share matching a person, "
-                  "NWD > " + f"{settings['nwd_thr']:g})"]
+        lines += [
+            "",
+            "Reliability (what a detection's score means: share matching a person, "
+            "NWD > " + f"{settings['nwd_thr']:g})",
+        ]
         lines += format_reliability(report["reliability"])
     definitions = report["definitions"]
-    lines += ["", "FAR per frame: " + definitions["false_alarm_rate_per_frame"],
-              "FAR per detection: " + definitions["false_alarm_rate_detections"]]
+    lines += [
+        "",
+        "FAR per frame: " + definitions["false_alarm_rate_per_frame"],
+        "FAR per detection: " + definitions["false_alarm_rate_detections"],
+    ]
     return "\n".join(lines)
 
 
@@ -319,16 +376,22 @@ def format_sweep(rows: Sequence[Mapping[str, Any]]) -> str:
     Each row needs ``ds``, ``topn``, ``ssr``, ``far_per_frame``, ``median_ms``, ``fps`` and
     ``gflops`` (``total``, ``vstmd``, ``rpn_other``, ``head``).
     """
-    header = (f"{'ds':>3}{'N':>5}{'SSR %':>9}{'FAR %':>9}{'ms':>9}{'FPS':>8}"
-              f"{'total GF':>10}{'vSTMD GF':>10}{'other GF':>10}{'head GF':>10}")
+    header = (
+        f"{'ds':>3}{'N':>5}{'SSR %':>9}{'FAR %':>9}{'ms':>9}{'FPS':>8}"
+        f"{'total GF':>10}{'vSTMD GF':>10}{'other GF':>10}{'head GF':>10}"
+    )
     lines = [header, "-" * len(header)]
     for r in rows:
         g = r["gflops"]
-        lines.append(f"{r['ds']:>3}{r['topn']:>5}{_num(r['ssr'], '.2f'):>9}"
-                     f"{_num(r['far_per_frame'], '.2f'):>9}{r['median_ms']:>9.2f}"
-                     f"{r['fps']:>8.2f}{g['total']:>10.4f}{g['vstmd']:>10.4f}"
-                     f"{g['rpn_other']:>10.4f}{g['head']:>10.4f}")
-    lines += ["ms = median wall time per frame of the whole cascade in this run, FPS = 1000 / ms",
-              "FAR = 100 * unmatched detections / frames; GFLOPs per frame at the dataset's frame "
-              "size (other = RPN + crops)"]
+        lines.append(
+            f"{r['ds']:>3}{r['topn']:>5}{_num(r['ssr'], '.2f'):>9}"
+            f"{_num(r['far_per_frame'], '.2f'):>9}{r['median_ms']:>9.2f}"
+            f"{r['fps']:>8.2f}{g['total']:>10.4f}{g['vstmd']:>10.4f}"
+            f"{g['rpn_other']:>10.4f}{g['head']:>10.4f}"
+        )
+    lines += [
+        "ms = median wall time per frame of the whole cascade in this run, FPS = 1000 / ms",
+        "FAR = 100 * unmatched detections / frames; GFLOPs per frame at the dataset's frame "
+        "size (other = RPN + crops)",
+    ]
     return "\n".join(lines)

@@ -59,8 +59,13 @@ def count_frames(dataset: VideoDataset, max_frames: int | None = None) -> int:
     return sum(counts if max_frames is None else (min(c, max_frames) for c in counts))
 
 
-def run_mitenet(net: MiteNet, dataset: VideoDataset, max_frames: int | None = None,
-                progress: bool = True, desc: str = "eval") -> ModelRun:
+def run_mitenet(
+    net: MiteNet,
+    dataset: VideoDataset,
+    max_frames: int | None = None,
+    progress: bool = True,
+    desc: str = "eval",
+) -> ModelRun:
     """Run ``net`` over every video of ``dataset`` (at most ``max_frames`` frames per video).
 
     The net is reset before each video. A tqdm bar on stderr shows progress unless
@@ -72,8 +77,13 @@ def run_mitenet(net: MiteNet, dataset: VideoDataset, max_frames: int | None = No
         raise ValueError(f"max_frames must be at least 1, got {max_frames}")
     run = ModelRun()
     counters: dict[str, int] = {}
-    with tqdm(total=count_frames(dataset, max_frames), unit="frame", desc=desc,
-              file=sys.stderr, disable=not progress) as bar:
+    with tqdm(
+        total=count_frames(dataset, max_frames),
+        unit="frame",
+        desc=desc,
+        file=sys.stderr,
+        disable=not progress,
+    ) as bar:
         for video_id in sequence_ids(dataset):
             net.reset()
             for position, item in enumerate(iter_sequence(dataset, video_id, counters)):
@@ -86,21 +96,31 @@ def run_mitenet(net: MiteNet, dataset: VideoDataset, max_frames: int | None = No
                 if run.frame_size is None:
                     run.frame_size = (int(frame.shape[0]), int(frame.shape[1]))
                 det, prop = result.detections, result.proposals
-                run.detections[item.image.id] = FrameBoxes.of(det.boxes, det.scores,
-                                                              det.class_ids)
+                run.detections[item.image.id] = FrameBoxes.of(det.boxes, det.scores, det.class_ids)
                 run.proposals[item.image.id] = FrameBoxes.of(prop.boxes, prop.scores)
                 bar.update(1)
     run.skipped = counters.get("skipped", 0)
     return run
 
 
-def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int],
-              topn_values: Sequence[int], score_threshold: float, *, m: int = 3, k: int = 5,
-              score_thr: float = 0.5, nwd_thr: float = 0.5, max_frames: int | None = None,
-              progress: bool = True, ego_motion: str = "estimate",
-              colour_share: float = DEFAULT_COLOUR_SHARE,
-              crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-              refine_threshold: float | None = None) -> list[dict[str, Any]]:
+def run_sweep(
+    head: HeadRuntime,
+    dataset: VideoDataset,
+    ds_values: Sequence[int],
+    topn_values: Sequence[int],
+    score_threshold: float,
+    *,
+    m: int = 3,
+    k: int = 5,
+    score_thr: float = 0.5,
+    nwd_thr: float = 0.5,
+    max_frames: int | None = None,
+    progress: bool = True,
+    ego_motion: str = "estimate",
+    colour_share: float = DEFAULT_COLOUR_SHARE,
+    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+    refine_threshold: float | None = None,
+) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
     Row keys: ``ds``, ``topn``, ``ssr`` and ``far_per_frame`` (%), ``far_detections`` (%),
@@ -111,27 +131,46 @@ def run_sweep(head: HeadRuntime, dataset: VideoDataset, ds_values: Sequence[int]
     rows = []
     for ds in ds_values:
         for topn in topn_values:
-            net = MiteNet(head, ds=ds, topn=topn, score_threshold=score_threshold,
-                          ego_motion=ego_motion, colour_share=colour_share,
-                          crop_scales=crop_scales, refine_threshold=refine_threshold)
+            net = MiteNet(
+                head,
+                ds=ds,
+                topn=topn,
+                score_threshold=score_threshold,
+                ego_motion=ego_motion,
+                colour_share=colour_share,
+                crop_scales=crop_scales,
+                refine_threshold=refine_threshold,
+            )
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:
                 raise ValueError("no frame of the dataset could be read")
-            report = evaluate_detections(dataset, run.detections, net.classes, run.proposals,
-                                         m=m, k=k, score_thr=score_thr, nwd_thr=nwd_thr,
-                                         image_ids=run.image_ids)
+            report = evaluate_detections(
+                dataset,
+                run.detections,
+                net.classes,
+                run.proposals,
+                m=m,
+                k=k,
+                score_thr=score_thr,
+                nwd_thr=nwd_thr,
+                image_ids=run.image_ids,
+            )
             flops = net.complexity(*run.frame_size)["flops"]
             sar = report["sar"]
-            rows.append({
-                "ds": ds, "topn": topn,
-                "ssr": sar["search_success_rate"],
-                "far_per_frame": sar["false_alarm_rate_per_frame"],
-                "far_detections": sar["false_alarm_rate_detections"],
-                "avg_search_time_frames": sar["avg_search_time_frames"],
-                "median_ms": run.median_ms, "fps": 1e3 / run.median_ms,
-                "frames": len(run.frame_ms),
-                "gflops": {stage: value / 1e9 for stage, value in flops.items()},
-                "rpn_recall": report["module_recall"]["rpn"],
-                "head_recall": report["module_recall"]["head"],
-            })
+            rows.append(
+                {
+                    "ds": ds,
+                    "topn": topn,
+                    "ssr": sar["search_success_rate"],
+                    "far_per_frame": sar["false_alarm_rate_per_frame"],
+                    "far_detections": sar["false_alarm_rate_detections"],
+                    "avg_search_time_frames": sar["avg_search_time_frames"],
+                    "median_ms": run.median_ms,
+                    "fps": 1e3 / run.median_ms,
+                    "frames": len(run.frame_ms),
+                    "gflops": {stage: value / 1e9 for stage, value in flops.items()},
+                    "rpn_recall": report["module_recall"]["rpn"],
+                    "head_recall": report["module_recall"]["head"],
+                }
+            )
     return rows

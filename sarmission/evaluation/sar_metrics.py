@@ -23,22 +23,27 @@ DEFINITIONS: dict[str, str] = {
         "its own annotated frames (ordered by frame index). GT boxes without a track id are "
         "matched but belong to no trajectory. n_lockable counts the trajectories annotated in at "
         "least m frames: a shorter one (e.g. entering the view in a clip's last frames) can "
-        "never be locked, yet counts in the denominator."),
+        "never be locked, yet counts in the denominator."
+    ),
     "search_time_frames": (
         "Per locked trajectory: frame_index(lock frame) - frame_index(first annotated frame); "
         "the lock frame is the frame of the m-th hit inside the first qualifying k-window, so "
         "the minimum is m - 1 for consecutive frame indices. avg and max over locked "
-        "trajectories; None when none is locked."),
+        "trajectories; None when none is locked."
+    ),
     "false_alarm_rate_per_frame": (
         "100 * (unmatched detections with score > score_thr, summed over all frames) / "
-        "(number of evaluated frames, with or without GT). Can exceed 100."),
+        "(number of evaluated frames, with or without GT). Can exceed 100."
+    ),
     "false_alarm_rate_detections": (
         "100 * (unmatched detections with score > score_thr) / (all detections with "
-        "score > score_thr), over all frames; 0 when there are no such detections."),
+        "score > score_thr), over all frames; 0 when there are no such detections."
+    ),
     "matching": (
         "Per frame, class-agnostic one-to-one Hungarian assignment on cost 1 - NWD "
         "(C = 12.8) among pairs with score > score_thr and NWD > nwd_thr, maximising the number "
-        "of matches, then total NWD."),
+        "of matches, then total NWD."
+    ),
 }
 
 
@@ -93,8 +98,13 @@ class SarMetrics:
         return asdict(self)
 
 
-def evaluate_sar(sequences: Mapping[Hashable, Sequence[SequenceFrame]], m: int = 3, k: int = 5,
-                 score_thr: float = 0.5, nwd_thr: float = 0.5) -> SarMetrics:
+def evaluate_sar(
+    sequences: Mapping[Hashable, Sequence[SequenceFrame]],
+    m: int = 3,
+    k: int = 5,
+    score_thr: float = 0.5,
+    nwd_thr: float = 0.5,
+) -> SarMetrics:
     """SSR, search time and false alarm rates over several sequences (see :data:`DEFINITIONS`).
 
     ``sequences`` maps a sequence name to its frames (any order; sorted by ``frame_index``).
@@ -121,10 +131,18 @@ def evaluate_sar(sequences: Mapping[Hashable, Sequence[SequenceFrame]], m: int =
     for (name, track_id), seq in hits.items():
         lock = first_lock_index([hit for _, hit in seq], m, k)
         lock_frame = None if lock is None else seq[lock][0]
-        trajectories.append(TrajectoryResult(
-            sequence=name, track_id=track_id, first_frame=seq[0][0], last_frame=seq[-1][0],
-            n_frames=len(seq), n_hits=sum(hit for _, hit in seq), lock_frame=lock_frame,
-            search_time=None if lock_frame is None else lock_frame - seq[0][0]))
+        trajectories.append(
+            TrajectoryResult(
+                sequence=name,
+                track_id=track_id,
+                first_frame=seq[0][0],
+                last_frame=seq[-1][0],
+                n_frames=len(seq),
+                n_hits=sum(hit for _, hit in seq),
+                lock_frame=lock_frame,
+                search_time=None if lock_frame is None else lock_frame - seq[0][0],
+            )
+        )
 
     times = [t.search_time for t in trajectories if t.search_time is not None]
     return SarMetrics(
@@ -133,16 +151,26 @@ def evaluate_sar(sequences: Mapping[Hashable, Sequence[SequenceFrame]], m: int =
         max_search_time_frames=max(times) if times else None,
         false_alarm_rate_per_frame=100.0 * n_false_alarms / n_frames if n_frames else None,
         false_alarm_rate_detections=100.0 * n_false_alarms / n_detections if n_detections else 0.0,
-        n_trajectories=len(trajectories), n_locked=len(times),
-        n_lockable=sum(t.n_frames >= m for t in trajectories), n_frames=n_frames,
-        n_detections=n_detections, n_false_alarms=n_false_alarms, n_matched=n_matched,
-        m=m, k=k, score_thr=score_thr, nwd_thr=nwd_thr, trajectories=trajectories,
+        n_trajectories=len(trajectories),
+        n_locked=len(times),
+        n_lockable=sum(t.n_frames >= m for t in trajectories),
+        n_frames=n_frames,
+        n_detections=n_detections,
+        n_false_alarms=n_false_alarms,
+        n_matched=n_matched,
+        m=m,
+        k=k,
+        score_thr=score_thr,
+        nwd_thr=nwd_thr,
+        trajectories=trajectories,
     )
 
 
-def sequences_from_dataset(dataset: VideoDataset, detections: Mapping[int, FrameBoxes],
-                           category_ids: Sequence[int] | None = None
-                           ) -> dict[str, list[SequenceFrame]]:
+def sequences_from_dataset(
+    dataset: VideoDataset,
+    detections: Mapping[int, FrameBoxes],
+    category_ids: Sequence[int] | None = None,
+) -> dict[str, list[SequenceFrame]]:
     """Build :func:`evaluate_sar` input from a COCO video dataset and detections by image id.
 
     Sequences are the dataset's videos by name (images without a video go to ``""``); frame
@@ -155,6 +183,7 @@ def sequences_from_dataset(dataset: VideoDataset, detections: Mapping[int, Frame
     for position, image in enumerate(sorted(dataset.images, key=lambda im: im.id)):
         name = "" if image.video_id is None else names.get(image.video_id, str(image.video_id))
         index = position if image.frame_index is None else image.frame_index
-        result.setdefault(name, []).append(SequenceFrame(
-            index, gt[image.id], detections.get(image.id, FrameBoxes.empty())))
+        result.setdefault(name, []).append(
+            SequenceFrame(index, gt[image.id], detections.get(image.id, FrameBoxes.empty()))
+        )
     return result

@@ -68,7 +68,8 @@ def _check_day(log: FlightLog, created: float | None) -> None:
     if created < span[0] - CLOCK_SLACK_S or created > span[1] + CLOCK_SLACK_S:
         raise AlignmentError(
             f"the video was recorded {_utc(created)} but the log {log.path.name} covers "
-            f"{_utc(span[0])} to {_utc(span[1])}: not the same flight; no positions")
+            f"{_utc(span[0])} to {_utc(span[1])}: not the same flight; no positions"
+        )
 
 
 def _check_overlap(log: FlightLog, start: float, duration_s: float | None) -> None:
@@ -77,24 +78,32 @@ def _check_overlap(log: FlightLog, start: float, duration_s: float | None) -> No
     if end < t0 or start > t1:
         raise AlignmentError(
             f"the video lies outside the log {log.path.name} (video at log time {start:.1f}"
-            f" to {end:.1f} s, positions {t0:.1f} to {t1:.1f} s); no positions")
+            f" to {end:.1f} s, positions {t0:.1f} to {t1:.1f} s); no positions"
+        )
 
 
-def align_video(log: FlightLog, *, created: float | None, duration_s: float | None,
-                offset_s: float | None = None) -> Alignment:
+def align_video(
+    log: FlightLog,
+    *,
+    created: float | None,
+    duration_s: float | None,
+    offset_s: float | None = None,
+) -> Alignment:
     """The alignment of a video (see the module docstring); :class:`AlignmentError` when
     there is none or it contradicts the log."""
     if offset_s is None:
         _check_day(log, created)
     if offset_s is not None:
-        result = Alignment(f"given offset: the video starts at log time {offset_s:.3f} s",
-                           offset_s)
+        result = Alignment(f"given offset: the video starts at log time {offset_s:.3f} s", offset_s)
     elif log.per_frame:
         result = Alignment("the subtitle file's own times (the video's clock)", 0.0)
     elif log.triggers:
         t = log.triggers[0]
-        result = Alignment(f"camera trigger 1 of {len(log.triggers)} at log time {t:.3f} s "
-                           "(the recording started on it)", t)
+        result = Alignment(
+            f"camera trigger 1 of {len(log.triggers)} at log time {t:.3f} s "
+            "(the recording started on it)",
+            t,
+        )
     elif created is not None and log.utc_offset_s is not None:
         t = created - log.utc_offset_s
         t0, t1 = log.span
@@ -103,39 +112,50 @@ def align_video(log: FlightLog, *, created: float | None, duration_s: float | No
                 f"the video's creation time {_utc(created)} is not inside the log "
                 f"{log.path.name} (positions from {_utc(t0 + log.utc_offset_s)} to "
                 f"{_utc(t1 + log.utc_offset_s)}; cameras often store local time): give "
-                "--time-offset; no positions")
-        result = Alignment(f"the video's creation time {_utc(created)} = log time {t:.3f} s",
-                           t)
+                "--time-offset; no positions"
+            )
+        result = Alignment(f"the video's creation time {_utc(created)} = log time {t:.3f} s", t)
     else:
-        why = ("no camera trigger in the log, "
-               + ("no creation time in the video" if created is None else "no UTC in the log"))
-        raise AlignmentError(f"cannot align the video with {log.path.name}: {why}; give "
-                             "--time-offset; no positions")
+        why = "no camera trigger in the log, " + (
+            "no creation time in the video" if created is None else "no UTC in the log"
+        )
+        raise AlignmentError(
+            f"cannot align the video with {log.path.name}: {why}; give --time-offset; no positions"
+        )
     _check_overlap(log, result.offset_s, duration_s)
     return result
 
 
-def align_images(log: FlightLog, names: list[str], fps: float,
-                 offset_s: float | None = None) -> Alignment:
+def align_images(
+    log: FlightLog, names: list[str], fps: float, offset_s: float | None = None
+) -> Alignment:
     """The alignment of an image folder whose files, in frame order, are ``names``."""
     if offset_s is not None:
-        return Alignment(f"given offset: image 1 at log time {offset_s:.3f} s, then "
-                         f"1/{fps:g} s apart", offset_s)
+        return Alignment(
+            f"given offset: image 1 at log time {offset_s:.3f} s, then 1/{fps:g} s apart", offset_s
+        )
     if log.image_times:
         known = {n: t for n, t in log.image_times.items() if n in names}
         if not known:
-            raise AlignmentError(f"{log.path.name}: none of its images is in the replayed "
-                                 "folder; no positions")
+            raise AlignmentError(
+                f"{log.path.name}: none of its images is in the replayed folder; no positions"
+            )
         return _images(names, known, "each image's own EXIF/XMP")
     if log.triggers:
         if len(log.triggers) != len(names):
             raise AlignmentError(
                 f"{len(names)} images but {len(log.triggers)} camera triggers in "
-                f"{log.path.name}: cannot pair them; give --time-offset; no positions")
-        return _images(names, dict(zip(names, log.triggers, strict=True)),
-                       f"image n = camera trigger n ({len(names)} triggers)")
-    raise AlignmentError(f"cannot align the images with {log.path.name}: no camera trigger "
-                         "in the log; give --time-offset; no positions")
+                f"{log.path.name}: cannot pair them; give --time-offset; no positions"
+            )
+        return _images(
+            names,
+            dict(zip(names, log.triggers, strict=True)),
+            f"image n = camera trigger n ({len(names)} triggers)",
+        )
+    raise AlignmentError(
+        f"cannot align the images with {log.path.name}: no camera trigger "
+        "in the log; give --time-offset; no positions"
+    )
 
 
 def _images(names: list[str], known: dict[str, float], method: str) -> Alignment:
@@ -146,8 +166,10 @@ def _images(names: list[str], known: dict[str, float], method: str) -> Alignment
         step = float(np.diff(times).mean() / np.diff(idx).mean())
         for k in range(len(names)):
             if k < idx[0] or k > idx[-1]:
-                every[k] = times[0] + (k - idx[0]) * step if k < idx[0] else \
-                    times[-1] + (k - idx[-1]) * step
+                every[k] = (
+                    times[0] + (k - idx[0]) * step
+                    if k < idx[0]
+                    else times[-1] + (k - idx[-1]) * step
+                )
     full = {n: float(every[k]) for k, n in enumerate(names) if math.isfinite(every[k])}
-    return Alignment(method, float(every[0]) if len(every) else 0.0, full,
-                     frozenset(known))
+    return Alignment(method, float(every[0]) if len(every) else 0.0, full, frozenset(known))

@@ -61,8 +61,9 @@ class _State:
 def read_dataflash(path: str | Path) -> FlightLog:
     """Read a DataFlash log (see the module docstring)."""
     path = Path(path)
-    builder = LogBuilder("ArduPilot DataFlash log", path, "autopilot boot time (TimeUS)",
-                         ACCURACY["autopilot"])
+    builder = LogBuilder(
+        "ArduPilot DataFlash log", path, "autopilot boot time (TimeUS)", ACCURACY["autopilot"]
+    )
     try:
         reader = mavutil.mavlink_connection(str(path))
     except Exception as exc:  # noqa: BLE001 - DFReader raises anything on a bad header
@@ -73,8 +74,9 @@ def read_dataflash(path: str | Path) -> FlightLog:
             try:
                 msg = reader.recv_match(type=_TYPES)
             except Exception as exc:  # noqa: BLE001 - a corrupt tail ends the log
-                builder.log.notes.append(f"{path.name}: read stopped at a corrupt message "
-                                         f"({type(exc).__name__})")
+                builder.log.notes.append(
+                    f"{path.name}: read stopped at a corrupt message ({type(exc).__name__})"
+                )
                 break
             if msg is None:
                 break
@@ -130,13 +132,15 @@ def _gpa(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
 def _pos(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
     state.has_pos = True
     if _fix_ok(builder, state, t):
-        builder.position(t, float(msg.Lat), float(msg.Lng), float(msg.RelHomeAlt),
-                         float(msg.Alt), state.h_acc)
+        builder.position(
+            t, float(msg.Lat), float(msg.Lng), float(msg.RelHomeAlt), float(msg.Alt), state.h_acc
+        )
 
 
 def _att(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
-    builder.attitude_euler(t, math.radians(msg.Roll), math.radians(msg.Pitch),
-                           math.radians(msg.Yaw))
+    builder.attitude_euler(
+        t, math.radians(msg.Roll), math.radians(msg.Pitch), math.radians(msg.Yaw)
+    )
 
 
 def _mnt(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
@@ -158,8 +162,14 @@ def _orgn(builder: LogBuilder, state: _State, msg: Any, t: float) -> None:
 
 #: What each timed message adds to the log.
 _TIMED: dict[str, Callable[[LogBuilder, _State, Any, float], None]] = {
-    "GPS": _gps, "GPA": _gpa, "POS": _pos, "ATT": _att, "MNT": _mnt, "CAM": _trigger,
-    "TRIG": _trigger, "ORGN": _orgn,
+    "GPS": _gps,
+    "GPA": _gpa,
+    "POS": _pos,
+    "ATT": _att,
+    "MNT": _mnt,
+    "CAM": _trigger,
+    "TRIG": _trigger,
+    "ORGN": _orgn,
 }
 
 
@@ -184,8 +194,9 @@ def _gps_positions(builder: LogBuilder, state: _State) -> None:
             builder.reject("GPS position without POS or a logged home (height unknown)")
         return
     for msg in state.gps_positions:
-        builder.position(_t(msg), float(msg.Lat), float(msg.Lng), float(msg.Alt) - home[2],
-                         float(msg.Alt))
+        builder.position(
+            _t(msg), float(msg.Lat), float(msg.Lng), float(msg.Alt) - home[2], float(msg.Alt)
+        )
     builder.log.notes.append(f"{builder.log.path.name}: no POS messages; positions from GPS")
 
 

@@ -47,8 +47,10 @@ def sniff(path: str | Path) -> str:
             return "tlog"
     if _SRT_TIME.search(head):
         return "srt"
-    raise FlightLogError(f"{path.name}: not a flight log this program reads (tlog, DataFlash "
-                         ".bin/.log, PX4 .ulg, DJI .SRT or a folder of DJI JPEGs)")
+    raise FlightLogError(
+        f"{path.name}: not a flight log this program reads (tlog, DataFlash "
+        ".bin/.log, PX4 .ulg, DJI .SRT or a folder of DJI JPEGs)"
+    )
 
 
 def readers() -> dict[str, Callable[[Path], FlightLog]]:
@@ -59,8 +61,13 @@ def readers() -> dict[str, Callable[[Path], FlightLog]]:
     from sarmission.flightlog.tlog import read_tlog
     from sarmission.flightlog.ulog import read_ulog
 
-    return {"ulog": read_ulog, "dataflash": read_dataflash, "tlog": read_tlog,
-            "srt": read_dji_srt, "images": read_dji_images}
+    return {
+        "ulog": read_ulog,
+        "dataflash": read_dataflash,
+        "tlog": read_tlog,
+        "srt": read_dji_srt,
+        "images": read_dji_images,
+    }
 
 
 def open_flight_log(path: str | Path) -> FlightLog:

@@ -32,8 +32,7 @@ XMP_SEARCH_BYTES = 512 * 1024
 
 
 def _natural_key(path: Path) -> list[object]:
-    return [int(part) if part.isdigit() else part.lower()
-            for part in re.split(r"(\d+)", path.name)]
+    return [int(part) if part.isdigit() else part.lower() for part in re.split(r"(\d+)", path.name)]
 
 
 def xmp_values(data: bytes) -> dict[str, str]:
@@ -123,10 +122,16 @@ def read_image(path: Path) -> dict[str, Any] | None:
 def read_dji_images(folder: str | Path) -> FlightLog:
     """Read every JPEG of ``folder`` (see the module docstring)."""
     folder = Path(folder)
-    files = sorted((p for p in folder.iterdir() if p.suffix.lower() in JPEG_EXTENSIONS),
-                   key=_natural_key) if folder.is_dir() else []
-    builder = LogBuilder("DJI image EXIF/XMP", folder, "capture time (DateTimeOriginal)",
-                         ACCURACY["dji"])
+    files = (
+        sorted(
+            (p for p in folder.iterdir() if p.suffix.lower() in JPEG_EXTENSIONS), key=_natural_key
+        )
+        if folder.is_dir()
+        else []
+    )
+    builder = LogBuilder(
+        "DJI image EXIF/XMP", folder, "capture time (DateTimeOriginal)", ACCURACY["dji"]
+    )
     log = builder.log
     placed: list[tuple[str, dict[str, Any]]] = []
     no_meta = no_position = 0
@@ -139,8 +144,10 @@ def read_dji_images(folder: str | Path) -> FlightLog:
         else:
             placed.append((path.name, info))
     if not placed:
-        raise FlightLogError(f"{folder.name}: no JPEG with EXIF GPS and DJI RelativeAltitude "
-                             f"({len(files)} JPEGs, {no_meta} without EXIF): no positions")
+        raise FlightLogError(
+            f"{folder.name}: no JPEG with EXIF GPS and DJI RelativeAltitude "
+            f"({len(files)} JPEGs, {no_meta} without EXIF): no positions"
+        )
     if all(info["time"] is not None for _, info in placed):
         times = [info["time"] for _, info in placed]
     else:
@@ -151,12 +158,15 @@ def read_dji_images(folder: str | Path) -> FlightLog:
         t = max(t, previous + 1e-3)
         previous = t
         _add(builder, name, info, t)
-    for count, what in ((no_meta, "without EXIF"), (no_position,
-                                                    "without GPS or RelativeAltitude")):
+    for count, what in (
+        (no_meta, "without EXIF"),
+        (no_position, "without GPS or RelativeAltitude"),
+    ):
         if count:
             log.rejected[f"image {what}"] += count
-            log.notes.append(f"{folder.name}: {count} of {len(files)} images {what}: no "
-                             "position for them")
+            log.notes.append(
+                f"{folder.name}: {count} of {len(files)} images {what}: no position for them"
+            )
     return builder.build()
 
 
@@ -175,9 +185,11 @@ def _add(builder: LogBuilder, name: str, info: dict[str, Any], t: float) -> None
     if g_pitch is None or g_yaw is None:
         return
     if f_yaw is not None:
-        builder.attitude_euler(t, math.radians(f_roll or 0.0), math.radians(f_pitch or 0.0),
-                               math.radians(f_yaw))
+        builder.attitude_euler(
+            t, math.radians(f_roll or 0.0), math.radians(f_pitch or 0.0), math.radians(f_yaw)
+        )
     else:
         builder.attitude_euler(t, 0.0, 0.0, math.radians(g_yaw))
-    builder.gimbal_euler(t, math.radians(g_roll or 0.0), math.radians(g_pitch),
-                         math.radians(g_yaw), "earth")
+    builder.gimbal_euler(
+        t, math.radians(g_roll or 0.0), math.radians(g_pitch), math.radians(g_yaw), "earth"
+    )

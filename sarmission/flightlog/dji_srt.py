@@ -52,9 +52,15 @@ def _values(text: str) -> dict[str, float | None]:
     if height is None:
         m = re.search(rf"\bH\s*{_NUM}\s*m", text)
         height = float(m.group(1)) if m else None
-    return {"lat": lat, "lon": lon, "rel_alt": height, "abs_alt": _field(text, "abs_alt"),
-            "gb_yaw": _field(text, "gb_yaw"), "gb_pitch": _field(text, "gb_pitch"),
-            "gb_roll": _field(text, "gb_roll")}
+    return {
+        "lat": lat,
+        "lon": lon,
+        "rel_alt": height,
+        "abs_alt": _field(text, "abs_alt"),
+        "gb_yaw": _field(text, "gb_yaw"),
+        "gb_pitch": _field(text, "gb_pitch"),
+        "gb_roll": _field(text, "gb_roll"),
+    }
 
 
 def read_dji_srt(path: str | Path) -> FlightLog:
@@ -90,13 +96,17 @@ def read_dji_srt(path: str | Path) -> FlightLog:
         if v["gb_pitch"] is not None and v["gb_yaw"] is not None:
             yaw = math.radians(v["gb_yaw"])
             builder.attitude_euler(t, 0.0, 0.0, yaw)  # vehicle yaw unknown; earth-frame gimbal
-            builder.gimbal_euler(t, math.radians(v["gb_roll"] or 0.0),
-                                 math.radians(v["gb_pitch"]), yaw, "earth")
+            builder.gimbal_euler(
+                t, math.radians(v["gb_roll"] or 0.0), math.radians(v["gb_pitch"]), yaw, "earth"
+            )
     if missing:
         log.rejected["subtitle block without a time or position"] += missing
-        log.notes.append(f"{path.name}: {missing} subtitle blocks without a time or a "
-                         "position skipped")
+        log.notes.append(
+            f"{path.name}: {missing} subtitle blocks without a time or a position skipped"
+        )
     if log.positions and not log.gimbal:
-        log.notes.append(f"{path.name}: no gimbal angles (gb_pitch, gb_yaw): the camera's "
-                         "pointing is unknown, so no alert gets a position")
+        log.notes.append(
+            f"{path.name}: no gimbal angles (gb_pitch, gb_yaw): the camera's "
+            "pointing is unknown, so no alert gets a position"
+        )
     return builder.build()

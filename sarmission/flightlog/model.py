@@ -127,16 +127,20 @@ class FlightLog:
     def summary(self) -> str:
         """One line: format, samples, span, what is missing."""
         t0, t1 = self.span
-        parts = [f"{self.fmt} {self.path.name}: {len(self.positions)} positions over "
-                 f"{t1 - t0:.1f} s ({self.clock})",
-                 f"{len(self.attitudes)} attitudes" if self.attitudes else "no attitude",
-                 f"{len(self.gimbal)} gimbal angles" if self.gimbal else "no gimbal angles"]
+        parts = [
+            f"{self.fmt} {self.path.name}: {len(self.positions)} positions over "
+            f"{t1 - t0:.1f} s ({self.clock})",
+            f"{len(self.attitudes)} attitudes" if self.attitudes else "no attitude",
+            f"{len(self.gimbal)} gimbal angles" if self.gimbal else "no gimbal angles",
+        ]
         if self.triggers:
             parts.append(f"{len(self.triggers)} camera triggers")
         if self.rejected:
-            parts.append(f"{sum(self.rejected.values())} samples rejected ("
-                         + ", ".join(f"{n} {why}" for why, n in self.rejected.most_common(3))
-                         + ")")
+            parts.append(
+                f"{sum(self.rejected.values())} samples rejected ("
+                + ", ".join(f"{n} {why}" for why, n in self.rejected.most_common(3))
+                + ")"
+            )
         return ", ".join(parts)
 
 
@@ -146,8 +150,9 @@ def gps_to_posix(week: int, ms: float) -> float:
 
 
 def _finite(*values: float) -> bool:
-    return all(isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v)
-               for v in values)
+    return all(
+        isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v) for v in values
+    )
 
 
 class LogBuilder:
@@ -160,8 +165,15 @@ class LogBuilder:
         """Count one sample not believed."""
         self.log.rejected[reason] += 1
 
-    def position(self, t: float, lat: float, lon: float, rel_alt_m: float,
-                 alt_m: float = math.nan, gnss_sigma_m: float | None = None) -> bool:
+    def position(
+        self,
+        t: float,
+        lat: float,
+        lon: float,
+        rel_alt_m: float,
+        alt_m: float = math.nan,
+        gnss_sigma_m: float | None = None,
+    ) -> bool:
         """Add a position; False (counted) when implausible."""
         if not _finite(t, rel_alt_m):
             self.reject("position time or height not finite")
@@ -178,8 +190,14 @@ class LogBuilder:
             return False
         if gnss_sigma_m is not None and not (_finite(gnss_sigma_m) and gnss_sigma_m > 0):
             gnss_sigma_m = None
-        sample = PositionSample(float(t), float(lat), float(lon), float(rel_alt_m),
-                                float(alt_m) if _finite(alt_m) else math.nan, gnss_sigma_m)
+        sample = PositionSample(
+            float(t),
+            float(lat),
+            float(lon),
+            float(rel_alt_m),
+            float(alt_m) if _finite(alt_m) else math.nan,
+            gnss_sigma_m,
+        )
         positions = self.log.positions
         if positions and t < positions[-1].t:
             self.reject("position time going backwards")
@@ -241,10 +259,15 @@ class LogBuilder:
         """The log; :class:`FlightLogError` when it has no believable position."""
         log = self.log
         if not log.positions:
-            why = (f" ({', '.join(f'{n} {r}' for r, n in log.rejected.most_common(2))})"
-                   if log.rejected else "")
-            raise FlightLogError(f"{log.path.name}: {log.fmt} without a usable GNSS "
-                                 f"position{why}: no positions from it")
+            why = (
+                f" ({', '.join(f'{n} {r}' for r, n in log.rejected.most_common(2))})"
+                if log.rejected
+                else ""
+            )
+            raise FlightLogError(
+                f"{log.path.name}: {log.fmt} without a usable GNSS "
+                f"position{why}: no positions from it"
+            )
         if log.home is None:
             first = next((p for p in log.positions if math.isfinite(p.alt_m)), None)
             if first is not None:

@@ -41,9 +41,18 @@ from sarmission.mavlink.telemetry_checks import GPS_FIX_3D, message_problem
 
 #: A GPS_RAW_INT older than this says nothing about the current fix (seconds).
 GPS_FIX_MAX_AGE_S = 5.0
-_TYPES = ["HEARTBEAT", "GLOBAL_POSITION_INT", "GPS_RAW_INT", "ATTITUDE", "ATTITUDE_QUATERNION",
-          "GIMBAL_DEVICE_ATTITUDE_STATUS", "MOUNT_ORIENTATION", "HOME_POSITION", "SYSTEM_TIME",
-          "CAMERA_FEEDBACK"]
+_TYPES = [
+    "HEARTBEAT",
+    "GLOBAL_POSITION_INT",
+    "GPS_RAW_INT",
+    "ATTITUDE",
+    "ATTITUDE_QUATERNION",
+    "GIMBAL_DEVICE_ATTITUDE_STATUS",
+    "MOUNT_ORIENTATION",
+    "HOME_POSITION",
+    "SYSTEM_TIME",
+    "CAMERA_FEEDBACK",
+]
 _MAV_AUTOPILOT_INVALID = 8
 _MAV_TYPE_GCS = 6
 
@@ -75,8 +84,9 @@ def read_tlog(path: str | Path) -> FlightLog:
             try:
                 msg = conn.recv_match(type=_TYPES)
             except Exception as exc:  # noqa: BLE001 - a corrupt tail ends the log
-                builder.log.notes.append(f"{path.name}: read stopped at a corrupt packet "
-                                         f"({type(exc).__name__})")
+                builder.log.notes.append(
+                    f"{path.name}: read stopped at a corrupt packet ({type(exc).__name__})"
+                )
                 break
             if msg is None:
                 break
@@ -84,12 +94,15 @@ def read_tlog(path: str | Path) -> FlightLog:
     finally:
         conn.close()
     if state.autopilot is None:
-        raise FlightLogError(f"{path.name}: no autopilot HEARTBEAT: not a MAVLink tlog of a "
-                             "flight (or truncated before one)")
+        raise FlightLogError(
+            f"{path.name}: no autopilot HEARTBEAT: not a MAVLink tlog of a "
+            "flight (or truncated before one)"
+        )
     log = builder.log
     if state.rebooted:
-        log.notes.append(f"{path.name}: the autopilot rebooted during the log; read up to the "
-                         "reboot")
+        log.notes.append(
+            f"{path.name}: the autopilot rebooted during the log; read up to the reboot"
+        )
     _place_in_utc(builder, state)
     return builder.build()
 
@@ -115,8 +128,11 @@ def _take(builder: LogBuilder, state: _State, msg: Any) -> None:
     mtype = msg.get_type()
     source = (msg.get_srcSystem(), msg.get_srcComponent())
     if mtype == "HEARTBEAT":
-        if (state.autopilot is None and msg.autopilot != _MAV_AUTOPILOT_INVALID
-                and msg.type != _MAV_TYPE_GCS):
+        if (
+            state.autopilot is None
+            and msg.autopilot != _MAV_AUTOPILOT_INVALID
+            and msg.type != _MAV_TYPE_GCS
+        ):
             state.autopilot = source
         return
     if source != state.autopilot:
@@ -168,8 +184,11 @@ def _system_time(builder: LogBuilder, state: _State, msg: Any, boot_s: float) ->
 
 def _gps_raw(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
     h_acc = getattr(msg, "h_acc", 0)
-    state.gps = (boot_s if math.isfinite(boot_s) else None, int(msg.fix_type),
-                 h_acc / 1000.0 if 0 < h_acc < 0xFFFFFFFF else None)
+    state.gps = (
+        boot_s if math.isfinite(boot_s) else None,
+        int(msg.fix_type),
+        h_acc / 1000.0 if 0 < h_acc < 0xFFFFFFFF else None,
+    )
 
 
 def _attitude(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> None:
@@ -204,8 +223,9 @@ def _position(builder: LogBuilder, state: _State, msg: Any, boot_s: float) -> No
     if gps[1] < GPS_FIX_3D:
         builder.reject("position without a 3D GPS fix")
         return
-    builder.position(boot_s, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0,
-                     msg.alt / 1000.0, gps[2])
+    builder.position(
+        boot_s, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0, msg.alt / 1000.0, gps[2]
+    )
 
 
 #: What each message with a boot time adds to the log.

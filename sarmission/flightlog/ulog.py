@@ -31,8 +31,16 @@ from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogB
 from sarmission.geo.frames import gimbal_frame_from_flags
 
 GPS_FIX_MAX_AGE_S = 5.0
-_TOPICS = ["vehicle_global_position", "vehicle_gps_position", "sensor_gps", "vehicle_attitude",
-           "home_position", "gimbal_device_attitude_status", "camera_capture", "camera_trigger"]
+_TOPICS = [
+    "vehicle_global_position",
+    "vehicle_gps_position",
+    "sensor_gps",
+    "vehicle_attitude",
+    "home_position",
+    "gimbal_device_attitude_status",
+    "camera_capture",
+    "camera_trigger",
+]
 
 
 def _topics(path: Path) -> dict[str, dict[str, np.ndarray]]:
@@ -59,8 +67,7 @@ def read_ulog(path: str | Path) -> FlightLog:
     """Read a ULog (see the module docstring)."""
     path = Path(path)
     topics = _topics(path)
-    builder = LogBuilder("PX4 ULog", path, "autopilot boot time (timestamp)",
-                         ACCURACY["autopilot"])
+    builder = LogBuilder("PX4 ULog", path, "autopilot boot time (timestamp)", ACCURACY["autopilot"])
     log = builder.log
     if "_corrupt" in topics:
         log.notes.append(f"{path.name}: pyulog found corrupt data; read what it could")
@@ -79,8 +86,7 @@ def read_ulog(path: str | Path) -> FlightLog:
     gim = topics.get("gimbal_device_attitude_status")
     if gim is not None:
         flags = gim.get("device_flags", np.zeros(len(gim["timestamp"])))
-        for t, f, *q in zip(_seconds(gim), flags, *(gim[f"q[{i}]"] for i in range(4)),
-                            strict=True):
+        for t, f, *q in zip(_seconds(gim), flags, *(gim[f"q[{i}]"] for i in range(4)), strict=True):
             builder.gimbal_quaternion(t, q, gimbal_frame_from_flags(int(f)))
     for name in ("camera_capture", "camera_trigger"):
         topic = topics.get(name)
@@ -100,8 +106,9 @@ def _utc(log: FlightLog, gps: dict[str, np.ndarray]) -> None:
         log.clock += ", UTC from GNSS time"
 
 
-def _positions(builder: LogBuilder, pos: dict[str, np.ndarray] | None,
-               gps: dict[str, np.ndarray] | None) -> None:
+def _positions(
+    builder: LogBuilder, pos: dict[str, np.ndarray] | None, gps: dict[str, np.ndarray] | None
+) -> None:
     log = builder.log
     if pos is None or not len(pos["timestamp"]):
         return
@@ -124,5 +131,6 @@ def _positions(builder: LogBuilder, pos: dict[str, np.ndarray] | None,
             continue
         alt = float(pos["alt"][k])
         sigma: Any = float(eph[k]) if eph is not None else None
-        builder.position(float(t), float(pos["lat"][k]), float(pos["lon"][k]),
-                         alt - log.home[2], alt, sigma)
+        builder.position(
+            float(t), float(pos["lat"][k]), float(pos["lon"][k]), alt - log.home[2], alt, sigma
+        )

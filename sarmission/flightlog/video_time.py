@@ -19,6 +19,7 @@ _CONTAINERS = {b"moov"}
 
 def _find_mvhd(data: bytes) -> int | None:
     """Offset of the ``mvhd`` payload (after size and type), None if absent."""
+
     def walk(start: int, end: int) -> int | None:
         i = start
         while i + 8 <= end:

@@ -86,8 +86,18 @@ class PlatformPose:
 
     def finite(self) -> bool:
         """Every number of the pose is finite (a NaN or inf anywhere is no pose)."""
-        values = (self.lat, self.lon, self.rel_alt_m, self.roll, self.pitch, self.yaw,
-                  *self.gimbal_rpy, self.gnss_sigma_m, self.alt_sigma_m, self.attitude_sigma_rad)
+        values = (
+            self.lat,
+            self.lon,
+            self.rel_alt_m,
+            self.roll,
+            self.pitch,
+            self.yaw,
+            *self.gimbal_rpy,
+            self.gnss_sigma_m,
+            self.alt_sigma_m,
+            self.attitude_sigma_rad,
+        )
         return all(math.isfinite(v) for v in values)
 
     def camera_pose(self, height_m: float) -> CameraPose:
@@ -129,8 +139,9 @@ class FixLimits:
     max_error_m: float = math.inf
     horizon_sigmas: float = 3.0
 
-    def refusal(self, fix: GeoFix, attitude_sigma_rad: float,
-                incidence_deg: float | None = None) -> str:
+    def refusal(
+        self, fix: GeoFix, attitude_sigma_rad: float, incidence_deg: float | None = None
+    ) -> str:
         """Why ``fix`` is refused, or "" when it stands. ``incidence_deg``: the angle between the
         ray and the surface it meets (None: the depression, for a level plane); within
         ``horizon_sigmas`` pointing sigmas of grazing that surface the range is unbounded."""
@@ -139,17 +150,25 @@ class FixLimits:
         off_nadir = 90.0 - fix.depression_deg
         margin = math.degrees(self.horizon_sigmas * attitude_sigma_rad)
         if incidence_deg is None and fix.depression_deg < margin:
-            return (f"ray {fix.depression_deg:.1f} deg below the horizon, within "
-                    f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded")
+            return (
+                f"ray {fix.depression_deg:.1f} deg below the horizon, within "
+                f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded"
+            )
         if incidence_deg is not None and incidence_deg < margin:
-            return (f"ray {incidence_deg:.1f} deg from grazing the terrain, within "
-                    f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded")
+            return (
+                f"ray {incidence_deg:.1f} deg from grazing the terrain, within "
+                f"{self.horizon_sigmas:g} pointing sigmas of it: range unbounded"
+            )
         if off_nadir > self.max_off_nadir_deg:
-            return (f"ray {off_nadir:.1f} deg from straight down (a fix needs at most "
-                    f"{self.max_off_nadir_deg:g}; error estimate {fix.error_m:.0f} m)")
+            return (
+                f"ray {off_nadir:.1f} deg from straight down (a fix needs at most "
+                f"{self.max_off_nadir_deg:g}; error estimate {fix.error_m:.0f} m)"
+            )
         if fix.error_m > self.max_error_m:
-            return (f"error estimate {fix.error_m:.0f} m (a fix needs at most "
-                    f"{self.max_error_m:g} m; ray {off_nadir:.1f} deg from straight down)")
+            return (
+                f"error estimate {fix.error_m:.0f} m (a fix needs at most "
+                f"{self.max_error_m:g} m; ray {off_nadir:.1f} deg from straight down)"
+            )
         return ""
 
 
@@ -202,8 +221,9 @@ def geolocate(
     if height <= 0.0:
         return _no_fix(depression, f"camera {-height:.1f} m below the ground plane")
     if height < min_height_m:
-        return _no_fix(depression, f"drone {height:.1f} m above the ground "
-                                   f"(a fix needs {min_height_m:g} m)")
+        return _no_fix(
+            depression, f"drone {height:.1f} m above the ground (a fix needs {min_height_m:g} m)"
+        )
     t = height / float(d[2])
     p = t * d
     lat, lon, _ = ned_to_geodetic(p[0], p[1], 0.0, pose.lat, pose.lon, 0.0)
@@ -212,8 +232,9 @@ def geolocate(
     lat, lon = float(lat), float(lon)
     if not all(math.isfinite(v) for v in (lat, lon, error, t)):
         return _no_fix(depression, "geolocation not finite")
-    plane = ("home altitude" if ground_below_home_m == 0.0
-             else f"{ground_below_home_m:.1f} m below home")
+    plane = (
+        "home altitude" if ground_below_home_m == 0.0 else f"{ground_below_home_m:.1f} m below home"
+    )
     fix = GeoFix(lat, lon, error, t, depression, f"ground plane at {plane}")
     refused = limits.refusal(fix, pose.attitude_sigma_rad)
     return _no_fix(depression, refused) if refused else fix

@@ -23,14 +23,20 @@ def _distance_m(a: GeoFix, b: GeoFix) -> float:
     return math.hypot(float(n), float(e))
 
 
-def ground_extent_m(box_xyxy: Sequence[float], intrinsics: CameraIntrinsics,
-                    pose: PlatformPose, ground_below_home_m: float = 0.0) -> float | None:
+def ground_extent_m(
+    box_xyxy: Sequence[float],
+    intrinsics: CameraIntrinsics,
+    pose: PlatformPose,
+    ground_below_home_m: float = 0.0,
+) -> float | None:
     """The larger ground extent (metres) of box ``[x1, y1, x2, y2]`` seen from ``pose``, or
     None when an edge has no ground fix (above the horizon, drone too low)."""
     x0, y0, x1, y1 = (float(v) for v in box_xyxy)
     cx, cy = (x0 + x1) / 2.0, (y0 + y1) / 2.0
-    fixes = [geolocate(p, intrinsics, pose, ground_below_home_m)
-             for p in ((x0, cy), (x1, cy), (cx, y0), (cx, y1))]
+    fixes = [
+        geolocate(p, intrinsics, pose, ground_below_home_m)
+        for p in ((x0, cy), (x1, cy), (cx, y0), (cx, y1))
+    ]
     if not all(f.ok for f in fixes):
         return None
     return max(_distance_m(fixes[0], fixes[1]), _distance_m(fixes[2], fixes[3]))

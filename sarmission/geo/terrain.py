@@ -91,8 +91,9 @@ class Dem:
     def gradient(self, lat: float, lon: float) -> tuple[float, float]:
         """``(dh/dN, dh/dE)`` (m/m) by central differences one cell apart."""
         step = self.resolution_m / 2.0
-        lats, lons, _ = ned_to_geodetic(np.array([step, -step, 0.0, 0.0]),
-                                        np.array([0.0, 0.0, step, -step]), 0.0, lat, lon, 0.0)
+        lats, lons, _ = ned_to_geodetic(
+            np.array([step, -step, 0.0, 0.0]), np.array([0.0, 0.0, step, -step]), 0.0, lat, lon, 0.0
+        )
         h = self.height(lats, lons)
         return float((h[0] - h[1]) / (2 * step)), float((h[2] - h[3]) / (2 * step))
 
@@ -120,8 +121,13 @@ def read_hgt(path: str | Path, vertical_sigma_m: float = SRTM_SIGMA_M) -> Dem:
     def to_pixel(lat: np.ndarray, lon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return (lon - lon0) / step, (lat0 + 1 - lat) / step
 
-    return Dem(heights, to_pixel, step * _M_PER_DEG * math.cos(math.radians(lat0 + 0.5)),
-               vertical_sigma_m, f"SRTM tile {path.name} ({n}x{n})")
+    return Dem(
+        heights,
+        to_pixel,
+        step * _M_PER_DEG * math.cos(math.radians(lat0 + 0.5)),
+        vertical_sigma_m,
+        f"SRTM tile {path.name} ({n}x{n})",
+    )
 
 
 def read_geotiff(path: str | Path, vertical_sigma_m: float = GEOTIFF_SIGMA_M) -> Dem:
@@ -155,8 +161,13 @@ def read_geotiff(path: str | Path, vertical_sigma_m: float = GEOTIFF_SIGMA_M) ->
     res = abs(affine.a)
     if geographic:
         res *= _M_PER_DEG * math.cos(math.radians(float(affine.f)))
-    return Dem(heights, to_pixel, float(res), vertical_sigma_m,
-               f"GeoTIFF {path.name} ({heights.shape[1]}x{heights.shape[0]}, {res:.1f} m)")
+    return Dem(
+        heights,
+        to_pixel,
+        float(res),
+        vertical_sigma_m,
+        f"GeoTIFF {path.name} ({heights.shape[1]}x{heights.shape[0]}, {res:.1f} m)",
+    )
 
 
 def read_dem(path: str | Path, vertical_sigma_m: float | None = None) -> Dem:
@@ -177,15 +188,17 @@ def _no_fix(depression: float, note: str) -> GeoFix:
     return GeoFix(None, None, None, None, depression, note)
 
 
-def _above_ground(dem: Dem, pose: PlatformPose, cam_alt: float, d: np.ndarray,
-                  s: np.ndarray) -> np.ndarray:
+def _above_ground(
+    dem: Dem, pose: PlatformPose, cam_alt: float, d: np.ndarray, s: np.ndarray
+) -> np.ndarray:
     """Ray altitude minus terrain height at slant ranges ``s`` (NaN outside the DEM)."""
     lat, lon, h = ned_to_geodetic(s * d[0], s * d[1], s * d[2], pose.lat, pose.lon, cam_alt)
     return np.asarray(h) - dem.height(lat, lon)
 
 
-def _covariance(d: np.ndarray, t: float, g: np.ndarray, pose: PlatformPose,
-                sigma_h: float) -> np.ndarray:
+def _covariance(
+    d: np.ndarray, t: float, g: np.ndarray, pose: PlatformPose, sigma_h: float
+) -> np.ndarray:
     gd = float(g @ d)
     proj = np.eye(3) - np.outer(d, g) / gd
     ph = proj[:2]
@@ -230,8 +243,10 @@ def geolocate_terrain(
     if not math.isfinite(below):
         return _no_fix(depression, "the drone is outside the DEM")
     if cam_alt - below < max(min_height_m, 0.0) or cam_alt <= below:
-        return _no_fix(depression, f"drone {cam_alt - below:.1f} m above the terrain "
-                                   f"(a fix needs {min_height_m:g} m)")
+        return _no_fix(
+            depression,
+            f"drone {cam_alt - below:.1f} m above the terrain (a fix needs {min_height_m:g} m)",
+        )
     step = max(dem.resolution_m / 2.0, 0.5)
     s = np.arange(0.0, max_range_m + step, step)
     f = _above_ground(dem, pose, cam_alt, d, s)
@@ -258,14 +273,21 @@ def geolocate_terrain(
     if float(g @ d) <= 1e-9:
         return _no_fix(depression, "ray grazes the terrain")
     slope_sigma = math.hypot(dh_n, dh_e) * dem.resolution_m / math.sqrt(12.0)
-    sigma_h = math.sqrt(pose.alt_sigma_m**2 + sigma_home**2 + dem.vertical_sigma_m**2
-                        + slope_sigma**2)
+    sigma_h = math.sqrt(
+        pose.alt_sigma_m**2 + sigma_home**2 + dem.vertical_sigma_m**2 + slope_sigma**2
+    )
     error = math.sqrt(float(np.trace(_covariance(d, t, g, pose, sigma_h))))
     if not all(math.isfinite(v) for v in (lat, lon, error, t)):
         return _no_fix(depression, "geolocation not finite")
     slope = math.degrees(math.atan(math.hypot(dh_n, dh_e)))
-    fix = GeoFix(lat, lon, error, t, depression,
-                 f"terrain ({dem.source}, slope {slope:.0f} deg, camera from {anchor})")
+    fix = GeoFix(
+        lat,
+        lon,
+        error,
+        t,
+        depression,
+        f"terrain ({dem.source}, slope {slope:.0f} deg, camera from {anchor})",
+    )
     incidence = math.degrees(math.asin(min(1.0, float(g @ d) / float(np.linalg.norm(g)))))
     refused = limits.refusal(fix, pose.attitude_sigma_rad, incidence)
     return _no_fix(depression, refused) if refused else fix
@@ -275,16 +297,31 @@ class TerrainGround:
     """The controller's ground model for a land search: fixes on ``dem`` instead of a plane,
     refused by ``limits`` as plane fixes are (:func:`geolocate_terrain`)."""
 
-    def __init__(self, dem: Dem, max_range_m: float = MAX_RANGE_M,
-                 limits: FixLimits = DEFAULT_LIMITS) -> None:
+    def __init__(
+        self, dem: Dem, max_range_m: float = MAX_RANGE_M, limits: FixLimits = DEFAULT_LIMITS
+    ) -> None:
         self.dem = dem
         self.max_range_m = max_range_m
         self.limits = limits
 
-    def locate(self, centre: tuple[float, float], intrinsics: CameraIntrinsics,
-               pose: PlatformPose, home: tuple[float, float, float],
-               min_height_m: float, limits: FixLimits | None = None) -> GeoFix:
+    def locate(
+        self,
+        centre: tuple[float, float],
+        intrinsics: CameraIntrinsics,
+        pose: PlatformPose,
+        home: tuple[float, float, float],
+        min_height_m: float,
+        limits: FixLimits | None = None,
+    ) -> GeoFix:
         """The fix of pixel ``centre`` (see :func:`geolocate_terrain`); ``limits`` replace the
         ground model's own for this fix."""
-        return geolocate_terrain(centre, intrinsics, pose, self.dem, home, min_height_m,
-                                 self.max_range_m, self.limits if limits is None else limits)
+        return geolocate_terrain(
+            centre,
+            intrinsics,
+            pose,
+            self.dem,
+            home,
+            min_height_m,
+            self.max_range_m,
+            self.limits if limits is None else limits,
+        )

@@ -112,9 +112,15 @@ class MissionItem:
 
 
 def _wire(item: MissionItem) -> WireItem:
-    return WireItem(item.frame, item.command, tuple(float(p) for p in item.params),
-                    round(item.lat * 1e7), round(item.lon * 1e7), float(item.alt),
-                    item.autocontinue)
+    return WireItem(
+        item.frame,
+        item.command,
+        tuple(float(p) for p in item.params),
+        round(item.lat * 1e7),
+        round(item.lon * 1e7),
+        float(item.alt),
+        item.autocontinue,
+    )
 
 
 def _cmd_name(command: int) -> str:
@@ -180,7 +186,7 @@ class _AutopilotTexts:
 
 
 def _refusal(name: str, what: str, reason: str) -> str:
-    """"NAME refused: WHAT (autopilot: 'reason')" or "... (no reason given)"."""
+    """ "NAME refused: WHAT (autopilot: 'reason')" or "... (no reason given)"."""
     said = f"autopilot: {reason}" if reason else "no reason given"
     return f"{name} refused: {what} ({said})"
 
@@ -283,8 +289,9 @@ class CommandSender:
                         return CommandResult(name, True, result, attempts)
                     reason = texts.around(time.monotonic())
                     what = _result_name("MAV_RESULT", result)
-                    return CommandResult(name, False, result, attempts,
-                                         _refusal(name, what, reason), reason)
+                    return CommandResult(
+                        name, False, result, attempts, _refusal(name, what, reason), reason
+                    )
             finally:
                 texts.close()
         total = attempts * self.ack_timeout_s
@@ -372,8 +379,9 @@ class CommandSender:
         home = WireItem(M.MAV_FRAME_GLOBAL_INT, M.MAV_CMD_NAV_WAYPOINT)
         return self.upload_items([home, *(_wire(it) for it in items)])
 
-    def upload_items(self, items: Sequence[WireItem],
-                     name: str = "MISSION_UPLOAD") -> CommandResult:
+    def upload_items(
+        self, items: Sequence[WireItem], name: str = "MISSION_UPLOAD"
+    ) -> CommandResult:
         """Upload ``items`` exactly as given, item 0 (home) included."""
         if self.link.autopilot is None:
             return CommandResult(name, False, None, 0, "no autopilot detected on the link")
@@ -383,9 +391,20 @@ class CommandSender:
 
         def item_msg(seq: int) -> Any:
             it = items[seq]
-            return mav.mission_item_int_encode(ts, tc, seq, it.frame, it.command, 0,
-                                               it.autocontinue, *it.params, it.x, it.y,
-                                               float(it.z), mtype)
+            return mav.mission_item_int_encode(
+                ts,
+                tc,
+                seq,
+                it.frame,
+                it.command,
+                0,
+                it.autocontinue,
+                *it.params,
+                it.x,
+                it.y,
+                float(it.z),
+                mtype,
+            )
 
         def count_msg() -> Any:
             return mav.mission_count_encode(ts, tc, len(items), mtype)
@@ -407,8 +426,9 @@ class CommandSender:
         """The mission item the vehicle is flying to (MISSION_CURRENT, asked for with
         MAV_CMD_REQUEST_MESSAGE), None when the autopilot does not say."""
         with self.link.expect(["MISSION_CURRENT"], self.link.from_autopilot) as replies:
-            ack = self.command_long(M.MAV_CMD_REQUEST_MESSAGE,
-                                    float(M.MAVLINK_MSG_ID_MISSION_CURRENT))
+            ack = self.command_long(
+                M.MAV_CMD_REQUEST_MESSAGE, float(M.MAVLINK_MSG_ID_MISSION_CURRENT)
+            )
             if not ack.accepted:
                 return None
             msg = replies.get(self.ack_timeout_s)
@@ -430,24 +450,37 @@ class CommandSender:
             return CommandResult(name, False, None, 1, f"{name}: {exc}")
         current = self.mission_current()
         if current is None:
-            return CommandResult(name, False, None, 1,
-                                 f"{name}: the autopilot did not say its current mission item")
+            return CommandResult(
+                name, False, None, 1, f"{name}: the autopilot did not say its current mission item"
+            )
         at = min(max(1, current), len(items))
         uploaded = self.upload_items(insert_visits(items, at, visits), name)
         if not uploaded.accepted:
             return uploaded
         made_current = self.command_long(M.MAV_CMD_DO_SET_MISSION_CURRENT, float(at))
         if not made_current.accepted:
-            return CommandResult(name, False, made_current.result, uploaded.attempts + 1,
-                                 f"{name}: visits inserted at item {at}, but "
-                                 f"{made_current.error}", made_current.reason)
-        log.info("%d visit(s) inserted before item %d of the pilot's %d", len(visits), at,
-                 len(items) - 1)
+            return CommandResult(
+                name,
+                False,
+                made_current.result,
+                uploaded.attempts + 1,
+                f"{name}: visits inserted at item {at}, but {made_current.error}",
+                made_current.reason,
+            )
+        log.info(
+            "%d visit(s) inserted before item %d of the pilot's %d", len(visits), at, len(items) - 1
+        )
         return CommandResult(name, True, M.MAV_RESULT_ACCEPTED, uploaded.attempts + 1)
 
-    def _upload(self, name: str, replies: Any, texts: _AutopilotTexts,
-                count_msg: Callable[[], Any], item_msg: Callable[[int], Any],
-                n_items: int) -> CommandResult:
+    def _upload(
+        self,
+        name: str,
+        replies: Any,
+        texts: _AutopilotTexts,
+        count_msg: Callable[[], Any],
+        item_msg: Callable[[int], Any],
+        n_items: int,
+    ) -> CommandResult:
         """The upload's exchange, once MISSION_COUNT may go (see :meth:`upload_mission`)."""
         sent = 1
         last: Any = count_msg()
@@ -475,8 +508,9 @@ class CommandSender:
                     return CommandResult(name, True, int(reply.type), sent)
                 reason = texts.around(time.monotonic())
                 what = _result_name("MAV_MISSION_RESULT", reply.type)
-                return CommandResult(name, False, int(reply.type), sent,
-                                     _refusal(name, what, reason), reason)
+                return CommandResult(
+                    name, False, int(reply.type), sent, _refusal(name, what, reason), reason
+                )
             if not 0 <= reply.seq < n_items:
                 continue
             last = item_msg(reply.seq)
@@ -571,15 +605,25 @@ class Outbox:
         self._thread.start()
         self._text_thread.start()
 
-    def set_callbacks(self, *, on_delivered: ActionCallback | None = None,
-                      on_refused: ActionCallback | None = None,
-                      on_sent: ActionCallback | None = None) -> None:
+    def set_callbacks(
+        self,
+        *,
+        on_delivered: ActionCallback | None = None,
+        on_refused: ActionCallback | None = None,
+        on_sent: ActionCallback | None = None,
+    ) -> None:
         """Replace who hears the outcomes (one owner, e.g. the action policy, which needs the
         outbox to exist before it can listen to it)."""
         self._callbacks = OutboxCallbacks(on_delivered, on_refused, on_sent)
 
-    def submit(self, command: OutboxCommand, *, key: object = None, repeats: int | None = None,
-               interval_s: float | None = None) -> Action:
+    def submit(
+        self,
+        command: OutboxCommand,
+        *,
+        key: object = None,
+        repeats: int | None = None,
+        interval_s: float | None = None,
+    ) -> Action:
         """Queue ``command``; returns its :class:`Action` (delivered later). A
         :class:`~sarmission.mavlink.outbox_commands.StatusText` goes out ``repeats`` times
         ``interval_s`` apart (default: the outbox's)."""

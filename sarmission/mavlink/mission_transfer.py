@@ -36,17 +36,27 @@ class WireItem:
 
     @classmethod
     def from_message(cls, msg: Any) -> WireItem:
-        return cls(int(msg.frame), int(msg.command),
-                   (float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4)),
-                   int(msg.x), int(msg.y), float(msg.z), int(msg.autocontinue))
+        return cls(
+            int(msg.frame),
+            int(msg.command),
+            (float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4)),
+            int(msg.x),
+            int(msg.y),
+            float(msg.z),
+            int(msg.autocontinue),
+        )
 
 
 class MissionTransferError(RuntimeError):
     """The autopilot did not complete a mission transfer (the message says how far it got)."""
 
 
-def download_mission(link: MavlinkLink, timeout_s: float = 1.5, retries: int = 3,
-                     mission_type: int = M.MAV_MISSION_TYPE_MISSION) -> list[WireItem]:
+def download_mission(
+    link: MavlinkLink,
+    timeout_s: float = 1.5,
+    retries: int = 3,
+    mission_type: int = M.MAV_MISSION_TYPE_MISSION,
+) -> list[WireItem]:
     """The autopilot's mission, item 0 (home) included. Each request is re-sent up to
     ``retries`` times when no answer comes within ``timeout_s``; raises
     :class:`MissionTransferError` when the autopilot stays silent or refuses."""
@@ -56,25 +66,49 @@ def download_mission(link: MavlinkLink, timeout_s: float = 1.5, retries: int = 3
     ts, tc = link.target_system, link.target_component
 
     def for_us(msg: Any) -> bool:
-        return (link.from_autopilot(msg)
-                and getattr(msg, "target_system", 0) in (0, link.source_system)
-                and getattr(msg, "mission_type", 0) == mission_type)
+        return (
+            link.from_autopilot(msg)
+            and getattr(msg, "target_system", 0) in (0, link.source_system)
+            and getattr(msg, "mission_type", 0) == mission_type
+        )
 
     with link.expect(["MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ACK"], for_us) as replies:
-        count_msg = _ask(link, replies, mav.mission_request_list_encode(ts, tc, mission_type),
-                         "MISSION_COUNT", timeout_s, retries, "the mission's item count")
+        count_msg = _ask(
+            link,
+            replies,
+            mav.mission_request_list_encode(ts, tc, mission_type),
+            "MISSION_COUNT",
+            timeout_s,
+            retries,
+            "the mission's item count",
+        )
         items: list[WireItem] = []
         for seq in range(int(count_msg.count)):
-            item = _ask(link, replies, mav.mission_request_int_encode(ts, tc, seq, mission_type),
-                        "MISSION_ITEM_INT", timeout_s, retries, f"mission item {seq}",
-                        lambda m, s=seq: m.seq == s)
+            item = _ask(
+                link,
+                replies,
+                mav.mission_request_int_encode(ts, tc, seq, mission_type),
+                "MISSION_ITEM_INT",
+                timeout_s,
+                retries,
+                f"mission item {seq}",
+                lambda m, s=seq: m.seq == s,
+            )
             items.append(WireItem.from_message(item))
         link.send(mav.mission_ack_encode(ts, tc, M.MAV_MISSION_ACCEPTED, mission_type))
     return items
 
 
-def _ask(link: MavlinkLink, replies: Any, request: Any, reply_type: str, timeout_s: float,
-         retries: int, what: str, match: Any = None) -> Any:
+def _ask(
+    link: MavlinkLink,
+    replies: Any,
+    request: Any,
+    reply_type: str,
+    timeout_s: float,
+    retries: int,
+    what: str,
+    match: Any = None,
+) -> Any:
     for _ in range(retries + 1):
         link.send(request)
         deadline = time.monotonic() + timeout_s
@@ -85,15 +119,14 @@ def _ask(link: MavlinkLink, replies: Any, request: Any, reply_type: str, timeout
             if msg.get_type() == "MISSION_ACK":
                 name = M.enums["MAV_MISSION_RESULT"].get(msg.type)
                 raise MissionTransferError(
-                    f"autopilot refused the download of {what}: "
-                    f"{name.name if name else msg.type}")
+                    f"autopilot refused the download of {what}: {name.name if name else msg.type}"
+                )
             if msg.get_type() == reply_type and (match is None or match(msg)):
                 return msg
     raise MissionTransferError(f"no answer for {what} after {retries + 1} requests")
 
 
-def insert_visits(items: Sequence[WireItem], at: int,
-                  visits: Sequence[WireItem]) -> list[WireItem]:
+def insert_visits(items: Sequence[WireItem], at: int, visits: Sequence[WireItem]) -> list[WireItem]:
     """``items`` with ``visits`` inserted before item ``at`` (the vehicle's current item;
     1 <= at <= len(items), item 0 being home). DO_JUMP targets at or after ``at`` move with the
     items they point to."""
@@ -102,7 +135,8 @@ def insert_visits(items: Sequence[WireItem], at: int,
     shift = len(visits)
     moved = [
         replace(it, params=(it.params[0] + shift, *it.params[1:]))
-        if it.command in _SEQ_PARAM1_COMMANDS and it.params[0] >= at else it
+        if it.command in _SEQ_PARAM1_COMMANDS and it.params[0] >= at
+        else it
         for it in items
     ]
     return [*moved[:at], *visits, *moved[at:]]
@@ -110,6 +144,11 @@ def insert_visits(items: Sequence[WireItem], at: int,
 
 def loiter_item(lat: float, lon: float, alt_m: float, seconds: float) -> WireItem:
     """NAV_LOITER_TIME at ``lat``/``lon``, ``alt_m`` above home, for ``seconds``."""
-    return WireItem(M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_NAV_LOITER_TIME,
-                    (float(seconds), 0.0, 0.0, 0.0), round(lat * 1e7), round(lon * 1e7),
-                    float(alt_m))
+    return WireItem(
+        M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+        M.MAV_CMD_NAV_LOITER_TIME,
+        (float(seconds), 0.0, 0.0, 0.0),
+        round(lat * 1e7),
+        round(lon * 1e7),
+        float(alt_m),
+    )

@@ -108,8 +108,24 @@ class CommandLong:
         return sender.command_long(self.command, *self.params)
 
 
-OutboxCommand = (StatusText | Reposition | SetRoi | ClearRoi | UploadMission | InsertVisits
-                 | CommandInt | CommandLong)
+OutboxCommand = (
+    StatusText
+    | Reposition
+    | SetRoi
+    | ClearRoi
+    | UploadMission
+    | InsertVisits
+    | CommandInt
+    | CommandLong
+)
 #: Every kind :meth:`~sarmission.mavlink.commands.Outbox.submit` takes.
-COMMAND_KINDS = (StatusText, Reposition, SetRoi, ClearRoi, UploadMission, InsertVisits,
-                 CommandInt, CommandLong)
+COMMAND_KINDS = (
+    StatusText,
+    Reposition,
+    SetRoi,
+    ClearRoi,
+    UploadMission,
+    InsertVisits,
+    CommandInt,
+    CommandLong,
+)

@@ -181,8 +181,11 @@ class BootClock:
             self._candidate = (delay, arrival, 1)
             return False
         self._candidate = (cand[0], cand[1], cand[2] + 1)
-        return (cand[2] + 1 >= 3 and arrival - cand[1] >= self.confirm_s
-                and arrival - self._last_on_timeline >= self.confirm_s)
+        return (
+            cand[2] + 1 >= 3
+            and arrival - cand[1] >= self.confirm_s
+            and arrival - self._last_on_timeline >= self.confirm_s
+        )
 
     @property
     def offset(self) -> float | None:
@@ -346,8 +349,9 @@ class TelemetryBuffer:
         if 0 < h_acc < 0xFFFFFFFF:
             self.gnss_sigma_m = h_acc / 1000.0
 
-    def _sender_time(self, source: tuple[int, int], mtype: str, msg: Any,
-                     now: float) -> float | None:
+    def _sender_time(
+        self, source: tuple[int, int], mtype: str, msg: Any, now: float
+    ) -> float | None:
         """The message's time on the local clock from the sender's boot clock (None when off
         its timeline); a sender whose clock restarted has its samples forgotten."""
         with self._lock:
@@ -358,8 +362,9 @@ class TelemetryBuffer:
                 self._forget_source(source, "its clock restarted (reboot)")
         return t
 
-    def _take_timed(self, mtype: str, msg: Any, t: float, now: float,
-                    source: tuple[int, int]) -> None:
+    def _take_timed(
+        self, mtype: str, msg: Any, t: float, now: float, source: tuple[int, int]
+    ) -> None:
         """A position, attitude or gimbal message at local time ``t``."""
         if mtype == "GLOBAL_POSITION_INT":
             self._take_position(msg, t, now)
@@ -416,8 +421,11 @@ class TelemetryBuffer:
     def _forget_source(self, source: tuple[int, int], why: str) -> None:
         """Drop every sample ``source`` gave (its clock restarted); called under the lock."""
         dropped = []
-        for name, series in (("position", self._position), ("attitude", self._attitude),
-                             ("gimbal", self._gimbal)):
+        for name, series in (
+            ("position", self._position),
+            ("attitude", self._attitude),
+            ("gimbal", self._gimbal),
+        ):
             if self._series_source.get(name) == source and series.times:
                 series.clear()
                 dropped.append(name)
@@ -426,16 +434,29 @@ class TelemetryBuffer:
             self._gps = None
             dropped.append("home")
         self.resets += 1
-        log.warning("telemetry from %d/%d dropped (%s): %s", *source, why,
-                    ", ".join(dropped) or "nothing buffered")
+        log.warning(
+            "telemetry from %d/%d dropped (%s): %s",
+            *source,
+            why,
+            ", ".join(dropped) or "nothing buffered",
+        )
 
     def _take_home(self, msg: Any) -> None:
         lat, lon, alt = msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0
         old = self._home
-        if old is None or abs(old[0] - lat) > 1e-6 or abs(old[1] - lon) > 1e-6 or abs(
-                old[2] - alt) > 0.5:
-            log.info("autopilot home %.7f, %.7f, %.1f m AMSL%s", lat, lon, alt,
-                     "" if old is None else " (changed)")
+        if (
+            old is None
+            or abs(old[0] - lat) > 1e-6
+            or abs(old[1] - lon) > 1e-6
+            or abs(old[2] - alt) > 0.5
+        ):
+            log.info(
+                "autopilot home %.7f, %.7f, %.1f m AMSL%s",
+                lat,
+                lon,
+                alt,
+                "" if old is None else " (changed)",
+            )
         self.set_home(lat, lon, alt)
 
     def _take_position(self, msg: Any, t: float, arrival: float) -> None:
@@ -448,8 +469,10 @@ class TelemetryBuffer:
                 self._reject("GLOBAL_POSITION_INT", "no GPS_RAW_INT heard: GPS fix unknown")
                 return
             if arrival - gps[0] > GPS_FIX_MAX_AGE_S:
-                self._reject("GLOBAL_POSITION_INT",
-                             f"GPS_RAW_INT older than {GPS_FIX_MAX_AGE_S:g} s: GPS fix unknown")
+                self._reject(
+                    "GLOBAL_POSITION_INT",
+                    f"GPS_RAW_INT older than {GPS_FIX_MAX_AGE_S:g} s: GPS fix unknown",
+                )
                 return
             if gps[1] < GPS_FIX_3D:
                 self._reject("GLOBAL_POSITION_INT", f"no 3D GPS fix (fix type {gps[1]})")
@@ -476,8 +499,9 @@ class TelemetryBuffer:
             if not times:
                 return ""
             i = bisect.bisect_left(times, t)
-            nearest = min((k for k in (i - 1, i) if 0 <= k < len(times)),
-                          key=lambda k: abs(times[k] - t))
+            nearest = min(
+                (k for k in (i - 1, i) if 0 <= k < len(times)), key=lambda k: abs(times[k] - t)
+            )
             near_t, near = times[nearest], self._position.values[nearest]
         dt = abs(t - near_t)
         if dt > JUMP_CHECK_S:
@@ -556,8 +580,9 @@ class TelemetryBuffer:
             self._clocks.clear()
             self._autopilot_source = None
             self._series_source.clear()
-            self.clock = BootClock(window_s=self.clock.window_s,
-                                   transport_latency_s=self.clock.transport_latency_s)
+            self.clock = BootClock(
+                window_s=self.clock.window_s, transport_latency_s=self.clock.transport_latency_s
+            )
             self.resets += 1
         log.warning("telemetry buffer cleared: %s", why)
 

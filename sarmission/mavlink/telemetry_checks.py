@@ -28,7 +28,7 @@ def _finite(*values: float) -> bool:
 
 
 def lat_lon_problem(lat_deg: float, lon_deg: float) -> str:
-    """"" when ``lat``/``lon`` (degrees) are a place on Earth, else why not."""
+    """ "" when ``lat``/``lon`` (degrees) are a place on Earth, else why not."""
     if not _finite(lat_deg, lon_deg):
         return "position not finite"
     if not -90.0 <= lat_deg <= 90.0:
@@ -47,7 +47,7 @@ def _in(value: float, bounds: tuple[float, float], what: str) -> str:
 
 
 def quaternion_problem(q: Sequence[float]) -> str:
-    """"" for a finite quaternion of norm close to 1."""
+    """ "" for a finite quaternion of norm close to 1."""
     values = [float(v) for v in q]
     if len(values) != 4 or not _finite(*values):
         return "quaternion not finite"
@@ -125,7 +125,7 @@ _CHECKS: dict[str, Callable[[Any], str]] = {
 
 
 def message_problem(msg: Any) -> str:
-    """"" when every field of ``msg`` that telemetry uses is finite and plausible, else why not
+    """ "" when every field of ``msg`` that telemetry uses is finite and plausible, else why not
     (types without a check pass)."""
     check = _CHECKS.get(msg.get_type())
     if check is None:

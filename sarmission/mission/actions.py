@@ -101,20 +101,28 @@ class ActionPolicy:
     their repeats; nothing acknowledges them).
     """
 
-    def __init__(self, config: ActionsConfig, outbox: Outbox, store: AlertStore,
-                 survey_altitude_m: float, target_altitude_m: float = 0.0,
-                 console: Callable[[str], None] = print,
-                 clock: Callable[[], float] = time.monotonic, *,
-                 move_gate: MoveGate | None = None,
-                 aircraft_position: Callable[[], tuple[float, float] | None] = lambda: None,
-                 gimbal_present: Callable[[], bool] = lambda: False) -> None:
+    def __init__(
+        self,
+        config: ActionsConfig,
+        outbox: Outbox,
+        store: AlertStore,
+        survey_altitude_m: float,
+        target_altitude_m: float = 0.0,
+        console: Callable[[str], None] = print,
+        clock: Callable[[], float] = time.monotonic,
+        *,
+        move_gate: MoveGate | None = None,
+        aircraft_position: Callable[[], tuple[float, float] | None] = lambda: None,
+        gimbal_present: Callable[[], bool] = lambda: False,
+    ) -> None:
         if "loiter" in config.policy and "mission" in config.policy:
             raise ValueError("policy can hold loiter or mission, not both (one visit plan)")
         self.policy = list(config.policy)
         self.outbox = outbox
         self.store = store
-        self.loiter_altitude_m = (config.loiter_altitude_m if config.loiter_altitude_m is not None
-                                  else survey_altitude_m)
+        self.loiter_altitude_m = (
+            config.loiter_altitude_m if config.loiter_altitude_m is not None else survey_altitude_m
+        )
         self.target_altitude_m = target_altitude_m
         self.console = console
         self.roi_hold_s = config.roi_hold_s
@@ -124,8 +132,9 @@ class ActionPolicy:
         self.move_gate = move_gate
         self.aircraft_position = aircraft_position
         self.gimbal_present = gimbal_present
-        self.planner = VisitPlanner(config.visit_interval_s, config.visit_group_radius_m,
-                                    clock=clock)
+        self.planner = VisitPlanner(
+            config.visit_interval_s, config.visit_group_radius_m, clock=clock
+        )
         self.visit_loiter_s = config.visit_loiter_s
         self._visit_alerts: dict[int, Alert] = {}  # target id -> its newest placed alert
         self.withheld = 0
@@ -133,8 +142,9 @@ class ActionPolicy:
         self.refused = 0
         self.sent = 0
         self.camera = CameraHold(config.roi_hold_s, ROI_SETTLE_S, clock)
-        outbox.set_callbacks(on_delivered=self._on_delivered, on_refused=self._on_refused,
-                             on_sent=self._on_sent)
+        outbox.set_callbacks(
+            on_delivered=self._on_delivered, on_refused=self._on_refused, on_sent=self._on_sent
+        )
 
     @property
     def delivered(self) -> int:
@@ -144,13 +154,21 @@ class ActionPolicy:
 
     def summary(self) -> str:
         """One line on what the autopilot was told, for the run's summary."""
-        return (f"autopilot commands acknowledged: {self.acknowledged}, refused: {self.refused}"
-                + (f", withheld (no bounded position in the area): {self.withheld}"
-                   if self.withheld else "")
-                + (f", targets waiting for a visit: {len(self.planner.pending)}"
-                   if self.planner.pending else "")
-                + f"; STATUSTEXT alerts sent {self.repeats}x (no acknowledgement exists for "
-                f"STATUSTEXT): {self.sent}; pending: {self.pending()}")
+        return (
+            f"autopilot commands acknowledged: {self.acknowledged}, refused: {self.refused}"
+            + (
+                f", withheld (no bounded position in the area): {self.withheld}"
+                if self.withheld
+                else ""
+            )
+            + (
+                f", targets waiting for a visit: {len(self.planner.pending)}"
+                if self.planner.pending
+                else ""
+            )
+            + f"; STATUSTEXT alerts sent {self.repeats}x (no acknowledgement exists for "
+            f"STATUSTEXT): {self.sent}; pending: {self.pending()}"
+        )
 
     def announce(self, alert: Alert) -> int:
         """Queue every action of the policy for a new alert, or again for an alert whose position
@@ -202,19 +220,26 @@ class ActionPolicy:
     def _submit(self, entry: str, alert: Alert, repeats: int | None = None) -> bool:
         key = _Key(alert.alert_id, CHANNELS[entry], alert.target_id, alert.short_id)
         if entry == "alert":
-            self.outbox.submit(StatusText(ascii_statustext(alert), M.MAV_SEVERITY_ALERT),
-                               key=key, repeats=self.repeats if repeats is None else repeats,
-                               interval_s=self.repeat_interval_s)
+            self.outbox.submit(
+                StatusText(ascii_statustext(alert), M.MAV_SEVERITY_ALERT),
+                key=key,
+                repeats=self.repeats if repeats is None else repeats,
+                interval_s=self.repeat_interval_s,
+            )
             return True
         if alert.position is None:
             log.info("target %d has no position: %s skipped", alert.target_id, entry)
             return False
-        refusal = ("no mission area to check it against" if self.move_gate is None
-                   else self.move_gate.refusal(alert.position, alert.error_m))
+        refusal = (
+            "no mission area to check it against"
+            if self.move_gate is None
+            else self.move_gate.refusal(alert.position, alert.error_m)
+        )
         if refusal:
             self.withheld += 1
-            self.console(f"  -> target {alert.target_id} ({alert.short_id}): {entry} withheld: "
-                         f"{refusal}")
+            self.console(
+                f"  -> target {alert.target_id} ({alert.short_id}): {entry} withheld: {refusal}"
+            )
             return False
         if entry == "roi":
             lat, lon = alert.position
@@ -231,27 +256,39 @@ class ActionPolicy:
         if entry is None or not self.planner.pending or self.planner.seconds_to_next() > 0:
             return
         here = self.aircraft_position()
-        visits = ([v for v in [self.planner.next_visit(here)] if v is not None]
-                  if entry == "loiter" else self.planner.tour(here))
+        visits = (
+            [v for v in [self.planner.next_visit(here)] if v is not None]
+            if entry == "loiter"
+            else self.planner.tour(here)
+        )
         if not visits:
             return
-        alerts = [self._visit_alerts.pop(t) for v in visits for t in v.covered
-                  if t in self._visit_alerts]
+        alerts = [
+            self._visit_alerts.pop(t) for v in visits for t in v.covered if t in self._visit_alerts
+        ]
         if not alerts:
             return
         first = next((a for a in alerts if a.target_id == visits[0].target_id), alerts[0])
-        key = _Key(first.alert_id, CHANNELS[entry], first.target_id, first.short_id,
-                   tuple(a.alert_id for a in alerts if a is not first))
+        key = _Key(
+            first.alert_id,
+            CHANNELS[entry],
+            first.target_id,
+            first.short_id,
+            tuple(a.alert_id for a in alerts if a is not first),
+        )
         if entry == "loiter":
             lat, lon = visits[0].position
             self.outbox.submit(Reposition(lat, lon, self.loiter_altitude_m), key=key)
         else:
-            items = [loiter_item(*v.position, self.loiter_altitude_m, self.visit_loiter_s)
-                     for v in visits]
+            items = [
+                loiter_item(*v.position, self.loiter_altitude_m, self.visit_loiter_s)
+                for v in visits
+            ]
             self.outbox.submit(InsertVisits(tuple(items)), key=key)
         covered = ", ".join(str(t) for v in visits for t in v.covered)
-        self.console(f"  -> visit plan: {entry} to target{'s' if len(alerts) > 1 else ''} "
-                     f"{covered}")
+        self.console(
+            f"  -> visit plan: {entry} to target{'s' if len(alerts) > 1 else ''} {covered}"
+        )
 
     def _on_sent(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
@@ -260,8 +297,10 @@ class ActionPolicy:
         sends = self.store.record_sent(key.alert_id, key.channel)
         if action.done:
             self.sent += 1
-            self.console(f"  -> target {key.target_id} ({key.short_id}): STATUSTEXT sent "
-                         f"{sends.count}x (no acknowledgement exists for STATUSTEXT)")
+            self.console(
+                f"  -> target {key.target_id} ({key.short_id}): STATUSTEXT sent "
+                f"{sends.count}x (no acknowledgement exists for STATUSTEXT)"
+            )
 
     def _on_delivered(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
@@ -275,13 +314,17 @@ class ActionPolicy:
             gimbal = self.gimbal_present()
             self.camera.roi_delivered(gimbal)
             if not gimbal:
-                log.info("ROI without a gimbal reporting: it turns the vehicle, the fixed "
-                         "camera keeps its view, the search goes on")
+                log.info(
+                    "ROI without a gimbal reporting: it turns the vehicle, the fixed "
+                    "camera keeps its view, the search goes on"
+                )
         for alert_id in (key.alert_id, *key.covered):
             self.store.record_ack(alert_id, key.channel, result.result or 0)
         self.acknowledged += 1
-        self.console(f"  -> target {key.target_id}: {result.name} acknowledged "
-                     f"({action.attempts} attempt{'s' if action.attempts != 1 else ''})")
+        self.console(
+            f"  -> target {key.target_id}: {result.name} acknowledged "
+            f"({action.attempts} attempt{'s' if action.attempts != 1 else ''})"
+        )
 
     def _on_refused(self, action: Action, result: CommandResult) -> None:
         key = _key(action)

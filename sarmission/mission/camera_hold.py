@@ -76,8 +76,12 @@ class CameraHold:
     counted in.
     """
 
-    def __init__(self, hold_s: float, settle_s: float = ROI_SETTLE_S,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        hold_s: float,
+        settle_s: float = ROI_SETTLE_S,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.hold_s = hold_s
         self.settle_s = settle_s
         self.clock = clock

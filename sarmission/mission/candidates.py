@@ -54,13 +54,22 @@ class CandidateBook:
         self.zones = list(store.dismissed_zones(mission_id))
         # candidates an earlier run left undecided: new sightings of them count on
         self.candidates: dict[int, Alert] = {
-            a.target_id: a for a in store.pending_candidates(mission_id)}
+            a.target_id: a for a in store.pending_candidates(mission_id)
+        }
         self._seen_event = store.last_event_seq()
 
     # -- evidence ----------------------------------------------------------------------------
-    def sighting(self, target_id: int, t: float, lat: float | None, lon: float | None,
-                 error_m: float | None, size_m: float | None, score: float,
-                 label: str = "") -> None:
+    def sighting(
+        self,
+        target_id: int,
+        t: float,
+        lat: float | None,
+        lon: float | None,
+        error_m: float | None,
+        size_m: float | None,
+        score: float,
+        label: str = "",
+    ) -> None:
         """One frame's sighting of a target (``lat`` None: no fix this frame; ``label`` the
         head's class for it, empty when unknown)."""
         evidence = self.evidence.setdefault(target_id, TargetEvidence())
@@ -69,8 +78,9 @@ class CandidateBook:
         else:
             evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label))
 
-    def suppressing(self, position: tuple[float, float] | None
-                    ) -> tuple[float, float, float] | None:
+    def suppressing(
+        self, position: tuple[float, float] | None
+    ) -> tuple[float, float, float] | None:
         """The dismissed zone ``position`` lies in, if any."""
         if position is None:
             return None
@@ -101,8 +111,9 @@ class CandidateBook:
             if found.verdict == "confirm":
                 stored = self.store.promote(alert.alert_id, found.summary())
                 if stored is None:  # dismissed by the operator meanwhile: stays silent
-                    log.info("target %d confirmed by evidence but dismissed by the operator",
-                             target_id)
+                    log.info(
+                        "target %d confirmed by evidence but dismissed by the operator", target_id
+                    )
                     continue
                 promoted.append(Promotion(stored, found))
             else:

@@ -35,11 +35,13 @@ Problem = tuple[str, str] | None
 def area_problem(a: AreaConfig) -> Problem:
     if not -90.0 <= a.home_lat <= 90.0 or not -180.0 <= a.home_lon <= 180.0:
         return "home_lat/home_lon", "expected latitude in [-90, 90] and longitude in [-180, 180]"
-    shapes = [s for s in ("rectangle_m", "polygon_m", "polygon_latlon")
-              if getattr(a, s) is not None]
+    shapes = [
+        s for s in ("rectangle_m", "polygon_m", "polygon_latlon") if getattr(a, s) is not None
+    ]
     if len(shapes) > 1:
-        return "", (f"give only one of rectangle_m, polygon_m, polygon_latlon "
-                    f"(got {', '.join(shapes)})")
+        return "", (
+            f"give only one of rectangle_m, polygon_m, polygon_latlon (got {', '.join(shapes)})"
+        )
     r = a.rectangle_m
     if r is not None and (len(r) != 4 or r[0] >= r[2] or r[1] >= r[3]):
         return "rectangle_m", "expected [north_min, east_min, north_max, east_max] with min < max"
@@ -53,8 +55,13 @@ def area_problem(a: AreaConfig) -> Problem:
 
 
 def flight_problem(f: FlightConfig) -> Problem:
-    for key in ("altitude_m", "speed_m_s", "climb_rate_m_s", "max_accel_m_s2",
-                "max_lateral_accel_m_s2"):
+    for key in (
+        "altitude_m",
+        "speed_m_s",
+        "climb_rate_m_s",
+        "max_accel_m_s2",
+        "max_lateral_accel_m_s2",
+    ):
         if getattr(f, key) <= 0:
             return key, "expected a positive number"
     return None
@@ -140,12 +147,20 @@ def telemetry_problem(t: TelemetryConfig) -> Problem:
 
 def confirm_problem(c: ConfirmConfig) -> Problem:
     if c.min_sightings < 1 or not c.min_seen_s >= 0 or not c.give_up_s > c.min_seen_s:
-        return ("min_sightings/min_seen_s/give_up_s",
-                "expected min_sightings >= 1, min_seen_s >= 0 and give_up_s > min_seen_s")
-    if (not 0 < c.min_size_m < c.max_size_m or c.max_speed_m_s < 0
-            or not 0 <= c.min_score <= 1 or not 0 <= c.min_seen_share <= 1):
-        return ("sizes/speed/score",
-                "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1")
+        return (
+            "min_sightings/min_seen_s/give_up_s",
+            "expected min_sightings >= 1, min_seen_s >= 0 and give_up_s > min_seen_s",
+        )
+    if (
+        not 0 < c.min_size_m < c.max_size_m
+        or c.max_speed_m_s < 0
+        or not 0 <= c.min_score <= 1
+        or not 0 <= c.min_seen_share <= 1
+    ):
+        return (
+            "sizes/speed/score",
+            "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1",
+        )
     return None
 
 

@@ -119,8 +119,13 @@ def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
     """``(speed, its standard error)`` in m/s of a straight-line fit of the fixes over time."""
     origin = (sightings[0].lat, sightings[0].lon)
     t = np.array([s.t for s in sightings])
-    n, e, _ = geodetic_to_ned(np.array([s.lat for s in sightings]),
-                              np.array([s.lon for s in sightings]), 0.0, *origin, 0.0)
+    n, e, _ = geodetic_to_ned(
+        np.array([s.lat for s in sightings]),
+        np.array([s.lon for s in sightings]),
+        0.0,
+        *origin,
+        0.0,
+    )
     pos = np.stack([np.asarray(n, float), np.asarray(e, float)], axis=1)
     dt = t - t.mean()
     spread = float(np.sum(dt**2))
@@ -152,29 +157,50 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     speed = spread = None
     if len(sightings) >= 3:
         speed, spread = drift_speed(sightings)
-    figures = dict(seen_s=seen, sightings=len(sightings), seen_share=share, speed_m_s=speed,
-                   size_m=size, score=score)
+    figures = dict(
+        seen_s=seen,
+        sightings=len(sightings),
+        seen_share=share,
+        speed_m_s=speed,
+        size_m=size,
+        score=score,
+    )
     enough = len(sightings) >= rule.min_sightings
     objects = Counter(s.label for s in sightings if s.label and role_of(s.label) == "object")
     if enough and 2 * sum(objects.values()) >= len(sightings):
         name, _ = objects.most_common(1)[0]
-        return Assessment("discard", f"called {name} in {sum(objects.values())} of "
-                                     f"{len(sightings)} sightings", **figures)
+        return Assessment(
+            "discard",
+            f"called {name} in {sum(objects.values())} of {len(sightings)} sightings",
+            **figures,
+        )
     if enough and size is not None and not rule.min_size_m <= size <= rule.max_size_m:
-        return Assessment("discard", f"{size:.2f} m on the ground is no person "
-                                     f"({rule.min_size_m:g}-{rule.max_size_m:g} m)", **figures)
-    if enough and speed is not None and spread is not None \
-            and speed - 2 * spread > rule.max_speed_m_s:
-        return Assessment("discard", f"moves {speed:.1f} m/s over the ground "
-                                     f"(people drift <= {rule.max_speed_m_s:g})", **figures)
+        return Assessment(
+            "discard",
+            f"{size:.2f} m on the ground is no person ({rule.min_size_m:g}-{rule.max_size_m:g} m)",
+            **figures,
+        )
+    if (
+        enough
+        and speed is not None
+        and spread is not None
+        and speed - 2 * spread > rule.max_speed_m_s
+    ):
+        return Assessment(
+            "discard",
+            f"moves {speed:.1f} m/s over the ground (people drift <= {rule.max_speed_m_s:g})",
+            **figures,
+        )
     if enough and seen >= rule.min_seen_s:
         if score < rule.min_score:
-            return Assessment("discard", f"score {score:.2f} below {rule.min_score:g}",
-                              **figures)
+            return Assessment("discard", f"score {score:.2f} below {rule.min_score:g}", **figures)
         if share is not None and share < rule.min_seen_share:
-            return Assessment("discard", f"seen in {100 * share:.0f} % of frames (a person "
-                                         f"stays in view: {100 * rule.min_seen_share:.0f} %)",
-                              **figures)
+            return Assessment(
+                "discard",
+                f"seen in {100 * share:.0f} % of frames (a person "
+                f"stays in view: {100 * rule.min_seen_share:.0f} %)",
+                **figures,
+            )
         if size is None:
             return Assessment("wait", "size on the ground unknown", **figures)
         return Assessment("confirm", "", **figures)

@@ -79,8 +79,9 @@ class Detector(Protocol):
     @property
     def classes(self) -> tuple[str, ...]: ...
 
-    def process(self, frame_bgr: np.ndarray, timestamp: float,
-                shift_px: tuple[float, float] | None = None) -> FrameResult: ...
+    def process(
+        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+    ) -> FrameResult: ...
 
     def reset(self) -> None: ...
 
@@ -135,11 +136,20 @@ class MissionController:
             :meth:`~sarmission.geo.terrain.TerrainGround.locate`, e.g. a DEM).
     """
 
-    def __init__(self, mission: MissionConfig, detector: Detector, telemetry: TelemetryBuffer,
-                 store: AlertStore, actions: ActionPolicy | None = None,
-                 recorder: Recorder | None = None, mission_id: str | None = None,
-                 to_posix: Callable[[float], float] | None = None, merge_radius_m: float = 8.0,
-                 console: Callable[[str], None] = print, ground_model: Any = None) -> None:
+    def __init__(
+        self,
+        mission: MissionConfig,
+        detector: Detector,
+        telemetry: TelemetryBuffer,
+        store: AlertStore,
+        actions: ActionPolicy | None = None,
+        recorder: Recorder | None = None,
+        mission_id: str | None = None,
+        to_posix: Callable[[float], float] | None = None,
+        merge_radius_m: float = 8.0,
+        console: Callable[[str], None] = print,
+        ground_model: Any = None,
+    ) -> None:
         self.mission = mission
         self.ground_model = ground_model
         self.detector = detector
@@ -149,21 +159,28 @@ class MissionController:
         self.recorder = recorder if recorder is not None and recorder.enabled else None
         self.mission_id = mission_id or mission.name
         self.to_posix = to_posix or monotonic_to_posix()
-        self.tracker = Tracker(lock_m=mission.lock.m, lock_k=mission.lock.k,
-                               lock_min_score=mission.lock.min_score)
+        self.tracker = Tracker(
+            lock_m=mission.lock.m, lock_k=mission.lock.k, lock_min_score=mission.lock.min_score
+        )
         self.registry = TargetRegistry(merge_radius_m)
-        self.registry.seed({
-            target_id: KnownTarget(None if fix is None else (fix[0], fix[1]),
-                                   None if fix is None else fix[2])
-            for target_id, fix in store.known_fixes(self.mission_id).items()})
+        self.registry.seed(
+            {
+                target_id: KnownTarget(
+                    None if fix is None else (fix[0], fix[1]), None if fix is None else fix[2]
+                )
+                for target_id, fix in store.known_fixes(self.mission_id).items()
+            }
+        )
         self.known_at_start = len(self.registry)
         self.candidates = CandidateBook(store, self.mission_id, mission.confirm)
         self.console = console
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m
         self.min_height_m = mission.geolocation.min_height_m
-        self.fix_limits = FixLimits(max_off_nadir_deg=mission.geolocation.max_off_nadir_deg,
-                                    max_error_m=mission.geolocation.max_error_m)
+        self.fix_limits = FixLimits(
+            max_off_nadir_deg=mission.geolocation.max_off_nadir_deg,
+            max_error_m=mission.geolocation.max_error_m,
+        )
         self._camera = mission.camera.intrinsics()
         self._intrinsics: CameraIntrinsics | None = None
         self._shape: tuple[int, int] | None = None
@@ -183,8 +200,9 @@ class MissionController:
         lat0, lon0, h0 = mission.area.home
         ne = mission.area.polygon_ne()
         lat, lon, _ = ned_to_geodetic([p[0] for p in ne], [p[1] for p in ne], 0.0, lat0, lon0, h0)
-        self.store.set_mission_area(self.mission_id, [(float(a), float(b))
-                                                      for a, b in zip(lat, lon, strict=True)])
+        self.store.set_mission_area(
+            self.mission_id, [(float(a), float(b)) for a, b in zip(lat, lon, strict=True)]
+        )
 
     # -- per frame -------------------------------------------------------------------------------
     def process(self, frame_index: int, timestamp: float, frame: Any) -> list[Alert]:
@@ -224,14 +242,14 @@ class MissionController:
             self._paused = False
         return False
 
-    def _detect_and_track(self, frame: Any, frame_index: int, timestamp: float
-                          ) -> tuple[FrameResult, list[TrackState], np.ndarray]:
+    def _detect_and_track(
+        self, frame: Any, frame_index: int, timestamp: float
+    ) -> tuple[FrameResult, list[TrackState], np.ndarray]:
         """Detections of the frame, the tracks they update, and the scene offset (the camera's
         accumulated shift, as a box offset)."""
         result = self.detector.process(frame, timestamp)
         shift = result.camera_shift
-        tracks = self.tracker.update(result.detections, frame_index, timestamp,
-                                     camera_shift=shift)
+        tracks = self.tracker.update(result.detections, frame_index, timestamp, camera_shift=shift)
         if shift is not None:
             self._scene_offset += shift
         self.stats.frames += 1
@@ -239,9 +257,14 @@ class MissionController:
         self.stats.stage_ms.update(self.detector.per_stage_ms)
         return result, tracks, np.tile(self._scene_offset, 2)
 
-    def _observe_locked(self, tracks: list[TrackState], frame: Any, frame_index: int,
-                        timestamp: float, scene: np.ndarray
-                        ) -> tuple[PlatformPose | StaleTelemetry | None, list[Target]]:
+    def _observe_locked(
+        self,
+        tracks: list[TrackState],
+        frame: Any,
+        frame_index: int,
+        timestamp: float,
+        scene: np.ndarray,
+    ) -> tuple[PlatformPose | StaleTelemetry | None, list[Target]]:
         """Locate every locked track seen in this frame and update its target; returns the pose
         (looked up only when a track needs it) and the targets changed."""
         pose: PlatformPose | StaleTelemetry | None = None
@@ -251,15 +274,22 @@ class MissionController:
                 continue
             if pose is None:
                 pose = self.telemetry.lookup(timestamp)
-            changed.append(self._observe_track(track, frame, frame_index, timestamp, pose,
-                                               scene))
+            changed.append(self._observe_track(track, frame, frame_index, timestamp, pose, scene))
         return pose, changed
 
-    def _observe_track(self, track: TrackState, frame: Any, frame_index: int, timestamp: float,
-                       pose: PlatformPose | StaleTelemetry, scene: np.ndarray) -> Target:
+    def _observe_track(
+        self,
+        track: TrackState,
+        frame: Any,
+        frame_index: int,
+        timestamp: float,
+        pose: PlatformPose | StaleTelemetry,
+        scene: np.ndarray,
+    ) -> Target:
         fix, note = self._locate(track, pose)
-        target, is_new = self.registry.observe(track.track_id, track.class_id, track.score,
-                                               timestamp, fix, note, box=track.box - scene)
+        target, is_new = self.registry.observe(
+            track.track_id, track.class_id, track.score, timestamp, fix, note, box=track.box - scene
+        )
         self._sighting(target, track, timestamp, pose, fix)
         if track.just_locked:
             self.stats.locks += 1
@@ -294,15 +324,21 @@ class MissionController:
             self._shape = shape
             self._intrinsics = self._camera.scaled(shape[1], shape[0])
         elif shape != self._shape:
-            return (f"size {shape[1]}x{shape[0]} differs from the stream's "
-                    f"{self._shape[1]}x{self._shape[0]}")
+            return (
+                f"size {shape[1]}x{shape[0]} differs from the stream's "
+                f"{self._shape[1]}x{self._shape[0]}"
+            )
         return ""
 
     def _skip(self, frame_index: int, reason: str) -> None:
         key = reason.split(" (")[0]
         self.stats.skipped[key] += 1
-        log.warning("frame %d skipped: %s (%d skipped so far)", frame_index, reason,
-                    self.stats.skipped_total)
+        log.warning(
+            "frame %d skipped: %s (%d skipped so far)",
+            frame_index,
+            reason,
+            self.stats.skipped_total,
+        )
         if self.recorder is not None:
             self.recorder.text("skipped", f"frame {frame_index}: {reason}", level="WARN")
 
@@ -317,19 +353,30 @@ class MissionController:
     def _fix(self, centre: tuple[float, float], pose: PlatformPose) -> GeoFix:
         ground = self._ground_below_home()
         if ground is None:
-            return GeoFix(None, None, None, None, math.nan,
-                          "no home position from the autopilot yet")
+            return GeoFix(
+                None, None, None, None, math.nan, "no home position from the autopilot yet"
+            )
         assert self._intrinsics is not None
         if self.ground_model is not None:
             home = self.telemetry.home
             assert home is not None
-            return self.ground_model.locate(centre, self._intrinsics, pose, home,
-                                            self.min_height_m, limits=self.fix_limits)
-        return geolocate(centre, self._intrinsics, pose, ground, min_height_m=self.min_height_m,
-                         limits=self.fix_limits)
+            return self.ground_model.locate(
+                centre, self._intrinsics, pose, home, self.min_height_m, limits=self.fix_limits
+            )
+        return geolocate(
+            centre,
+            self._intrinsics,
+            pose,
+            ground,
+            min_height_m=self.min_height_m,
+            limits=self.fix_limits,
+        )
 
-    def _locate(self, track: TrackState, pose: PlatformPose | StaleTelemetry,
-                ) -> tuple[GeoFix | None, str]:
+    def _locate(
+        self,
+        track: TrackState,
+        pose: PlatformPose | StaleTelemetry,
+    ) -> tuple[GeoFix | None, str]:
         if isinstance(pose, StaleTelemetry):
             return None, pose.reason
         box = track.box
@@ -380,30 +427,52 @@ class MissionController:
         if pose is None:
             pose = self.telemetry.lookup(timestamp)
         if isinstance(pose, PlatformPose):
-            self.store.record_drone(self.mission_id, self.to_posix(timestamp), pose.lat,
-                                    pose.lon, pose.rel_alt_m)
+            self.store.record_drone(
+                self.mission_id, self.to_posix(timestamp), pose.lat, pose.lon, pose.rel_alt_m
+            )
             self._drone_recorded = timestamp
 
     # -- candidates and alerts ---------------------------------------------------------------
-    def _sighting(self, target: Target, track: TrackState, timestamp: float,
-                  pose: PlatformPose | StaleTelemetry, fix: GeoFix | None) -> None:
+    def _sighting(
+        self,
+        target: Target,
+        track: TrackState,
+        timestamp: float,
+        pose: PlatformPose | StaleTelemetry,
+        fix: GeoFix | None,
+    ) -> None:
         """This frame's evidence of ``target``: the track's fix, box size on the ground, the
         head's score of the detection it took and the track's class."""
         if fix is None or not fix.ok or not isinstance(pose, PlatformPose):
-            self.candidates.sighting(target.target_id, timestamp, None, None, None, None,
-                                     track.last_score)
+            self.candidates.sighting(
+                target.target_id, timestamp, None, None, None, None, track.last_score
+            )
             return
         ground = self._ground_below_home()
         assert self._intrinsics is not None and ground is not None
         size = ground_extent_m(track.raw_box, self._intrinsics, pose, ground)
         classes = self.detector.classes
         label = classes[track.class_id] if 0 <= track.class_id < len(classes) else ""
-        self.candidates.sighting(target.target_id, timestamp, fix.lat, fix.lon, fix.error_m,
-                                 size, track.last_score, label)
+        self.candidates.sighting(
+            target.target_id,
+            timestamp,
+            fix.lat,
+            fix.lon,
+            fix.error_m,
+            size,
+            track.last_score,
+            label,
+        )
 
-    def _candidate(self, target: Target, track: TrackState, frame: np.ndarray,
-                   frame_index: int, pose: PlatformPose | StaleTelemetry,
-                   fix: GeoFix | None) -> None:
+    def _candidate(
+        self,
+        target: Target,
+        track: TrackState,
+        frame: np.ndarray,
+        frame_index: int,
+        pose: PlatformPose | StaleTelemetry,
+        fix: GeoFix | None,
+    ) -> None:
         """A new target's lock: a candidate alert for the operator (not the autopilot). A target
         the head calls an object (its majority class: boat, buoy) waits in ``_objects`` and
         becomes a candidate only once its majority class is a person or an appliance."""
@@ -411,16 +480,22 @@ class MissionController:
             if target.target_id not in self._objects:
                 self._objects.add(target.target_id)
                 self.stats.objects += 1
-                log.info("target %d is a %s: not alerted", target.target_id,
-                         self.detector.classes[target.class_id])
+                log.info(
+                    "target %d is a %s: not alerted",
+                    target.target_id,
+                    self.detector.classes[target.class_id],
+                )
             return
         self._objects.discard(target.target_id)
         target.announced = True
         zone = self.candidates.suppressing(target.position)
         if zone is not None:
             self.stats.suppressed += 1
-            log.info("target %d lies in a dismissed zone (%.6f, %.6f, %.0f m): not alerted",
-                     target.target_id, *zone)
+            log.info(
+                "target %d lies in a dismissed zone (%.6f, %.6f, %.0f m): not alerted",
+                target.target_id,
+                *zone,
+            )
             return
         alert = self._new_alert(target, track, frame, frame_index, pose, fix)
         self.store.add(alert)  # durable before anyone is told
@@ -449,9 +524,15 @@ class MissionController:
             self.actions.announce(alert)
         return alert
 
-    def _new_alert(self, target: Target, track: TrackState, frame: np.ndarray,
-                   frame_index: int, pose: PlatformPose | StaleTelemetry,
-                   fix: GeoFix | None) -> Alert:
+    def _new_alert(
+        self,
+        target: Target,
+        track: TrackState,
+        frame: np.ndarray,
+        frame_index: int,
+        pose: PlatformPose | StaleTelemetry,
+        fix: GeoFix | None,
+    ) -> Alert:
         box = track.box
         centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
         classes = self.detector.classes
@@ -469,8 +550,9 @@ class MissionController:
             position_note=target.note if placed else (target.note or "no position"),
             error_m=target.error_m if placed else None,
             target_hae_m=self._target_hae(),
-            drone_position=(None if isinstance(pose, StaleTelemetry)
-                            else (pose.lat, pose.lon, pose.rel_alt_m)),
+            drone_position=(
+                None if isinstance(pose, StaleTelemetry) else (pose.lat, pose.lon, pose.rel_alt_m)
+            ),
             track=self._history_fixes(track),
             pixel_track=[(int(i), float(x), float(y)) for i, _, x, y in track.history],
             thumbnail=crop_thumbnail(frame, centre),
@@ -489,11 +571,15 @@ class MissionController:
         alert = self._unplaced.pop(target.target_id)
         self._unplaced_sightings.pop(target.target_id, None)
         assert target.position is not None
-        if not self.store.attach_position(alert.alert_id, target.position, target.error_m,
-                                          target.note):  # durable before anyone is told
+        if not self.store.attach_position(
+            alert.alert_id, target.position, target.error_m, target.note
+        ):  # durable before anyone is told
             return
-        alert.position, alert.error_m, alert.position_note = (target.position, target.error_m,
-                                                              target.note)
+        alert.position, alert.error_m, alert.position_note = (
+            target.position,
+            target.error_m,
+            target.note,
+        )
         self.stats.located_later += 1
         line = format_located(alert, frame_index, track_id)
         self.console(line)
@@ -503,9 +589,16 @@ class MissionController:
             self.actions.announce(alert)
 
     # -- recording -------------------------------------------------------------------------------
-    def _record(self, frame_index: int, timestamp: float, frame: np.ndarray,
-                result: FrameResult, tracks: list[TrackState],
-                pose: PlatformPose | StaleTelemetry, changed: list[Target]) -> None:
+    def _record(
+        self,
+        frame_index: int,
+        timestamp: float,
+        frame: np.ndarray,
+        result: FrameResult,
+        tracks: list[TrackState],
+        pose: PlatformPose | StaleTelemetry,
+        changed: list[Target],
+    ) -> None:
         rec = self.recorder
         assert rec is not None
         if self._t0 is None:
@@ -515,12 +608,20 @@ class MissionController:
         rec.boxes("proposals", result.proposals.boxes)
         classes = self.detector.classes
         det = result.detections
-        rec.boxes("detections", det.boxes, labels=[
-            f"{classes[c] if 0 <= c < len(classes) else c} {s:.2f}"
-            for c, s in zip(det.class_ids.tolist(), det.scores.tolist(), strict=True)])
-        rec.boxes("tracks", np.array([t.box for t in tracks]).reshape(-1, 4),
-                  labels=[f"{t.track_id}{' LOCK' if t.locked else ''}" for t in tracks],
-                  colours=[LOCKED_COLOUR if t.locked else TRACK_COLOUR for t in tracks])
+        rec.boxes(
+            "detections",
+            det.boxes,
+            labels=[
+                f"{classes[c] if 0 <= c < len(classes) else c} {s:.2f}"
+                for c, s in zip(det.class_ids.tolist(), det.scores.tolist(), strict=True)
+            ],
+        )
+        rec.boxes(
+            "tracks",
+            np.array([t.box for t in tracks]).reshape(-1, 4),
+            labels=[f"{t.track_id}{' LOCK' if t.locked else ''}" for t in tracks],
+            colours=[LOCKED_COLOUR if t.locked else TRACK_COLOUR for t in tracks],
+        )
         for stage, ms in self.detector.per_stage_ms.items():
             rec.scalar(f"stage_ms/{stage}", ms)
         if isinstance(pose, PlatformPose):
@@ -528,8 +629,9 @@ class MissionController:
             rec.scalar("attitude/roll_deg", math.degrees(pose.roll))
             rec.scalar("attitude/pitch_deg", math.degrees(pose.pitch))
             rec.scalar("attitude/yaw_deg", math.degrees(pose.yaw))
-            rec.geo_points("drone", np.array([[pose.lat, pose.lon]]), radius_m=3.0,
-                           colour=DRONE_COLOUR)
+            rec.geo_points(
+                "drone", np.array([[pose.lat, pose.lon]]), radius_m=3.0, colour=DRONE_COLOUR
+            )
         if changed:
             placed = [t.position for t in self.registry.targets.values() if t.position]
             if placed:
@@ -539,34 +641,49 @@ class MissionController:
     def summary(self, wall_s: float | None = None) -> str:
         """A few lines: frames, skipped, rate, locks, alerts, stage times, targets."""
         s = self.stats
-        lines = [f"frames processed: {s.frames}"
-                 + (f", skipped: {s.skipped_total} ("
-                    + ", ".join(f"{k}: {n}" for k, n in s.skipped.items()) + ")"
-                    if s.skipped_total else ", skipped: 0")]
+        lines = [
+            f"frames processed: {s.frames}"
+            + (
+                f", skipped: {s.skipped_total} ("
+                + ", ".join(f"{k}: {n}" for k, n in s.skipped.items())
+                + ")"
+                if s.skipped_total
+                else ", skipped: 0"
+            )
+        ]
         if s.frames:
             rate = f"{s.frames / s.busy_s:.1f} fps processing" if s.busy_s > 0 else ""
             if wall_s:
                 rate += f", {s.frames / wall_s:.1f} fps overall"
             lines.append(rate)
-            lines.append("mean stage ms: " + ", ".join(
-                f"{k} {v / s.frames:.1f}" for k, v in s.stage_ms.items()))
-        lines.append(f"detections: {s.detections}, locks: {s.locks}, "
-                     f"tracks merged into known targets: {s.merged_tracks}")
-        lines.append(f"targets: {len(self.registry)} ({self.known_at_start} known at start), "
-                     f"candidates: {len(s.candidates)}, confirmed alerts: {len(s.alerts)}"
-                     + (f", positions found after the alert: {s.located_later}"
-                        if s.located_later else ""))
+            lines.append(
+                "mean stage ms: "
+                + ", ".join(f"{k} {v / s.frames:.1f}" for k, v in s.stage_ms.items())
+            )
+        lines.append(
+            f"detections: {s.detections}, locks: {s.locks}, "
+            f"tracks merged into known targets: {s.merged_tracks}"
+        )
+        lines.append(
+            f"targets: {len(self.registry)} ({self.known_at_start} known at start), "
+            f"candidates: {len(s.candidates)}, confirmed alerts: {len(s.alerts)}"
+            + (f", positions found after the alert: {s.located_later}" if s.located_later else "")
+        )
         book = self.candidates
         if book.discarded or s.suppressed or book.candidates:
-            lines.append("candidates discarded: " + (", ".join(
-                f"{n} ({why})" for why, n in book.discarded.most_common()) or "0")
+            lines.append(
+                "candidates discarded: "
+                + (", ".join(f"{n} ({why})" for why, n in book.discarded.most_common()) or "0")
                 + f"; still unconfirmed: {len(book.candidates)}"
-                + (f"; in dismissed zones: {s.suppressed}" if s.suppressed else ""))
+                + (f"; in dismissed zones: {s.suppressed}" if s.suppressed else "")
+            )
         if s.objects:
             lines.append(f"locked targets the head calls an object (never alerted): {s.objects}")
         if s.unplaced:
-            lines.append("alerted without a position: " + ", ".join(
-                f"{n} ({why})" for why, n in s.unplaced.most_common()))
+            lines.append(
+                "alerted without a position: "
+                + ", ".join(f"{n} ({why})" for why, n in s.unplaced.most_common())
+            )
         if s.paused:
             lines.append(f"frames not searched while the camera was on a target: {s.paused}")
         if self.actions is not None:
@@ -576,15 +693,22 @@ class MissionController:
 
 def format_alert(alert: Alert, track_id: int | None = None) -> str:
     """One console line for a new candidate, or for an alert confirmed (with its evidence)."""
-    where = (f"at {alert.format_position(6)} {alert.format_error()}".rstrip()
-             if alert.position is not None else f"- position unknown: {alert.position_note}")
+    where = (
+        f"at {alert.format_position(6)} {alert.format_error()}".rstrip()
+        if alert.position is not None
+        else f"- position unknown: {alert.position_note}"
+    )
     track = f", track {track_id}" if track_id is not None else ""
     if alert.tier == "candidate":
-        return (f"CANDIDATE target {alert.target_id}: {alert.class_name} {alert.score:.2f} "
-                f"{where} (frame {alert.frame_index}{track}; unconfirmed)")
+        return (
+            f"CANDIDATE target {alert.target_id}: {alert.class_name} {alert.score:.2f} "
+            f"{where} (frame {alert.frame_index}{track}; unconfirmed)"
+        )
     evidence = f"; {alert.evidence}" if alert.evidence else ""
-    return (f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
-            f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence})")
+    return (
+        f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
+        f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence})"
+    )
 
 
 def format_located(alert: Alert, frame_index: int, track_id: int | None) -> str:
@@ -592,5 +716,7 @@ def format_located(alert: Alert, frame_index: int, track_id: int | None) -> str:
     (``track_id`` None: placed from its earlier sightings and buffered telemetry)."""
     where = f"{alert.format_position(6)} {alert.format_error()}".rstrip()
     how = f"track {track_id}" if track_id is not None else "from its earlier sightings"
-    return (f"POSITION target {alert.target_id}: {alert.class_name} at {where} "
-            f"(alerted without a position; frame {frame_index}, {how})")
+    return (
+        f"POSITION target {alert.target_id}: {alert.class_name} at {where} "
+        f"(alerted without a position; frame {frame_index}, {how})"
+    )

@@ -91,14 +91,25 @@ class LiveSession:
         console: receives the operator's console lines.
     """
 
-    def __init__(self, mission: MissionConfig, detector: Detector, source: LiveSource, url: str,
-                 alerts_db: str, *, signing_key: bytes | None = None,
-                 recorder: Recorder | None = None, feed_address: tuple[str, int] | None = None,
-                 feed_token: str | None = None,
-                 mission_id: str | None = None, transport_latency_s: float = 0.0,
-                 connect_timeout_s: float = 30.0, target_system: int | None = None,
-                 target_component: int | None = None,
-                 console: Callable[[str], None] = print) -> None:
+    def __init__(
+        self,
+        mission: MissionConfig,
+        detector: Detector,
+        source: LiveSource,
+        url: str,
+        alerts_db: str,
+        *,
+        signing_key: bytes | None = None,
+        recorder: Recorder | None = None,
+        feed_address: tuple[str, int] | None = None,
+        feed_token: str | None = None,
+        mission_id: str | None = None,
+        transport_latency_s: float = 0.0,
+        connect_timeout_s: float = 30.0,
+        target_system: int | None = None,
+        target_component: int | None = None,
+        console: Callable[[str], None] = print,
+    ) -> None:
         self.mission = mission
         self.source = source
         self.console = console
@@ -109,8 +120,16 @@ class LiveSession:
         self.outbox: Outbox | None = None
         self.store = AlertStore(alerts_db)
         try:
-            self._open(detector, url, signing_key, feed_address, mission_id,
-                       transport_latency_s, connect_timeout_s, (target_system, target_component))
+            self._open(
+                detector,
+                url,
+                signing_key,
+                feed_address,
+                mission_id,
+                transport_latency_s,
+                connect_timeout_s,
+                (target_system, target_component),
+            )
         except BaseException:
             self._close_resources()
             raise
@@ -122,14 +141,22 @@ class LiveSession:
         """Frames taken from the source so far."""
         return self.runner.frames_read
 
-    def _open(self, detector: Detector, url: str, signing_key: bytes | None,
-              feed_address: tuple[str, int] | None, mission_id: str | None,
-              transport_latency_s: float, connect_timeout_s: float,
-              pin: tuple[int | None, int | None]) -> None:
+    def _open(
+        self,
+        detector: Detector,
+        url: str,
+        signing_key: bytes | None,
+        feed_address: tuple[str, int] | None,
+        mission_id: str | None,
+        transport_latency_s: float,
+        connect_timeout_s: float,
+        pin: tuple[int | None, int | None],
+    ) -> None:
         mission = self.mission
         self.telemetry = telemetry_buffer(mission, transport_latency_s)
-        self.link = MavlinkLink(url, signing_key=signing_key, target_system=pin[0],
-                                target_component=pin[1])
+        self.link = MavlinkLink(
+            url, signing_key=signing_key, target_system=pin[0], target_component=pin[1]
+        )
         self.link.subscribe_autopilot(self.telemetry.handle_message, MESSAGE_TYPES)
         self.link.on_adopted(self._on_adopted)
         self.console(f"waiting for the autopilot on {url} ...")
@@ -138,35 +165,52 @@ class LiveSession:
             self.console(f"autopilot {system}/{component} adopted")
         else:
             why = self.link.diagnosis() or f"no autopilot heard on {url}"
-            self.console(f"{why} (waited {connect_timeout_s:.0f} s); going on: targets are "
-                         "alerted without a position until the autopilot's telemetry arrives")
+            self.console(
+                f"{why} (waited {connect_timeout_s:.0f} s); going on: targets are "
+                "alerted without a position until the autopilot's telemetry arrives"
+            )
         results = self.link.request_streams(stream_rates(mission))
         refused = [M.enums["MAV_RESULT"][r].name for r in results.values() if r]
         if refused:
             log.info("stream requests answered: %s", ", ".join(refused))
-        self.outbox = Outbox(CommandSender(self.link, mission.actions.retries,
-                                           mission.actions.ack_timeout_s))
+        self.outbox = Outbox(
+            CommandSender(self.link, mission.actions.retries, mission.actions.ack_timeout_s)
+        )
         ground = mission.area.ground_alt_m
         target_alt = 0.0 if ground is None else ground - mission.area.home_alt_m
         telemetry = self.telemetry
-        self.actions = ActionPolicy(mission.actions, self.outbox, self.store,
-                                    survey_altitude_m=mission.flight.altitude_m,
-                                    target_altitude_m=target_alt, console=self.console,
-                                    move_gate=MoveGate.from_mission(mission),
-                                    aircraft_position=telemetry.latest_position,
-                                    gimbal_present=lambda: telemetry.gimbal_reported)
+        self.actions = ActionPolicy(
+            mission.actions,
+            self.outbox,
+            self.store,
+            survey_altitude_m=mission.flight.altitude_m,
+            target_altitude_m=target_alt,
+            console=self.console,
+            move_gate=MoveGate.from_mission(mission),
+            aircraft_position=telemetry.latest_position,
+            gimbal_present=lambda: telemetry.gimbal_reported,
+        )
         resumed = self.actions.resume()
         if resumed:
             self.console(f"re-sending {resumed} undelivered autopilot action(s) from the store")
         if feed_address is not None:
             self.feed = FeedServer(self.store, *feed_address, token=self._feed_token).start()
             self.console(self.feed.announcement())
-        self.controller = MissionController(mission, detector, self.telemetry, self.store,
-                                            actions=self.actions, recorder=self.recorder,
-                                            mission_id=mission_id, console=self.console)
+        self.controller = MissionController(
+            mission,
+            detector,
+            self.telemetry,
+            self.store,
+            actions=self.actions,
+            recorder=self.recorder,
+            mission_id=mission_id,
+            console=self.console,
+        )
         if self.controller.known_at_start:
-            self.console(f"{self.controller.known_at_start} target(s) already alerted in "
-                         f"mission '{self.controller.mission_id}'; they will not be re-announced")
+            self.console(
+                f"{self.controller.known_at_start} target(s) already alerted in "
+                f"mission '{self.controller.mission_id}'; they will not be re-announced"
+            )
 
     def _on_adopted(self, new: tuple[int, int], old: tuple[int, int] | None) -> None:
         """Another autopilot took over (the old one fell silent): nothing the old one said
@@ -174,11 +218,17 @@ class LiveSession:
         if old is None:
             return
         self.telemetry.reset(f"autopilot {old[0]}/{old[1]} replaced by {new[0]}/{new[1]}")
-        self.console(f"autopilot {old[0]}/{old[1]} silent; now following {new[0]}/{new[1]} "
-                     "(telemetry buffer emptied)")
+        self.console(
+            f"autopilot {old[0]}/{old[1]} silent; now following {new[0]}/{new[1]} "
+            "(telemetry buffer emptied)"
+        )
 
-    def run(self, stop: threading.Event | None = None, max_frames: int | None = None,
-            duration_s: float | None = None) -> None:
+    def run(
+        self,
+        stop: threading.Event | None = None,
+        max_frames: int | None = None,
+        duration_s: float | None = None,
+    ) -> None:
         """Process frames until the source ends, ``max_frames`` were read, ``duration_s``
         passed or ``stop`` is set."""
         if self.runner.run(self._frames(), stop, max_frames, duration_s):
@@ -210,22 +260,33 @@ class LiveSession:
             a = self.mission.actions
             drain_s = max(3.0, (a.statustext_repeats - 1) * a.statustext_repeat_interval_s + 1.0)
         deadline = time.monotonic() + drain_s
-        while (self.link is not None and self.link.link_ok and self.actions.pending()
-               and time.monotonic() < deadline):
+        while (
+            self.link is not None
+            and self.link.link_ok
+            and self.actions.pending()
+            and time.monotonic() < deadline
+        ):
             time.sleep(0.05)
         lines = [self.controller.summary()]
         assert self.link is not None
-        lines.append(f"MAVLink: {self.link.received} messages received, "
-                     f"{self.link.bad_packets} malformed skipped"
-                     + (f", {self.link.rejected_signatures} bad signatures"
-                        if self.link.rejected_signatures else ""))
+        lines.append(
+            f"MAVLink: {self.link.received} messages received, "
+            f"{self.link.bad_packets} malformed skipped"
+            + (
+                f", {self.link.rejected_signatures} bad signatures"
+                if self.link.rejected_signatures
+                else ""
+            )
+        )
         lines.extend(self._trust_lines())
         if self.source.skipped:
             lines.append(f"frame source: {self.source.skipped} frame(s) could not be read")
         pending = self.actions.pending()
         if pending:
-            lines.append(f"{pending} autopilot action(s) not finished; they stay queued in "
-                         f"{self.store.path} for the next run")
+            lines.append(
+                f"{pending} autopilot action(s) not finished; they stay queued in "
+                f"{self.store.path} for the next run"
+            )
         self._close_resources()
         return "\n".join(lines)
 
@@ -236,22 +297,32 @@ class LiveSession:
         lines = []
         rejected = dict(self.telemetry.rejected)
         if rejected:
-            lines.append(f"telemetry rejected: {sum(rejected.values())} ("
-                         + "; ".join(f"{why}: {n}" for why, n in sorted(
-                             rejected.items(), key=lambda kv: -kv[1])[:5]) + ")")
+            lines.append(
+                f"telemetry rejected: {sum(rejected.values())} ("
+                + "; ".join(
+                    f"{why}: {n}" for why, n in sorted(rejected.items(), key=lambda kv: -kv[1])[:5]
+                )
+                + ")"
+            )
         ignored = dict(self.link.ignored)
         if ignored:
             by_source: dict[tuple[int, int], int] = {}
             for (system, component, _), n in ignored.items():
                 by_source[(system, component)] = by_source.get((system, component), 0) + n
-            lines.append("ignored (not the adopted autopilot): " + ", ".join(
-                f"{n} from {s}/{c}" for (s, c), n in sorted(by_source.items())))
+            lines.append(
+                "ignored (not the adopted autopilot): "
+                + ", ".join(f"{n} from {s}/{c}" for (s, c), n in sorted(by_source.items()))
+            )
         if self.link.adoptions > 1:
             lines.append(f"autopilots adopted: {self.link.adoptions} (re-adopted after silence)")
         given_up = self.link.streams_given_up
         if given_up:
-            lines.append("streams accepted but never sent: " + ", ".join(
-                M.mavlink_map[i].msgname if i in M.mavlink_map else str(i) for i in given_up))
+            lines.append(
+                "streams accepted but never sent: "
+                + ", ".join(
+                    M.mavlink_map[i].msgname if i in M.mavlink_map else str(i) for i in given_up
+                )
+            )
         return lines
 
     def _close_resources(self) -> None:

@@ -118,8 +118,7 @@ class CameraSource:
         self._failures += 1
         self.skipped += 1
         if self._failures >= MAX_CAMERA_FAILURES:
-            log.warning("camera %d: %d failed grabs in a row; stopping", self.index,
-                        self._failures)
+            log.warning("camera %d: %d failed grabs in a row; stopping", self.index, self._failures)
             return None
         return Frame(index, stamp, None)
 

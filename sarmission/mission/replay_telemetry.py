@@ -49,8 +49,15 @@ def push_frame_telemetry(buffer: TelemetryBuffer, t: float, pose: MetaPose) -> N
         buffer.set_home(pose.latitude, pose.longitude, 0.0)
     buffer.push_position(t, pose.latitude, pose.longitude, pose.height_m)
     buffer.push_attitude(t, 0.0, 0.0, math.radians(pose.heading_deg))
-    buffer.push_gimbal(t, (math.radians(pose.gimbal_roll_deg), math.radians(pose.gimbal_pitch_deg),
-                           math.radians(pose.gimbal_heading_deg)), "earth")
+    buffer.push_gimbal(
+        t,
+        (
+            math.radians(pose.gimbal_roll_deg),
+            math.radians(pose.gimbal_pitch_deg),
+            math.radians(pose.gimbal_heading_deg),
+        ),
+        "earth",
+    )
 
 
 class MetaReplayTelemetry:
@@ -78,15 +85,22 @@ class MetaReplayTelemetry:
         return getattr(self.buffer, name)
 
 
-def push_flight_state(buffer: TelemetryBuffer, t: float, state: Any,
-                      home: tuple[float, float, float]) -> None:
+def push_flight_state(
+    buffer: TelemetryBuffer, t: float, state: Any, home: tuple[float, float, float]
+) -> None:
     """Push an exact flight state (NED metres from ``home``) at time ``t``."""
     if buffer.home is None:
         buffer.set_home(*home)
     n, e, d = (float(v) for v in state.position_ned)
     lat, lon, _ = ned_to_geodetic(n, e, 0.0, *home)
-    buffer.push_position(t, float(lat), float(lon), -d, alt_m=home[2] - d,
-                         velocity_ned=tuple(float(v) for v in state.velocity_ned))
+    buffer.push_position(
+        t,
+        float(lat),
+        float(lon),
+        -d,
+        alt_m=home[2] - d,
+        velocity_ned=tuple(float(v) for v in state.velocity_ned),
+    )
     buffer.push_attitude(t, *state.vehicle_rpy)
     buffer.push_gimbal(t, state.gimbal_rpy, state.gimbal_frame)
 
@@ -149,8 +163,13 @@ class ReplaySource:
             return MetaReplayTelemetry(buf)  # type: ignore[return-value]
         return buf
 
-    def before(self, buffer: TelemetryBuffer, t: float, meta: MetaPose | NoMetaPose | None,
-               home: tuple[float, float, float]) -> None:
+    def before(
+        self,
+        buffer: TelemetryBuffer,
+        t: float,
+        meta: MetaPose | NoMetaPose | None,
+        home: tuple[float, float, float],
+    ) -> None:
         """Push the telemetry frame time ``t`` (controller clock) needs; note the drone's
         position there for the track."""
         if self.kind == "meta" and isinstance(buffer, MetaReplayTelemetry):
@@ -169,10 +188,19 @@ class ReplaySource:
                 self.flown.append((t, pose.lat, pose.lon))
 
 
-def telemetry_source(choice: str, *, input_path: Path, is_video: bool, names: list[str],
-                     fps: float, duration_s: float | None, with_meta: bool,
-                     offset_s: float | None, mission: Any,
-                     meta_conventions: MetaConventions | str | None = None) -> ReplaySource:
+def telemetry_source(
+    choice: str,
+    *,
+    input_path: Path,
+    is_video: bool,
+    names: list[str],
+    fps: float,
+    duration_s: float | None,
+    with_meta: bool,
+    offset_s: float | None,
+    mission: Any,
+    meta_conventions: MetaConventions | str | None = None,
+) -> ReplaySource:
     """The replay's telemetry for ``--telemetry choice`` (auto, none, meta, sim or a file).
 
     ``auto`` takes the dataset's meta, else a DJI sidecar beside the video (``clip.SRT``), else
@@ -181,27 +209,39 @@ def telemetry_source(choice: str, *, input_path: Path, is_video: bool, names: li
     read (mixed conventions): then no telemetry from it.
     """
     if isinstance(meta_conventions, str) and choice in ("meta", "auto"):
-        return ReplaySource(f"none: dataset meta not used: {meta_conventions}",
-                            none_reason="dataset meta in mixed conventions")
+        return ReplaySource(
+            f"none: dataset meta not used: {meta_conventions}",
+            none_reason="dataset meta in mixed conventions",
+        )
     if choice == "meta" and not with_meta:
-        raise ValueError(f"{input_path}: no per-frame telemetry (meta with latitude, longitude, "
-                         "height above take-off, gimbal pitch and heading) to replay; use "
-                         "--telemetry sim")
+        raise ValueError(
+            f"{input_path}: no per-frame telemetry (meta with latitude, longitude, "
+            "height above take-off, gimbal pitch and heading) to replay; use "
+            "--telemetry sim"
+        )
     if choice in ("meta", "auto") and with_meta:
-        lines = ([f"meta read as: {meta_conventions.describe()}"]
-                 if isinstance(meta_conventions, MetaConventions) else [])
+        lines = (
+            [f"meta read as: {meta_conventions.describe()}"]
+            if isinstance(meta_conventions, MetaConventions)
+            else []
+        )
         return ReplaySource("dataset meta", lines=lines, kind="meta")
     if choice in ("sim", "flight"):
         from sim.flight import Flight
 
-        return ReplaySource("simulated flight of the mission (positions are the simulator's, "
-                            "not the footage's)", kind="sim", flight=Flight(mission))
+        return ReplaySource(
+            "simulated flight of the mission (positions are the simulator's, not the footage's)",
+            kind="sim",
+            flight=Flight(mission),
+        )
     if choice == "none":
         return ReplaySource("none (alerts carry frame, time and pixel, no position)")
     path: Path | None = Path(choice) if choice != "auto" else _sidecar(input_path)
     if path is None:
-        return ReplaySource("none given (alerts carry frame, time and pixel, no position; "
-                            "--telemetry FILE reads a flight log)")
+        return ReplaySource(
+            "none given (alerts carry frame, time and pixel, no position; "
+            "--telemetry FILE reads a flight log)"
+        )
     return _log_source(path, input_path, is_video, names, fps, duration_s, offset_s)
 
 
@@ -213,8 +253,15 @@ def _sidecar(video: Path) -> Path | None:
     return None
 
 
-def _log_source(path: Path, input_path: Path, is_video: bool, names: list[str], fps: float,
-                duration_s: float | None, offset_s: float | None) -> ReplaySource:
+def _log_source(
+    path: Path,
+    input_path: Path,
+    is_video: bool,
+    names: list[str],
+    fps: float,
+    duration_s: float | None,
+    offset_s: float | None,
+) -> ReplaySource:
     try:
         log = open_flight_log(path)
     except FlightLogError as exc:
@@ -222,15 +269,22 @@ def _log_source(path: Path, input_path: Path, is_video: bool, names: list[str], 
     lines = [log.summary(), f"home: {_home_text(log)}"] + log.notes
     try:
         if is_video:
-            alignment = align_video(log, created=creation_time(input_path),
-                                    duration_s=duration_s, offset_s=offset_s)
+            alignment = align_video(
+                log, created=creation_time(input_path), duration_s=duration_s, offset_s=offset_s
+            )
         else:
             alignment = align_images(log, names, fps, offset_s)
     except AlignmentError as exc:
         return ReplaySource(f"none: {exc}", lines=lines)
     lines.append(f"alignment: {alignment.method}")
-    return ReplaySource(f"{log.fmt} {path.name}", lines=lines, kind="log", log=log,
-                        alignment=alignment, utc_offset_s=log.utc_offset_s)
+    return ReplaySource(
+        f"{log.fmt} {path.name}",
+        lines=lines,
+        kind="log",
+        log=log,
+        alignment=alignment,
+        utc_offset_s=log.utc_offset_s,
+    )
 
 
 def _home_text(log: FlightLog) -> str:

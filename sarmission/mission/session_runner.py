@@ -45,8 +45,13 @@ class SessionRunner:
         self.on_frame = on_frame
         self.frames_read = 0
 
-    def run(self, frames: Iterable[SessionFrame], stop: threading.Event | None = None,
-            max_frames: int | None = None, duration_s: float | None = None) -> bool:
+    def run(
+        self,
+        frames: Iterable[SessionFrame],
+        stop: threading.Event | None = None,
+        max_frames: int | None = None,
+        duration_s: float | None = None,
+    ) -> bool:
         """Hand frames over until ``frames`` ends, ``max_frames`` were read in all, ``duration_s``
         of wall time passed or ``stop`` is set. True when it stopped because ``frames`` ended.
 

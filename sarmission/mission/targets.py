@@ -116,8 +116,14 @@ class Target:
         self._sum_w += w
         self._sum_wn += w * n
         self._sum_we += w * e
-        lat, lon, _ = ned_to_geodetic(self._sum_wn / self._sum_w, self._sum_we / self._sum_w, 0.0,
-                                      self._origin[0], self._origin[1], 0.0)
+        lat, lon, _ = ned_to_geodetic(
+            self._sum_wn / self._sum_w,
+            self._sum_we / self._sum_w,
+            0.0,
+            self._origin[0],
+            self._origin[1],
+            0.0,
+        )
         self.lat, self.lon = float(lat), float(lon)
         self.error_m = error if self.error_m is None else min(self.error_m, error)
         self.note = fix.note
@@ -154,10 +160,14 @@ class TargetRegistry:
             the image comparison to match, unless either box's larger side is larger still.
     """
 
-    def __init__(self, merge_radius_m: float = 8.0, merge_window_s: float = 5.0,
-                 merge_gate_px: float = 64.0) -> None:
-        for name, value in (("merge_radius_m", merge_radius_m),
-                            ("merge_window_s", merge_window_s), ("merge_gate_px", merge_gate_px)):
+    def __init__(
+        self, merge_radius_m: float = 8.0, merge_window_s: float = 5.0, merge_gate_px: float = 64.0
+    ) -> None:
+        for name, value in (
+            ("merge_radius_m", merge_radius_m),
+            ("merge_window_s", merge_window_s),
+            ("merge_gate_px", merge_gate_px),
+        ):
             if not value >= 0:
                 raise ValueError(f"{name} must be >= 0, got {value}")
         self.merge_radius_m = merge_radius_m
@@ -182,8 +192,11 @@ class TargetRegistry:
             target = Target(int(target_id), math.nan, math.nan, announced=True)
             if position is not None:
                 target.lat, target.lon = float(position[0]), float(position[1])
-                target.error_m = (entry.error_m if entry.error_m is not None
-                                  and entry.error_m > 0 else DEFAULT_FIX_ERROR_M)
+                target.error_m = (
+                    entry.error_m
+                    if entry.error_m is not None and entry.error_m > 0
+                    else DEFAULT_FIX_ERROR_M
+                )
                 target.note = "known from an earlier run"
             else:
                 target.note = "known from an earlier run, without a position"
@@ -195,9 +208,16 @@ class TargetRegistry:
         target_id = self._by_track.get(track_id)
         return None if target_id is None else self.targets[target_id]
 
-    def observe(self, track_id: int, class_id: int, score: float, t: float,
-                fix: GeoFix | None, note: str = "",
-                box: Sequence[float] | None = None) -> tuple[Target, bool]:
+    def observe(
+        self,
+        track_id: int,
+        class_id: int,
+        score: float,
+        t: float,
+        fix: GeoFix | None,
+        note: str = "",
+        box: Sequence[float] | None = None,
+    ) -> tuple[Target, bool]:
         """Record a locked track's sighting at capture time ``t``; returns ``(target, is_new)``.
 
         ``fix`` is the sighting's geolocation (None or not ``ok`` when there is none; ``note``,
@@ -241,15 +261,17 @@ class TargetRegistry:
             if target.position is None:
                 continue
             d = distance_m(target.position, (fix.lat, fix.lon))
-            combined = math.hypot(target.error_m or DEFAULT_FIX_ERROR_M,
-                                  fix.error_m or DEFAULT_FIX_ERROR_M)
+            combined = math.hypot(
+                target.error_m or DEFAULT_FIX_ERROR_M, fix.error_m or DEFAULT_FIX_ERROR_M
+            )
             gate = max(self.merge_radius_m, GATE_SIGMA * combined)
             if d <= gate and d < best_d:
                 best, best_d = target, d
         return best
 
-    def _nearest_in_image(self, box: Sequence[float], t: float,
-                          unplaced_only: bool) -> Target | None:
+    def _nearest_in_image(
+        self, box: Sequence[float], t: float, unplaced_only: bool
+    ) -> Target | None:
         centre = _centre(box)
         best: Target | None = None
         best_d = math.inf

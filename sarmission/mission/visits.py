@@ -39,8 +39,13 @@ class MoveGate:
     ``area_ne``: the mission area as (north, east) metres around ``area_origin`` (lat, lon).
     """
 
-    def __init__(self, area_ne: Sequence[tuple[float, float]], area_origin: tuple[float, float],
-                 max_error_m: float, margin_m: float) -> None:
+    def __init__(
+        self,
+        area_ne: Sequence[tuple[float, float]],
+        area_origin: tuple[float, float],
+        max_error_m: float,
+        margin_m: float,
+    ) -> None:
         if len(area_ne) < 3:
             raise ValueError("the mission area needs at least 3 corners")
         self.contour = np.asarray(area_ne, dtype=np.float32).reshape(-1, 1, 2)
@@ -52,11 +57,15 @@ class MoveGate:
     def from_mission(cls, mission: MissionConfig) -> MoveGate:
         """The gate of a mission: its area (around the mission's planned home, where the area
         is defined) and its ``[actions] max_error_m`` / ``area_margin_m``."""
-        return cls(mission.area.polygon_ne(), mission.area.home[:2],
-                   mission.actions.max_error_m, mission.actions.area_margin_m)
+        return cls(
+            mission.area.polygon_ne(),
+            mission.area.home[:2],
+            mission.actions.max_error_m,
+            mission.actions.area_margin_m,
+        )
 
     def refusal(self, position: tuple[float, float] | None, error_m: float | None) -> str:
-        """"" when ``position`` (with 1-sigma ``error_m``) may be flown to, else why not."""
+        """ "" when ``position`` (with 1-sigma ``error_m``) may be flown to, else why not."""
         if position is None:
             return "no position"
         if error_m is None or not math.isfinite(error_m):
@@ -68,8 +77,7 @@ class MoveGate:
             return "position not finite"
         inside = cv2.pointPolygonTest(self.contour, (float(n), float(e)), True)
         if inside < -self.margin_m:
-            return (f"{-inside:.0f} m outside the mission area "
-                    f"(allowed: {self.margin_m:g} m)")
+            return f"{-inside:.0f} m outside the mission area (allowed: {self.margin_m:g} m)"
         return ""
 
 
@@ -127,10 +135,15 @@ class VisitPlanner:
         if aircraft is None:
             first = min(self.pending.values(), key=lambda p: (p.added, p.target_id))
         else:
-            first = min(self.pending.values(),
-                        key=lambda p: (_distance_m(aircraft, p.position), p.target_id))
-        covered = sorted(p.target_id for p in self.pending.values()
-                         if _distance_m(first.position, p.position) <= self.group_radius_m)
+            first = min(
+                self.pending.values(),
+                key=lambda p: (_distance_m(aircraft, p.position), p.target_id),
+            )
+        covered = sorted(
+            p.target_id
+            for p in self.pending.values()
+            if _distance_m(first.position, p.position) <= self.group_radius_m
+        )
         for target_id in covered:
             del self.pending[target_id]
             self.visited.add(target_id)

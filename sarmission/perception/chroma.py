@@ -56,14 +56,17 @@ class ChromaParams:
             raise ValueError(f"floor must be positive, got {self.floor}")
 
 
-def _pooled_pair(frame_bgr: np.ndarray,
-                 half: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _pooled_pair(
+    frame_bgr: np.ndarray, half: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """``frame_bgr``'s 4 x 4 and 8 x 8 block means (uint8 BGR), from ``half`` when given."""
     h, w = frame_bgr.shape[0] // CHROMA_SCALE, frame_bgr.shape[1] // CHROMA_SCALE
     if h < 1 or w < 1:
-        raise ValueError(f"frame {frame_bgr.shape[1]}x{frame_bgr.shape[0]} is smaller than the "
-                         f"chroma scale {CHROMA_SCALE}")
-    quarter = halve((half if half is not None else half_resolution(frame_bgr))[:4 * h, :4 * w], 1)
+        raise ValueError(
+            f"frame {frame_bgr.shape[1]}x{frame_bgr.shape[0]} is smaller than the "
+            f"chroma scale {CHROMA_SCALE}"
+        )
+    quarter = halve((half if half is not None else half_resolution(frame_bgr))[: 4 * h, : 4 * w], 1)
     return quarter, halve(quarter, 1)
 
 
@@ -73,12 +76,17 @@ def pooled_colour(frame_bgr: np.ndarray, half: np.ndarray | None = None) -> np.n
     return _pooled_pair(frame_bgr, half)[1]
 
 
-def chroma_anomaly(frame_bgr: np.ndarray, params: ChromaParams | None = None,
-                   half: np.ndarray | None = None) -> np.ndarray:
+def chroma_anomaly(
+    frame_bgr: np.ndarray, params: ChromaParams | None = None, half: np.ndarray | None = None
+) -> np.ndarray:
     """Chromatic anomaly map ``A`` (float32, ``H // 8 x W // 8``) of a BGR uint8 frame (``half``:
     its :func:`~sarmission.perception.pyramid.half_resolution`, when already computed)."""
-    if not (isinstance(frame_bgr, np.ndarray) and frame_bgr.ndim == 3
-            and frame_bgr.shape[2] == 3 and frame_bgr.dtype == np.uint8):
+    if not (
+        isinstance(frame_bgr, np.ndarray)
+        and frame_bgr.ndim == 3
+        and frame_bgr.shape[2] == 3
+        and frame_bgr.dtype == np.uint8
+    ):
         raise ValueError("frame must be BGR uint8 [H, W, 3]")
     p = params or ChromaParams()
     window = (p.window, p.window)
@@ -98,8 +106,9 @@ def chroma_anomaly(frame_bgr: np.ndarray, params: ChromaParams | None = None,
         # Window k of the shifted grid is centred on the top / left edge of block k + 1.
         blocks_at = (slice(dy, None), slice(dx, None))
         shifted_energy = _deviation_energy(shifted, [mean[blocks_at] for mean in means])
-        cv2.max(anomaly[blocks_at], cv2.divide(shifted_energy, local[blocks_at]),
-                dst=anomaly[blocks_at])
+        cv2.max(
+            anomaly[blocks_at], cv2.divide(shifted_energy, local[blocks_at]), dst=anomaly[blocks_at]
+        )
     return anomaly
 
 
@@ -126,8 +135,9 @@ def chroma_applies(height: int, width: int) -> bool:
     return min(height, width) >= CHROMA_SCALE
 
 
-def chroma_if_wanted(frame_bgr: np.ndarray, wanted: bool,
-                     half: np.ndarray | None = None) -> np.ndarray | None:
+def chroma_if_wanted(
+    frame_bgr: np.ndarray, wanted: bool, half: np.ndarray | None = None
+) -> np.ndarray | None:
     """:func:`chroma_anomaly` of the frame when ``wanted`` and :func:`chroma_applies`, else
     ``None`` (no colour proposals)."""
     if not (wanted and chroma_applies(*frame_bgr.shape[:2])):

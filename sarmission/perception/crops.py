@@ -53,8 +53,9 @@ def _adaptive_ratio(boxes: np.ndarray, output_size: int) -> int:
     return max(1, math.ceil(side / output_size - 1e-3))
 
 
-def _roi_geometry(boxes: np.ndarray, height: int, width: int, output_size: int, ratio: int
-                  ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+def _roi_geometry(
+    boxes: np.ndarray, height: int, width: int, output_size: int, ratio: int
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
     """Windows and sampling grid for boxes already scaled onto a ``height x width`` map.
 
     Returns the flat pixel index of every window pixel ``[N, K, K]`` (clipped into the map), the
@@ -129,8 +130,9 @@ def _bilinear(windows, grid_x, grid_y, out):  # pragma: no cover - numba
                     out[b, c, i, j] = acc
 
 
-def _sample(windows: np.ndarray, mask: np.ndarray | None, grid_x: np.ndarray,
-            grid_y: np.ndarray, ratio: int) -> np.ndarray:
+def _sample(
+    windows: np.ndarray, mask: np.ndarray | None, grid_x: np.ndarray, grid_y: np.ndarray, ratio: int
+) -> np.ndarray:
     """Bilinear-sample windows ``[N, K, K, C]`` on the grid → ``[N, C, S, S]`` float32, averaging
     ``ratio**2`` samples per bin (``grid_sample`` then ``avg_pool2d``, operation for operation)."""
     if mask is not None:
@@ -151,8 +153,13 @@ def _sample(windows: np.ndarray, mask: np.ndarray | None, grid_x: np.ndarray,
     return total / np.float32(ratio * ratio)
 
 
-def roi_align(image: np.ndarray, boxes: np.ndarray, output_size: int = CROP_SIZE,
-              spatial_scale: float = 1.0, sampling_ratio: int | None = None) -> np.ndarray:
+def roi_align(
+    image: np.ndarray,
+    boxes: np.ndarray,
+    output_size: int = CROP_SIZE,
+    spatial_scale: float = 1.0,
+    sampling_ratio: int | None = None,
+) -> np.ndarray:
     """RoIAlign (aligned=True) of an ``[H, W]`` or ``[H, W, C]`` array → float32 ``[N, C, S, S]``.
 
     ``boxes`` are ``[N, 4]`` ``x1, y1, x2, y2`` in the coordinates that ``spatial_scale`` maps onto
@@ -176,8 +183,7 @@ def _normalise_max_abs(x: np.ndarray) -> np.ndarray:
     return x / np.where(m > 0, m, _ONE)
 
 
-def enhanced_response(l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarray
-                      ) -> np.ndarray:
+def enhanced_response(l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarray) -> np.ndarray:
     """``E = V/max|V| + p * L_on/max(L_on) + (1 - p) * L_off/max(L_off)``, crops ``[N, S, S]``."""
     l_crop = np.asarray(l_crop, dtype=np.float32)
     p = np.asarray(polarity, dtype=np.float32).reshape(-1, 1, 1)
@@ -187,9 +193,14 @@ def enhanced_response(l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarr
     return v + p * l_on + (_ONE - p) * l_off
 
 
-def motion_enhanced_crops(frame_bgr: np.ndarray, motion: MotionMaps, boxes: np.ndarray,
-                          polarity: np.ndarray, output_size: int = CROP_SIZE,
-                          sampling_ratio: int | None = None) -> np.ndarray:
+def motion_enhanced_crops(
+    frame_bgr: np.ndarray,
+    motion: MotionMaps,
+    boxes: np.ndarray,
+    polarity: np.ndarray,
+    output_size: int = CROP_SIZE,
+    sampling_ratio: int | None = None,
+) -> np.ndarray:
     """Head input ``[N, 4, S, S]`` (float32): RGB crop in [0, 1] from the full-resolution BGR
     uint8 frame and the enhanced response E from ``motion.temporal_change`` (L) and
     ``motion.response`` (V) at 1/ds.

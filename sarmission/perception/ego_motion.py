@@ -62,7 +62,7 @@ class ShiftEstimator:
         f = 1 << self._levels
         ch, cw = self._window.shape
         eh, ew = ch * 2, cw * 2
-        est = halve(pooled[:eh * f, :ew * f], self._levels).astype(np.float32) * scale
+        est = halve(pooled[: eh * f, : ew * f], self._levels).astype(np.float32) * scale
         coarse = cv2.resize(est, (cw, ch), interpolation=cv2.INTER_AREA)
         return est, coarse
 
@@ -91,8 +91,9 @@ class ShiftEstimator:
         huber = np.inf
         err, count = err0, 0
         for _ in range(p.ego_iterations):
-            a11, a12, a22, b1, b2, err, _, count = translation_system(est, prev, s[0], s[1],
-                                                                       huber, level)
+            a11, a12, a22, b1, b2, err, _, count = translation_system(
+                est, prev, s[0], s[1], huber, level
+            )
             det = a11 * a22 - a12 * a12
             if count == 0 or not det > 1e-12 * max(a11 * a22, 1e-30):
                 return 0.0, 0.0
@@ -102,8 +103,9 @@ class ShiftEstimator:
             if float(np.hypot(*step)) < p.ego_tolerance:
                 break
         *_, err, _, count = translation_system(est, prev, s[0], s[1], np.inf, level)
-        if count < 0.25 * est.size or not (err0 - err > p.ego_min_gain
-                                          and err < p.ego_max_ratio * err0):
+        if count < 0.25 * est.size or not (
+            err0 - err > p.ego_min_gain and err < p.ego_max_ratio * err0
+        ):
             return 0.0, 0.0
         f = float(1 << self._levels)
         return float(s[0]) * f, float(s[1]) * f
@@ -120,5 +122,8 @@ class ShiftEstimator:
             levels += 1
         n_est = (height >> levels) * (width >> levels)
         n_coarse = max(n_est // 4, 1)
-        return int(height * width + n_est * (60 + 25 * self.params.ego_iterations)
-                   + n_coarse * (15 * math.log2(max(n_coarse, 2)) + 10))
+        return int(
+            height * width
+            + n_est * (60 + 25 * self.params.ego_iterations)
+            + n_coarse * (15 * math.log2(max(n_coarse, 2)) + 10)
+        )

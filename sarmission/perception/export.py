@@ -51,21 +51,37 @@ def head_onnx_bytes(model: MiteHead, opset: int = 17) -> bytes:
     dynamic = {name: {0: "N"} for name in (INPUT_NAME, *OUTPUT_NAMES)}
     with warnings.catch_warnings():  # the TorchScript exporter is deprecated but chosen on purpose
         warnings.simplefilter("ignore", DeprecationWarning)
-        torch.onnx.export(m, (example,), buf, dynamo=False, opset_version=opset,
-                          input_names=[INPUT_NAME], output_names=list(OUTPUT_NAMES),
-                          dynamic_axes=dynamic, do_constant_folding=True)
+        torch.onnx.export(
+            m,
+            (example,),
+            buf,
+            dynamo=False,
+            opset_version=opset,
+            input_names=[INPUT_NAME],
+            output_names=list(OUTPUT_NAMES),
+            dynamic_axes=dynamic,
+            do_constant_folding=True,
+        )
     proto = onnx.load_from_string(buf.getvalue())
-    for key, value in ((META_FORMAT, MODEL_FORMAT), (META_VERSION, str(FORMAT_VERSION)),
-                       (META_CONFIG, json.dumps(c.to_dict()))):
+    for key, value in (
+        (META_FORMAT, MODEL_FORMAT),
+        (META_VERSION, str(FORMAT_VERSION)),
+        (META_CONFIG, json.dumps(c.to_dict())),
+    ):
         entry = proto.metadata_props.add()
         entry.key, entry.value = key, value
     proto.producer_name = "sarmission"
     return proto.SerializeToString()
 
 
-def export_head_onnx(checkpoint_or_module: str | Path | MiteHead, out_path: str | Path,
-                     opset: int = 17, num_check: int = 16, seed: int = 0,
-                     atol: float = 1e-4) -> ExportReport:
+def export_head_onnx(
+    checkpoint_or_module: str | Path | MiteHead,
+    out_path: str | Path,
+    opset: int = 17,
+    num_check: int = 16,
+    seed: int = 0,
+    atol: float = 1e-4,
+) -> ExportReport:
     """Write the head as ONNX, check it with ``onnx.checker`` and compare onnxruntime with torch.
 
     The comparison runs ``num_check`` random crops (seeded) through both runtimes; the largest
@@ -84,7 +100,8 @@ def export_head_onnx(checkpoint_or_module: str | Path | MiteHead, out_path: str 
 
     c = model.config
     crops = np.random.default_rng(seed).random(
-        (num_check, c.in_channels, c.crop_size, c.crop_size), dtype=np.float32)
+        (num_check, c.in_channels, c.crop_size, c.crop_size), dtype=np.float32
+    )
     ref = TorchHeadRuntime(copy.deepcopy(model)).predict(crops)
     got = OnnxHeadRuntime(out_path).predict(crops)
     diff = float(max(np.abs(a - b).max() for a, b in zip(ref, got, strict=True)))

@@ -29,8 +29,9 @@ from torch import Tensor, nn
 from sarmission.perception.head_config import DEFAULT_CLASSES, HeadConfig, ltrb_to_boxes
 
 
-def _conv_bn(c_in: int, c_out: int, k: int = 3, dilation: int = 1,
-             groups: int = 1) -> nn.Sequential:
+def _conv_bn(
+    c_in: int, c_out: int, k: int = 3, dilation: int = 1, groups: int = 1
+) -> nn.Sequential:
     pad = dilation * (k // 2)
     return nn.Sequential(
         nn.Conv2d(c_in, c_out, k, padding=pad, dilation=dilation, groups=groups, bias=False),
@@ -59,13 +60,16 @@ class ClassificationBranch(nn.Module):
 
     def __init__(self, channels: int, num_classes: int, reduction: int, hidden: int) -> None:
         super().__init__()
-        self.dw = nn.Sequential(_conv_bn(channels, channels, groups=channels),
-                                nn.ReLU(inplace=True))
+        self.dw = nn.Sequential(
+            _conv_bn(channels, channels, groups=channels), nn.ReLU(inplace=True)
+        )
         mid = max(channels // reduction, 1)
-        self.attn = nn.Sequential(nn.Linear(channels, mid), nn.ReLU(inplace=True),
-                                  nn.Linear(mid, channels))
-        self.fc = nn.Sequential(nn.Linear(2 * channels, hidden), nn.ReLU(inplace=True),
-                                nn.Linear(hidden, num_classes))
+        self.attn = nn.Sequential(
+            nn.Linear(channels, mid), nn.ReLU(inplace=True), nn.Linear(mid, channels)
+        )
+        self.fc = nn.Sequential(
+            nn.Linear(2 * channels, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, num_classes)
+        )
 
     def forward(self, x: Tensor) -> Tensor:
         """``[N, C, H, W]`` → logits ``[N, num_classes]``."""
@@ -118,8 +122,9 @@ class MiteHead(nn.Module):
         self.register_buffer("coords", coord_channels(c.crop_size), persistent=False)
         self.stem = nn.Sequential(_conv_bn(c.in_channels + 2, w0), nn.ReLU(inplace=True))
         self.backbone = nn.Sequential(DilatedResBlock(w0, w1, 2), DilatedResBlock(w1, w1, 4))
-        self.cls_branch = ClassificationBranch(w1, c.num_classes, c.attention_reduction,
-                                               c.cls_hidden)
+        self.cls_branch = ClassificationBranch(
+            w1, c.num_classes, c.attention_reduction, c.cls_hidden
+        )
         self.reg_branch = RegressionBranch(w1, c.reg_bottleneck, c.crop_size, c.reg_max)
 
     def forward_with_bins(self, crops: Tensor) -> tuple[Tensor, Tensor, Tensor]:
@@ -157,8 +162,11 @@ def head_flops_per_proposal(model: MiteHead) -> int:
         else:
             macs += output.numel() * module.in_features
 
-    handles = [m.register_forward_hook(hook) for m in model.modules()
-               if isinstance(m, nn.Conv2d | nn.Linear)]
+    handles = [
+        m.register_forward_hook(hook)
+        for m in model.modules()
+        if isinstance(m, nn.Conv2d | nn.Linear)
+    ]
     c = model.config
     was_training = model.training
     try:
@@ -173,6 +181,11 @@ def head_flops_per_proposal(model: MiteHead) -> int:
 
 
 __all__ = [
-    "DEFAULT_CLASSES", "HeadConfig", "MiteHead", "count_parameters", "dfl_decode",
-    "head_flops_per_proposal", "ltrb_to_boxes",
+    "DEFAULT_CLASSES",
+    "HeadConfig",
+    "MiteHead",
+    "count_parameters",
+    "dfl_decode",
+    "head_flops_per_proposal",
+    "ltrb_to_boxes",
 ]

@@ -77,5 +77,7 @@ def ltrb_to_boxes(ltrb: np.ndarray, proposal_boxes: np.ndarray, crop_size: int =
     sy = (pb[:, 3] - pb[:, 1]) / crop_size
     cx = (pb[:, 0] + pb[:, 2]) / 2
     cy = (pb[:, 1] + pb[:, 3]) / 2
-    return np.stack([cx - ltrb[:, 0] * sx, cy - ltrb[:, 1] * sy,
-                     cx + ltrb[:, 2] * sx, cy + ltrb[:, 3] * sy], axis=1).astype(np.float32)
+    return np.stack(
+        [cx - ltrb[:, 0] * sx, cy - ltrb[:, 1] * sy, cx + ltrb[:, 2] * sx, cy + ltrb[:, 3] * sy],
+        axis=1,
+    ).astype(np.float32)

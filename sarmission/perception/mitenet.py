@@ -50,8 +50,11 @@ def scaled_boxes(boxes: np.ndarray, scale: float) -> np.ndarray:
     return np.concatenate([centre - half, centre + half], axis=1).astype(np.float32)
 
 
-def build_head_runtime(model: str | Path | None = None, runtime: RuntimeName = "torch",
-                       intra_op_threads: int | None = None) -> HeadRuntime:
+def build_head_runtime(
+    model: str | Path | None = None,
+    runtime: RuntimeName = "torch",
+    intra_op_threads: int | None = None,
+) -> HeadRuntime:
     """Head runtime from a model file; with ``model=None`` the shipped default model, or, when the
     package has none, an untrained head with fixed seed-0 weights (for timing and FLOP counts).
     """
@@ -87,10 +90,16 @@ def nms_xyxy(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> np.
     """
     order = np.argsort(-scores, kind="stable")
     area = np.maximum(boxes[:, 2] - boxes[:, 0], 0) * np.maximum(boxes[:, 3] - boxes[:, 1], 0)
-    iw = np.maximum(np.minimum(boxes[:, None, 2], boxes[None, :, 2])
-                    - np.maximum(boxes[:, None, 0], boxes[None, :, 0]), 0)
-    ih = np.maximum(np.minimum(boxes[:, None, 3], boxes[None, :, 3])
-                    - np.maximum(boxes[:, None, 1], boxes[None, :, 1]), 0)
+    iw = np.maximum(
+        np.minimum(boxes[:, None, 2], boxes[None, :, 2])
+        - np.maximum(boxes[:, None, 0], boxes[None, :, 0]),
+        0,
+    )
+    ih = np.maximum(
+        np.minimum(boxes[:, None, 3], boxes[None, :, 3])
+        - np.maximum(boxes[:, None, 1], boxes[None, :, 1]),
+        0,
+    )
     inter = iw * ih
     overlaps = inter / np.maximum(area[:, None] + area[None, :] - inter, 1e-9) > iou_threshold
     suppressed = np.zeros(len(order), dtype=bool)
@@ -133,16 +142,25 @@ class MiteNet:
             proposal. What each setting was measured to do: docs/experiments.md.
     """
 
-    def __init__(self, head_runtime: HeadRuntime, ds: int = 2, topn: int = 25,
-                 target_size: float | None = None, box_size: float = 16.0,
-                 score_threshold: float = 0.3, classes: tuple[str, ...] | None = None,
-                 nms_iou: float | None = 0.5, ego_motion: str = "estimate",
-                 colour_share: float = DEFAULT_COLOUR_SHARE,
-                 crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-                 refine_threshold: float | None = None) -> None:
+    def __init__(
+        self,
+        head_runtime: HeadRuntime,
+        ds: int = 2,
+        topn: int = 25,
+        target_size: float | None = None,
+        box_size: float = 16.0,
+        score_threshold: float = 0.3,
+        classes: tuple[str, ...] | None = None,
+        nms_iou: float | None = 0.5,
+        ego_motion: str = "estimate",
+        colour_share: float = DEFAULT_COLOUR_SHARE,
+        crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
+        refine_threshold: float | None = None,
+    ) -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
-            raise ValueError(f"classes {tuple(classes)} differ from the head's "
-                             f"{tuple(head_runtime.classes)}")
+            raise ValueError(
+                f"classes {tuple(classes)} differ from the head's {tuple(head_runtime.classes)}"
+            )
         if not 0.0 <= score_threshold <= 1.0:
             raise ValueError(f"score_threshold must be in [0, 1], got {score_threshold}")
         if not crop_scales or any(not (s > 0 and math.isfinite(s)) for s in crop_scales):
@@ -185,13 +203,16 @@ class MiteNet:
         if min(shape) < self.ds or min(shape) < 2:
             raise ValueError(f"frame {shape[1]}x{shape[0]} is too small for ds={self.ds}")
         if self._frame_shape is not None and shape != self._frame_shape:
-            raise ValueError(f"frame size changed mid-stream from {self._frame_shape[1]}x"
-                             f"{self._frame_shape[0]} to {shape[1]}x{shape[0]}; call reset() "
-                             "before a new stream")
+            raise ValueError(
+                f"frame size changed mid-stream from {self._frame_shape[1]}x"
+                f"{self._frame_shape[0]} to {shape[1]}x{shape[0]}; call reset() "
+                "before a new stream"
+            )
         self._frame_shape = shape
 
-    def process(self, frame_bgr: np.ndarray, timestamp: float,
-                shift_px: tuple[float, float] | None = None) -> FrameResult:
+    def process(
+        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+    ) -> FrameResult:
         """Run the cascade on the next frame of the stream (BGR uint8 ``[H, W, 3]``).
 
         ``shift_px`` is the image motion since the previous frame in full-resolution pixels, when
@@ -220,12 +241,20 @@ class MiteNet:
         t4 = time.perf_counter()
         detections = self._detect(frame, motion, proposals, crops, first)
         t5 = time.perf_counter()
-        self.per_stage_ms = {"vstmd": (t1 - t0) * 1e3, "colour": (t2 - t1) * 1e3,
-                             "rpn": (t3 - t2) * 1e3, "crops": (t4 - t3) * 1e3,
-                             "head": (t5 - t4) * 1e3}
-        return FrameResult(timestamp=float(timestamp), detections=detections,
-                           proposals=proposals, motion=motion,
-                           camera_shift=self.vstmd.last_shift)
+        self.per_stage_ms = {
+            "vstmd": (t1 - t0) * 1e3,
+            "colour": (t2 - t1) * 1e3,
+            "rpn": (t3 - t2) * 1e3,
+            "crops": (t4 - t3) * 1e3,
+            "head": (t5 - t4) * 1e3,
+        }
+        return FrameResult(
+            timestamp=float(timestamp),
+            detections=detections,
+            proposals=proposals,
+            motion=motion,
+            camera_shift=self.vstmd.last_shift,
+        )
 
     def _classify(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Best class probability, its class id and the box bins of every crop."""
@@ -234,8 +263,14 @@ class MiteNet:
         class_ids = probs.argmax(axis=1)
         return probs[np.arange(len(probs)), class_ids], class_ids, ltrb
 
-    def _detect(self, frame: np.ndarray, motion: MotionMaps, proposals: Proposals,
-                crops: np.ndarray, boxes: np.ndarray) -> Detections:
+    def _detect(
+        self,
+        frame: np.ndarray,
+        motion: MotionMaps,
+        proposals: Proposals,
+        crops: np.ndarray,
+        boxes: np.ndarray,
+    ) -> Detections:
         """Detections from the first-scale ``crops`` of ``boxes``, refined at the other scales."""
         if len(boxes) == 0:
             return Detections()
@@ -251,8 +286,11 @@ class MiteNet:
             wide = scaled_boxes(proposals.boxes[refine], scale)
             # One bilinear sample per bin, as for the first crop: averaging 2 x 2 samples per bin
             # (RoIAlign's adaptive ratio at 2 S) costs more and changed nothing measurable.
-            wide_scores, wide_ids, wide_ltrb = self._classify(motion_enhanced_crops(
-                frame, motion, wide, proposals.polarity[refine], sampling_ratio=1))
+            wide_scores, wide_ids, wide_ltrb = self._classify(
+                motion_enhanced_crops(
+                    frame, motion, wide, proposals.polarity[refine], sampling_ratio=1
+                )
+            )
             seen = ltrb_to_boxes(wide_ltrb, wide, self.head.config.crop_size)
             larger = np.maximum(seen[:, 2] - seen[:, 0], seen[:, 3] - seen[:, 1]) >= first_side
             better = (wide_scores > scores[refine]) & larger
@@ -265,8 +303,11 @@ class MiteNet:
         if self.nms_iou is not None and len(keep) > 1:
             kept = nms_xyxy(boxes, scores, self.nms_iou)
             boxes, scores, class_ids = boxes[kept], scores[kept], class_ids[kept]
-        return Detections(boxes=boxes.astype(np.float32), scores=scores.astype(np.float32),
-                          class_ids=class_ids.astype(np.int64))
+        return Detections(
+            boxes=boxes.astype(np.float32),
+            scores=scores.astype(np.float32),
+            class_ids=class_ids.astype(np.int64),
+        )
 
     def complexity(self, height: int, width: int) -> dict[str, dict[str, int]]:
         """Parameters and FLOPs per frame of each stage for ``height x width`` frames (Table 4).
@@ -285,11 +326,13 @@ class MiteNet:
         chroma_shape = (height // CHROMA_SCALE, width // CHROMA_SCALE) if colour else None
         flops = {
             "vstmd": int(self.vstmd.flops(height, width)),
-            "rpn_other": (int(self.rpn.flops(map_h, map_w, chroma_shape))
-                          + crop_flops(self.topn * len(self.crop_scales), CROP_SIZE)
-                          + (chroma_flops(height, width) if colour else 0)
-                          # the half-resolution frame is vSTMD's at ds >= 2, the map's own at 1
-                          + (height * width * 3 if colour and self.ds == 1 else 0)),
+            "rpn_other": (
+                int(self.rpn.flops(map_h, map_w, chroma_shape))
+                + crop_flops(self.topn * len(self.crop_scales), CROP_SIZE)
+                + (chroma_flops(height, width) if colour else 0)
+                # the half-resolution frame is vSTMD's at ds >= 2, the map's own at 1
+                + (height * width * 3 if colour and self.ds == 1 else 0)
+            ),
             "head": head_flops_per_proposal(head) * self.topn * len(self.crop_scales),
         }
         flops["total"] = sum(flops.values())

@@ -16,8 +16,7 @@ def halve(img: np.ndarray, levels: int) -> np.ndarray:
     """Area-average ``img`` by ``2**levels`` (exact 2x ``INTER_AREA`` halvings; the image must be
     cropped to a multiple of ``2**levels``)."""
     for _ in range(levels):
-        img = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2),
-                         interpolation=cv2.INTER_AREA)
+        img = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
     return img
 
 
@@ -28,4 +27,4 @@ def half_resolution(frame: np.ndarray) -> np.ndarray:
     h, w = frame.shape[0] // 2, frame.shape[1] // 2
     if h < 1 or w < 1:
         raise ValueError(f"frame {frame.shape[1]}x{frame.shape[0]} is too small to halve")
-    return halve(frame[:2 * h, :2 * w], 1)
+    return halve(frame[: 2 * h, : 2 * w], 1)

@@ -55,10 +55,17 @@ class TTMRPN:
             motion proposal; None = 0.75 S.
     """
 
-    def __init__(self, topn: int = 25, box_size: float = 16.0, shift_ratio: float = 0.3,
-                 nms_size: int = 3, min_score: float = 1e-7,
-                 colour_share: float = DEFAULT_COLOUR_SHARE,
-                 colour_nms: int = 3, colour_spacing: float | None = None) -> None:
+    def __init__(
+        self,
+        topn: int = 25,
+        box_size: float = 16.0,
+        shift_ratio: float = 0.3,
+        nms_size: int = 3,
+        min_score: float = 1e-7,
+        colour_share: float = DEFAULT_COLOUR_SHARE,
+        colour_nms: int = 3,
+        colour_spacing: float | None = None,
+    ) -> None:
         if topn < 1:
             raise ValueError(f"topn must be at least 1, got {topn}")
         if not box_size > 0:
@@ -87,8 +94,9 @@ class TTMRPN:
         """Proposals reserved for colour maxima when a chroma map is given."""
         return int(round(self.colour_share * self.topn))
 
-    def peaks(self, response: np.ndarray, count: int | None = None,
-              window: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def peaks(
+        self, response: np.ndarray, count: int | None = None, window: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Top ``count`` (default N) local maxima of ``response`` → ``(rows, cols, scores)``,
         best first (``window``: the local-maximum structuring element, default nms_size)."""
         count = self.topn if count is None else count
@@ -99,8 +107,9 @@ class TTMRPN:
         if n_positive == 0 or count < 1:
             empty = np.zeros(0, np.int64)
             return empty, empty, np.zeros(0, np.float32)
-        dilated = cv2.dilate(response, window, borderType=cv2.BORDER_CONSTANT,
-                             borderValue=0).ravel()
+        dilated = cv2.dilate(
+            response, window, borderType=cv2.BORDER_CONSTANT, borderValue=0
+        ).ravel()
         if n_positive > flat.size // 16:  # dense (a chroma map): compare whole arrays
             positive &= flat == dilated
             cand = np.flatnonzero(positive)
@@ -120,8 +129,9 @@ class TTMRPN:
         return rows[kept], cols[kept], scores[kept]
 
     @staticmethod
-    def _drop_plateau_twins(rows: np.ndarray, cols: np.ndarray, scores: np.ndarray,
-                            half: int) -> np.ndarray:
+    def _drop_plateau_twins(
+        rows: np.ndarray, cols: np.ndarray, scores: np.ndarray, half: int
+    ) -> np.ndarray:
         """Indices of ranked maxima without an equal-scored, better-ranked one in its window
         (scores are sorted best first, so only runs of equal scores need checking)."""
         tied = np.zeros(scores.size, bool)
@@ -129,8 +139,11 @@ class TTMRPN:
         kept: list[int] = []
         for k in range(rows.size):
             twin = tied[k] and any(
-                scores[q] == scores[k] and abs(int(rows[q]) - int(rows[k])) <= half
-                and abs(int(cols[q]) - int(cols[k])) <= half for q in kept)
+                scores[q] == scores[k]
+                and abs(int(rows[q]) - int(rows[k])) <= half
+                and abs(int(cols[q]) - int(cols[k])) <= half
+                for q in kept
+            )
             if not twin:
                 kept.append(k)
         return np.asarray(kept, dtype=np.int64)
@@ -144,8 +157,11 @@ class TTMRPN:
         n_motion = min(rows.size, self.topn - slots)
         x = map_to_full(cols.astype(np.float64), motion.ds)
         y = map_to_full(rows.astype(np.float64), motion.ds)
-        cx, cy, cs = self._colour_points(chroma, x[:n_motion], y[:n_motion],
-                                         self.topn - n_motion) if slots else (np.zeros(0),) * 3
+        cx, cy, cs = (
+            self._colour_points(chroma, x[:n_motion], y[:n_motion], self.topn - n_motion)
+            if slots
+            else (np.zeros(0),) * 3
+        )
         n_motion = min(rows.size, self.topn - cx.size)
         if n_motion + cx.size == 0:
             return Proposals()
@@ -154,8 +170,9 @@ class TTMRPN:
         map_cols = np.concatenate([cols[:n_motion], full_to_map_index(cx, motion.ds, w)])
         theta = direction_at(motion, map_cols, map_rows).astype(np.float64)
         polarity = (motion.temporal_change[map_rows, map_cols] > 0).astype(np.float32)
-        source = np.concatenate([np.full(n_motion, MOTION, np.uint8),
-                                 np.full(cx.size, COLOUR, np.uint8)])
+        source = np.concatenate(
+            [np.full(n_motion, MOTION, np.uint8), np.full(cx.size, COLOUR, np.uint8)]
+        )
         px, py = np.concatenate([x[:n_motion], cx]), np.concatenate([y[:n_motion], cy])
         # Motion boxes move forward along theta (the peak trails the target); colour ones do not.
         shift = np.where(source == MOTION, self.shift_ratio * self.box_size, 0.0)
@@ -163,12 +180,18 @@ class TTMRPN:
         half = 0.5 * self.box_size
         boxes = np.stack([bx - half, by - half, bx + half, by + half], axis=1)
         points = np.stack([px, py], axis=1)
-        return Proposals(points=points.astype(np.float32), boxes=boxes.astype(np.float32),
-                         scores=np.concatenate([scores[:n_motion], cs]).astype(np.float32),
-                         theta=theta.astype(np.float32), polarity=polarity, source=source)
+        return Proposals(
+            points=points.astype(np.float32),
+            boxes=boxes.astype(np.float32),
+            scores=np.concatenate([scores[:n_motion], cs]).astype(np.float32),
+            theta=theta.astype(np.float32),
+            polarity=polarity,
+            source=source,
+        )
 
-    def _colour_points(self, chroma: np.ndarray, motion_x: np.ndarray, motion_y: np.ndarray,
-                       count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _colour_points(
+        self, chroma: np.ndarray, motion_x: np.ndarray, motion_y: np.ndarray, count: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Up to ``count`` chroma maxima (full-res x, y, score) away from the motion points."""
         rows, cols, scores = self.peaks(chroma, count + motion_x.size, self._colour_window)
         x = map_to_full(cols.astype(np.float64), CHROMA_SCALE)

@@ -64,11 +64,13 @@ def _config_from(path: Path | str, raw: object) -> HeadConfig:
 
 def _check_version(path: Path | str, fmt: object, version: object) -> None:
     if fmt != MODEL_FORMAT:
-        raise _fail(path, f"not a sarmission head model (format {fmt!r}, "
-                          f"expected {MODEL_FORMAT!r})")
+        raise _fail(
+            path, f"not a sarmission head model (format {fmt!r}, expected {MODEL_FORMAT!r})"
+        )
     if not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
-        raise _fail(path, f"unsupported format version {version!r} "
-                          f"(this build reads 1..{FORMAT_VERSION})")
+        raise _fail(
+            path, f"unsupported format version {version!r} (this build reads 1..{FORMAT_VERSION})"
+        )
 
 
 def save_head_checkpoint(model: MiteHead, path: str | Path) -> Path:
@@ -77,9 +79,15 @@ def save_head_checkpoint(model: MiteHead, path: str | Path) -> Path:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"format": MODEL_FORMAT, "format_version": FORMAT_VERSION,
-                "config": model.config.to_dict(),
-                "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()}}, path)
+    torch.save(
+        {
+            "format": MODEL_FORMAT,
+            "format_version": FORMAT_VERSION,
+            "config": model.config.to_dict(),
+            "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
+        },
+        path,
+    )
     return path
 
 
@@ -111,14 +119,20 @@ def load_head_checkpoint(path: str | Path) -> MiteHead:
     missing = sorted(set(expected) - set(state))
     unexpected = sorted(set(state) - set(expected))
     if missing or unexpected:
-        raise _fail(path, f"state_dict does not match the config: missing {missing[:3]}"
-                          f"{'...' if len(missing) > 3 else ''}, unexpected {unexpected[:3]}"
-                          f"{'...' if len(unexpected) > 3 else ''}")
+        raise _fail(
+            path,
+            f"state_dict does not match the config: missing {missing[:3]}"
+            f"{'...' if len(missing) > 3 else ''}, unexpected {unexpected[:3]}"
+            f"{'...' if len(unexpected) > 3 else ''}",
+        )
     bad = [k for k, v in state.items() if tuple(v.shape) != tuple(expected[k].shape)]
     if bad:
         k = bad[0]
-        raise _fail(path, f"state_dict shape mismatch for {k}: {tuple(state[k].shape)} "
-                          f"vs {tuple(expected[k].shape)} ({len(bad)} tensors differ)")
+        raise _fail(
+            path,
+            f"state_dict shape mismatch for {k}: {tuple(state[k].shape)} "
+            f"vs {tuple(expected[k].shape)} ({len(bad)} tensors differ)",
+        )
     model.load_state_dict(state)
     return model.eval()
 
@@ -143,12 +157,17 @@ class HeadRuntime(ABC):
         """Class logits ``[N, C]`` and decoded ``ltrb`` ``[N, 4]`` (float32 numpy) for ``crops``."""
         c = self.config
         torch = sys.modules.get("torch")  # a tensor can only come from a process that has torch
-        x = (crops.detach().cpu().numpy() if torch is not None and isinstance(crops, torch.Tensor)
-             else np.asarray(crops))
+        x = (
+            crops.detach().cpu().numpy()
+            if torch is not None and isinstance(crops, torch.Tensor)
+            else np.asarray(crops)
+        )
         expected = (c.in_channels, c.crop_size, c.crop_size)
         if x.ndim != 4 or tuple(x.shape[1:]) != expected:
-            raise ValueError(f"crops must have shape [N, {expected[0]}, {expected[1]}, "
-                             f"{expected[2]}], got {list(x.shape)}")
+            raise ValueError(
+                f"crops must have shape [N, {expected[0]}, {expected[1]}, "
+                f"{expected[2]}], got {list(x.shape)}"
+            )
         if x.shape[0] == 0:
             return (np.zeros((0, c.num_classes), np.float32), np.zeros((0, 4), np.float32))
         logits, ltrb = self._run(np.ascontiguousarray(x, dtype=np.float32))
@@ -187,18 +206,24 @@ class TorchHeadRuntime(HeadRuntime):
 
 
 def _proto_dims(value_info) -> list[int | str]:
-    return [d.dim_param if d.dim_param else (d.dim_value if d.HasField("dim_value") else "?")
-            for d in value_info.type.tensor_type.shape.dim]
+    return [
+        d.dim_param if d.dim_param else (d.dim_value if d.HasField("dim_value") else "?")
+        for d in value_info.type.tensor_type.shape.dim
+    ]
 
 
-def _check_signature(path: Path | str, meta: dict[str, str], inputs: list[tuple[str, list]],
-                     outputs: list[str]) -> HeadConfig:
+def _check_signature(
+    path: Path | str, meta: dict[str, str], inputs: list[tuple[str, list]], outputs: list[str]
+) -> HeadConfig:
     """The head config of a model with metadata ``meta``, graph inputs ``(name, dims)`` (a dim is
     an int, or a name when symbolic) and output names; :class:`ModelLoadError` when it is not a
     head this build runs."""
     if META_FORMAT not in meta:
-        raise _fail(path, f"ONNX model has no '{META_FORMAT}' metadata (export it with "
-                          "sarmission.perception.export.export_head_onnx)")
+        raise _fail(
+            path,
+            f"ONNX model has no '{META_FORMAT}' metadata (export it with "
+            "sarmission.perception.export.export_head_onnx)",
+        )
     try:
         version = int(meta.get(META_VERSION, ""))
         raw_config = json.loads(meta.get(META_CONFIG, ""))
@@ -211,11 +236,14 @@ def _check_signature(path: Path | str, meta: dict[str, str], inputs: list[tuple[
     dims = inputs[0][1]
     want = [config.in_channels, config.crop_size, config.crop_size]
     if len(dims) != 4 or dims[1:] != want:
-        raise _fail(path, f"input '{INPUT_NAME}' has shape {dims}, expected [N, {want[0]}, "
-                          f"{want[1]}, {want[2]}]")
+        raise _fail(
+            path,
+            f"input '{INPUT_NAME}' has shape {dims}, expected [N, {want[0]}, {want[1]}, {want[2]}]",
+        )
     if not isinstance(dims[0], str):
-        raise _fail(path, f"input '{INPUT_NAME}' has a fixed proposal axis {dims[0]}; it must be "
-                          "dynamic")
+        raise _fail(
+            path, f"input '{INPUT_NAME}' has a fixed proposal axis {dims[0]}; it must be dynamic"
+        )
     if tuple(outputs) != OUTPUT_NAMES:
         raise _fail(path, f"expected outputs {list(OUTPUT_NAMES)}, got {outputs}")
     return config
@@ -224,8 +252,12 @@ def _check_signature(path: Path | str, meta: dict[str, str], inputs: list[tuple[
 def _session_config(path: Path | str, session) -> HeadConfig:
     """:func:`_check_signature` on what an onnxruntime session reads of the model."""
     inputs = [(i.name, ["?" if d is None else d for d in i.shape]) for i in session.get_inputs()]
-    return _check_signature(path, dict(session.get_modelmeta().custom_metadata_map), inputs,
-                            [o.name for o in session.get_outputs()])
+    return _check_signature(
+        path,
+        dict(session.get_modelmeta().custom_metadata_map),
+        inputs,
+        [o.name for o in session.get_outputs()],
+    )
 
 
 def _rejection(path: Path | str, data: bytes, exc: Exception) -> ModelLoadError:
@@ -240,8 +272,12 @@ def _rejection(path: Path | str, data: bytes, exc: Exception) -> ModelLoadError:
     initialisers = {init.name for init in model.graph.initializer}
     inputs = [(i.name, _proto_dims(i)) for i in model.graph.input if i.name not in initialisers]
     try:
-        _check_signature(path, {p.key: p.value for p in model.metadata_props}, inputs,
-                         [o.name for o in model.graph.output])
+        _check_signature(
+            path,
+            {p.key: p.value for p in model.metadata_props},
+            inputs,
+            [o.name for o in model.graph.output],
+        )
     except ModelLoadError as wrong:
         return wrong
     return _fail(path, f"onnxruntime rejected the model ({str(exc).splitlines()[0]})")
@@ -254,8 +290,12 @@ class OnnxHeadRuntime(HeadRuntime):
     ``intra_op_threads`` defaults to the process's thread plan (:mod:`sarmission.threads`).
     """
 
-    def __init__(self, source: str | Path | bytes, intra_op_threads: int | None = None,
-                 name: str | None = None) -> None:
+    def __init__(
+        self,
+        source: str | Path | bytes,
+        intra_op_threads: int | None = None,
+        name: str | None = None,
+    ) -> None:
         import onnxruntime as ort
 
         from sarmission.threads import thread_plan
@@ -287,8 +327,9 @@ class OnnxHeadRuntime(HeadRuntime):
 RuntimeName = Literal["auto", "torch", "onnx"]
 
 
-def load_head_runtime(path: str | Path, runtime: RuntimeName = "auto",
-                      intra_op_threads: int | None = None) -> HeadRuntime:
+def load_head_runtime(
+    path: str | Path, runtime: RuntimeName = "auto", intra_op_threads: int | None = None
+) -> HeadRuntime:
     """Load a head model file into a runtime.
 
     ``auto`` picks by extension: ``.pt``/``.pth`` → :class:`TorchHeadRuntime`, ``.onnx`` →

@@ -34,8 +34,17 @@ from sarmission.perception.vstmd_kernels import (
 )
 from sarmission.perception.vstmd_params import VSTMDParams, check_ds, gaussian_1d, lobe_radius
 
-__all__ = ["EGO_MOTION_MODES", "VALID_DS", "VSTMD", "ShiftEstimator", "VSTMDParams",
-           "direction_at", "full_to_map_index", "lobe_radius", "map_to_full"]
+__all__ = [
+    "EGO_MOTION_MODES",
+    "VALID_DS",
+    "VSTMD",
+    "ShiftEstimator",
+    "VSTMDParams",
+    "direction_at",
+    "full_to_map_index",
+    "lobe_radius",
+    "map_to_full",
+]
 
 EGO_MOTION_MODES = ("estimate", "none")
 
@@ -74,15 +83,21 @@ class VSTMD:
     :meth:`reset` starts a new stream.
     """
 
-    def __init__(self, ds: int = 2, target_size: float = 16.0,
-                 params: VSTMDParams | None = None, ego_motion: str = "estimate") -> None:
+    def __init__(
+        self,
+        ds: int = 2,
+        target_size: float = 16.0,
+        params: VSTMDParams | None = None,
+        ego_motion: str = "estimate",
+    ) -> None:
         self.ds = check_ds(ds)
         if ego_motion not in EGO_MOTION_MODES:
             raise ValueError(f"ego_motion must be one of {EGO_MOTION_MODES}, got {ego_motion!r}")
         self.ego_motion = ego_motion
         if not target_size > 0:
-            raise ValueError(f"target_size must be positive (full-resolution pixels), got "
-                             f"{target_size}")
+            raise ValueError(
+                f"target_size must be positive (full-resolution pixels), got {target_size}"
+            )
         self.target_size = float(target_size)
         self.params = params or VSTMDParams()
         p = self.params
@@ -90,8 +105,7 @@ class VSTMD:
         self._a0, self._decay = np.float32(a0), np.float32(decay)
         #: The lobula's pooling of ``C`` (1 = none); its sigmas are in pooled map pixels.
         self.lobula_pool = self.lobula_pooling(self.ds, self.target_size, p)
-        self.sigma1, self.sigma2 = self.dog_sigmas(self.ds * self.lobula_pool,
-                                                   self.target_size, p)
+        self.sigma1, self.sigma2 = self.dog_sigmas(self.ds * self.lobula_pool, self.target_size, p)
         self._build_lobula_kernels()
         self._estimator = ShiftEstimator(p) if ego_motion == "estimate" else None
         self.reset()
@@ -105,14 +119,17 @@ class VSTMD:
         below ``lobula_min_sigma``; ``f = max(ds_L / ds, 1)``."""
         low, high = params.lobula_ds_range
         lobula_ds = min(max(2 * ds, low), high)
-        while (lobula_ds > ds and cls.dog_sigmas(lobula_ds, target_size, params)[0]
-               < params.lobula_min_sigma):
+        while (
+            lobula_ds > ds
+            and cls.dog_sigmas(lobula_ds, target_size, params)[0] < params.lobula_min_sigma
+        ):
             lobula_ds //= 2
         return max(1, lobula_ds // ds)
 
     @staticmethod
-    def dog_sigmas(ds: int, target_size: float,
-                   params: VSTMDParams | None = None) -> tuple[float, float]:
+    def dog_sigmas(
+        ds: int, target_size: float, params: VSTMDParams | None = None
+    ) -> tuple[float, float]:
         """Size-selective DoG sigmas ``(s1, s2)`` in 1/ds map pixels: the excitatory lobe radius
         is ``kappa * T / ds`` (``kappa`` = :meth:`VSTMDParams.lobe_per_size`), so::
 
@@ -144,12 +161,14 @@ class VSTMD:
         self._g1_scaled = (p.dog_b * g1).astype(np.float32)
         self._g2 = g2.astype(np.float32)
         self._g2_scaled = (p.dog_b * p.dog_e * g2).astype(np.float32)
-        self._bump = ((p.dog_a - p.dog_b)
-                      * bump[rad - rb:rad + rb + 1, rad - rb:rad + rb + 1]).astype(np.float32)
+        self._bump = (
+            (p.dog_a - p.dog_b) * bump[rad - rb : rad + rb + 1, rad - rb : rad + rb + 1]
+        ).astype(np.float32)
         self._rho_scaled = float(p.dog_b * p.dog_rho)
 
     def _centre_surround(self, g1: np.ndarray, g2: np.ndarray, rad: int) -> np.ndarray:
         """Dense ``G(s1) - e * G(s2) - rho`` on a ``(2*rad+1)^2`` support (float64)."""
+
         def pad(g: np.ndarray) -> np.ndarray:
             r = g.size // 2
             return np.pad(g, rad - r)
@@ -160,8 +179,11 @@ class VSTMD:
     def dog_kernel(self) -> np.ndarray:
         """Dense 2-D lobula kernel ``W = A [D]^+ - B [D]^-`` (float64, for checks and plots)."""
         p = self.params
-        d = self._centre_surround(gaussian_1d(self.sigma1, self._g1.size // 2),
-                                  gaussian_1d(self.sigma2, self._g2.size // 2), self._radius)
+        d = self._centre_surround(
+            gaussian_1d(self.sigma1, self._g1.size // 2),
+            gaussian_1d(self.sigma2, self._g2.size // 2),
+            self._radius,
+        )
         return p.dog_a * np.maximum(d, 0.0) - p.dog_b * np.maximum(-d, 0.0)
 
     # ------------------------------------------------------------------ stream
@@ -193,16 +215,18 @@ class VSTMD:
         self._p_prev = np.zeros((h, w), np.float32)
         self._p_spare = np.zeros((h, w), np.float32)
 
-    def _pooled(self, frame: np.ndarray, h: int, w: int,
-                half: np.ndarray | None) -> tuple[np.ndarray, np.float32]:
+    def _pooled(
+        self, frame: np.ndarray, h: int, w: int, half: np.ndarray | None
+    ) -> tuple[np.ndarray, np.float32]:
         """``P'`` at 1/ds and the scale to [0, 1] (docs/vstmd.md, "Linear shortcut")."""
         ds = self.ds
         k = self.params.retina_size
         if ds == 1:
             img, sigma = frame[:h, :w], self.params.retina_sigma
         else:  # from the half-resolution frame, where the retina's sigma is half as wide
-            img = (half if half is not None else half_resolution(frame))[:h * ds // 2,
-                                                                          :w * ds // 2]
+            img = (half if half is not None else half_resolution(frame))[
+                : h * ds // 2, : w * ds // 2
+            ]
             sigma = self.params.retina_sigma / 2
         if img.ndim == 3:
             img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
@@ -219,18 +243,26 @@ class VSTMD:
         colour = frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
         gray = frame.ndim == 2 and frame.dtype in (np.uint8, np.float32)
         if not (colour or gray):
-            raise ValueError("frame must be BGR uint8 [H, W, 3] or grayscale uint8/float32 "
-                             f"[H, W], got {frame.dtype} {list(frame.shape)}")
+            raise ValueError(
+                "frame must be BGR uint8 [H, W, 3] or grayscale uint8/float32 "
+                f"[H, W], got {frame.dtype} {list(frame.shape)}"
+            )
         height, width = int(frame.shape[0]), int(frame.shape[1])
         if height < self.ds or width < self.ds:
             raise ValueError(f"frame {width}x{height} is smaller than ds={self.ds}")
         if self._shape is not None and (height, width) != self._shape:
-            raise ValueError(f"frame size changed from {self._shape[1]}x{self._shape[0]} to "
-                             f"{width}x{height}; call reset() to start a new stream")
+            raise ValueError(
+                f"frame size changed from {self._shape[1]}x{self._shape[0]} to "
+                f"{width}x{height}; call reset() to start a new stream"
+            )
         return height, width
 
-    def step(self, frame: np.ndarray, shift_px: tuple[float, float] | None = None,
-             half: np.ndarray | None = None) -> MotionMaps:
+    def step(
+        self,
+        frame: np.ndarray,
+        shift_px: tuple[float, float] | None = None,
+        half: np.ndarray | None = None,
+    ) -> MotionMaps:
         """Advance the model by one frame and return this frame's 1/ds maps.
 
         ``shift_px = (dx, dy)``, if given, is the camera-induced translation of the scene since
@@ -256,25 +288,56 @@ class VSTMD:
         f32 = np.float32
         constants = (self._a0, self._decay, f32(p.g_leak), f32(p.v_rest), f32(p.v_exc))
         if sx == 0.0 and sy == 0.0:
-            lamina_medulla(pooled, scale, self._p_prev, old["temporal_change"], old["v_on"],
-                            old["v_off"], new["temporal_change"], new["v_on"], new["v_off"],
-                            new["correlation"], *constants)
+            lamina_medulla(
+                pooled,
+                scale,
+                self._p_prev,
+                old["temporal_change"],
+                old["v_on"],
+                old["v_off"],
+                new["temporal_change"],
+                new["v_on"],
+                new["v_off"],
+                new["correlation"],
+                *constants,
+            )
         else:
             kx, ky = math.floor(sx), math.floor(sy)
-            lamina_medulla_shifted(pooled, scale, self._p_prev, old["temporal_change"],
-                                    old["v_on"], old["v_off"], self._p_spare,
-                                    new["temporal_change"], new["v_on"], new["v_off"],
-                                    new["correlation"], self._scratch["column"], kx, ky,
-                                    f32(sx - kx), f32(sy - ky), cubic_weights(sx - kx),
-                                    cubic_weights(sy - ky), *constants)
+            lamina_medulla_shifted(
+                pooled,
+                scale,
+                self._p_prev,
+                old["temporal_change"],
+                old["v_on"],
+                old["v_off"],
+                self._p_spare,
+                new["temporal_change"],
+                new["v_on"],
+                new["v_off"],
+                new["correlation"],
+                self._scratch["column"],
+                kx,
+                ky,
+                f32(sx - kx),
+                f32(sy - ky),
+                cubic_weights(sx - kx),
+                cubic_weights(sy - ky),
+                *constants,
+            )
             self._p_prev, self._p_spare = self._p_spare, self._p_prev
         self._lobula(new["correlation"], new["response"])
-        return MotionMaps(ds=self.ds, temporal_change=new["temporal_change"], v_on=new["v_on"],
-                          v_off=new["v_off"], correlation=new["correlation"],
-                          response=new["response"])
+        return MotionMaps(
+            ds=self.ds,
+            temporal_change=new["temporal_change"],
+            v_on=new["v_on"],
+            v_off=new["v_off"],
+            correlation=new["correlation"],
+            response=new["response"],
+        )
 
-    def _shift(self, pooled: np.ndarray, scale: np.float32,
-               shift_px: tuple[float, float] | None) -> tuple[float, float]:
+    def _shift(
+        self, pooled: np.ndarray, scale: np.float32, shift_px: tuple[float, float] | None
+    ) -> tuple[float, float]:
         """This frame's shift in map pixels: supplied, estimated or zero (first frame)."""
         moved = (0.0, 0.0)
         if shift_px is not None:
@@ -300,21 +363,20 @@ class VSTMD:
         if hl == 0 or wl == 0:
             out[...] = 0.0
             return
-        self._lobula_filter(halve(corr[:hl * f, :wl * f], int(math.log2(f))), s["coarse"])
+        self._lobula_filter(halve(corr[: hl * f, : wl * f], int(math.log2(f))), s["coarse"])
         size = (wl * f, hl * f)
         if out.shape == size[::-1]:
             cv2.resize(s["coarse"], size, dst=out, interpolation=cv2.INTER_LINEAR)
             return
         out[...] = 0.0
-        out[:hl * f, :wl * f] = cv2.resize(s["coarse"], size, interpolation=cv2.INTER_LINEAR)
+        out[: hl * f, : wl * f] = cv2.resize(s["coarse"], size, interpolation=cv2.INTER_LINEAR)
 
     def _lobula_filter(self, corr: np.ndarray, out: np.ndarray) -> None:
         """``out = max(W * corr, 0)`` via the separable decomposition of ``W``."""
         s = self._scratch
         border = cv2.BORDER_CONSTANT
         cv2.sepFilter2D(corr, -1, self._g1, self._g1_scaled, dst=s["centre"], borderType=border)
-        cv2.sepFilter2D(corr, -1, self._g2, self._g2_scaled, dst=s["surround"],
-                        borderType=border)
+        cv2.sepFilter2D(corr, -1, self._g2, self._g2_scaled, dst=s["surround"], borderType=border)
         if self._rho_scaled:
             size = 2 * self._radius + 1
             box = cv2.boxFilter(corr, -1, (size, size), normalize=False, borderType=border)

@@ -20,8 +20,15 @@ def _exp_small(x):
     (|L| <= 1 for frames in [0, 1]). Vectorises, unlike the libm call.
     """
     y = x * np.float32(0.125)
-    p = np.float32(1.0) + y * (np.float32(1.0) + y * (np.float32(0.5) + y * (
-        np.float32(1.0 / 6.0) + y * (np.float32(1.0 / 24.0) + y * np.float32(1.0 / 120.0)))))
+    p = np.float32(1.0) + y * (
+        np.float32(1.0)
+        + y
+        * (
+            np.float32(0.5)
+            + y
+            * (np.float32(1.0 / 6.0) + y * (np.float32(1.0 / 24.0) + y * np.float32(1.0 / 120.0)))
+        )
+    )
     p = p * p
     p = p * p
     return p * p
@@ -42,8 +49,23 @@ def _cell(p, q, l_prev, a, b, a0, decay, g_leak, v_rest, v_exc):
 
 
 @njit(cache=True, fastmath=True)
-def lamina_medulla(pooled, scale, p_prev, l_in, von_in, voff_in, l_out, von_out, voff_out,
-                    corr, a0, decay, g_leak, v_rest, v_exc):  # pragma: no cover - numba
+def lamina_medulla(
+    pooled,
+    scale,
+    p_prev,
+    l_in,
+    von_in,
+    voff_in,
+    l_out,
+    von_out,
+    voff_out,
+    corr,
+    a0,
+    decay,
+    g_leak,
+    v_rest,
+    v_exc,
+):  # pragma: no cover - numba
     """One fused pass at 1/ds: lamina recursion, ON/OFF split, cIDP update and ``C``.
 
     ``p_prev`` is updated in place; ``*_in`` are last frame's state, ``*_out`` this frame's.
@@ -77,14 +99,38 @@ def cubic_weights(frac: float) -> np.ndarray:
     """
     t = 1.0 - frac
     t2, t3 = t * t, t * t * t
-    return np.array([t3 - t2, -3.0 * t3 + 4.0 * t2 + t, 3.0 * t3 - 5.0 * t2 + 2.0,
-                     -t3 + 2.0 * t2 - t], np.float32) / np.float32(2.0)
+    return np.array(
+        [t3 - t2, -3.0 * t3 + 4.0 * t2 + t, 3.0 * t3 - 5.0 * t2 + 2.0, -t3 + 2.0 * t2 - t],
+        np.float32,
+    ) / np.float32(2.0)
 
 
 @njit(cache=True, fastmath=True)
-def lamina_medulla_shifted(pooled, scale, p_in, l_in, von_in, voff_in, p_out, l_out, von_out,
-                            voff_out, corr, column, kx, ky, fx, fy, cx, cy, a0, decay, g_leak,
-                            v_rest, v_exc):  # pragma: no cover - numba
+def lamina_medulla_shifted(
+    pooled,
+    scale,
+    p_in,
+    l_in,
+    von_in,
+    voff_in,
+    p_out,
+    l_out,
+    von_out,
+    voff_out,
+    corr,
+    column,
+    kx,
+    ky,
+    fx,
+    fy,
+    cx,
+    cy,
+    a0,
+    decay,
+    g_leak,
+    v_rest,
+    v_exc,
+):  # pragma: no cover - numba
     """:func:`lamina_medulla` with last frame's state carried by the shift ``s = k + f``
     (integer ``k``, fraction ``f`` in [0, 1)) into this frame's coordinates.
 
@@ -140,12 +186,12 @@ def lamina_medulla_shifted(pooled, scale, p_in, l_in, von_in, voff_in, p_out, l_
         qb = p_in[r0, base:]
         qc = p_in[r0 - 1, base:]
         qd = p_in[r0 - 2, base:]
-        l0 = l_in[r0, base + 1:]
-        l1 = l_in[r0 - 1, base + 1:]
-        a0r = von_in[r0, base + 1:]
-        a1r = von_in[r0 - 1, base + 1:]
-        b0r = voff_in[r0, base + 1:]
-        b1r = voff_in[r0 - 1, base + 1:]
+        l0 = l_in[r0, base + 1 :]
+        l1 = l_in[r0 - 1, base + 1 :]
+        a0r = von_in[r0, base + 1 :]
+        a1r = von_in[r0 - 1, base + 1 :]
+        b0r = voff_in[r0, base + 1 :]
+        b1r = voff_in[r0 - 1, base + 1 :]
         src = src[start:]
         po = po[start:]
         lo = lo[start:]
@@ -192,14 +238,15 @@ def translation_system(cur, prev, sx, sy, huber, level):  # pragma: no cover - n
         if jhi <= jlo:
             break
         # Views aligned to the loop counter m (column jlo + m), as in the lamina kernel.
-        q0 = prev[i - ky, jlo - kx - 1:]
-        q1 = prev[i - ky - 1, jlo - kx - 1:]
+        q0 = prev[i - ky, jlo - kx - 1 :]
+        q1 = prev[i - ky - 1, jlo - kx - 1 :]
         up = cur[i - 1, jlo:]
-        row = cur[i, jlo - 1:]
+        row = cur[i, jlo - 1 :]
         down = cur[i + 1, jlo:]
         for m in range(jhi - jlo):
-            q = ((1.0 - fy) * ((1.0 - fx) * q0[m + 1] + fx * q0[m])
-                 + fy * ((1.0 - fx) * q1[m + 1] + fx * q1[m]))
+            q = (1.0 - fy) * ((1.0 - fx) * q0[m + 1] + fx * q0[m]) + fy * (
+                (1.0 - fx) * q1[m + 1] + fx * q1[m]
+            )
             r = row[m + 1] - q
             gx = 0.5 * (row[m + 2] - row[m])
             gy = 0.5 * (down[m] - up[m])

@@ -70,17 +70,21 @@ class VSTMDParams:
     def __post_init__(self) -> None:
         ratio = self.sigma2_ref / self.sigma1_ref
         if not (self.sigma1_ref > 0 and ratio > 1):
-            raise ValueError(f"need 0 < sigma1_ref < sigma2_ref, got {self.sigma1_ref}, "
-                             f"{self.sigma2_ref}")
+            raise ValueError(
+                f"need 0 < sigma1_ref < sigma2_ref, got {self.sigma1_ref}, {self.sigma2_ref}"
+            )
         for name in ("dog_e", "dog_e_ref"):
             e = getattr(self, name)
             if not 0 < e < ratio * ratio:
-                raise ValueError(f"{name} must be in (0, (sigma2/sigma1)^2 = {ratio * ratio:g}) "
-                                 f"for the kernel to have an excitatory centre, got {e}")
+                raise ValueError(
+                    f"{name} must be in (0, (sigma2/sigma1)^2 = {ratio * ratio:g}) "
+                    f"for the kernel to have an excitatory centre, got {e}"
+                )
         low, high = self.lobula_ds_range
         if low not in VALID_DS or high not in VALID_DS or low > high:
-            raise ValueError(f"lobula_ds_range must be two of {VALID_DS} in order, got "
-                             f"{self.lobula_ds_range}")
+            raise ValueError(
+                f"lobula_ds_range must be two of {VALID_DS} in order, got {self.lobula_ds_range}"
+            )
         if not (self.dog_a > 0 and self.dog_b >= 0):
             raise ValueError(f"need dog_a > 0 and dog_b >= 0, got {self.dog_a}, {self.dog_b}")
 
@@ -107,8 +111,9 @@ def lobe_radius(sigma1: float, sigma2: float, e: float) -> float:
     """
     k2 = (sigma2 / sigma1) ** 2
     if not (k2 > 1 and 0 < e < k2):
-        raise ValueError(f"need sigma2 > sigma1 and 0 < e < (sigma2/sigma1)^2, got "
-                         f"{sigma1}, {sigma2}, {e}")
+        raise ValueError(
+            f"need sigma2 > sigma1 and 0 < e < (sigma2/sigma1)^2, got {sigma1}, {sigma2}, {e}"
+        )
     return sigma1 * math.sqrt(2.0 * k2 * math.log(k2 / e) / (k2 - 1.0))
 
 

@@ -84,13 +84,13 @@ def transition_matrix(dt: float) -> np.ndarray:
 
 def process_noise(dt: float, noise: MotionNoise) -> np.ndarray:
     """``Q(dt)``: white acceleration on each centre axis, random walk on the size."""
-    qa = noise.acceleration_std ** 2
+    qa = noise.acceleration_std**2
     q = np.zeros((STATE_DIM, STATE_DIM))
     for p, v in ((0, 4), (1, 5)):
-        q[p, p] = qa * dt ** 4 / 4
-        q[p, v] = q[v, p] = qa * dt ** 3 / 2
-        q[v, v] = qa * dt ** 2
-    q[2, 2] = q[3, 3] = noise.size_drift_std ** 2 * dt
+        q[p, p] = qa * dt**4 / 4
+        q[p, v] = q[v, p] = qa * dt**3 / 2
+        q[v, v] = qa * dt**2
+    q[2, 2] = q[3, 3] = noise.size_drift_std**2 * dt
     return q
 
 
@@ -99,18 +99,19 @@ class BoxKalman:
 
     def __init__(self, box_xyxy: np.ndarray, noise: MotionNoise | None = None) -> None:
         self.noise = noise or MotionNoise()
-        sp2, sz2 = self.noise.position_std ** 2, self.noise.size_std ** 2
+        sp2, sz2 = self.noise.position_std**2, self.noise.size_std**2
         self.kf = KalmanFilter(dim_x=STATE_DIM, dim_z=MEASUREMENT_DIM)
         self.kf.F = transition_matrix(1.0)
         self.kf.H = MEASUREMENT_MATRIX.copy()
         self.kf.Q = process_noise(1.0, self.noise)
         self.kf.R = np.diag([sp2, sp2, sz2, sz2])
-        self.kf.P = np.diag([sp2, sp2, sz2, sz2] + [self.noise.initial_velocity_std ** 2] * 2)
+        self.kf.P = np.diag([sp2, sp2, sz2, sz2] + [self.noise.initial_velocity_std**2] * 2)
         self.kf.x = np.zeros((STATE_DIM, 1))
         self.kf.x[:4, 0] = _measurement(box_xyxy)
 
-    def predict(self, dt: float = 1.0,
-                camera_shift: tuple[float, float] | None = None) -> np.ndarray:
+    def predict(
+        self, dt: float = 1.0, camera_shift: tuple[float, float] | None = None
+    ) -> np.ndarray:
         """Advance the state by ``dt`` frames and return the predicted box ``[x1, y1, x2, y2]``.
 
         ``camera_shift=(dx, dy)`` is how far static ground moved in the image since the last

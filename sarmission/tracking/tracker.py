@@ -74,9 +74,13 @@ class TrackState:
     last_score: float = 0.0
 
 
-def associate(track_boxes: np.ndarray, detection_boxes: np.ndarray, match_nwd: float,
-              max_centre_distance: float, nwd_constant: float = NWD_CONSTANT,
-              ) -> tuple[list[tuple[int, int]], list[int], list[int]]:
+def associate(
+    track_boxes: np.ndarray,
+    detection_boxes: np.ndarray,
+    match_nwd: float,
+    max_centre_distance: float,
+    nwd_constant: float = NWD_CONSTANT,
+) -> tuple[list[tuple[int, int]], list[int], list[int]]:
     """Match ``[T, 4]`` track boxes to ``[D, 4]`` detection boxes (both ``xyxy``).
 
     Minimises the total ``1 - NWD`` over one-to-one pairs, then drops pairs outside the gate.
@@ -96,16 +100,27 @@ def associate(track_boxes: np.ndarray, detection_boxes: np.ndarray, match_nwd: f
     matches = [(int(r), int(c)) for r, c in zip(rows, cols, strict=True) if allowed[r, c]]
     matched_tracks = {r for r, _ in matches}
     matched_dets = {c for _, c in matches}
-    return (matches, [i for i in range(n_tracks) if i not in matched_tracks],
-            [j for j in range(n_dets) if j not in matched_dets])
+    return (
+        matches,
+        [i for i in range(n_tracks) if i not in matched_tracks],
+        [j for j in range(n_dets) if j not in matched_dets],
+    )
 
 
 class _Track:
     """One target's filter, lock and bookkeeping; born from a detection (its first hit)."""
 
-    def __init__(self, track_id: int, box: np.ndarray, score: float, class_id: int,
-                 noise: MotionNoise, lock: MofKLock, history_length: int,
-                 lock_min_score: float = 0.0) -> None:
+    def __init__(
+        self,
+        track_id: int,
+        box: np.ndarray,
+        score: float,
+        class_id: int,
+        noise: MotionNoise,
+        lock: MofKLock,
+        history_length: int,
+        lock_min_score: float = 0.0,
+    ) -> None:
         self.track_id = track_id
         self.lock_min_score = lock_min_score
         self.kalman = BoxKalman(box, noise)
@@ -144,8 +159,7 @@ class _Track:
         self.class_votes[int(class_id)] += 1
         self.last_class = int(class_id)
         was_locked = self.lock.locked
-        self.just_locked = (self.lock.update(score >= self.lock_min_score)
-                            and not was_locked)
+        self.just_locked = self.lock.update(score >= self.lock_min_score) and not was_locked
 
     def end_frame(self, frame_index: int, timestamp: float) -> None:
         """Record this frame's centre and, if the lock just happened, its frame index."""
@@ -162,11 +176,21 @@ class _Track:
 
     def state(self) -> TrackState:
         return TrackState(
-            track_id=self.track_id, box=self.kalman.box, raw_box=self.raw_box.copy(),
-            score=self.score, class_id=self.class_id, hits=self.hits, age=self.age,
-            misses=self.misses, locked=self.lock.locked, lock_frame=self.lock_frame,
-            just_locked=self.just_locked, velocity=self.kalman.velocity,
-            history=tuple(self.history), last_score=self.last_score)
+            track_id=self.track_id,
+            box=self.kalman.box,
+            raw_box=self.raw_box.copy(),
+            score=self.score,
+            class_id=self.class_id,
+            hits=self.hits,
+            age=self.age,
+            misses=self.misses,
+            locked=self.lock.locked,
+            lock_frame=self.lock_frame,
+            just_locked=self.just_locked,
+            velocity=self.kalman.velocity,
+            history=tuple(self.history),
+            last_score=self.last_score,
+        )
 
 
 class Tracker:
@@ -185,10 +209,19 @@ class Tracker:
     ``noise``: Kalman noise levels; ``history_length``: centres kept per track.
     """
 
-    def __init__(self, max_age: int = 15, min_hits_to_report: int = 1, match_nwd: float = 0.3,
-                 max_centre_distance: float = 8.0, lock_m: int = 3, lock_k: int = 5,
-                 noise: MotionNoise | None = None, history_length: int = 300,
-                 nwd_constant: float = NWD_CONSTANT, lock_min_score: float = 0.0) -> None:
+    def __init__(
+        self,
+        max_age: int = 15,
+        min_hits_to_report: int = 1,
+        match_nwd: float = 0.3,
+        max_centre_distance: float = 8.0,
+        lock_m: int = 3,
+        lock_k: int = 5,
+        noise: MotionNoise | None = None,
+        history_length: int = 300,
+        nwd_constant: float = NWD_CONSTANT,
+        lock_min_score: float = 0.0,
+    ) -> None:
         if max_age < 0 or history_length < 1:
             raise ValueError("max_age must be >= 0 and history_length >= 1")
         MofKLock(lock_m, lock_k)  # validates m and k now rather than at the first birth
@@ -211,8 +244,14 @@ class Tracker:
         """Forget every track (e.g. after a gap in the frames); new tracks get new ids."""
         self._tracks = []
 
-    def update(self, detections: Detections, frame_index: int, timestamp: float, *,
-               camera_shift: tuple[float, float] | None = None) -> list[TrackState]:
+    def update(
+        self,
+        detections: Detections,
+        frame_index: int,
+        timestamp: float,
+        *,
+        camera_shift: tuple[float, float] | None = None,
+    ) -> list[TrackState]:
         """Take one frame's detections and return the reported tracks' states.
 
         ``frame_index`` must increase from call to call; gaps (skipped frames) scale the motion
@@ -228,20 +267,30 @@ class Tracker:
         predicted = np.array([t.predict(dt, camera_shift) for t in self._tracks]).reshape(-1, 4)
         boxes = np.asarray(detections.boxes, dtype=np.float64).reshape(-1, 4)
         matches, unmatched_tracks, unmatched_dets = associate(
-            predicted, boxes, self.match_nwd, self.max_centre_distance, self.nwd_constant)
+            predicted, boxes, self.match_nwd, self.max_centre_distance, self.nwd_constant
+        )
         for ti, di in matches:
             self._tracks[ti].hit(boxes[di], detections.scores[di], detections.class_ids[di])
         for ti in unmatched_tracks:
             self._tracks[ti].miss()
         self._tracks = [t for t in self._tracks if t.misses <= self.max_age]
         for di in unmatched_dets:
-            self._tracks.append(_Track(
-                self._next_id, boxes[di], detections.scores[di], detections.class_ids[di],
-                self.noise, MofKLock(self.lock_m, self.lock_k), self.history_length,
-                self.lock_min_score))
+            self._tracks.append(
+                _Track(
+                    self._next_id,
+                    boxes[di],
+                    detections.scores[di],
+                    detections.class_ids[di],
+                    self.noise,
+                    MofKLock(self.lock_m, self.lock_k),
+                    self.history_length,
+                    self.lock_min_score,
+                )
+            )
             self._next_id += 1
 
         for track in self._tracks:
             track.end_frame(frame_index, timestamp)
-        return [t.state() for t in self._tracks
-                if t.hits >= self.min_hits_to_report or t.lock.locked]
+        return [
+            t.state() for t in self._tracks if t.hits >= self.min_hits_to_report or t.lock.locked
+        ]

@@ -110,10 +110,16 @@ class CropSettings:
         """Raise ``ValueError`` for settings that cannot build a dataset."""
         if not self.classes:
             raise ValueError("at least one class is needed")
-        if (self.frame_stride < 1 or self.warmup_frames < 0 or self.jitters_per_gt < 0
-                or self.background_negatives < 0):
-            raise ValueError("frame_stride must be >= 1, warmup_frames, jitters_per_gt and "
-                             "background_negatives >= 0")
+        if (
+            self.frame_stride < 1
+            or self.warmup_frames < 0
+            or self.jitters_per_gt < 0
+            or self.background_negatives < 0
+        ):
+            raise ValueError(
+                "frame_stride must be >= 1, warmup_frames, jitters_per_gt and "
+                "background_negatives >= 0"
+            )
         if not 0.0 <= self.colour_share <= 1.0:
             raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
         if not 0.0 < self.pos_nwd <= 1.0:
@@ -158,15 +164,21 @@ class CropSet:
     def scale(self) -> Tensor:
         """``[N, 2]`` full-resolution pixels per crop pixel (box width, height / crop size)."""
         side = self.crops.shape[-1]
-        return torch.stack([self.boxes[:, 2] - self.boxes[:, 0],
-                            self.boxes[:, 3] - self.boxes[:, 1]], dim=1) / side
+        return (
+            torch.stack(
+                [self.boxes[:, 2] - self.boxes[:, 0], self.boxes[:, 3] - self.boxes[:, 1]], dim=1
+            )
+            / side
+        )
 
     def summary(self) -> str:
         """One line: crops, positives (RPN / jittered), negatives, frames, GT boxes."""
         pos = self.labels >= 0
-        return (f"{len(self)} crops: {int((pos & ~self.jittered).sum())} RPN positives, "
-                f"{int((pos & self.jittered).sum())} jittered GT, {int((~pos).sum())} negatives "
-                f"from {len(self.frame_ids)} frames with {len(self.gt_boxes)} GT boxes")
+        return (
+            f"{len(self)} crops: {int((pos & ~self.jittered).sum())} RPN positives, "
+            f"{int((pos & self.jittered).sum())} jittered GT, {int((~pos).sum())} negatives "
+            f"from {len(self.frame_ids)} frames with {len(self.gt_boxes)} GT boxes"
+        )
 
     def to_state(self) -> dict:
         """Plain dict for ``torch.save`` (loadable with ``weights_only=True``)."""
@@ -182,12 +194,23 @@ class CropSet:
         return cls(**{k: state[k] for k in _TENSOR_FIELDS}, settings=dict(state["settings"]))
 
 
-_TENSOR_FIELDS = ("crops", "labels", "target_ltrb", "boxes", "image_ids", "jittered",
-                  "frame_ids", "gt_boxes", "gt_classes", "gt_image_ids")
+_TENSOR_FIELDS = (
+    "crops",
+    "labels",
+    "target_ltrb",
+    "boxes",
+    "image_ids",
+    "jittered",
+    "frame_ids",
+    "gt_boxes",
+    "gt_classes",
+    "gt_image_ids",
+)
 
 
-def ltrb_targets(crop_boxes: np.ndarray, gt_boxes: np.ndarray,
-                 crop_size: int = CROP_SIZE) -> np.ndarray:
+def ltrb_targets(
+    crop_boxes: np.ndarray, gt_boxes: np.ndarray, crop_size: int = CROP_SIZE
+) -> np.ndarray:
     """GT edges as ``l, t, r, b`` distances from each crop box's centre, in crop pixels ``[N, 4]``.
 
     ``l = (cx - gx1) / sx``, ``t = (cy - gy1) / sy``, ``r = (gx2 - cx) / sx``,
@@ -199,8 +222,9 @@ def ltrb_targets(crop_boxes: np.ndarray, gt_boxes: np.ndarray,
     sy = (c[:, 3] - c[:, 1]) / crop_size
     cx = (c[:, 0] + c[:, 2]) / 2
     cy = (c[:, 1] + c[:, 3]) / 2
-    return np.stack([(cx - g[:, 0]) / sx, (cy - g[:, 1]) / sy,
-                     (g[:, 2] - cx) / sx, (g[:, 3] - cy) / sy], axis=1)
+    return np.stack(
+        [(cx - g[:, 0]) / sx, (cy - g[:, 1]) / sy, (g[:, 2] - cx) / sx, (g[:, 3] - cy) / sy], axis=1
+    )
 
 
 def polarity_near(motion: MotionMaps, centres: np.ndarray, box_size: float) -> np.ndarray:
@@ -216,7 +240,7 @@ def polarity_near(motion: MotionMaps, centres: np.ndarray, box_size: float) -> n
         col, row = int(full_to_map_index(x, ds, w)), int(full_to_map_index(y, ds, h))
         half = max(int(np.ceil(box_size / (2 * ds))), 0)
         r0, c0 = max(row - half, 0), max(col - half, 0)
-        window = motion.response[r0:row + half + 1, c0:col + half + 1]
+        window = motion.response[r0 : row + half + 1, c0 : col + half + 1]
         if window.size and window.max() > 0:
             i, j = np.unravel_index(int(np.argmax(window)), window.shape)
             row, col = r0 + int(i), c0 + int(j)
@@ -238,8 +262,14 @@ def _target_gt(dataset: VideoDataset, mapping: dict[int, int]) -> dict[int, tupl
 BACKGROUND_MAX_NWD = 0.1
 
 
-def background_boxes(shape: tuple[int, int], gt_boxes: np.ndarray, count: int, side: float,
-                     rng: np.random.Generator, tries: int = 4) -> np.ndarray:
+def background_boxes(
+    shape: tuple[int, int],
+    gt_boxes: np.ndarray,
+    count: int,
+    side: float,
+    rng: np.random.Generator,
+    tries: int = 4,
+) -> np.ndarray:
     """Up to ``count`` squares of ``side`` inside a frame of ``shape`` (height, width), each
     further than :data:`BACKGROUND_MAX_NWD` from every box of ``gt_boxes`` ``[M, 4]`` (module
     docstring); ``[K, 4]`` xyxy float64, ``K <= count``."""
@@ -248,15 +278,22 @@ def background_boxes(shape: tuple[int, int], gt_boxes: np.ndarray, count: int, s
     if count <= 0 or width < side or height < side:
         return np.zeros((0, 4))
     n = count * tries
-    centres = np.stack([rng.uniform(half, width - half, n), rng.uniform(half, height - half, n)],
-                       axis=1)
+    centres = np.stack(
+        [rng.uniform(half, width - half, n), rng.uniform(half, height - half, n)], axis=1
+    )
     boxes = np.concatenate([centres - half, centres + half], axis=1)
     near = assign_by_nwd(boxes, gt_boxes, BACKGROUND_MAX_NWD).positive
     return boxes[~near][:count]
 
 
-def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple,
-                   settings: CropSettings, rng: np.random.Generator) -> dict[str, Tensor]:
+def _frame_samples(
+    frame: np.ndarray,
+    motion: MotionMaps,
+    rpn: TTMRPN,
+    gt: tuple,
+    settings: CropSettings,
+    rng: np.random.Generator,
+) -> dict[str, Tensor]:
     """Crops, labels, targets and boxes of one sampled frame (RPN samples, then jittered GT)."""
     gt_boxes, gt_classes = gt
     proposals = rpn.propose(motion, chroma_if_wanted(frame, rpn.colour_slots > 0))
@@ -272,8 +309,14 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
     all_labels = [labels]
     jittered = [np.zeros(len(proposals), bool)]
     if settings.jitters_per_gt and len(gt_classes):
-        jboxes, src = jitter_boxes(gt_boxes, rng, settings.jitters_per_gt, settings.jitter_scale,
-                                   settings.jitter_shift, side=settings.box_size)
+        jboxes, src = jitter_boxes(
+            gt_boxes,
+            rng,
+            settings.jitters_per_gt,
+            settings.jitter_scale,
+            settings.jitter_shift,
+            side=settings.box_size,
+        )
         centres = (gt_boxes[:, :2] + gt_boxes[:, 2:]) / 2
         polarity = polarity_near(motion, centres, settings.box_size)[src]
         boxes.append(jboxes)
@@ -282,8 +325,9 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
         all_labels.append(gt_classes[src])
         jittered.append(np.ones(len(src), bool))
     if settings.background_negatives:
-        bboxes = background_boxes(frame.shape[:2], gt_boxes, settings.background_negatives,
-                                  settings.box_size, rng)
+        bboxes = background_boxes(
+            frame.shape[:2], gt_boxes, settings.background_negatives, settings.box_size, rng
+        )
         if len(bboxes):
             centres = (bboxes[:, :2] + bboxes[:, 2:]) / 2
             polarity = polarity_near(motion, centres, settings.box_size)
@@ -302,8 +346,9 @@ def _frame_samples(frame: np.ndarray, motion: MotionMaps, rpn: TTMRPN, gt: tuple
     }
 
 
-def build_crop_set(dataset: VideoDataset, settings: CropSettings,
-                   progress: bool = True, desc: str = "crops") -> CropSet:
+def build_crop_set(
+    dataset: VideoDataset, settings: CropSettings, progress: bool = True, desc: str = "crops"
+) -> CropSet:
     """Run vSTMD + TTM-RPN over every video of ``dataset`` and cut the crops (module docstring).
 
     Raises ``ValueError`` when no category is a head class or no crop could be cut.
@@ -323,8 +368,9 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
     with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, disable=not progress) as bar:
         for video_id in sequence_ids(dataset):
             vstmd = VSTMD(ds=settings.ds, **vstmd_kwargs)
-            rpn = TTMRPN(topn=settings.topn, box_size=settings.box_size,
-                         colour_share=settings.colour_share)
+            rpn = TTMRPN(
+                topn=settings.topn, box_size=settings.box_size, colour_share=settings.colour_share
+            )
             for position, item in enumerate(iter_sequence(dataset, video_id, counters)):
                 bar.update(1)
                 motion = vstmd.step(item.frame_bgr)
@@ -333,8 +379,9 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
                     continue
                 gt = gt_by_image.get(item.image.id, (np.zeros((0, 4)), np.zeros(0, np.int64)))
                 part = _frame_samples(item.frame_bgr, motion, rpn, gt, settings, rng)
-                part["image_ids"] = torch.full((len(part["labels"]),), item.image.id,
-                                               dtype=torch.int64)
+                part["image_ids"] = torch.full(
+                    (len(part["labels"]),), item.image.id, dtype=torch.int64
+                )
                 parts.append(part)
                 frame_ids.append(item.image.id)
                 n_crops += len(part["labels"])
@@ -342,9 +389,11 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
     if counters.get("skipped"):
         log.warning("%d frames could not be read and were skipped", counters["skipped"])
     if not n_crops:
-        raise ValueError(f"no crops could be cut from {dataset.source_path} (no readable frames "
-                         f"past the {settings.warmup_frames} warm-up frames, no proposals and no "
-                         "target GT)")
+        raise ValueError(
+            f"no crops could be cut from {dataset.source_path} (no readable frames "
+            f"past the {settings.warmup_frames} warm-up frames, no proposals and no "
+            "target GT)"
+        )
     gt_boxes, gt_classes, gt_images = [], [], []
     for image_id in frame_ids:
         boxes, classes = gt_by_image.get(image_id, (np.zeros((0, 4)), np.zeros(0, np.int64)))
@@ -356,8 +405,12 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
         return torch.cat([p[key] for p in parts])
 
     return CropSet(
-        crops=cat("crops"), labels=cat("labels"), target_ltrb=cat("target_ltrb"),
-        boxes=cat("boxes"), image_ids=cat("image_ids"), jittered=cat("jittered"),
+        crops=cat("crops"),
+        labels=cat("labels"),
+        target_ltrb=cat("target_ltrb"),
+        boxes=cat("boxes"),
+        image_ids=cat("image_ids"),
+        jittered=cat("jittered"),
         frame_ids=torch.tensor(frame_ids, dtype=torch.int64),
         gt_boxes=torch.from_numpy(np.concatenate(gt_boxes).astype(np.float32)),
         gt_classes=torch.from_numpy(np.concatenate(gt_classes)),
@@ -367,12 +420,19 @@ def build_crop_set(dataset: VideoDataset, settings: CropSettings,
 
 
 #: Modules whose code decides the cached crops and labels.
-RECIPE_MODULES = ("sarmission.perception.pyramid", "sarmission.perception.vstmd",
-                  "sarmission.perception.vstmd_params", "sarmission.perception.vstmd_kernels",
-                  "sarmission.perception.ego_motion",
-                  "sarmission.perception.chroma", "sarmission.perception.rpn",
-                  "sarmission.perception.crops", "sarmission.boxes",
-                  "sarmission.training.sampling", "sarmission.training.dataset")
+RECIPE_MODULES = (
+    "sarmission.perception.pyramid",
+    "sarmission.perception.vstmd",
+    "sarmission.perception.vstmd_params",
+    "sarmission.perception.vstmd_kernels",
+    "sarmission.perception.ego_motion",
+    "sarmission.perception.chroma",
+    "sarmission.perception.rpn",
+    "sarmission.perception.crops",
+    "sarmission.boxes",
+    "sarmission.training.sampling",
+    "sarmission.training.dataset",
+)
 
 
 def source_fingerprint(modules: tuple[str, ...] = RECIPE_MODULES) -> str:
@@ -388,13 +448,24 @@ def cache_key(annotations: Path, settings: CropSettings) -> str:
     """Hex key of (resolved annotation path, its size and mtime, cache version, the recipe's
     source fingerprint, settings)."""
     stat = annotations.stat()
-    doc = {"path": str(annotations.resolve()), "size": stat.st_size, "mtime_ns": stat.st_mtime_ns,
-           "version": CACHE_VERSION, "code": source_fingerprint(), "settings": settings.to_dict()}
+    doc = {
+        "path": str(annotations.resolve()),
+        "size": stat.st_size,
+        "mtime_ns": stat.st_mtime_ns,
+        "version": CACHE_VERSION,
+        "code": source_fingerprint(),
+        "settings": settings.to_dict(),
+    }
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:20]
 
 
-def load_crop_set(annotations: str | Path, settings: CropSettings, cache_dir: str | Path,
-                  progress: bool = True, desc: str = "crops") -> tuple[CropSet, bool]:
+def load_crop_set(
+    annotations: str | Path,
+    settings: CropSettings,
+    cache_dir: str | Path,
+    progress: bool = True,
+    desc: str = "crops",
+) -> tuple[CropSet, bool]:
     """The crop set of an annotation file, from the cache when present, else built and cached.
 
     Returns ``(crop_set, from_cache)``. Raises ``OSError`` for a missing annotation file and
@@ -406,8 +477,9 @@ def load_crop_set(annotations: str | Path, settings: CropSettings, cache_dir: st
     cache = Path(cache_dir) / f"crops-{cache_key(annotations, settings)}.pt"
     if cache.is_file():
         try:
-            return CropSet.from_state(torch.load(cache, map_location="cpu",
-                                                 weights_only=True)), True
+            return CropSet.from_state(
+                torch.load(cache, map_location="cpu", weights_only=True)
+            ), True
         except Exception as exc:  # a damaged cache is rebuilt, not fatal
             log.warning("ignoring unreadable crop cache %s (%s)", cache, exc)
     crop_set = build_crop_set(read_coco_video(annotations), settings, progress, desc)

@@ -77,8 +77,7 @@ def dfl_loss(bin_logits: Tensor, target: Tensor, reg_max: int) -> Tensor:
     return -(w_left * lp_left + (1.0 - w_left) * lp_right).sum(dim=-1)
 
 
-def ltrb_nwd(pred: Tensor, target: Tensor, scale: Tensor,
-             constant: float = NWD_CONSTANT) -> Tensor:
+def ltrb_nwd(pred: Tensor, target: Tensor, scale: Tensor, constant: float = NWD_CONSTANT) -> Tensor:
     """NWD ``[P]`` between boxes given as ``l, t, r, b`` from a common centre, ``[P, 4]`` each,
     with ``scale [P, 2]`` full-resolution pixels per crop pixel (formula in the module docstring).
     """
@@ -86,8 +85,12 @@ def ltrb_nwd(pred: Tensor, target: Tensor, scale: Tensor,
 
     def cxcywh(b: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor]:
         left, top, right, bottom = b.unbind(dim=1)
-        return ((right - left) * 0.5 * sx, (bottom - top) * 0.5 * sy, (left + right) * sx,
-                (top + bottom) * sy)
+        return (
+            (right - left) * 0.5 * sx,
+            (bottom - top) * 0.5 * sy,
+            (left + right) * sx,
+            (top + bottom) * sy,
+        )
 
     pcx, pcy, pw, ph = cxcywh(pred)
     gcx, gcy, gw, gh = cxcywh(target)
@@ -95,8 +98,15 @@ def ltrb_nwd(pred: Tensor, target: Tensor, scale: Tensor,
     return torch.exp(-torch.sqrt(w2 + _SQRT_EPS) / constant)
 
 
-def head_loss(cls_logits: Tensor, bin_logits: Tensor, ltrb: Tensor, labels: Tensor,
-              target_ltrb: Tensor, scale: Tensor, weights: LossWeights | None = None) -> LossTerms:
+def head_loss(
+    cls_logits: Tensor,
+    bin_logits: Tensor,
+    ltrb: Tensor,
+    labels: Tensor,
+    target_ltrb: Tensor,
+    scale: Tensor,
+    weights: LossWeights | None = None,
+) -> LossTerms:
     """The head loss of one batch (module docstring), with hard negative mining inside.
 
     Args:
@@ -113,8 +123,7 @@ def head_loss(cls_logits: Tensor, bin_logits: Tensor, ltrb: Tensor, labels: Tens
     pos_idx = torch.nonzero(pos).flatten()
     neg_idx = torch.nonzero(~pos).flatten()
     n_pos = int(pos_idx.numel())
-    neg_keep = neg_idx[hardest_negatives(cls_logits[neg_idx], n_pos, w.neg_ratio,
-                                         w.min_negatives)]
+    neg_keep = neg_idx[hardest_negatives(cls_logits[neg_idx], n_pos, w.neg_ratio, w.min_negatives)]
     sampled = torch.cat([pos_idx, neg_keep])
     y = torch.zeros_like(cls_logits[sampled])
     y[torch.arange(n_pos), labels[pos_idx]] = 1.0
@@ -127,5 +136,6 @@ def head_loss(cls_logits: Tensor, bin_logits: Tensor, ltrb: Tensor, labels: Tens
     else:
         l_nwd = l_dfl = cls_logits.sum() * 0.0
     total = w.cls * l_cls + w.nwd * l_nwd + w.dfl * l_dfl
-    return LossTerms(total, l_cls.detach(), l_nwd.detach(), l_dfl.detach(), n_pos,
-                     int(neg_keep.numel()))
+    return LossTerms(
+        total, l_cls.detach(), l_nwd.detach(), l_dfl.detach(), n_pos, int(neg_keep.numel())
+    )

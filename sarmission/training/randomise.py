@@ -42,8 +42,15 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor
 
-TRANSFORMS: tuple[str, ...] = ("tone", "white_balance", "hue", "blur", "noise", "blocks",
-                               "geometry")
+TRANSFORMS: tuple[str, ...] = (
+    "tone",
+    "white_balance",
+    "hue",
+    "blur",
+    "noise",
+    "blocks",
+    "geometry",
+)
 #: Colour channels of a head crop (RGB); channel 3 is the motion response.
 RGB = slice(0, 3)
 
@@ -59,8 +66,9 @@ class Randomisation:
         """Raise ``ValueError`` for unknown transforms or a probability outside [0, 1]."""
         unknown = sorted(set(self.transforms) - set(TRANSFORMS))
         if unknown:
-            raise ValueError(f"unknown randomisation {', '.join(unknown)}; known: "
-                             f"{', '.join(TRANSFORMS)}")
+            raise ValueError(
+                f"unknown randomisation {', '.join(unknown)}; known: {', '.join(TRANSFORMS)}"
+            )
         if not 0.0 <= self.probability <= 1.0:
             raise ValueError(f"probability must be in [0, 1], got {self.probability}")
 
@@ -72,8 +80,11 @@ class Randomisation:
             names = list(TRANSFORMS)
         elif names == ["none"]:
             names = []
-        config = cls(tuple(n for n in TRANSFORMS if n in names) + tuple(
-            n for n in names if n not in TRANSFORMS), probability)
+        config = cls(
+            tuple(n for n in TRANSFORMS if n in names)
+            + tuple(n for n in names if n not in TRANSFORMS),
+            probability,
+        )
         config.validate()
         return config
 
@@ -99,8 +110,7 @@ def white_balance(rgb: Tensor, rng: np.random.Generator) -> Tensor:
     return (rgb * gains.view(n, 3, 1, 1)).clamp(0.0, 1.0)
 
 
-_RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322],
-                            [0.211, -0.523, 0.312]])
+_RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
 _YIQ_TO_RGB = torch.linalg.inv(_RGB_TO_YIQ)
 
 
@@ -141,18 +151,33 @@ def noise(rgb: Tensor, rng: np.random.Generator) -> Tensor:
 
 
 #: JPEG's luminance and chrominance quantisation tables (ITU-T T.81 Annex K), 0-255 units.
-_Q_LUMA = torch.tensor([
-    [16, 11, 10, 16, 24, 40, 51, 61], [12, 12, 14, 19, 26, 58, 60, 55],
-    [14, 13, 16, 24, 40, 57, 69, 56], [14, 17, 22, 29, 51, 87, 80, 62],
-    [18, 22, 37, 56, 68, 109, 103, 77], [24, 35, 55, 64, 81, 104, 113, 92],
-    [49, 64, 78, 87, 103, 121, 120, 101], [72, 92, 95, 98, 112, 100, 103, 99]],
-    dtype=torch.float32)
+_Q_LUMA = torch.tensor(
+    [
+        [16, 11, 10, 16, 24, 40, 51, 61],
+        [12, 12, 14, 19, 26, 58, 60, 55],
+        [14, 13, 16, 24, 40, 57, 69, 56],
+        [14, 17, 22, 29, 51, 87, 80, 62],
+        [18, 22, 37, 56, 68, 109, 103, 77],
+        [24, 35, 55, 64, 81, 104, 113, 92],
+        [49, 64, 78, 87, 103, 121, 120, 101],
+        [72, 92, 95, 98, 112, 100, 103, 99],
+    ],
+    dtype=torch.float32,
+)
 _Q_CHROMA = torch.full((8, 8), 99.0)
-_Q_CHROMA[:4, :4] = torch.tensor([[17, 18, 24, 47], [18, 21, 26, 66], [24, 26, 56, 99],
-                                  [47, 66, 99, 99]], dtype=torch.float32)
-_DCT = torch.tensor([[(math.sqrt(1 / 8) if k == 0 else math.sqrt(2 / 8))
-                      * math.cos(math.pi * (2 * i + 1) * k / 16) for i in range(8)]
-                     for k in range(8)])
+_Q_CHROMA[:4, :4] = torch.tensor(
+    [[17, 18, 24, 47], [18, 21, 26, 66], [24, 26, 56, 99], [47, 66, 99, 99]], dtype=torch.float32
+)
+_DCT = torch.tensor(
+    [
+        [
+            (math.sqrt(1 / 8) if k == 0 else math.sqrt(2 / 8))
+            * math.cos(math.pi * (2 * i + 1) * k / 16)
+            for i in range(8)
+        ]
+        for k in range(8)
+    ]
+)
 
 
 def _quantise_blocks(plane: Tensor, table: Tensor) -> Tensor:
@@ -189,12 +214,13 @@ def blocks(rgb: Tensor, rng: np.random.Generator) -> Tensor:
     r = y + cr / 0.713
     b = y + cb / 0.564
     g = (y - 0.299 * r - 0.114 * b) / 0.587
-    out = torch.stack([r, g, b], dim=1)[:, :, dy:dy + h, dx:dx + w]
+    out = torch.stack([r, g, b], dim=1)[:, :, dy : dy + h, dx : dx + w]
     return out.clamp(0.0, 1.0)
 
 
-def geometry(crops: Tensor, ltrb: Tensor, labels: Tensor,
-             rng: np.random.Generator) -> tuple[Tensor, Tensor]:
+def geometry(
+    crops: Tensor, ltrb: Tensor, labels: Tensor, rng: np.random.Generator
+) -> tuple[Tensor, Tensor]:
     """Rotate and scale all channels about the crop centre; move positives' targets with them."""
     n, _, h, w = crops.shape
     angle = _u(rng, -math.radians(15.0), math.radians(15.0), n)
@@ -217,12 +243,19 @@ def geometry(crops: Tensor, ltrb: Tensor, labels: Tensor,
     return out, torch.where(positive, moved, ltrb)
 
 
-_PHOTOMETRIC = {"tone": tone, "white_balance": white_balance, "hue": hue, "blur": blur,
-                "noise": noise, "blocks": blocks}
+_PHOTOMETRIC = {
+    "tone": tone,
+    "white_balance": white_balance,
+    "hue": hue,
+    "blur": blur,
+    "noise": noise,
+    "blocks": blocks,
+}
 
 
-def randomise_crops(crops: Tensor, ltrb: Tensor, labels: Tensor, config: Randomisation,
-                    rng: np.random.Generator) -> tuple[Tensor, Tensor]:
+def randomise_crops(
+    crops: Tensor, ltrb: Tensor, labels: Tensor, config: Randomisation, rng: np.random.Generator
+) -> tuple[Tensor, Tensor]:
     """Apply ``config``'s transforms to a batch: ``crops [N, 4, S, S]`` float32, ``ltrb [N, 4]``,
     ``labels [N]``. Returns new ``(crops, ltrb)``; the inputs are not modified.
 
@@ -238,8 +271,7 @@ def randomise_crops(crops: Tensor, ltrb: Tensor, labels: Tensor, config: Randomi
         if not len(chosen):
             continue
         if name == "geometry":
-            crops[chosen], ltrb[chosen] = geometry(crops[chosen], ltrb[chosen], labels[chosen],
-                                                   rng)
+            crops[chosen], ltrb[chosen] = geometry(crops[chosen], ltrb[chosen], labels[chosen], rng)
         else:
             crops[chosen, RGB] = _PHOTOMETRIC[name](crops[chosen, RGB], rng)
     return crops, ltrb

@@ -32,9 +32,14 @@ from torch import Tensor
 from sarmission.boxes import NWD_CONSTANT, cxcywh_to_xyxy, nwd_matrix, xyxy_to_cxcywh
 
 
-def jitter_boxes(boxes_xyxy: np.ndarray, rng: np.random.Generator, copies: int,
-                 scale: float = 0.2, shift: float = 0.25,
-                 side: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def jitter_boxes(
+    boxes_xyxy: np.ndarray,
+    rng: np.random.Generator,
+    copies: int,
+    scale: float = 0.2,
+    shift: float = 0.25,
+    side: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """``copies`` jittered boxes per input box (formulas in the module docstring).
 
     Args:
@@ -84,8 +89,12 @@ class Assignment:
     positive: np.ndarray
 
 
-def assign_by_nwd(proposals_xyxy: np.ndarray, gt_xyxy: np.ndarray, pos_threshold: float = 0.4,
-                  constant: float = NWD_CONSTANT) -> Assignment:
+def assign_by_nwd(
+    proposals_xyxy: np.ndarray,
+    gt_xyxy: np.ndarray,
+    pos_threshold: float = 0.4,
+    constant: float = NWD_CONSTANT,
+) -> Assignment:
     """Give each proposal its best GT by NWD; positive when ``NWD >= pos_threshold``.
 
     Ties between GT boxes go to the lower GT index.
@@ -101,8 +110,9 @@ def assign_by_nwd(proposals_xyxy: np.ndarray, gt_xyxy: np.ndarray, pos_threshold
     return Assignment(best.astype(np.int64), nwd, nwd >= pos_threshold)
 
 
-def hardest_negatives(negative_logits: Tensor, num_positives: int, ratio: int = 3,
-                      min_negatives: int = 16) -> Tensor:
+def hardest_negatives(
+    negative_logits: Tensor, num_positives: int, ratio: int = 3, min_negatives: int = 16
+) -> Tensor:
     """Indices of the negatives that enter the loss, highest logit first.
 
     ``negative_logits`` is ``[M]`` (one score per negative, e.g. its largest class logit) or

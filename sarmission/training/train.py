@@ -120,8 +120,9 @@ class TrainConfig:
         if self.epochs < 1 or self.batch_size < 1:
             raise ValueError("epochs and batch_size must be at least 1")
         if not 1 <= self.select_from <= self.epochs:
-            raise ValueError(f"select_from must be in [1, epochs = {self.epochs}], got "
-                             f"{self.select_from}")
+            raise ValueError(
+                f"select_from must be in [1, epochs = {self.epochs}], got {self.select_from}"
+            )
         if not self.lr > 0:
             raise ValueError(f"lr must be positive, got {self.lr}")
         if self.optimizer not in ("sgd", "adamw"):
@@ -139,8 +140,10 @@ class TrainConfig:
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
         d["crops"] = self.crops.to_dict()
-        d["randomise"] = {"transforms": list(self.randomise.transforms),
-                          "probability": self.randomise.probability}
+        d["randomise"] = {
+            "transforms": list(self.randomise.transforms),
+            "probability": self.randomise.probability,
+        }
         return {k: (str(v) if isinstance(v, Path) else v) for k, v in d.items()}
 
 
@@ -203,8 +206,9 @@ class WeightAverage:
         self.updates = int(state["updates"])
 
 
-def dihedral(crops: Tensor, ltrb: Tensor, scale: Tensor,
-             ops: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+def dihedral(
+    crops: Tensor, ltrb: Tensor, scale: Tensor, ops: Tensor
+) -> tuple[Tensor, Tensor, Tensor]:
     """Apply symmetry ``ops[i]`` in 0..7 (``k = op % 4`` quarter turns, then a mirror when
     ``op >= 4``) to crop ``i`` ``[N, C, S, S]``, its ``l, t, r, b`` ``[N, 4]`` and its
     ``(sx, sy)`` scale ``[N, 2]`` (swapped by odd turns).
@@ -224,8 +228,10 @@ def dihedral(crops: Tensor, ltrb: Tensor, scale: Tensor,
 def _optimizer(model: MiteHead, config: TrainConfig) -> torch.optim.Optimizer:
     decay = [p for p in model.parameters() if p.ndim > 1]
     no_decay = [p for p in model.parameters() if p.ndim <= 1]
-    groups = [{"params": decay, "weight_decay": config.weight_decay},
-              {"params": no_decay, "weight_decay": 0.0}]
+    groups = [
+        {"params": decay, "weight_decay": config.weight_decay},
+        {"params": no_decay, "weight_decay": 0.0},
+    ]
     if config.optimizer == "sgd":
         return torch.optim.SGD(groups, lr=config.lr, momentum=config.momentum, nesterov=True)
     return torch.optim.AdamW(groups, lr=config.lr)
@@ -236,19 +242,27 @@ SELECTION_NWD = (0.5,)
 
 
 @torch.no_grad()
-def validate_f2(model: MiteHead, val: CropSet, score_threshold: float = 0.5,
-                nms_iou: float | None = 0.5, chunk: int = 1024) -> dict[str, float]:
+def validate_f2(
+    model: MiteHead,
+    val: CropSet,
+    score_threshold: float = 0.5,
+    nms_iou: float | None = 0.5,
+    chunk: int = 1024,
+) -> dict[str, float]:
     """F2, precision and recall of the head on validation crops (module docstring)."""
     model.eval()
     logits, ltrb = [], []
     for start in range(0, len(val), chunk):
-        lo, lt = model(val.crops[start:start + chunk].float())
+        lo, lt = model(val.crops[start : start + chunk].float())
         logits.append(lo)
         ltrb.append(lt)
     probs = torch.sigmoid(torch.cat(logits)).numpy() if logits else np.zeros((0, 1))
     scores, classes = probs.max(axis=1), probs.argmax(axis=1)
-    boxes = ltrb_to_boxes(torch.cat(ltrb).numpy() if ltrb else np.zeros((0, 4)),
-                          val.boxes.numpy(), val.crops.shape[-1])
+    boxes = ltrb_to_boxes(
+        torch.cat(ltrb).numpy() if ltrb else np.zeros((0, 4)),
+        val.boxes.numpy(),
+        val.crops.shape[-1],
+    )
     image_ids = val.image_ids.numpy()
     detections, truth = {}, {}
     gt_images, gt_boxes = val.gt_image_ids.numpy(), val.gt_boxes.numpy()
@@ -256,21 +270,26 @@ def validate_f2(model: MiteHead, val: CropSet, score_threshold: float = 0.5,
     people = person_class_ids(model.config.classes)
     person_detection, person_gt = np.isin(classes, people), np.isin(gt_classes, people)
     for image_id in val.frame_ids.tolist():
-        keep = np.flatnonzero((image_ids == image_id) & (scores > score_threshold)
-                              & person_detection)
+        keep = np.flatnonzero(
+            (image_ids == image_id) & (scores > score_threshold) & person_detection
+        )
         if nms_iou is not None and keep.size > 1:
             keep = keep[nms_xyxy(boxes[keep], scores[keep], nms_iou)]
         detections[image_id] = FrameBoxes.of(boxes[keep], scores[keep], classes[keep])
         g = (gt_images == image_id) & person_gt
         truth[image_id] = FrameBoxes.of(gt_boxes[g], class_ids=gt_classes[g])
-    band = evaluate_boxes(truth, detections, nwd_thresholds=SELECTION_NWD,
-                          score_thr=score_threshold).bands["all"]
-    return {"f2": band.f2 or 0.0, "precision": band.precision or 0.0,
-            "recall": band.recall or 0.0}
+    band = evaluate_boxes(
+        truth, detections, nwd_thresholds=SELECTION_NWD, score_thr=score_threshold
+    ).bands["all"]
+    return {"f2": band.f2 or 0.0, "precision": band.precision or 0.0, "recall": band.recall or 0.0}
 
 
-def _load_state(config: TrainConfig, model: MiteHead, optimizer: torch.optim.Optimizer,
-                average: WeightAverage | None) -> dict:
+def _load_state(
+    config: TrainConfig,
+    model: MiteHead,
+    optimizer: torch.optim.Optimizer,
+    average: WeightAverage | None,
+) -> dict:
     path = state_path(config.out)
     if not path.is_file():
         raise FileNotFoundError(f"cannot resume: no training state at {path}")
@@ -278,13 +297,16 @@ def _load_state(config: TrainConfig, model: MiteHead, optimizer: torch.optim.Opt
     if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
         raise ValueError(f"cannot resume: {path} is not a sarmission training state")
     if state.get("version") != STATE_VERSION:
-        raise ValueError(f"cannot resume: {path} has state version {state.get('version')!r}, "
-                         f"this build reads {STATE_VERSION}")
+        raise ValueError(
+            f"cannot resume: {path} has state version {state.get('version')!r}, "
+            f"this build reads {STATE_VERSION}"
+        )
     saved, now = state["config"], config.fingerprint()
     changed = sorted(k for k in set(saved) | set(now) if saved.get(k) != now.get(k))
     if changed:
-        raise ValueError(f"cannot resume {path}: settings differ from the interrupted run "
-                         f"({', '.join(changed)})")
+        raise ValueError(
+            f"cannot resume {path}: settings differ from the interrupted run ({', '.join(changed)})"
+        )
     model.load_state_dict(state["model"])
     optimizer.load_state_dict(state["optimizer"])
     if average is not None:
@@ -293,9 +315,15 @@ def _load_state(config: TrainConfig, model: MiteHead, optimizer: torch.optim.Opt
     return state
 
 
-def _train_epoch(model: MiteHead, optimizer: torch.optim.Optimizer, data: CropSet,
-                 config: TrainConfig, epoch: int, bar,
-                 average: WeightAverage | None = None) -> dict[str, float]:
+def _train_epoch(
+    model: MiteHead,
+    optimizer: torch.optim.Optimizer,
+    data: CropSet,
+    config: TrainConfig,
+    epoch: int,
+    bar,
+    average: WeightAverage | None = None,
+) -> dict[str, float]:
     """One pass over the training crops; mean loss terms per batch."""
     model.train()
     n = len(data)
@@ -307,17 +335,17 @@ def _train_epoch(model: MiteHead, optimizer: torch.optim.Optimizer, data: CropSe
     scale_all = data.scale
     sums = dict.fromkeys(("loss", "cls", "nwd", "dfl"), 0.0)
     for b in range(steps):
-        idx = order[b * config.batch_size:(b + 1) * config.batch_size]
-        lr = lr_at(epoch * steps + b, config.epochs * steps, steps, config.lr,
-                   config.min_lr_ratio)
+        idx = order[b * config.batch_size : (b + 1) * config.batch_size]
+        lr = lr_at(epoch * steps + b, config.epochs * steps, steps, config.lr, config.min_lr_ratio)
         for group in optimizer.param_groups:
             group["lr"] = lr
         crops, target, scale = data.crops[idx].float(), data.target_ltrb[idx], scale_all[idx]
         if config.augment:
             crops, target, scale = dihedral(crops, target, scale, ops[idx])
         if config.randomise.transforms:
-            crops, target = randomise_crops(crops, target, data.labels[idx], config.randomise,
-                                            randomising)
+            crops, target = randomise_crops(
+                crops, target, data.labels[idx], config.randomise, randomising
+            )
         cls_logits, bins, ltrb = model.forward_with_bins(crops)
         terms = head_loss(cls_logits, bins, ltrb, data.labels[idx], target, scale, config.loss)
         optimizer.zero_grad(set_to_none=True)
@@ -325,8 +353,12 @@ def _train_epoch(model: MiteHead, optimizer: torch.optim.Optimizer, data: CropSe
         optimizer.step()
         if average is not None:
             average.update(model)
-        for key, value in (("loss", terms.total.detach()), ("cls", terms.cls), ("nwd", terms.nwd),
-                           ("dfl", terms.dfl)):
+        for key, value in (
+            ("loss", terms.total.detach()),
+            ("cls", terms.cls),
+            ("nwd", terms.nwd),
+            ("dfl", terms.dfl),
+        ):
             sums[key] += float(value)
         bar.update(1)
         bar.set_postfix(epoch=epoch + 1, loss=f"{sums['loss'] / (b + 1):.3f}")
@@ -344,16 +376,22 @@ def train(config: TrainConfig) -> TrainResult:
     torch.set_num_threads(max(1, config.num_threads))
     cache_dir = Path(config.cache_dir) if config.cache_dir else config.out.parent / ".crop_cache"
     t0 = time.perf_counter()
-    train_set, _ = load_crop_set(config.train, config.crops, cache_dir, config.progress,
-                                 "train crops")
-    val_settings = replace(config.crops, jitters_per_gt=0, background_negatives=0,
-                           frame_stride=1, seed=0)
+    train_set, _ = load_crop_set(
+        config.train, config.crops, cache_dir, config.progress, "train crops"
+    )
+    val_settings = replace(
+        config.crops, jitters_per_gt=0, background_negatives=0, frame_stride=1, seed=0
+    )
     val_set, _ = load_crop_set(config.val, val_settings, cache_dir, config.progress, "val crops")
     if not (train_set.labels >= 0).any():
-        raise ValueError(f"{config.train}: no positive training crop (no target GT boxes in "
-                         "the sampled frames)")
-    print(f"train: {train_set.summary()}\nval: {val_set.summary()} "
-          f"({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+        raise ValueError(
+            f"{config.train}: no positive training crop (no target GT boxes in the sampled frames)"
+        )
+    print(
+        f"train: {train_set.summary()}\nval: {val_set.summary()} "
+        f"({time.perf_counter() - t0:.1f} s)",
+        file=sys.stderr,
+    )
 
     torch.manual_seed(config.seed)
     model = MiteHead(HeadConfig(classes=tuple(config.crops.classes)))
@@ -366,8 +404,13 @@ def train(config: TrainConfig) -> TrainResult:
         start, best_f2, best_epoch = state["epoch"], state["best_f2"], state["best_epoch"]
         history = list(state["history"])
     steps = math.ceil(len(train_set) / config.batch_size)
-    with tqdm(total=steps * (config.epochs - start), unit="batch", desc="train",
-              file=sys.stderr, disable=not config.progress) as bar:
+    with tqdm(
+        total=steps * (config.epochs - start),
+        unit="batch",
+        desc="train",
+        file=sys.stderr,
+        disable=not config.progress,
+    ) as bar:
         for epoch in range(start, config.epochs):
             t_epoch = time.perf_counter()
             record = _train_epoch(model, optimizer, train_set, config, epoch, bar, average)
@@ -377,25 +420,52 @@ def train(config: TrainConfig) -> TrainResult:
             if epoch + 1 >= config.select_from and record["f2"] > best_f2:
                 best_f2, best_epoch = record["f2"], epoch + 1
                 save_head_checkpoint(evaluated, config.out)
-            bar.write(f"epoch {epoch + 1}/{config.epochs}: loss {record['loss']:.4f} "
-                      f"(cls {record['cls']:.3f} nwd {record['nwd']:.3f} dfl {record['dfl']:.3f})"
-                      f" val F2 {record['f2']:.4f} P {record['precision']:.3f} "
-                      f"R {record['recall']:.3f} best {best_f2:.4f}@{best_epoch}")
-            _save_state(config, model, optimizer, average, epoch + 1, best_f2, best_epoch,
-                        history)
-    return TrainResult(config.out, state_path(config.out), best_f2, best_epoch,
-                       config.epochs - start, history, len(train_set), len(val_set))
+            bar.write(
+                f"epoch {epoch + 1}/{config.epochs}: loss {record['loss']:.4f} "
+                f"(cls {record['cls']:.3f} nwd {record['nwd']:.3f} dfl {record['dfl']:.3f})"
+                f" val F2 {record['f2']:.4f} P {record['precision']:.3f} "
+                f"R {record['recall']:.3f} best {best_f2:.4f}@{best_epoch}"
+            )
+            _save_state(config, model, optimizer, average, epoch + 1, best_f2, best_epoch, history)
+    return TrainResult(
+        config.out,
+        state_path(config.out),
+        best_f2,
+        best_epoch,
+        config.epochs - start,
+        history,
+        len(train_set),
+        len(val_set),
+    )
 
 
-def _save_state(config: TrainConfig, model: MiteHead, optimizer: torch.optim.Optimizer,
-                average: WeightAverage | None, epoch: int, best_f2: float, best_epoch: int,
-                history: list[dict]) -> None:
+def _save_state(
+    config: TrainConfig,
+    model: MiteHead,
+    optimizer: torch.optim.Optimizer,
+    average: WeightAverage | None,
+    epoch: int,
+    best_f2: float,
+    best_epoch: int,
+    history: list[dict],
+) -> None:
     path = state_path(config.out)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    torch.save({"format": STATE_FORMAT, "version": STATE_VERSION, "epoch": epoch,
-                "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                "average": average.state_dict() if average is not None else None,
-                "best_f2": best_f2, "best_epoch": best_epoch, "history": history,
-                "torch_rng": torch.get_rng_state(), "config": config.fingerprint()}, tmp)
+    torch.save(
+        {
+            "format": STATE_FORMAT,
+            "version": STATE_VERSION,
+            "epoch": epoch,
+            "model": model.state_dict(),
+            "optimizer": optimizer.state_dict(),
+            "average": average.state_dict() if average is not None else None,
+            "best_f2": best_f2,
+            "best_epoch": best_epoch,
+            "history": history,
+            "torch_rng": torch.get_rng_state(),
+            "config": config.fingerprint(),
+        },
+        tmp,
+    )
     tmp.replace(path)

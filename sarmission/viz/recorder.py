@@ -52,9 +52,15 @@ class Recorder:
         jpeg_quality: JPEG quality of the logged frames.
     """
 
-    def __init__(self, mode: str, path: str | Path | None = None, image_width: int = 1280,
-                 frame_every: int = 5, jpeg_quality: int = 80,
-                 application_id: str = "sarmission") -> None:
+    def __init__(
+        self,
+        mode: str,
+        path: str | Path | None = None,
+        image_width: int = 1280,
+        frame_every: int = 5,
+        jpeg_quality: int = 80,
+        application_id: str = "sarmission",
+    ) -> None:
         if mode not in ("save", "spawn", "off"):
             raise ValueError(f"rerun mode must be 'save', 'spawn' or 'off', got {mode!r}")
         if mode == "save" and not path:
@@ -97,23 +103,41 @@ class Recorder:
         self._scale = min(1.0, self.image_width / width)
         if frame_index % self.frame_every:
             return
-        small = image_bgr if self._scale == 1.0 else cv2.resize(
-            image_bgr, (round(width * self._scale), round(height * self._scale)),
-            interpolation=cv2.INTER_AREA)
+        small = (
+            image_bgr
+            if self._scale == 1.0
+            else cv2.resize(
+                image_bgr,
+                (round(width * self._scale), round(height * self._scale)),
+                interpolation=cv2.INTER_AREA,
+            )
+        )
         ok, jpeg = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
         if ok:
             image = _rerun().EncodedImage(contents=jpeg.tobytes(), media_type="image/jpeg")
             self._stream.log("camera/frame", image)
 
-    def boxes(self, entity: str, boxes_xyxy: np.ndarray, labels: list[str] | None = None,
-              colours: list[tuple[int, int, int]] | tuple[int, int, int] | None = None) -> None:
+    def boxes(
+        self,
+        entity: str,
+        boxes_xyxy: np.ndarray,
+        labels: list[str] | None = None,
+        colours: list[tuple[int, int, int]] | tuple[int, int, int] | None = None,
+    ) -> None:
         """Log full-resolution ``[N, 4]`` boxes under ``camera/<entity>`` in the frame's space."""
         if self._stream is None:
             return
         b = np.asarray(boxes_xyxy, dtype=np.float32).reshape(-1, 4) * self._scale
-        self._stream.log(f"camera/{entity}", _rerun().Boxes2D(
-            mins=b[:, :2], sizes=b[:, 2:] - b[:, :2], labels=labels, colors=colours,
-            show_labels=labels is not None))
+        self._stream.log(
+            f"camera/{entity}",
+            _rerun().Boxes2D(
+                mins=b[:, :2],
+                sizes=b[:, 2:] - b[:, :2],
+                labels=labels,
+                colors=colours,
+                show_labels=labels is not None,
+            ),
+        )
 
     def scalar(self, name: str, value: float | None) -> None:
         """Log one time-series value under ``telemetry/<name>`` (skipped when None)."""
@@ -121,14 +145,23 @@ class Recorder:
             return
         self._stream.log(f"telemetry/{name}", _rerun().Scalars(float(value)))
 
-    def geo_points(self, entity: str, lat_lon: np.ndarray, radius_m: float = 5.0,
-                   colour: tuple[int, int, int] = LOCKED_COLOUR) -> None:
+    def geo_points(
+        self,
+        entity: str,
+        lat_lon: np.ndarray,
+        radius_m: float = 5.0,
+        colour: tuple[int, int, int] = LOCKED_COLOUR,
+    ) -> None:
         """Log ``[N, 2]`` latitude/longitude points under ``map/<entity>`` (radius in metres)."""
         if self._stream is None:
             return
         points = np.asarray(lat_lon, dtype=np.float64).reshape(-1, 2)
-        self._stream.log(f"map/{entity}", _rerun().GeoPoints(
-            lat_lon=points, radii=np.full(len(points), radius_m, np.float32), colors=[colour]))
+        self._stream.log(
+            f"map/{entity}",
+            _rerun().GeoPoints(
+                lat_lon=points, radii=np.full(len(points), radius_m, np.float32), colors=[colour]
+            ),
+        )
 
     def text(self, entity: str, message: str, level: str = "INFO") -> None:
         """Log a line of text (alerts, skipped frames) under ``log/<entity>``."""

@@ -61,8 +61,14 @@ class CommandHandler:
     """Carries out commands on the flight, the streams and the mission server and ACKs them;
     every command and its result is kept in :attr:`commands`."""
 
-    def __init__(self, link: VehicleLink, flight: FlightModel, autopilot: AutopilotState,
-                 streams: StreamScheduler, mission_server: MissionServer) -> None:
+    def __init__(
+        self,
+        link: VehicleLink,
+        flight: FlightModel,
+        autopilot: AutopilotState,
+        streams: StreamScheduler,
+        mission_server: MissionServer,
+    ) -> None:
         self.link = link
         self.flight = flight
         self.autopilot = autopilot
@@ -89,8 +95,15 @@ class CommandHandler:
 
     # -- messages ----------------------------------------------------------------------------------
     def _on_command_long(self, msg: Any) -> None:
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
-                  msg.param7)
+        params = (
+            msg.param1,
+            msg.param2,
+            msg.param3,
+            msg.param4,
+            msg.param5,
+            msg.param6,
+            msg.param7,
+        )
         self._command(msg, msg.command, params, None, False)
 
     def _on_command_int(self, msg: Any) -> None:
@@ -105,11 +118,23 @@ class CommandHandler:
         with self._lock:
             self.commands.append(CommandRecord(self.link.sim_time(), command, is_int, p, result))
         log.info("command %d (%s) -> result %d", command, "INT" if is_int else "LONG", result)
-        self.link.send("COMMAND_ACK", self.link.mav.command_ack_send, command, result, 0, 0,
-                       msg.get_srcSystem(), msg.get_srcComponent())
+        self.link.send(
+            "COMMAND_ACK",
+            self.link.mav.command_ack_send,
+            command,
+            result,
+            0,
+            0,
+            msg.get_srcSystem(),
+            msg.get_srcComponent(),
+        )
         for text in self._reasons:  # ArduPilot's reasons follow its ACK
-            self.link.send("STATUSTEXT", self.link.mav.statustext_send, M.MAV_SEVERITY_CRITICAL,
-                           text.encode("ascii", "replace")[:50])
+            self.link.send(
+                "STATUSTEXT",
+                self.link.mav.statustext_send,
+                M.MAV_SEVERITY_CRITICAL,
+                text.encode("ascii", "replace")[:50],
+            )
         self._reasons = []
 
     def _execute(self, command: int, cmd: _Received) -> int:
@@ -117,8 +142,7 @@ class CommandHandler:
         if handler is None:
             return M.MAV_RESULT_UNSUPPORTED
         if command in STEERING and not self.flight.steerable:
-            log.info("command %d denied: this flight cannot be steered (replayed footage)",
-                     command)
+            log.info("command %d denied: this flight cannot be steered (replayed footage)", command)
             return M.MAV_RESULT_DENIED
         return handler(cmd)
 

@@ -91,8 +91,12 @@ class MissionServer:
     # -- current item ------------------------------------------------------------------------------
     def send_current(self) -> None:
         """MISSION_CURRENT: the current item and the mission's length."""
-        self.link.send("MISSION_CURRENT", self.link.mav.mission_current_send,
-                       self.mission_current, len(self.missions[0]))
+        self.link.send(
+            "MISSION_CURRENT",
+            self.link.mav.mission_current_send,
+            self.mission_current,
+            len(self.missions[0]),
+        )
 
     def set_current(self, seq: int) -> bool:
         """DO_SET_MISSION_CURRENT: False for an item the stored mission does not have."""
@@ -113,11 +117,23 @@ class MissionServer:
             return
         up.last_request = time.monotonic()
         if self.legacy_mission_request:
-            self.link.send("MISSION_REQUEST", self.link.mav.mission_request_send,
-                           up.peer[0], up.peer[1], up.next_seq, up.mission_type)
+            self.link.send(
+                "MISSION_REQUEST",
+                self.link.mav.mission_request_send,
+                up.peer[0],
+                up.peer[1],
+                up.next_seq,
+                up.mission_type,
+            )
         else:
-            self.link.send("MISSION_REQUEST_INT", self.link.mav.mission_request_int_send,
-                           up.peer[0], up.peer[1], up.next_seq, up.mission_type)
+            self.link.send(
+                "MISSION_REQUEST_INT",
+                self.link.mav.mission_request_int_send,
+                up.peer[0],
+                up.peer[1],
+                up.next_seq,
+                up.mission_type,
+            )
 
     def _on_mission_count(self, msg: Any) -> None:
         peer = _peer(msg)
@@ -152,8 +168,19 @@ class MissionServer:
             self._request_item()
             return
         up.items[msg.seq] = MissionItem(
-            msg.seq, msg.frame, msg.command, msg.current, msg.autocontinue,
-            msg.param1, msg.param2, msg.param3, msg.param4, x, y, float(msg.z), up.mission_type,
+            msg.seq,
+            msg.frame,
+            msg.command,
+            msg.current,
+            msg.autocontinue,
+            msg.param1,
+            msg.param2,
+            msg.param3,
+            msg.param4,
+            x,
+            y,
+            float(msg.z),
+            up.mission_type,
         )
         up.next_seq += 1
         up.retries = 0
@@ -185,8 +212,14 @@ class MissionServer:
         if mtype not in self.missions:
             self._ack(peer, M.MAV_MISSION_UNSUPPORTED, mtype)
             return
-        self.link.send("MISSION_COUNT", self.link.mav.mission_count_send,
-                       peer[0], peer[1], len(self.missions[mtype]), mtype)
+        self.link.send(
+            "MISSION_COUNT",
+            self.link.mav.mission_count_send,
+            peer[0],
+            peer[1],
+            len(self.missions[mtype]),
+            mtype,
+        )
 
     def _send_item(self, msg: Any, as_int: bool) -> None:
         mtype = getattr(msg, "mission_type", 0)
@@ -196,14 +229,39 @@ class MissionServer:
             self._ack(peer, M.MAV_MISSION_INVALID_SEQUENCE, mtype)
             return
         it = items[msg.seq]
-        head = (peer[0], peer[1], it.seq, it.frame, it.command, it.current, it.autocontinue,
-                it.param1, it.param2, it.param3, it.param4)
+        head = (
+            peer[0],
+            peer[1],
+            it.seq,
+            it.frame,
+            it.command,
+            it.current,
+            it.autocontinue,
+            it.param1,
+            it.param2,
+            it.param3,
+            it.param4,
+        )
         if as_int:
-            self.link.send("MISSION_ITEM_INT", self.link.mav.mission_item_int_send,
-                           *head, it.x, it.y, it.z, mtype)
+            self.link.send(
+                "MISSION_ITEM_INT",
+                self.link.mav.mission_item_int_send,
+                *head,
+                it.x,
+                it.y,
+                it.z,
+                mtype,
+            )
         else:
-            self.link.send("MISSION_ITEM", self.link.mav.mission_item_send,
-                           *head, it.x / 1e7, it.y / 1e7, it.z, mtype)
+            self.link.send(
+                "MISSION_ITEM",
+                self.link.mav.mission_item_send,
+                *head,
+                it.x / 1e7,
+                it.y / 1e7,
+                it.z,
+                mtype,
+            )
 
     def _on_mission_request_int(self, msg: Any) -> None:
         self._send_item(msg, True)

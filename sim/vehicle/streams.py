@@ -58,8 +58,15 @@ class StreamScheduler:
     gimbal. ``gnss_noise_m`` sets GPS_RAW_INT's reported accuracy; ``seed`` its UID.
     """
 
-    def __init__(self, link: VehicleLink, telemetry: TelemetryModel, autopilot: AutopilotState,
-                 gnss_noise_m: float, seed: int, stream_on_request: bool) -> None:
+    def __init__(
+        self,
+        link: VehicleLink,
+        telemetry: TelemetryModel,
+        autopilot: AutopilotState,
+        gnss_noise_m: float,
+        seed: int,
+        stream_on_request: bool,
+    ) -> None:
         self.link = link
         self.telemetry = telemetry
         self.autopilot = autopilot
@@ -152,8 +159,12 @@ class StreamScheduler:
         elif msg_id == M.MAVLINK_MSG_ID_GIMBAL_DEVICE_ATTITUDE_STATUS:
             self._send_gimbal(t)
         elif msg_id == M.MAVLINK_MSG_ID_SYSTEM_TIME:
-            self.link.send("SYSTEM_TIME", self.link.mav.system_time_send, self.link.unix_us(t),
-                           int(round(t * 1000.0)))
+            self.link.send(
+                "SYSTEM_TIME",
+                self.link.mav.system_time_send,
+                self.link.unix_us(t),
+                int(round(t * 1000.0)),
+            )
         elif msg_id == M.MAVLINK_MSG_ID_HOME_POSITION:
             self.send_home()
 
@@ -217,8 +228,26 @@ class StreamScheduler:
         reports its GPS while it searches."""
         unknown = 0xFFFF
         if not self.autopilot.has_gps_fix(t):
-            self.link.send("GPS_RAW_INT", self.link.mav.gps_raw_int_send, int(t * 1e6), 0, 0, 0,
-                           0, unknown, unknown, 0, unknown, 0, 0, 0, 0, 0, 0, 0)
+            self.link.send(
+                "GPS_RAW_INT",
+                self.link.mav.gps_raw_int_send,
+                int(t * 1e6),
+                0,
+                0,
+                0,
+                0,
+                unknown,
+                unknown,
+                0,
+                unknown,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+                0,
+            )
             return
         p: PositionSample = self.telemetry.position(t)
         v = p.velocity_ned

@@ -74,16 +74,25 @@ class SimVehicle:
         self.seed = seed
         self.stream_on_request = stream_on_request
         self.flight: FlightModel = Flight(mission, seed=seed) if flight is None else flight
-        self.telemetry = TelemetryModel(self.flight, mission, seed=seed,
-                                        gimbal_report=gimbal_report)
+        self.telemetry = TelemetryModel(
+            self.flight, mission, seed=seed, gimbal_report=gimbal_report
+        )
         self.link = VehicleLink(listen_url, system_id, component_id, float(speedup))
-        self.autopilot = AutopilotState(mission.area.home, mission.camera.gimbal,
-                                        gps_fix_after_s, home_after_s)
-        self.streams = StreamScheduler(self.link, self.telemetry, self.autopilot,
-                                       mission.telemetry.gnss_noise_m, seed, stream_on_request)
+        self.autopilot = AutopilotState(
+            mission.area.home, mission.camera.gimbal, gps_fix_after_s, home_after_s
+        )
+        self.streams = StreamScheduler(
+            self.link,
+            self.telemetry,
+            self.autopilot,
+            mission.telemetry.gnss_noise_m,
+            seed,
+            stream_on_request,
+        )
         self.mission_server = MissionServer(self.link, legacy_mission_request)
-        self.command_handler = CommandHandler(self.link, self.flight, self.autopilot,
-                                              self.streams, self.mission_server)
+        self.command_handler = CommandHandler(
+            self.link, self.flight, self.autopilot, self.streams, self.mission_server
+        )
         self.statustext_log = StatusTextLog(self.link.sim_time)
         self.bad_packets = 0
         self.duplicates_dropped = 0
