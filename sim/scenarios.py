@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from sarmission.mission.config import AreaConfig, CameraConfig, FlightConfig, MissionConfig
 from sim.scene import Scenario
@@ -280,6 +280,26 @@ def maritime_oblique_high() -> Preset:
     )
 
 
+def maritime_objects_train() -> Preset:
+    """Training only: 30 m up, looking 40 degrees down, crowded with what is no swimmer (boats,
+    jetskis, buoys moored in view, life rings) beside swimmers, so that a head sees enough of
+    each to learn it as a class of its own; the other presets show a few per flight."""
+    base = _maritime_oblique(
+        "maritime_objects_train", 7021, 30.0, -40.0, 70.0, 3, 8.0, (180.0, 40.0), 60.0
+    )
+    sc = base.scenario
+    people = sc.n_swimmers + sc.n_life_jacket
+    scenario = replace(
+        sc,
+        n_boats=max(sc.n_boats, people // 3),
+        n_jetskis=max(4, people // 3),
+        n_buoys=max(4, people // 3),
+        buoy_area_ne=sc.area_ne,
+        n_life_rings=max(6, people // 2),
+    )
+    return Preset(base.name, scenario, base.mission)
+
+
 def urban_train() -> Preset:
     """City blocks at 60 m, about 6 pedestrians per frame."""
     return _urban("urban_train", 4004, 60.0, 70.0, 6.0, (160.0, 40.0))
@@ -306,6 +326,7 @@ PRESETS: dict[str, Callable[[], Preset]] = {
         maritime_oblique_low,
         maritime_oblique_mid,
         maritime_oblique_high,
+        maritime_objects_train,
         urban_train,
         urban_val,
         urban_test,

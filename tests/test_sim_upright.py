@@ -146,3 +146,21 @@ def test_the_maritime_classes_of_real_footage_are_in_the_oblique_world():
     )
     people = [o for o in world.objects if o.is_target]
     assert people and all(o.upright for o in people)
+
+
+def test_the_objects_training_preset_shows_every_object_class_in_each_frame():
+    """maritime_objects_train exists so that a head sees enough of each class that is no
+    swimmer: every frame shows buoys, life rings and jetskis beside the swimmers."""
+    from sim.flight import Flight
+
+    chosen = preset("maritime_objects_train")
+    assert chosen.scenario.seed not in {
+        preset(n).scenario.seed
+        for n in ("maritime_oblique_low", "maritime_oblique_mid", "maritime_oblique_high")
+    }
+    flight = Flight(chosen.mission, seed=chosen.scenario.seed)
+    intr = chosen.mission.camera.intrinsics().scaled(640, 360)
+    renderer = SceneRenderer(chosen.scenario, intr)
+    for t in (0.0, 2.0):
+        seen = {a.category for a in renderer.render(t, flight.state_at(t).camera_pose())[1]}
+        assert {"swimmer", "jetski", "buoy", "life_saving_appliances"} <= seen, (t, seen)

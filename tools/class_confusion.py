@@ -79,9 +79,38 @@ def count_calls(
     return boxes, called, own, unmatched
 
 
-def head_label(model: str) -> str:
-    """``shipped`` or the checkpoint's file name."""
-    return "shipped" if model == "shipped" else Path(model).stem
+def _table(
+    models: list[str],
+    classes: list[str],
+    boxes: Counter,
+    count,
+    unmatched: dict | None,
+    frames: int,
+) -> list[str]:
+    """One row per head, one column per class: ``count(head, class)`` as a share of the class's
+    boxes; with ``unmatched``, a last column of person detections matched to no box."""
+    head = "| head | " + " | ".join(f"{n} ({boxes[n]})" for n in classes)
+    rule = "|---|" + "---|" * len(classes)
+    if unmatched is not None:
+        head += " | matched to no box, per frame"
+        rule += "---|"
+    rows = [head + " |", rule]
+    for m in models:
+        cells = [f"{100 * count(m, n) / boxes[n]:.1f} %" for n in classes]
+        if unmatched is not None:
+            cells.append(f"{unmatched[m] / max(frames, 1):.2f}")
+        rows.append(f"| {m} | " + " | ".join(cells) + " |")
+    return rows
+
+
+def parse_models(text: str) -> dict[str, str]:
+    """``shipped,name=path,...`` -> label -> model (``shipped`` or a checkpoint path; a path
+    without ``name=`` is labelled by its file name)."""
+    models = {}
+    for item in (t.strip() for t in text.split(",") if t.strip()):
+        label, _, path = item.rpartition("=")
+        models[label or ("shipped" if path == "shipped" else Path(path).stem)] = path
+    return models
 
 
 def main() -> int:
@@ -94,6 +123,7 @@ def main() -> int:
         default="shipped",
         help="comma-separated heads: 'shipped' or checkpoint paths (default: shipped)",
     )
+    parser.add_argument("--note", default="", help="a paragraph on the heads, printed first")
     parser.add_argument("--out", type=Path, default=OUT, help="Markdown file to write")
     args = parser.parse_args()
     from sarmission.commands.detector_options import (
@@ -107,10 +137,13 @@ def main() -> int:
     from sim.scenarios import preset
 
     started = time.monotonic()
-    models = [m.strip() for m in args.models.split(",") if m.strip()]
+    paths = parse_models(args.models)
+    models = list(paths)
     heads = {
-        m: build_head_runtime(None if m == "shipped" else m, "onnx" if m == "shipped" else "torch")
-        for m in models
+        m: build_head_runtime(
+            None if path == "shipped" else path, "onnx" if path == "shipped" else "torch"
+        )
+        for m, path in paths.items()
     }
     boxes = Counter()
     called = {m: Counter() for m in models}
@@ -152,7 +185,6 @@ def main() -> int:
         f"--seeds {args.seeds} --width {args.width}"
         + (f" --models {args.models}" if args.models != "shipped" else "")
     )
-    labels = [head_label(m) for m in models]
     lines = [
         "# Which classes the head calls a person",
         "",
@@ -168,34 +200,25 @@ def main() -> int:
         "on part of a large object (a person on a boat's deck, a buoy's top mark) matches no "
         "box and counts below as matched to none.",
         "",
-        "| class | boxes | "
-        + " | ".join(f"{lab}: called a person | {lab}: own class" for lab in labels)
-        + " |",
-        "|---|---|" + "---|---|" * len(labels),
-    ]
-    for name in sorted(boxes, key=lambda n: -boxes[n]):
-        cells = []
-        for m in models:
-            share = 100 * called[m][name] / boxes[name]
-            key = normalise_class(name)
-            named = key in {normalise_class(c) for c in heads[m].classes}
-            mine = (
-                f"{100 * own[m][key] / boxes[name]:.1f} %"
-                if named and role_of(name) != "person"
-                else "-"
-            )
-            cells += [f"{called[m][name]} ({share:.1f} %)", mine]
-        lines.append(f"| {name} | {boxes[name]} | " + " | ".join(cells) + " |")
-    lines += [
+        *([args.note, ""] if args.note else []),
+        "Share of each class's boxes called a person (boxes per class in the header):",
         "",
-        "Person detections matched to no box (open water, wakes, foam): "
-        + ", ".join(
-            f"{head_label(m)} {unmatched[m]} ({unmatched[m] / max(frames, 1):.2f} per frame)"
-            for m in models
+    ]
+    order = sorted(boxes, key=lambda n: -boxes[n])
+    lines += _table(models, order, boxes, lambda m, n: called[m][n], unmatched, frames)
+    naming = [m for m in models if any(role_of(c) != "person" for c in heads[m].classes)]
+    named = {normalise_class(c) for m in naming for c in heads[m].classes}
+    objects = [n for n in order if role_of(n) != "person" and normalise_class(n) in named]
+    if naming:
+        lines += [
+            "",
+            "Share of each class's boxes called its own class by the heads that name it:",
+            "",
+        ]
+        lines += _table(
+            naming, objects, boxes, lambda m, n: own[m][normalise_class(n)], None, frames
         )
-        + ".",
-        "",
-    ]
+    lines.append("")
     args.out.write_text("\n".join(lines), encoding="utf-8")
     print(f"wrote {args.out}")
     return 0

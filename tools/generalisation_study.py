@@ -18,7 +18,9 @@ Variants (:data:`VARIANTS`):
 * ``more_presets``: more of the simulator's presets: ``urban_train`` (people on land, trained as
   ``swimmer``), ``maritime_oblique_mid`` and ``maritime_oblique_high``, no randomisation.
 * ``broad``: both, ``randomised`` on the ``more_presets`` data.
-* ``broad_classes``: ``broad`` with the maritime head's object classes
+* ``broad_objects``: ``broad`` plus ``maritime_objects_train`` (an oblique sea crowded with
+  boats, jetskis, buoys and life rings), all of them background.
+* ``broad_classes``: ``broad_objects`` with the maritime head's object classes
   (:data:`sarmission.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
   life-saving appliances learnt as classes of their own instead of background).
 
@@ -79,6 +81,7 @@ EXTRA_PARTS = (
     ("maritime_oblique_mid", 2, 40, "3840x2160"),
     ("maritime_oblique_high", 2, 40, "3840x2160"),
 )
+OBJECT_PARTS = (("maritime_objects_train", 3, 40, "3840x2160"),)
 TRAIN_SETTINGS = {
     "epochs": 12,
     "select_from": 4,
@@ -135,11 +138,20 @@ VARIANTS: dict[str, Variant] = {
             "randomised, plus urban_train (people as swimmer) and the oblique maritime presets",
         ),
         Variant(
-            "broad_classes",
-            MARITIME_PARTS + EXTRA_PARTS,
+            "broad_objects",
+            MARITIME_PARTS + EXTRA_PARTS + OBJECT_PARTS,
             "all",
             8,
-            "broad, with boats, jetskis, buoys and life-saving appliances as classes of their own",
+            "broad, plus maritime_objects_train (boats, jetskis, buoys and life rings) as "
+            "background",
+        ),
+        Variant(
+            "broad_classes",
+            MARITIME_PARTS + EXTRA_PARTS + OBJECT_PARTS,
+            "all",
+            8,
+            "broad_objects, with boats, jetskis, buoys and life-saving appliances as classes "
+            "of their own",
             MARITIME_CLASSES,
         ),
     )

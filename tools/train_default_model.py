@@ -24,6 +24,11 @@ options go to ``sarmission train`` as they are, e.g. crop-level domain randomisa
     python tools/train_default_model.py --val heldout --presets broad --randomise all \
         --background-negatives 8 --no-install
 
+``--presets objects`` adds ``maritime_objects_train`` (:data:`OBJECT_SPLITS`); ``--classes
+maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
+life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
+trains another seed into ``mitenet_head_seed<N>.pt``.
+
 The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
 are copied into the package.
 """
@@ -56,6 +61,9 @@ BROAD_SPLITS = (
     ("maritime_oblique_mid", 3, 90, "3840x2160"),
     ("maritime_oblique_high", 3, 90, "3840x2160"),
 )
+#: Added to :data:`BROAD_SPLITS` by ``--presets objects``: a sea crowded with boats, jetskis,
+#: buoys and life rings, for heads that learn them as classes (``--classes maritime``).
+OBJECT_SPLITS = (("maritime_objects_train", 4, 90, "3840x2160"),)
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 #: Held-out validation: (world, clips, frames per clip), 1920x1080 frames with a 4K camera's
 #: ground sampling; clip indices from :data:`HELDOUT_VAL_FIRST_CLIP` on.
@@ -124,14 +132,16 @@ def render_training_set(work: Path) -> Path:
     return merged
 
 
-def render_broad_training_set(work: Path) -> Path:
-    """The maritime training set plus :data:`BROAD_SPLITS`, merged by category name (people on
-    land as ``swimmer``) into ``work/broad_train_mix.json``."""
-    merged = work / "broad_train_mix.json"
+def render_broad_training_set(work: Path, objects: bool = False) -> Path:
+    """The maritime training set plus :data:`BROAD_SPLITS` (and :data:`OBJECT_SPLITS` with
+    ``objects``), merged by category name (people on land as ``swimmer``) into
+    ``work/broad_train_mix.json`` (``broad_objects_train_mix.json``)."""
+    extra = BROAD_SPLITS + (OBJECT_SPLITS if objects else ())
+    merged = work / ("broad_objects_train_mix.json" if objects else "broad_train_mix.json")
     if not merged.is_file():
         parts = [render_training_set(work)]
-        parts += [render(work / split[0], split) for split in BROAD_SPLITS]
-        names = [s[0] for s in TRAIN_SPLITS + BROAD_SPLITS]
+        parts += [render(work / split[0], split) for split in extra]
+        names = [s[0] for s in TRAIN_SPLITS + extra]
         write_coco_video(
             merge_annotation_files(parts, HELDOUT_RENAME, info={"presets": names}), merged
         )
@@ -193,27 +203,34 @@ def main() -> int:
     )
     parser.add_argument(
         "--presets",
-        choices=("maritime", "broad"),
+        choices=("maritime", "broad", "objects"),
         default="maritime",
         help="training presets: the maritime ones (the shipped head's recipe) or "
-        "those plus urban_train and the oblique maritime presets "
-        "(default: maritime)",
+        "those plus urban_train and the oblique maritime presets, or those plus "
+        "maritime_objects_train (default: maritime)",
     )
     parser.add_argument(
         "--no-install", action="store_true", help="do not copy the result into sarmission/models"
     )
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="training seed (default 0, the shipped head's); other seeds write "
+        "mitenet_head_seed<N>.pt, so that several can be compared",
+    )
     args, extra = parser.parse_known_args()
     args.work.mkdir(parents=True, exist_ok=True)
     train = (
-        render_broad_training_set(args.work)
-        if args.presets == "broad"
+        render_broad_training_set(args.work, objects=args.presets == "objects")
+        if args.presets in ("broad", "objects")
         else render_training_set(args.work)
     )
     if args.val == "heldout":
         val = render_heldout_val(args.work)
     else:
         val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
-    out = args.work / "mitenet_head.pt"
+    out = args.work / ("mitenet_head.pt" if args.seed == 0 else f"mitenet_head_seed{args.seed}.pt")
     code = sarmission(
         [
             "train",
@@ -225,6 +242,8 @@ def main() -> int:
             str(out),
             "--onnx",
             *TRAIN_ARGS,
+            "--seed",
+            str(args.seed),
             *extra,
         ]
     )
