@@ -6,8 +6,8 @@ thresholds from.
 
 For each candidate: whether a person was under it at its lock, its sightings, the time they
 span, the share of frames it was seen in over that span, the head's scores (mean, better half,
-lowest), its median size on the ground and its drift over the ground, and the verdict the
-current rule gave it. Printed: the quantiles of each feature for people and for clutter.
+lowest), its size on the ground (median, quartiles) and its drift over the ground, and the
+verdict the current rule gave it. Printed: the quantiles of each feature for people and for clutter.
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ FEATURES = (
     "score_top",
     "score_min",
     "size_m",
+    "size_p25",
+    "size_p75",
     "speed_m_s",
     "speed_sigma",
 )
@@ -57,6 +59,8 @@ def features(evidence, fps: float) -> dict[str, float]:
         "score_top": float(np.mean(scores[: max(1, len(scores) // 2)])),
         "score_min": scores[-1],
         "size_m": float(np.median(sizes)) if sizes else math.nan,
+        "size_p25": float(np.percentile(sizes, 25)) if sizes else math.nan,
+        "size_p75": float(np.percentile(sizes, 75)) if sizes else math.nan,
         "speed_m_s": speed,
         "speed_sigma": sigma,
     }
