@@ -1,6 +1,7 @@
 """The scenario suite's figures in docs: fly it under a label, then render every label's figures.
 
     python tools/alert_suite.py fly LABEL [--seconds S] [--set SECTION.KEY=VALUE ...] [--note TEXT]
+        [--model HEAD]
     python tools/alert_suite.py render          # docs/alert_suite.md from docs/suite/*.json
 
 ``fly`` runs ``sarmission sim score --json`` (the real pipeline over MAVLink, 30 frames/s in
@@ -23,8 +24,16 @@ SUITE_DIR = ROOT / "docs" / "suite"
 PAGE = ROOT / "docs" / "alert_suite.md"
 
 
-def fly(label: str, seconds: float | None, overrides: list[str], note: str = "") -> Path:
+def fly(
+    label: str,
+    seconds: float | None,
+    overrides: list[str],
+    note: str = "",
+    model: str | None = None,
+) -> Path:
     cmd = [sys.executable, "-m", "sarmission.cli", "sim", "score", "--json"]
+    if model:
+        cmd += ["--model", model]
     if seconds:
         cmd += ["--seconds", f"{seconds:g}"]
     for item in overrides:
@@ -140,10 +149,11 @@ def main() -> int:
     run.add_argument("--seconds", type=float, default=None)
     run.add_argument("--set", dest="overrides", action="append", default=[])
     run.add_argument("--note", default="", help="what this run is, for the page")
+    run.add_argument("--model", default=None, help="head weights (default: the shipped head)")
     sub.add_parser("render")
     args = parser.parse_args()
     if args.what == "fly":
-        print(f"wrote {fly(args.label, args.seconds, args.overrides, args.note)}")
+        print(f"wrote {fly(args.label, args.seconds, args.overrides, args.note, args.model)}")
     PAGE.write_text(render())
     print(f"wrote {PAGE}")
     return 0
