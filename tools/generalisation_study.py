@@ -480,7 +480,7 @@ def render_section(results: Mapping[str, Any]) -> str:
             _num(shipped[split][key], digits) for split in SPLITS for key, _, digits in METRICS
         ]
         lines.append(
-            "| shipped head (full recipe, own validation) | — | " + " | ".join(cells) + " |"
+            "| head shipped when generated (full recipe) | — | " + " | ".join(cells) + " |"
         )
     lines += [
         "",
