@@ -73,6 +73,19 @@ def flight(seconds: float, speed_north: float = 0.0, height: float = 60.0) -> Te
     return buf
 
 
+def controller(mission, detector, telemetry, store, actions=None, **options) -> MissionController:
+    """The controller under test, its console silent (``actions``: an :class:`Announced`)."""
+    return MissionController(
+        mission,
+        detector,
+        telemetry,
+        store,
+        actions=Announced() if actions is None else actions,
+        console=lambda s: None,
+        **options,
+    )
+
+
 def box_at(north: float, east: float, height: float, side_px: float = 8.0):
     """The box of a point ``north``/``east`` metres from the point below the camera."""
     u = (W - 1) / 2 + F * east / height
@@ -91,14 +104,7 @@ def test_a_still_person_is_a_candidate_then_confirmed_after_a_second(tmp_path, m
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 20
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            flight(3.0),
-            store,
-            actions=actions,
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ScriptedDetector(script), flight(3.0), store, actions=actions)
         alerts = run(ctl, 20)
         (alert,) = alerts
         assert store.get(alert.alert_id).tier == "confirmed"
@@ -112,13 +118,8 @@ def test_glint_that_keeps_its_place_in_the_image_is_discarded(tmp_path, mission)
     script = [[(box_at(0.0, 8.0, 60.0), 0.95, 0)]] * 30  # fixed pixel, aircraft at 10 m/s
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            flight(4.0, 10.0),
-            store,
-            actions=actions,
-            console=lambda s: None,
+        ctl = controller(
+            mission, ScriptedDetector(script), flight(4.0, 10.0), store, actions=actions
         )
         assert run(ctl, 30) == [] and actions.alerts == []
         (candidate,) = ctl.stats.candidates
@@ -130,14 +131,7 @@ def test_glint_that_keeps_its_place_in_the_image_is_discarded(tmp_path, mission)
 def test_a_boat_is_too_large_to_be_a_person(tmp_path, mission):
     script = [[(box_at(5.0, 5.0, 60.0, side_px=130.0), 0.9, 0)]] * 20  # 6 m across
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            flight(3.0),
-            store,
-            actions=Announced(),
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ScriptedDetector(script), flight(3.0), store)
         assert run(ctl, 20) == []
         (candidate,) = ctl.stats.candidates
         assert "on the ground is no person" in store.get(candidate.alert_id).discarded
@@ -147,14 +141,7 @@ def test_the_operator_confirms_a_candidate_before_the_evidence_does(tmp_path, mi
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 6
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            flight(3.0),
-            store,
-            actions=actions,
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ScriptedDetector(script), flight(3.0), store, actions=actions)
         assert run(ctl, 4) == []
         (candidate,) = ctl.stats.candidates
         store.decide(candidate.alert_id, "confirmed", by="jo")
@@ -168,14 +155,7 @@ def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 0)]] * 20
     path = tmp_path / "a.db"
     with AlertStore(path) as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script[:4]),
-            flight(3.0),
-            store,
-            actions=Announced(),
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ScriptedDetector(script[:4]), flight(3.0), store)
         run(ctl, 4)
         (candidate,) = ctl.stats.candidates
         store.decide(candidate.alert_id, "dismissed", by="jo")  # foam, says the operator
@@ -184,15 +164,7 @@ def test_a_dismissed_place_stays_silent_also_after_a_restart(tmp_path, mission):
         ctl.detector = ScriptedDetector(script[:16])
         assert run(ctl, 16, start=4) == [] and actions.alerts == []  # evidence cannot overrule
     with AlertStore(path) as store:  # a restart: a new track on the same spot, another id
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            flight(3.0),
-            store,
-            actions=Announced(),
-            console=lambda s: None,
-            mission_id="tiers",
-        )
+        ctl = controller(mission, ScriptedDetector(script), flight(3.0), store, mission_id="tiers")
         ctl.registry.targets.clear()  # forget the known target: only the zone may silence it
         assert run(ctl, 20) == []
         assert ctl.stats.suppressed == 1 and ctl.stats.candidates == []
@@ -216,14 +188,7 @@ def test_a_target_the_head_calls_a_boat_is_never_alerted(tmp_path, mission):
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 2)]] * 20
     actions = Announced()
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ObjectsDetector(script),
-            flight(3.0),
-            store,
-            actions=actions,
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ObjectsDetector(script), flight(3.0), store, actions=actions)
         assert run(ctl, 20) == [] and actions.alerts == []
         assert ctl.stats.candidates == [] and ctl.stats.objects == 1
         assert "calls an object (never alerted): 1" in ctl.summary()
@@ -233,14 +198,7 @@ def test_a_target_first_called_a_boat_becomes_a_candidate_once_it_is_a_person(tm
     box = box_at(10.0, -5.0, 60.0)
     script = [[(box, 0.9, 2)]] * 3 + [[(box, 0.9, 0)]] * 27
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ObjectsDetector(script),
-            flight(4.0),
-            store,
-            actions=Announced(),
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ObjectsDetector(script), flight(4.0), store)
         (alert,) = run(ctl, 30)
         assert alert.class_name == "swimmer"
         (candidate,) = ctl.stats.candidates
@@ -250,14 +208,7 @@ def test_a_target_first_called_a_boat_becomes_a_candidate_once_it_is_a_person(tm
 def test_a_life_ring_is_its_own_kind_of_alert(tmp_path, mission):
     script = [[(box_at(10.0, -5.0, 60.0), 0.9, 5)]] * 20
     with AlertStore(tmp_path / "a.db") as store:
-        ctl = MissionController(
-            mission,
-            ObjectsDetector(script),
-            flight(3.0),
-            store,
-            actions=Announced(),
-            console=lambda s: None,
-        )
+        ctl = controller(mission, ObjectsDetector(script), flight(3.0), store)
         (alert,) = run(ctl, 20)
         assert alert.class_name == "life_saving_appliances"
         assert "life_saving_appliances" in store.get(alert.alert_id).class_name
