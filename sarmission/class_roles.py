@@ -13,6 +13,7 @@ names keeps alerting, since a missed person costs more than a false alert.
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Sequence
 from typing import Literal
@@ -21,10 +22,14 @@ import numpy as np
 
 Role = Literal["person", "appliance", "object"]
 
-#: Classes that are people to find.
-PERSON_CLASSES: frozenset[str] = frozenset(
-    {"swimmer", "swimmer_with_life_jacket", "person", "floater", "swimmer_with_lifejacket"}
-)
+#: Classes that are people to find (any name not listed below is taken for one too).
+PERSON_CLASSES: frozenset[str] = frozenset({"swimmer", "swimmer_with_life_jacket", "person"})
+#: Normalised dataset category names that mean a head class although they are spelled otherwise
+#: (SeaDronesSee MOT calls a swimmer with a life jacket a ``floater``).
+CATEGORY_ALIASES: dict[str, str] = {
+    "floater": "swimmer_with_life_jacket",
+    "swimmer_with_lifejacket": "swimmer_with_life_jacket",
+}
 #: Life-saving appliances (life rings, life rafts): worth their own alert.
 APPLIANCE_CLASSES: frozenset[str] = frozenset(
     {"life_saving_appliances", "life_saving_appliance", "life_ring", "lifebuoy", "life_raft"}
@@ -51,8 +56,10 @@ def normalise_class(name: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
 
 
+@functools.cache
 def role_of(name: str) -> Role:
-    """The role of a class name (unknown names are people: module docstring)."""
+    """The role of a class name (unknown names are people: module docstring); cached, since
+    the confirmation asks it of every sighting every frame."""
     key = normalise_class(name)
     if key in APPLIANCE_CLASSES:
         return "appliance"
@@ -83,6 +90,11 @@ def short_label(name: str) -> str:
     return SHORT_LABELS.get(normalise_class(name), name)
 
 
+def class_name(classes: Sequence[str], class_id: int, unknown: str = "") -> str:
+    """Class ``class_id`` of ``classes``, or ``unknown`` for an id outside them."""
+    return classes[class_id] if 0 <= class_id < len(classes) else unknown
+
+
 def role_of_id(classes: Sequence[str], class_id: int) -> Role:
     """The role of class ``class_id`` of ``classes`` (an id outside them: a person)."""
-    return role_of(classes[class_id]) if 0 <= class_id < len(classes) else "person"
+    return role_of(class_name(classes, class_id))

@@ -18,7 +18,6 @@ and class-aware metrics compare that class with the detection's.
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
@@ -26,17 +25,11 @@ from typing import Any
 import numpy as np
 
 from sarmission.boxes import SIZE_BANDS, xywh_to_xyxy
-from sarmission.class_roles import person_class_ids
+from sarmission.class_roles import CATEGORY_ALIASES, normalise_class, person_class_ids
 from sarmission.data.coco_video import Category, VideoDataset
 from sarmission.evaluation import box_metrics, sar_metrics
 from sarmission.evaluation.matching import FrameBoxes, ground_truth_by_image, match_frame
 from sarmission.evaluation.reliability import format_reliability, reliability_table
-
-#: Normalised dataset category names that mean a head class although they are spelled otherwise.
-CATEGORY_ALIASES: dict[str, str] = {
-    "floater": "swimmer_with_life_jacket",
-    "swimmer_with_lifejacket": "swimmer_with_life_jacket",
-}
 
 #: NWD thresholds of the per-module recall (paper Table 3).
 MODULE_RECALL_THRESHOLDS: tuple[float, ...] = (0.1, 0.5)
@@ -66,9 +59,9 @@ REPORT_DEFINITIONS: dict[str, str] = {
 }
 
 
-def normalise_name(name: str) -> str:
-    """``"Swimmer with life-jacket"`` -> ``"swimmer_with_life_jacket"``."""
-    return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+#: ``"Swimmer with life-jacket"`` -> ``"swimmer_with_life_jacket"`` (one normalisation for
+#: dataset categories and head classes alike).
+normalise_name = normalise_class
 
 
 def target_category_map(categories: Sequence[Category], classes: Sequence[str]) -> dict[int, int]:

@@ -47,7 +47,7 @@ import numpy as np
 from sarmission.alerts.model import Alert
 from sarmission.alerts.store import AlertStore
 from sarmission.alerts.thumbnail import crop_thumbnail
-from sarmission.class_roles import role_of_id
+from sarmission.class_roles import class_name, role_of_id
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.geo.geolocate import FixLimits, GeoFix, PlatformPose, geolocate
 from sarmission.geo.ground_size import ground_extent_m
@@ -451,8 +451,7 @@ class MissionController:
         ground = self._ground_below_home()
         assert self._intrinsics is not None and ground is not None
         size = ground_extent_m(track.raw_box, self._intrinsics, pose, ground)
-        classes = self.detector.classes
-        label = classes[track.class_id] if 0 <= track.class_id < len(classes) else ""
+        label = class_name(self.detector.classes, track.class_id)
         self.candidates.sighting(
             target.target_id,
             timestamp,
@@ -535,14 +534,13 @@ class MissionController:
     ) -> Alert:
         box = track.box
         centre = ((box[0] + box[2]) / 2.0, (box[1] + box[3]) / 2.0)
-        classes = self.detector.classes
         class_id = target.class_id if target.class_id >= 0 else track.class_id
-        class_name = classes[class_id] if 0 <= class_id < len(classes) else "target"
+        name = class_name(self.detector.classes, class_id, "target")
         placed = fix is not None and fix.ok
         return Alert(
             mission_id=self.mission_id,
             target_id=target.target_id,
-            class_name=class_name,
+            class_name=name,
             score=float(track.score),
             lock_time=self.to_posix(track.history[-1][1]),
             frame_index=frame_index,
