@@ -123,6 +123,33 @@ def with_noise(pose: MetaPose, rng: np.random.Generator) -> MetaPose:
     )
 
 
+Point = tuple[tuple[float, float], tuple[float, float]]
+
+
+def _centre(box: np.ndarray) -> tuple[float, float]:
+    return (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
+
+
+def _points(anns: list, found: FrameBoxes | None) -> tuple[list[Point], list[Point]]:
+    """(pixel centre, true lat/lon) of the truth boxes ``anns``, and of the detections of
+    ``found`` matched to them."""
+    if not anns:
+        return [], []
+    gt_xyxy = np.array(
+        [[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]] for a in anns]
+    )
+    truth = [(a.gt_lat, a.gt_lon) for a in anns]
+    truth_points = [(_centre(b), t) for b, t in zip(gt_xyxy, truth, strict=True)]
+    if found is None or not len(found.boxes):
+        return truth_points, []
+    match = match_frame(found, FrameBoxes.of(gt_xyxy))
+    det_points = [
+        (_centre(b), truth[g])
+        for b, g in zip(found.boxes[match.det_indices], match.gt_indices, strict=True)
+    ]
+    return truth_points, det_points
+
+
 def geolocate_clip(
     dataset: VideoDataset,
     detections: dict[int, FrameBoxes],
@@ -136,50 +163,29 @@ def geolocate_clip(
     targets = {c.id for c in dataset.categories if c.supercategory == "person"}
     truth_errors, det_errors = GeoErrors(), GeoErrors()
     by_image = dataset.annotations_by_image()
-    for image, draw in (
-        (im, k) for im in dataset.images for k in range(draws if rng is not None else 1)
-    ):
-        pose = meta_pose(image.telemetry, conventions)
-        if not isinstance(pose, MetaPose):
+    for image in dataset.images:
+        exact = meta_pose(image.telemetry, conventions)
+        if not isinstance(exact, MetaPose):
             continue
-        if rng is not None:
-            pose = with_noise(pose, rng)
-        elif draw:
-            continue
-        buffer = TelemetryBuffer(require_gps_fix=False)
-        push_frame_telemetry(buffer, 0.0, pose)
-        platform = buffer.lookup(0.0)
-        intr = CameraIntrinsics.from_hfov(image.width, image.height, 70.0)
-        anns = [
-            a
-            for a in by_image.get(image.id, [])
-            if a.category_id in targets and a.gt_lat is not None and a.gt_lon is not None
-        ]
-        if not anns:
-            continue
-        gt_xyxy = np.array(
-            [[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]] for a in anns]
+        truth_points, det_points = _points(
+            [
+                a
+                for a in by_image.get(image.id, [])
+                if a.category_id in targets and a.gt_lat is not None and a.gt_lon is not None
+            ],
+            detections.get(image.id),
         )
-        for a, box in zip(anns, gt_xyxy, strict=True):
-            truth_errors.add(
-                geolocate(
-                    ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), intr, platform, limits=limits
-                ),
-                (a.gt_lat, a.gt_lon),
-            )
-        found = detections.get(image.id)
-        if found is None or not len(found.boxes):
-            continue
-        match = match_frame(found, FrameBoxes.of(gt_xyxy))
-        for det_index, gt_index in zip(match.det_indices, match.gt_indices, strict=True):
-            box = found.boxes[det_index]
-            a = anns[gt_index]
-            det_errors.add(
-                geolocate(
-                    ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), intr, platform, limits=limits
-                ),
-                (a.gt_lat, a.gt_lon),
-            )
+        intr = CameraIntrinsics.from_hfov(image.width, image.height, 70.0)
+        for _ in range(draws if rng is not None else 1):
+            pose = exact if rng is None else with_noise(exact, rng)
+            if not truth_points:
+                continue
+            buffer = TelemetryBuffer(require_gps_fix=False)
+            push_frame_telemetry(buffer, 0.0, pose)
+            platform = buffer.lookup(0.0)
+            for errors, points in ((truth_errors, truth_points), (det_errors, det_points)):
+                for centre, truth in points:
+                    errors.add(geolocate(centre, intr, platform, limits=limits), truth)
     return truth_errors, det_errors
 
 
