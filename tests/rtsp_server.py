@@ -11,7 +11,7 @@ import threading
 import time
 from pathlib import Path
 
-from stream_sender import FFMPEG
+from stream_sender import FFMPEG, live_h264_args
 
 
 class RtspServer:
@@ -27,25 +27,7 @@ class RtspServer:
         sdp = folder / "stream.sdp"
         self.encoder = subprocess.Popen(
             [
-                FFMPEG,
-                "-hide_banner",
-                "-loglevel",
-                "error",
-                "-re",
-                "-f",
-                "lavfi",
-                "-i",
-                f"testsrc2=size={size}:rate={rate}",
-                "-c:v",
-                "libx264",
-                "-preset",
-                "ultrafast",
-                "-tune",
-                "zerolatency",
-                "-g",
-                str(rate),
-                "-pix_fmt",
-                "yuv420p",
+                *live_h264_args(size, rate),
                 "-f",
                 "rtp",
                 "-sdp_file",

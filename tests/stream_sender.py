@@ -16,6 +16,18 @@ needs_ffmpeg = pytest.mark.skipif(
 )
 
 
+def live_h264_args(size: str, rate: int) -> list[str]:
+    """ffmpeg's command up to its output options: a moving test pattern of ``size`` at ``rate``
+    frames/s, read in real time and encoded as low-latency H.264 with a keyframe every second."""
+    assert FFMPEG is not None
+    return [
+        FFMPEG, "-hide_banner", "-loglevel", "error", "-re",
+        "-f", "lavfi", "-i", f"testsrc2=size={size}:rate={rate}",
+        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "zerolatency",
+        "-g", str(rate), "-pix_fmt", "yuv420p",
+    ]  # fmt: skip
+
+
 class UdpStream:
     """``ffmpeg`` sending ``seconds`` of ``size`` video at ``rate`` fps to ``127.0.0.1:port``."""
 
@@ -25,27 +37,9 @@ class UdpStream:
         assert FFMPEG is not None
         self.process = subprocess.Popen(
             [
-                FFMPEG,
-                "-hide_banner",
-                "-loglevel",
-                "error",
-                "-re",
-                "-f",
-                "lavfi",
-                "-i",
-                f"testsrc2=size={size}:rate={rate}",
+                *live_h264_args(size, rate),
                 "-t",
                 str(seconds),
-                "-c:v",
-                "libx264",
-                "-preset",
-                "ultrafast",
-                "-tune",
-                "zerolatency",
-                "-g",
-                str(rate),
-                "-pix_fmt",
-                "yuv420p",
                 "-f",
                 "mpegts",
                 f"udp://127.0.0.1:{port}?pkt_size=1316",
