@@ -266,3 +266,37 @@ def test_mission_commands_hand_the_crop_options_to_the_detector(tmp_path: Path) 
     )
     net, _ = build_detector(overridden, load_mission_from_args(overridden))
     assert net.crop_scales == (1.0, 3.0) and net.refine_threshold == 0.0
+
+
+def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: Path) -> None:
+    """[detector] model is read relative to the mission file; --model overrides it; a missing
+    file is one clear error naming the resolved path."""
+    import shutil
+
+    from sarmission.commands.mission_options import build_detector, load_mission_from_args
+    from sarmission.models import DEFAULT_ONNX_MODEL
+    from sarmission.perception.runtime import ModelLoadError
+
+    (tmp_path / "heads").mkdir()
+    area_head = tmp_path / "heads" / "area.onnx"
+    shutil.copyfile(DEFAULT_ONNX_MODEL, area_head)
+    mission_file = tmp_path / "m.toml"
+    mission_file.write_text('[detector]\nmodel = "heads/area.onnx"\n')
+    parser = build_parser()
+    args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    _, note = build_detector(args, load_mission_from_args(args))
+    assert note == f"model: {area_head} (the mission's [detector] model)"
+    other = tmp_path / "other.onnx"
+    shutil.copyfile(DEFAULT_ONNX_MODEL, other)
+    args = parser.parse_args(
+        ["replay", "clip.mp4", "--mission", str(mission_file), "--model", str(other)]
+    )
+    _, note = build_detector(args, load_mission_from_args(args))
+    assert note == f"model: {other}"
+    area_head.unlink()
+    args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    with pytest.raises(ModelLoadError, match=f"'{area_head}': file not found"):
+        build_detector(args, load_mission_from_args(args))
+    args = parser.parse_args(["replay", "clip.mp4"])
+    _, note = build_detector(args, load_mission_from_args(args))
+    assert note.startswith("model: the shipped default")

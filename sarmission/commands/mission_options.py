@@ -82,13 +82,20 @@ def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
 
 def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[MiteNet, str]:
     """MITE-Net with the mission's detector settings; returns it and a line naming the model
-    (saying so plainly when the package has no trained model and the head is untrained)."""
+    (saying so plainly when the package has no trained model and the head is untrained).
+    ``--model`` wins over the mission's ``[detector] model``, which wins over the shipped head."""
+    from sarmission.mission.config_rules import DEFAULT_MODEL
     from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
-    head = build_head_runtime(args.model, args.runtime)
+    model = args.model
+    if model is None and mission.detector.model != DEFAULT_MODEL:
+        model = mission.detector.model
+    head = build_head_runtime(model, args.runtime)
     if args.model is not None:
         note = f"model: {args.model}"
+    elif model is not None:
+        note = f"model: {model} (the mission's [detector] model)"
     elif DEFAULT_ONNX_MODEL.is_file() or DEFAULT_TORCH_MODEL.is_file():
         shipped = (
             DEFAULT_ONNX_MODEL

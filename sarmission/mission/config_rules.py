@@ -28,6 +28,10 @@ if TYPE_CHECKING:
     )
 
 ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
+#: ``[detector] model`` value that names the head shipped with the package.
+DEFAULT_MODEL = "default"
+#: File name endings of a head model.
+MODEL_SUFFIXES = (".pt", ".pth", ".onnx")
 
 Problem = tuple[str, str] | None
 
@@ -82,6 +86,11 @@ def camera_problem(c: CameraConfig) -> Problem:
 
 
 def detector_problem(d: DetectorConfig) -> Problem:
+    if d.model != DEFAULT_MODEL and not d.model.lower().endswith(MODEL_SUFFIXES):
+        return (
+            "model",
+            f'expected "{DEFAULT_MODEL}" or a path ending in {", ".join(MODEL_SUFFIXES)}',
+        )
     if d.ds not in VALID_DS:
         return "ds", f"expected one of {', '.join(map(str, VALID_DS))} (vSTMD pooling factor)"
     if d.topn < 1:
