@@ -19,6 +19,7 @@ from sarmission.training.dataset import (
     CropSettings,
     background_boxes,
     load_crop_set,
+    object_negative_boxes,
 )
 from sarmission.training.randomise import TRANSFORMS, Randomisation
 from sarmission.training.train import TrainConfig, train
@@ -80,6 +81,46 @@ def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
             break
     crop = more.crops[last, :3].float().permute(1, 2, 0).numpy()
     assert np.abs(crop.mean(axis=(0, 1)) - pixels.mean(axis=(0, 1))).max() < 0.05
+
+
+def test_object_negatives_lie_on_the_boat_and_never_on_a_swimmer(data) -> None:
+    plain = CropSettings(frame_stride=3, jitters_per_gt=2)
+    extra = CropSettings(frame_stride=3, jitters_per_gt=2, object_negatives=3)
+    base, _ = load_crop_set(data["train"], plain, data["cache"], progress=False)
+    more, _ = load_crop_set(data["train"], extra, data["cache"], progress=False)
+    frames = len(base.frame_ids)
+    added = len(more) - len(base)
+    assert int((more.labels >= 0).sum()) == int((base.labels >= 0).sum())
+    assert frames <= added <= 3 * frames  # one boat per frame, some copies near a swimmer dropped
+    dataset = read_coco_video(data["train"])
+    boats = {a.image_id: a.bbox for a in dataset.annotations if a.category_id == 3}
+    for frame_id in more.frame_ids.tolist():
+        rows = torch.nonzero(more.image_ids == frame_id).flatten()
+        extra_rows = rows[int((base.image_ids == frame_id).sum()) :]  # cut last
+        assert bool(torch.all(more.labels[extra_rows] == -1))
+        x, y, w, h = boats[frame_id]
+        centres = (more.boxes[extra_rows, :2] + more.boxes[extra_rows, 2:]) / 2
+        # jittered by at most half a (1.2 x 16 px) side around the boat's centre
+        assert float((centres[:, 0] - (x + w / 2)).abs().max()) <= 9.7
+        assert float((centres[:, 1] - (y + h / 2)).abs().max()) <= 9.7
+        swimmers = more.gt_boxes[more.gt_image_ids == frame_id].numpy()
+        if len(swimmers):
+            assert nwd_matrix(more.boxes[extra_rows].numpy(), swimmers).max() < BACKGROUND_MAX_NWD
+
+
+def test_object_negative_boxes_drop_squares_on_a_target() -> None:
+    settings = CropSettings()
+    boat = np.array([[100.0, 100.0, 140.0, 120.0]])
+    person_on_deck = np.array([[114.0, 104.0, 126.0, 116.0]])
+    far_person = np.array([[400.0, 400.0, 410.0, 410.0]])
+    rng = np.random.default_rng(0)
+    assert len(object_negative_boxes(boat, far_person, 5, settings, rng)) == 5
+    near = object_negative_boxes(boat, person_on_deck, 50, settings, np.random.default_rng(0))
+    assert len(near) < 50
+    if len(near):
+        assert nwd_matrix(near, person_on_deck).max() < BACKGROUND_MAX_NWD
+    assert len(object_negative_boxes(np.zeros((0, 4)), far_person, 5, settings, rng)) == 0
+    assert len(object_negative_boxes(boat, far_person, 0, settings, rng)) == 0
 
 
 def _config(data: dict[str, Path], out: Path, **kw) -> TrainConfig:

@@ -23,6 +23,8 @@ Variants (:data:`VARIANTS`):
 * ``broad_classes``: ``broad_objects`` with the maritime head's object classes
   (:data:`sarmission.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
   life-saving appliances learnt as classes of their own instead of background).
+* ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
+  of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
 Test (the clips and seeds of ``tools/heldout_eval.py``, rendered with its functions):
 ``maritime_test`` (own renderer, 2 x 40 frames), ``heldout_maritime`` (3 x 40) and
@@ -107,6 +109,7 @@ class Variant:
     background_negatives: int
     description: str
     classes: tuple[str, ...] = DEFAULT_CLASSES
+    object_negatives: int = 0
 
 
 VARIANTS: dict[str, Variant] = {
@@ -154,6 +157,15 @@ VARIANTS: dict[str, Variant] = {
             "of their own",
             MARITIME_CLASSES,
         ),
+        Variant(
+            "broad_distractors",
+            MARITIME_PARTS + EXTRA_PARTS,
+            "all",
+            8,
+            "broad, plus 2 negatives cut around every annotated distractor (boats, debris, "
+            "birds, glints) in each training frame",
+            object_negatives=2,
+        ),
     )
 }
 
@@ -198,6 +210,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         frame_stride=s["frame_stride"],
         jitters_per_gt=s["jitters_per_gt"],
         background_negatives=variant.background_negatives,
+        object_negatives=variant.object_negatives,
         seed=0,
     )
     config = TrainConfig(
@@ -390,6 +403,7 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "presets": [list(p) for p in VARIANTS[n].parts],
                 "randomise": VARIANTS[n].randomise,
                 "background_negatives": VARIANTS[n].background_negatives,
+                "object_negatives": VARIANTS[n].object_negatives,
                 "classes": list(VARIANTS[n].classes),
             }
             for n in args.variants

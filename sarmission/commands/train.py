@@ -75,6 +75,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "targets (0 = only the RPN's proposals)",
     )
     parser.add_argument(
+        "--object-negatives",
+        type=int,
+        default=0,
+        help="negatives cut around every annotated object that is no search target "
+        "(boats, debris, birds, glints), copies per object (0 = only the RPN's proposals)",
+    )
+    parser.add_argument(
         "--randomise",
         default="none",
         help="crop-level domain randomisation: comma-separated transforms of "
@@ -153,6 +160,7 @@ def config_from_args(args: argparse.Namespace):
         jitters_per_gt=args.jitters,
         jitter_shift=args.jitter_shift,
         background_negatives=args.background_negatives,
+        object_negatives=args.object_negatives,
         seed=args.seed,
     )
     return TrainConfig(

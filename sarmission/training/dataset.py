@@ -25,6 +25,13 @@ frames before it responds) the frame yields:
   like the jittered GT, with the RPN-like polarity there. The RPN shows the head only the
   frame's 25 most salient spots; these show it the rest of the background (water, land,
   clutter) too.
+* **Object negatives** (training only, ``object_negatives > 0``): that many jittered squares per
+  annotated object that is not a search target (a category whose role is ``object`` in
+  :mod:`sarmission.class_roles` and no head class: boats, debris, birds, sun glints, buoys), cut
+  like the jittered GT and labelled negative, unless a square lies within NWD 0.1 of a target
+  GT box (a person on a boat's deck stays a person). The RPN shows the head such clutter only
+  when it is among the frame's most salient spots; these show it every annotated distractor,
+  the false alarms a search meets most.
 
 Targets: annotations of the categories that map to a head class
 (:func:`sarmission.evaluation.report.target_category_map`: normalised name equal to a class or an
@@ -58,6 +65,7 @@ import torch
 from torch import Tensor
 
 from sarmission.boxes import xywh_to_xyxy
+from sarmission.class_roles import role_of
 from sarmission.data.coco_video import VideoDataset, read_coco_video
 from sarmission.data.sequence import iter_sequence, sequence_ids, sequence_images
 from sarmission.evaluation.report import target_category_map
@@ -85,8 +93,8 @@ class CropSettings:
 
     ``target_size`` ``None`` keeps the vSTMD default; ``topn``, ``box_size`` and
     ``colour_share`` are the RPN's N, S and share of colour proposals; ``jitters_per_gt`` 0
-    disables GT jittering (validation), ``background_negatives`` 0 the background negatives (the
-    default, and validation); ``crop_dtype`` is
+    disables GT jittering (validation), ``background_negatives`` 0 the background negatives and
+    ``object_negatives`` 0 the object negatives (the defaults, and validation); ``crop_dtype`` is
     ``"float16"`` or ``"float32"``.
     """
 
@@ -103,6 +111,7 @@ class CropSettings:
     jitter_scale: float = 0.2
     jitter_shift: float = 0.5
     background_negatives: int = 0
+    object_negatives: int = 0
     seed: int = 0
     crop_dtype: str = "float16"
 
@@ -115,10 +124,11 @@ class CropSettings:
             or self.warmup_frames < 0
             or self.jitters_per_gt < 0
             or self.background_negatives < 0
+            or self.object_negatives < 0
         ):
             raise ValueError(
-                "frame_stride must be >= 1, warmup_frames, jitters_per_gt and "
-                "background_negatives >= 0"
+                "frame_stride must be >= 1, warmup_frames, jitters_per_gt, "
+                "background_negatives and object_negatives >= 0"
             )
         if not 0.0 <= self.colour_share <= 1.0:
             raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
@@ -258,6 +268,45 @@ def _target_gt(dataset: VideoDataset, mapping: dict[int, int]) -> dict[int, tupl
     return result
 
 
+def _object_boxes(dataset: VideoDataset, mapping: dict[int, int]) -> dict[int, np.ndarray]:
+    """Image id -> xyxy ``[K, 4]`` of its non-crowd annotations of objects that are no search
+    target (role ``object``, no head class); categories of unknown role (``ignored``) excluded."""
+    objects = {
+        c.id for c in dataset.categories if c.id not in mapping and role_of(c.name) == "object"
+    }
+    result = {}
+    for image_id, anns in dataset.annotations_by_image().items():
+        chosen = [a.bbox for a in anns if not a.iscrowd and a.category_id in objects]
+        if chosen:
+            result[image_id] = xywh_to_xyxy(np.array(chosen, np.float64).reshape(-1, 4))
+    return result
+
+
+def object_negative_boxes(
+    object_boxes: np.ndarray,
+    gt_boxes: np.ndarray,
+    copies: int,
+    settings: CropSettings,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """``copies`` jittered squares per box of ``object_boxes`` ``[K, 4]`` (the jitter of the GT
+    samples), less those within :data:`BACKGROUND_MAX_NWD` of a target box of ``gt_boxes``;
+    ``[J, 4]`` xyxy."""
+    if copies <= 0 or not len(object_boxes):
+        return np.zeros((0, 4))
+    boxes, _ = jitter_boxes(
+        object_boxes,
+        rng,
+        copies,
+        settings.jitter_scale,
+        settings.jitter_shift,
+        side=settings.box_size,
+    )
+    if len(gt_boxes):
+        boxes = boxes[~assign_by_nwd(boxes, gt_boxes, BACKGROUND_MAX_NWD).positive]
+    return boxes
+
+
 #: Background negatives lie further than this NWD from every target GT box.
 BACKGROUND_MAX_NWD = 0.1
 
@@ -291,10 +340,12 @@ def _frame_samples(
     motion: MotionMaps,
     rpn: TTMRPN,
     gt: tuple,
+    objects: np.ndarray,
     settings: CropSettings,
     rng: np.random.Generator,
 ) -> dict[str, Tensor]:
-    """Crops, labels, targets and boxes of one sampled frame (RPN samples, then jittered GT)."""
+    """Crops, labels, targets and boxes of one sampled frame (RPN samples, jittered GT,
+    background negatives, then object negatives around ``objects`` ``[K, 4]``)."""
     gt_boxes, gt_classes = gt
     proposals = rpn.propose(motion, chroma_if_wanted(frame, rpn.colour_slots > 0))
     assignment = assign_by_nwd(proposals.boxes, gt_boxes, settings.pos_nwd)
@@ -336,6 +387,16 @@ def _frame_samples(
             crops.append(motion_enhanced_crops(frame, motion, bboxes, polarity, sampling_ratio=1))
             all_labels.append(np.full(len(bboxes), -1, np.int64))
             jittered.append(np.zeros(len(bboxes), bool))
+    if settings.object_negatives:
+        oboxes = object_negative_boxes(objects, gt_boxes, settings.object_negatives, settings, rng)
+        if len(oboxes):
+            centres = (oboxes[:, :2] + oboxes[:, 2:]) / 2
+            polarity = polarity_near(motion, centres, settings.box_size)
+            boxes.append(oboxes)
+            targets.append(np.zeros((len(oboxes), 4)))
+            crops.append(motion_enhanced_crops(frame, motion, oboxes, polarity, sampling_ratio=1))
+            all_labels.append(np.full(len(oboxes), -1, np.int64))
+            jittered.append(np.zeros(len(oboxes), bool))
     dtype = getattr(torch, settings.crop_dtype)
     return {
         "crops": torch.from_numpy(np.concatenate(crops)).to(dtype),
@@ -358,6 +419,7 @@ def build_crop_set(
     settings.validate()
     mapping = target_category_map(dataset.categories, settings.classes)
     gt_by_image = _target_gt(dataset, mapping)
+    objects_by_image = _object_boxes(dataset, mapping) if settings.object_negatives else {}
     rng = np.random.default_rng(settings.seed)
     parts: list[dict[str, Tensor]] = []
     frame_ids: list[int] = []
@@ -378,7 +440,8 @@ def build_crop_set(
                 if offset < 0 or offset % settings.frame_stride:
                     continue
                 gt = gt_by_image.get(item.image.id, (np.zeros((0, 4)), np.zeros(0, np.int64)))
-                part = _frame_samples(item.frame_bgr, motion, rpn, gt, settings, rng)
+                objects = objects_by_image.get(item.image.id, np.zeros((0, 4)))
+                part = _frame_samples(item.frame_bgr, motion, rpn, gt, objects, settings, rng)
                 part["image_ids"] = torch.full(
                     (len(part["labels"]),), item.image.id, dtype=torch.int64
                 )
