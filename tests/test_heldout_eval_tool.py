@@ -1,0 +1,55 @@
+"""``tools/heldout_eval.py``: the scores of detections on people and on background, and the
+false detections per frame, counted from a run and its annotations."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from sarmission.data.coco_video import Annotation
+from sarmission.evaluation.matching import FrameBoxes
+
+TOOL = Path(__file__).resolve().parents[1] / "tools" / "heldout_eval.py"
+
+
+@pytest.fixture(scope="module")
+def tool():
+    spec = importlib.util.spec_from_file_location("sarmission_heldout_eval_tool", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_detection_scores_split_people_from_background(tool) -> None:
+    person = Annotation(1, 1, 7, (100.0, 100.0, 10.0, 10.0))
+    boat = Annotation(2, 1, 3, (300.0, 300.0, 40.0, 20.0))  # not a target: background
+    dataset = SimpleNamespace(annotations=[person, boat])
+    run = SimpleNamespace(
+        detections={
+            1: FrameBoxes.of(
+                np.array(
+                    [
+                        [100.0, 100.0, 110.0, 110.0],  # on the person
+                        [301.0, 301.0, 317.0, 317.0],  # on the boat
+                        [500.0, 500.0, 516.0, 516.0],  # on open water
+                    ]
+                ),
+                scores=np.array([0.8, 0.95, 0.4]),
+            ),
+            2: FrameBoxes.of(np.array([[100.0, 100.0, 110.0, 110.0]]), scores=np.array([0.6])),
+        }
+    )
+    scores = tool.detection_scores(dataset, run, targets={7})
+    assert scores["frames"] == 2
+    assert scores["on_person"]["n"] == 1 and scores["on_person"]["quantiles"][1] == 0.8
+    # frame 2 has no person annotated: its detection is on none
+    assert scores["on_none"]["n"] == 3
+    assert scores["on_none"]["quantiles"][1] == pytest.approx(0.6)
+    assert scores["false_per_frame_above_0.5"] == pytest.approx(1.0)  # 0.95 and 0.6 over 2
+    assert scores["false_per_frame_above_0.9"] == pytest.approx(0.5)
