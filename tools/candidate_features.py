@@ -7,7 +7,8 @@ thresholds from.
 For each candidate: whether a person was under it at its lock, its sightings, the time they
 span, the share of frames it was seen in over that span, the head's scores (mean, better half,
 lowest), its size on the ground (median, quartiles) and its drift over the ground, and the
-verdict the current rule gave it. Printed: the quantiles of each feature for people and for clutter.
+verdict the current rule gave it. Printed: the quantiles of each feature for people, for
+clutter and for the clutter confirmed (the false alerts), with what lay under the clutter.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import csv
 import math
 import sys
 import tempfile
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -116,9 +118,18 @@ def main() -> int:
             writer = csv.DictWriter(out, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
-    for label, want in (("people", 1), ("clutter", 0)):
-        sel = [r for r in rows if r["person"] == want]
-        print(f"\n{label}: {len(sel)} candidates")
+    groups = (
+        ("people", lambda r: r["person"] == 1),
+        ("clutter", lambda r: r["person"] == 0),
+        (
+            "clutter confirmed (false alerts)",
+            lambda r: r["person"] == 0 and r["verdict"] == "confirmed",
+        ),
+    )
+    for label, keep in groups:
+        sel = [r for r in rows if keep(r)]
+        under = ", ".join(f"{k} {n}" for k, n in Counter(r["under"] for r in sel).most_common())
+        print(f"\n{label}: {len(sel)} candidates ({under})")
         for k in FEATURES:
             v = np.array([r[k] for r in sel], dtype=float)
             v = v[np.isfinite(v)]
