@@ -84,6 +84,7 @@ def main() -> int:
             flown = fly(scenario, base, detector, args.seconds, Path(tmp))
             by_index = {f.index: f for f in flown.truth}
             book = flown.controller.candidates
+            confirmed = {a.target_id for a, _, _ in flown.controller.stats.confirmed}
             for alert in flown.controller.stats.candidates:
                 frame = by_index.get(alert.frame_index)
                 cx, cy = alert.pixel_track[-1][1:]
@@ -100,12 +101,7 @@ def main() -> int:
                     if alert.target_id in book.evidence
                     else {k: math.nan for k in FEATURES}
                 )
-                stored = (
-                    flown.controller.store.get(alert.alert_id)
-                    if not flown.controller.store.closed
-                    else None
-                )
-                row["verdict"] = stored.tier if stored else "?"
+                row["verdict"] = "confirmed" if alert.target_id in confirmed else "candidate"
                 rows.append(row)
             print(
                 f"{scenario.name}: {len(flown.controller.stats.candidates)} candidates, "
