@@ -1,12 +1,16 @@
-"""Shared test helpers: free ports from the OS, waiting on a condition, the SITL binary."""
+"""Shared test helpers: free ports from the OS, waiting on a condition, the SITL binary, a
+script of tools/ imported by path."""
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import socket
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -15,6 +19,20 @@ SITL_ENV = "SARMISSION_SITL"
 
 TESTS_DIR = Path(__file__).resolve().parent
 FIXTURES_DIR = TESTS_DIR / "fixtures"
+
+
+TOOLS_DIR = TESTS_DIR.parent / "tools"
+
+
+def load_tool(name: str) -> ModuleType:
+    """The script ``tools/<name>.py`` imported as a module (registered, so dataclasses work)."""
+    spec = importlib.util.spec_from_file_location(
+        f"sarmission_tool_{name}", TOOLS_DIR / f"{name}.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
 
 
 def free_udp_port() -> int:

@@ -3,19 +3,16 @@ set, and the held-out validation split of the training recipe."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import load_tool
 from synthetic_video import write_dataset
 
 from sarmission.data.coco_video import read_coco_video, write_coco_video
 from sarmission.data.merge import merge_annotation_files
 from sarmission.data.sequence import iter_sequence
-
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "train_default_model.py"
 
 
 @pytest.fixture(scope="module")
@@ -60,10 +57,7 @@ def test_merge_unites_categories_by_name_and_paths(data, tmp_path) -> None:
 def test_heldout_validation_clips_are_not_test_clips() -> None:
     """The recipe's held-out validation seeds lie outside the clip indices kept for tests
     (tools/heldout_eval.py renders clips 0, 1, 2 ... of each world)."""
-    spec = importlib.util.spec_from_file_location("sarmission_train_recipe_tool", TOOL)
-    tool = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = tool
-    spec.loader.exec_module(tool)
+    tool = load_tool("train_default_model")
     from heldout.presets import world
 
     seeds = tool.heldout_val_seeds()

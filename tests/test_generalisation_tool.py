@@ -3,13 +3,10 @@ and the page is a pure function of the measured numbers."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import torch
+from conftest import load_tool
 from synthetic_video import write_dataset
 
 from sarmission.data.coco_video import read_coco_video
@@ -18,15 +15,10 @@ from sarmission.perception.head import HeadConfig, MiteHead
 from sarmission.perception.mitenet import MiteNet
 from sarmission.perception.runtime import TorchHeadRuntime
 
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "generalisation_study.py"
-
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("sarmission_generalisation_tool", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
+    module = load_tool("generalisation_study")
     return module
 
 

@@ -8,23 +8,11 @@ geolocation through the gimbal's quaternion and ``sarmission.geo``'s yaw rotatio
 relative to the heading plus ``delta_yaw`` would pass through ``rot_z`` twice, converted in and
 out of Euler angles, and a sign error there would cancel.)"""
 
-import importlib.util
-import sys
-from pathlib import Path
-
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "geolocation_accuracy.py"
-
-
-def load_tool():
-    spec = importlib.util.spec_from_file_location("geolocation_accuracy", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+from conftest import load_tool
 
 
 def test_exact_telemetry_gives_sub_metre_fixes(tmp_path):
-    tool = load_tool()
+    tool = load_tool("geolocation_accuracy")
     result = tool.measure(
         duration_s=15.0,
         telemetry="exact",

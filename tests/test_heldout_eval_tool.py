@@ -3,26 +3,19 @@ false detections per frame, counted from a run and its annotations."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import load_tool
 
 from sarmission.data.coco_video import Annotation
 from sarmission.evaluation.matching import FrameBoxes
 
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "heldout_eval.py"
-
 
 @pytest.fixture(scope="module")
 def tool():
-    spec = importlib.util.spec_from_file_location("sarmission_heldout_eval_tool", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
+    module = load_tool("heldout_eval")
     return module
 
 

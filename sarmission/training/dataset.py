@@ -375,28 +375,26 @@ def _frame_samples(
         crops.append(motion_enhanced_crops(frame, motion, jboxes, polarity, sampling_ratio=1))
         all_labels.append(gt_classes[src])
         jittered.append(np.ones(len(src), bool))
+    negatives = []
     if settings.background_negatives:
-        bboxes = background_boxes(
-            frame.shape[:2], gt_boxes, settings.background_negatives, settings.box_size, rng
+        negatives.append(
+            background_boxes(
+                frame.shape[:2], gt_boxes, settings.background_negatives, settings.box_size, rng
+            )
         )
-        if len(bboxes):
-            centres = (bboxes[:, :2] + bboxes[:, 2:]) / 2
-            polarity = polarity_near(motion, centres, settings.box_size)
-            boxes.append(bboxes)
-            targets.append(np.zeros((len(bboxes), 4)))
-            crops.append(motion_enhanced_crops(frame, motion, bboxes, polarity, sampling_ratio=1))
-            all_labels.append(np.full(len(bboxes), -1, np.int64))
-            jittered.append(np.zeros(len(bboxes), bool))
     if settings.object_negatives:
-        oboxes = object_negative_boxes(objects, gt_boxes, settings.object_negatives, settings, rng)
-        if len(oboxes):
-            centres = (oboxes[:, :2] + oboxes[:, 2:]) / 2
+        negatives.append(
+            object_negative_boxes(objects, gt_boxes, settings.object_negatives, settings, rng)
+        )
+    for nboxes in negatives:
+        if len(nboxes):
+            centres = (nboxes[:, :2] + nboxes[:, 2:]) / 2
             polarity = polarity_near(motion, centres, settings.box_size)
-            boxes.append(oboxes)
-            targets.append(np.zeros((len(oboxes), 4)))
-            crops.append(motion_enhanced_crops(frame, motion, oboxes, polarity, sampling_ratio=1))
-            all_labels.append(np.full(len(oboxes), -1, np.int64))
-            jittered.append(np.zeros(len(oboxes), bool))
+            boxes.append(nboxes)
+            targets.append(np.zeros((len(nboxes), 4)))
+            crops.append(motion_enhanced_crops(frame, motion, nboxes, polarity, sampling_ratio=1))
+            all_labels.append(np.full(len(nboxes), -1, np.int64))
+            jittered.append(np.zeros(len(nboxes), bool))
     dtype = getattr(torch, settings.crop_dtype)
     return {
         "crops": torch.from_numpy(np.concatenate(crops)).to(dtype),
