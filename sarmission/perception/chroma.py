@@ -42,6 +42,10 @@ from sarmission.yuv import YuvImage
 #: Pooling factor of the chroma map (full-resolution pixels per map pixel).
 CHROMA_SCALE = 8
 
+#: ``(rows, cols)`` of the 4 x 4 block grid to the ``(Cr, Cb)`` float32 planes of the 8 x 8 block
+#: means of that part of it.
+BlockChroma = Callable[[slice, slice], list]
+
 
 @dataclass(frozen=True)
 class ChromaParams:
@@ -85,37 +89,45 @@ def chroma_anomaly(
     :class:`~sarmission.yuv.YuvImage`, whose 4:2:0 U and V planes are already the half-resolution
     chroma (rescaled to ``BGR2YCrCb``'s units: the same map, to within rounding)."""
     if isinstance(frame_bgr, YuvImage):
-        return _anomaly(*_pooled_chroma(frame_bgr), params or ChromaParams())
-    if not (
-        isinstance(frame_bgr, np.ndarray)
-        and frame_bgr.ndim == 3
-        and frame_bgr.shape[2] == 3
-        and frame_bgr.dtype == np.uint8
-    ):
-        raise ValueError("frame must be BGR uint8 [H, W, 3]")
-    return _anomaly(_quarter(frame_bgr, half), _chroma_planes, params or ChromaParams())
+        shape, planes_at = _yuv_blocks(frame_bgr)
+    else:
+        if not (
+            isinstance(frame_bgr, np.ndarray)
+            and frame_bgr.ndim == 3
+            and frame_bgr.shape[2] == 3
+            and frame_bgr.dtype == np.uint8
+        ):
+            raise ValueError("frame must be BGR uint8 [H, W, 3]")
+        quarter = _quarter(frame_bgr, half)
+
+        def planes_at(rows: slice, cols: slice) -> list[np.ndarray]:
+            return _chroma_planes(halve(quarter[rows, cols], 1))
+
+        shape = quarter.shape[:2]
+    return _anomaly(shape, planes_at, params or ChromaParams())
 
 
-def _pooled_chroma(image: YuvImage) -> tuple[np.ndarray, Callable[[np.ndarray], list]]:
-    """A YUV picture's U and V 4 x 4 block means (a two-channel uint8 image) and the function
-    that turns 8 x 8 block means of those into ``(Cr, Cb)`` planes."""
+def _yuv_blocks(image: YuvImage) -> tuple[tuple[int, int], BlockChroma]:
+    """The 4 x 4 block grid of a YUV picture and its :data:`BlockChroma` (U and V are pooled
+    one plane at a time: OpenCV's fast 2x area path takes one, three or four channels)."""
     h, w = image.height // CHROMA_SCALE, image.width // CHROMA_SCALE
     if h < 1 or w < 1:
         raise ValueError(
             f"frame {image.width}x{image.height} is smaller than the chroma scale {CHROMA_SCALE}"
         )
-    quarter = cv2.merge([halve(plane[: 4 * h, : 4 * w], 1) for plane in (image.u, image.v)])
-    return quarter, lambda uv: list(image.to_crcb(uv[:, :, 0], uv[:, :, 1]))
+    u, v = (halve(plane[: 4 * h, : 4 * w], 1) for plane in (image.u, image.v))
+
+    def planes_at(rows: slice, cols: slice) -> list[np.ndarray]:
+        return list(image.to_crcb(halve(u[rows, cols], 1), halve(v[rows, cols], 1)))
+
+    return (2 * h, 2 * w), planes_at
 
 
-def _anomaly(
-    quarter: np.ndarray, planes_of: Callable[[np.ndarray], list], p: ChromaParams
-) -> np.ndarray:
-    """The map from the 4 x 4 block means ``quarter`` of a colour image; ``planes_of`` gives the
-    ``(Cr, Cb)`` float32 planes of 8 x 8 block means of it."""
+def _anomaly(shape: tuple[int, int], planes_at: BlockChroma, p: ChromaParams) -> np.ndarray:
+    """The map from a picture's 4 x 4 block grid of ``shape`` and its ``planes_at``."""
     window = (p.window, p.window)
     border = cv2.BORDER_REFLECT_101
-    chroma = planes_of(halve(quarter, 1))
+    chroma = planes_at(slice(0, shape[0]), slice(0, shape[1]))
     means = [cv2.boxFilter(plane, -1, window, borderType=border) for plane in chroma]
     energy = _deviation_energy(chroma, means)
     local = cv2.boxFilter(energy, -1, window, borderType=border)
@@ -123,9 +135,7 @@ def _anomaly(
     anomaly = cv2.divide(energy, local, dst=energy)
     # The 8 x 8 windows 4 px down, right, or both: a target cut by a block edge fills one of them.
     for dy, dx in ((1, 0), (0, 1), (1, 1)):
-        rows = slice(dy, quarter.shape[0] - dy)
-        cols = slice(dx, quarter.shape[1] - dx)
-        shifted = planes_of(halve(quarter[rows, cols], 1))
+        shifted = planes_at(slice(dy, shape[0] - dy), slice(dx, shape[1] - dx))
         # Window k of the shifted grid is centred on the top / left edge of block k + 1.
         blocks_at = (slice(dy, None), slice(dx, None))
         shifted_energy = _deviation_energy(shifted, [mean[blocks_at] for mean in means])
