@@ -104,6 +104,21 @@ def test_full_range_and_other_formats(sea: Path, tmp_path: Path) -> None:
         assert np.abs(planar.image_bgr.astype(int) - packed.image_bgr).mean() < 1.0
 
 
+def test_the_source_reads_again_and_closes(clip: Path) -> None:
+    """The first pass goes on with the decoder that checked the file, later ones open their
+    own; a source never read releases it on close()."""
+    source = YuvVideoSource(clip)
+    once = [(f.index, f.timestamp_s, f.yuv.y.copy()) for f in source]
+    again = [(f.index, f.timestamp_s, f.yuv.y) for f in source]
+    assert len(once) == len(again) == 16
+    for (i, t, y), (j, u, z) in zip(once, again, strict=True):
+        assert (i, t) == (j, u)
+        np.testing.assert_array_equal(y, z)
+    unread = YuvVideoSource(clip)
+    unread.close()
+    assert [f.index for f in unread][:2] == [0, 1]
+
+
 def test_unreadable_files(tmp_path: Path) -> None:
     fake = tmp_path / "fake.mp4"
     fake.write_bytes(b"\x00" * 1000)

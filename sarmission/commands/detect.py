@@ -54,11 +54,16 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be at least 1, got {args.max_frames}")
-    net = build_mitenet(args)
     image_ids = _image_ids_by_frame(args.annotations) if args.annotations else None
     source = open_frame_source(args.input, yuv=True)
     live = isinstance(source, StreamSource)
+    # The reader starts decoding while the model loads.
     frames = source if live else Prefetcher(source, depth=1)
+    try:
+        net = build_mitenet(args)
+    except BaseException:
+        _close(frames, source)
+        raise
     results: list[dict] = []
     total = source.length
     if args.max_frames is not None:

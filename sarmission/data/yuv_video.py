@@ -13,7 +13,7 @@ in ``skipped``, a new decoder for each iteration.
 
 from __future__ import annotations
 
-import logging
+import itertools
 import math
 from collections.abc import Iterator
 from fractions import Fraction
@@ -24,8 +24,6 @@ import numpy as np
 
 from sarmission.data.frames import Frame, FrameSource, FrameSourceError, _PresentationTimes
 from sarmission.yuv import YuvImage
-
-log = logging.getLogger(__name__)
 
 #: Pixel formats handed over as planes, and whether each is full range.
 PLANAR_FORMATS = {"yuv420p": False, "yuvj420p": True}
@@ -71,14 +69,31 @@ class YuvVideoSource(FrameSource):
         try:
             rate = stream.average_rate or stream.guessed_rate
             count = int(stream.frames or 0)
-            first = next(self._pictures(container, stream), None)
-        finally:
+            pictures = self._pictures(container, stream)
+            first = next(pictures, None)
+        except BaseException:
             container.close()
+            raise
         if first is None:
+            container.close()
             raise FrameSourceError(f"{path}: unsupported or unreadable video (no frame decodes)")
         fps = float(rate) if rate else 0.0
         super().__init__(path, fps if fps > 0 and math.isfinite(fps) else default_fps)
         self._count = count if count > 0 else None
+        # The first iteration goes on with this decoder: a 4K key frame takes a third of a
+        # second to decode, and a second decoder would hold its own buffers meanwhile.
+        self._opened: tuple[Any, Any, Iterator[Any], Any] | None = (
+            container,
+            stream,
+            pictures,
+            first,
+        )
+
+    def close(self) -> None:
+        """Release the decoder opened to check the file, if no iteration has taken it over."""
+        opened, self._opened = self._opened, None
+        if opened is not None:
+            opened[0].close()
 
     @staticmethod
     def _open(path: Path, threads: int | None) -> tuple[Any, Any]:
@@ -116,12 +131,18 @@ class YuvVideoSource(FrameSource):
         return self._count
 
     def __iter__(self) -> Iterator[Frame]:
-        container, stream = self._open(self.path, self.threads)
+        opened, self._opened = self._opened, None
+        if opened is None:
+            container, stream = self._open(self.path, self.threads)
+            pictures = self._pictures(container, stream)
+        else:
+            container, stream, rest, first = opened
+            pictures = itertools.chain([first], rest)
         try:
             base = Fraction(stream.time_base or 0)
             start = stream.start_time or 0
             clock = _PresentationTimes(self.fps)
-            for index, picture in enumerate(self._pictures(container, stream)):
+            for index, picture in enumerate(pictures):
                 if picture is None:
                     self._skip(index, "decoder rejected a packet")
                     continue
