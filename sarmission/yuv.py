@@ -85,8 +85,8 @@ class YuvImage:
 
     def bgr_at(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """BGR values (uint8, ``[..., 3]``) of the pixels at ``rows`` and ``cols`` (integer arrays
-        of one shape, inside the picture): what :meth:`bgr` holds there, without converting the
-        rest."""
+        that broadcast together, inside the picture): what :meth:`bgr` holds there, without
+        converting the rest."""
         crow, ccol = rows // 2, cols // 2
         yuv = np.stack([self.y[rows, cols], self.u[crow, ccol], self.v[crow, ccol]], axis=-1)
         flat = yuv.reshape(-1, 1, 3)

@@ -7,6 +7,8 @@ import cv2
 import numpy as np
 import pytest
 
+from sarmission.alerts.thumbnail import crop_thumbnail
+from sarmission.data.frames import Frame
 from sarmission.perception.chroma import chroma_anomaly, chroma_if_wanted
 from sarmission.perception.crops import motion_enhanced_crops, roi_align
 from sarmission.perception.pyramid import half_resolution
@@ -130,3 +132,19 @@ def test_chroma_map_of_the_planes_finds_what_the_bgr_map_finds() -> None:
     assert from_yuv[peak] == pytest.approx(from_bgr[peak], rel=0.25)
     assert chroma_if_wanted(image, wanted=True).shape == from_yuv.shape
     assert chroma_if_wanted(image, wanted=False) is None
+
+
+def test_thumbnails_of_the_planes_are_those_of_their_bgr() -> None:
+    image = yuv_of(smooth_scene())
+    for centre in ((68.0, 44.0), (3.0, 90.0), (126.5, 1.0)):  # inside, and cut by the edges
+        assert crop_thumbnail(image, centre, side=32) == crop_thumbnail(image.bgr, centre, side=32)
+
+
+def test_a_restamped_frame_keeps_its_planes_unconverted() -> None:
+    image = yuv_of(smooth_scene())
+    frame = Frame(3, 0.1, yuv=image)
+    moved = frame.restamped(5.0)
+    assert (moved.index, moved.timestamp_s) == (3, 5.0)
+    assert moved.image is image and moved.yuv is image and "bgr" not in vars(image)
+    assert moved.image_bgr is image.bgr  # converted on first use, once
+    assert Frame(4, 0.2).image is None and Frame(4, 0.2).image_bgr is None

@@ -77,6 +77,10 @@ class Frame:
         :meth:`~sarmission.perception.mitenet.MiteNet.process` takes without converting)."""
         return self.yuv if self.yuv is not None else self._bgr
 
+    def restamped(self, timestamp_s: float) -> Frame:
+        """The same frame and picture (not converted) with another capture time."""
+        return Frame(self.index, timestamp_s, self._bgr, self.stream_time_s, self.yuv)
+
     def __repr__(self) -> str:
         kind = "yuv" if self.yuv is not None else "bgr" if self._bgr is not None else "none"
         return f"Frame(index={self.index}, timestamp_s={self.timestamp_s}, picture={kind})"
