@@ -27,6 +27,9 @@ from sarmission.yuv import YuvImage
 
 #: Pixel formats handed over as planes, and whether each is full range.
 PLANAR_FORMATS = {"yuv420p": False, "yuvj420p": True}
+#: Packets refused before the first picture after which a file is taken as unreadable (the
+#: end of the file ends the search too).
+MAX_LEADING_REJECTS = 25
 #: FFmpeg's ``AVCOL_RANGE_JPEG``: a stream tagged full range.
 _RANGE_JPEG = 2
 
@@ -70,7 +73,11 @@ class YuvVideoSource(FrameSource):
             rate = stream.average_rate or stream.guessed_rate
             count = int(stream.frames or 0)
             pictures = self._pictures(container, stream)
+            rejected = 0  # packets before the first picture that the decoder refused
             first = next(pictures, None)
+            while first is None and rejected < MAX_LEADING_REJECTS:
+                rejected += 1
+                first = next(pictures, None)
         except BaseException:
             container.close()
             raise
@@ -82,11 +89,10 @@ class YuvVideoSource(FrameSource):
         self._count = count if count > 0 else None
         # The first iteration goes on with this decoder: a 4K key frame takes a third of a
         # second to decode, and a second decoder would hold its own buffers meanwhile.
-        self._opened: tuple[Any, Any, Iterator[Any], Any] | None = (
+        self._opened: tuple[Any, Any, Iterator[Any]] | None = (
             container,
             stream,
-            pictures,
-            first,
+            itertools.chain([None] * rejected, [first], pictures),
         )
 
     def close(self) -> None:
@@ -136,8 +142,7 @@ class YuvVideoSource(FrameSource):
             container, stream = self._open(self.path, self.threads)
             pictures = self._pictures(container, stream)
         else:
-            container, stream, rest, first = opened
-            pictures = itertools.chain([first], rest)
+            container, stream, pictures = opened
         try:
             base = Fraction(stream.time_base or 0)
             start = stream.start_time or 0
