@@ -2,9 +2,10 @@
 results.
 
 A file is decoded in its own thread, one frame ahead of detection
-(:class:`~sarmission.data.prefetch.Prefetcher`); a live stream (``rtsp://``, ``udp://``, ...)
-is read by :class:`~sarmission.data.stream.StreamSource`, newest frame first, until
-``--max-frames`` or Ctrl-C, which writes what was found so far.
+(:class:`~sarmission.data.prefetch.Prefetcher`), to YUV planes that MITE-Net reads without a
+BGR copy of the frame (:mod:`~sarmission.data.yuv_video`); a live stream (``rtsp://``,
+``udp://``, ...) is read by :class:`~sarmission.data.stream.StreamSource`, newest frame first,
+until ``--max-frames`` or Ctrl-C, which writes what was found so far.
 """
 
 from __future__ import annotations
@@ -53,11 +54,16 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be at least 1, got {args.max_frames}")
-    net = build_mitenet(args)
     image_ids = _image_ids_by_frame(args.annotations) if args.annotations else None
-    source = open_frame_source(args.input)
+    source = open_frame_source(args.input, yuv=True)
     live = isinstance(source, StreamSource)
+    # The reader starts decoding while the model loads.
     frames = source if live else Prefetcher(source, depth=1)
+    try:
+        net = build_mitenet(args)
+    except BaseException:
+        _close(frames, source)
+        raise
     results: list[dict] = []
     total = source.length
     if args.max_frames is not None:
@@ -66,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     with progress_for(args, "detect", total) as bar:
         try:
             for frame in frames:
-                result = net.process(frame.image_bgr, frame.timestamp_s)
+                result = net.process(frame.image, frame.timestamp_s)
                 image_id = image_ids.get(frame.index, frame.index) if image_ids else frame.index
                 results.extend(detections_to_coco(result.detections, image_id, frame.index))
                 bar.update(1, dets=len(results))

@@ -19,12 +19,13 @@ import math
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
+
+from sarmission.yuv import YuvImage
 
 if TYPE_CHECKING:
     from sarmission.data.stream import StreamSource
@@ -40,16 +41,49 @@ class FrameSourceError(ValueError):
     """A frame source cannot be opened (missing path, unsupported or unreadable file)."""
 
 
-@dataclass
 class Frame:
-    """One frame: position in its source, capture time (s), BGR ``uint8`` image ``[H, W, 3]``;
-    for a live stream also its presentation time in the stream (``timestamp_s`` is then on the
-    local monotonic clock)."""
+    """One frame: position in its source, capture time (s) and the picture, either as BGR
+    ``uint8`` ``image_bgr`` ``[H, W, 3]`` or as the decoder's YUV planes ``yuv`` (a
+    :class:`~sarmission.yuv.YuvImage`; ``image_bgr`` then converts the whole picture on first
+    use). For a live stream also its presentation time in the stream (``timestamp_s`` is then on
+    the local monotonic clock). ``image_bgr`` is None for a frame without a picture."""
 
-    index: int
-    timestamp_s: float
-    image_bgr: np.ndarray
-    stream_time_s: float | None = None
+    __slots__ = ("_bgr", "index", "stream_time_s", "timestamp_s", "yuv")
+
+    def __init__(
+        self,
+        index: int,
+        timestamp_s: float,
+        image_bgr: np.ndarray | None = None,
+        stream_time_s: float | None = None,
+        yuv: YuvImage | None = None,
+    ) -> None:
+        self.index = index
+        self.timestamp_s = timestamp_s
+        self._bgr = image_bgr
+        self.stream_time_s = stream_time_s
+        self.yuv = yuv
+
+    @property
+    def image_bgr(self) -> np.ndarray | None:
+        """The picture as BGR uint8 (a YUV frame's converted once, on first use)."""
+        if self._bgr is None and self.yuv is not None:
+            return self.yuv.bgr
+        return self._bgr
+
+    @property
+    def image(self) -> np.ndarray | YuvImage | None:
+        """The picture as decoded: the YUV planes when the source gives them, else BGR (what
+        :meth:`~sarmission.perception.mitenet.MiteNet.process` takes without converting)."""
+        return self.yuv if self.yuv is not None else self._bgr
+
+    def restamped(self, timestamp_s: float) -> Frame:
+        """The same frame and picture (not converted) with another capture time."""
+        return Frame(self.index, timestamp_s, self._bgr, self.stream_time_s, self.yuv)
+
+    def __repr__(self) -> str:
+        kind = "yuv" if self.yuv is not None else "bgr" if self._bgr is not None else "none"
+        return f"Frame(index={self.index}, timestamp_s={self.timestamp_s}, picture={kind})"
 
 
 class FrameSource(ABC):
@@ -214,10 +248,16 @@ class _PresentationTimes:
         return stamp
 
 
-def open_frame_source(path: str | Path, fps: float = 30.0) -> FrameSource | StreamSource:
+def open_frame_source(
+    path: str | Path, fps: float = 30.0, yuv: bool = False
+) -> FrameSource | StreamSource:
     """Open a video file, an image folder or a live stream URL (``rtsp://``, ``udp://``, ...:
     a :class:`~sarmission.data.stream.StreamSource`, whose ``length`` is None). Only a ``str``
     can be a URL: a ``Path`` (e.g. from a dataset file) is always a file or folder.
+
+    ``yuv``: a video file's frames come as the decoder's YUV planes (``Frame.yuv``, read by
+    :class:`~sarmission.data.yuv_video.YuvVideoSource`) when PyAV is installed; BGR otherwise,
+    and from image folders and streams.
 
     ``fps`` is the rate of an image folder, and of a video whose container reports none.
     Raises :class:`FrameSourceError` for a missing path, a single image file, a folder without
@@ -237,4 +277,9 @@ def open_frame_source(path: str | Path, fps: float = 30.0) -> FrameSource | Stre
         return ImageFolderSource(path, fps)
     if path.suffix.lower() in IMAGE_EXTENSIONS:
         raise FrameSourceError(f"{path}: a single image is not a frame source; give its folder")
+    if yuv:
+        from sarmission.data.yuv_video import YuvVideoSource, yuv_decoding_available
+
+        if yuv_decoding_available():
+            return YuvVideoSource(path, fps)
     return VideoFileSource(path, fps)

@@ -27,8 +27,10 @@ alert says "position unknown" and why. The mission file's home is never a geoloc
 Only locked tracks cost more than tracking; the alert (thumbnail, geolocated history) is built
 once per new target. The same controller runs live (frames stamped with ``time.monotonic()``,
 the clock the MAVLink telemetry is mapped to) and in replay (any clock the telemetry buffer was
-filled in). A frame that is not a BGR ``uint8 [H, W, 3]`` image of the stream's size is skipped,
-counted by reason and logged.
+filled in). A frame that is not a BGR ``uint8 [H, W, 3]`` image or a
+:class:`~sarmission.yuv.YuvImage` of the stream's size is skipped, counted by reason and logged
+(the YUV planes go to the detector as they are; the thumbnail and the recording convert what
+they show).
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
+from sarmission.yuv import YuvImage
 
 log = logging.getLogger(__name__)
 
@@ -80,7 +83,10 @@ class Detector(Protocol):
     def classes(self) -> tuple[str, ...]: ...
 
     def process(
-        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+        self,
+        frame_bgr: np.ndarray | YuvImage,
+        timestamp: float,
+        shift_px: tuple[float, float] | None = None,
     ) -> FrameResult: ...
 
     def reset(self) -> None: ...
@@ -313,11 +319,14 @@ class MissionController:
     def _check(self, frame: Any) -> str:
         if frame is None:
             return "no image"
-        if not isinstance(frame, np.ndarray):
+        if isinstance(frame, YuvImage):
+            shape = (frame.height, frame.width)
+        elif not isinstance(frame, np.ndarray):
             return f"not an image ({type(frame).__name__})"
-        if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
+        elif frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
             return f"not a BGR uint8 image (dtype {frame.dtype}, shape {list(frame.shape)})"
-        shape = (int(frame.shape[0]), int(frame.shape[1]))
+        else:
+            shape = (int(frame.shape[0]), int(frame.shape[1]))
         if self._shape is None:
             if min(shape) < 16:
                 return f"image too small ({shape[1]}x{shape[0]})"

@@ -8,7 +8,7 @@
   with the driver's own capture time where that is on the same clock (:func:`capture_time`).
 - :class:`FileSource`: a video file or an image folder played as a camera at its frame rate
   (a frame is not returned before it is due; the stamp is the time it was returned), decoded
-  one frame ahead in its own thread.
+  one frame ahead in its own thread (a video to its YUV planes, as ``detect`` reads it).
 - :class:`~sarmission.data.stream.StreamSource`: a live network stream (``rtsp://``,
   ``udp://`` MPEG-TS, ...), decoded in its own thread, newest frame first, reconnected when
   lost; :func:`open_video_source` picks it for a URL.
@@ -130,7 +130,7 @@ class FileSource:
     """A video file or image folder played back in real time as if it were a camera."""
 
     def __init__(self, path: str | Path, fps: float = 30.0, realtime: bool = True) -> None:
-        self.source = open_frame_source(path, fps)
+        self.source = open_frame_source(path, fps, yuv=True)
         self.fps = self.source.fps
         self.realtime = realtime
         self._frames: Iterator[Frame] = Prefetcher(self.source, depth=1)
@@ -151,7 +151,7 @@ class FileSource:
             delay = self._start + frame.timestamp_s - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        return Frame(frame.index, time.monotonic(), frame.image_bgr)
+        return frame.restamped(time.monotonic())
 
     def close(self) -> None:
         close = getattr(self._frames, "close", None)

@@ -14,7 +14,8 @@ from typing import Any, Protocol
 
 
 class SessionFrame(Protocol):
-    """A frame as the loop needs it; ``image_bgr`` None when the camera delivered none."""
+    """A frame as the loop needs it (:class:`~sarmission.data.frames.Frame`); ``image`` (BGR, or
+    the decoder's YUV planes) None when the camera delivered none."""
 
     @property
     def index(self) -> int: ...
@@ -23,7 +24,7 @@ class SessionFrame(Protocol):
     def timestamp_s(self) -> float: ...
 
     @property
-    def image_bgr(self) -> Any: ...
+    def image(self) -> Any: ...
 
 
 class FrameSink(Protocol):
@@ -67,10 +68,11 @@ class SessionRunner:
             if frame is None:
                 return True
             self.frames_read += 1
-            if frame.image_bgr is None:
+            image = frame.image
+            if image is None:
                 self.sink.skip(frame.index, "camera delivered no image")
             else:
-                self.sink.process(frame.index, frame.timestamp_s, frame.image_bgr)
+                self.sink.process(frame.index, frame.timestamp_s, image)
             if self.on_frame is not None:
                 self.on_frame()
         return False

@@ -30,15 +30,21 @@ map reaches and costs: docs/experiments.md.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from sarmission.perception.pyramid import half_resolution, halve
+from sarmission.yuv import YuvImage
 
 #: Pooling factor of the chroma map (full-resolution pixels per map pixel).
 CHROMA_SCALE = 8
+
+#: ``(rows, cols)`` of the 4 x 4 block grid to the ``(Cr, Cb)`` float32 planes of the 8 x 8 block
+#: means of that part of it.
+BlockChroma = Callable[[slice, slice], list]
 
 
 @dataclass(frozen=True)
@@ -56,43 +62,72 @@ class ChromaParams:
             raise ValueError(f"floor must be positive, got {self.floor}")
 
 
-def _pooled_pair(
-    frame_bgr: np.ndarray, half: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """``frame_bgr``'s 4 x 4 and 8 x 8 block means (uint8 BGR), from ``half`` when given."""
+def _quarter(frame_bgr: np.ndarray, half: np.ndarray | None = None) -> np.ndarray:
+    """``frame_bgr``'s 4 x 4 block means (uint8 BGR), from ``half`` when given."""
     h, w = frame_bgr.shape[0] // CHROMA_SCALE, frame_bgr.shape[1] // CHROMA_SCALE
     if h < 1 or w < 1:
         raise ValueError(
             f"frame {frame_bgr.shape[1]}x{frame_bgr.shape[0]} is smaller than the "
             f"chroma scale {CHROMA_SCALE}"
         )
-    quarter = halve((half if half is not None else half_resolution(frame_bgr))[: 4 * h, : 4 * w], 1)
-    return quarter, halve(quarter, 1)
+    return halve((half if half is not None else half_resolution(frame_bgr))[: 4 * h, : 4 * w], 1)
 
 
 def pooled_colour(frame_bgr: np.ndarray, half: np.ndarray | None = None) -> np.ndarray:
     """``frame_bgr`` reduced by :data:`CHROMA_SCALE` (8) to 8 x 8 block means (uint8), from
     ``half`` = :func:`~sarmission.perception.pyramid.half_resolution` of the frame when given."""
-    return _pooled_pair(frame_bgr, half)[1]
+    return halve(_quarter(frame_bgr, half), 1)
 
 
 def chroma_anomaly(
-    frame_bgr: np.ndarray, params: ChromaParams | None = None, half: np.ndarray | None = None
+    frame_bgr: np.ndarray | YuvImage,
+    params: ChromaParams | None = None,
+    half: np.ndarray | None = None,
 ) -> np.ndarray:
     """Chromatic anomaly map ``A`` (float32, ``H // 8 x W // 8``) of a BGR uint8 frame (``half``:
-    its :func:`~sarmission.perception.pyramid.half_resolution`, when already computed)."""
-    if not (
-        isinstance(frame_bgr, np.ndarray)
-        and frame_bgr.ndim == 3
-        and frame_bgr.shape[2] == 3
-        and frame_bgr.dtype == np.uint8
-    ):
-        raise ValueError("frame must be BGR uint8 [H, W, 3]")
-    p = params or ChromaParams()
+    its :func:`~sarmission.perception.pyramid.half_resolution`, when already computed), or of a
+    :class:`~sarmission.yuv.YuvImage`, whose 4:2:0 U and V planes are already the half-resolution
+    chroma (rescaled to ``BGR2YCrCb``'s units: the same map, to within rounding)."""
+    if isinstance(frame_bgr, YuvImage):
+        shape, planes_at = _yuv_blocks(frame_bgr)
+    else:
+        if not (
+            isinstance(frame_bgr, np.ndarray)
+            and frame_bgr.ndim == 3
+            and frame_bgr.shape[2] == 3
+            and frame_bgr.dtype == np.uint8
+        ):
+            raise ValueError("frame must be BGR uint8 [H, W, 3]")
+        quarter = _quarter(frame_bgr, half)
+
+        def planes_at(rows: slice, cols: slice) -> list[np.ndarray]:
+            return _chroma_planes(halve(quarter[rows, cols], 1))
+
+        shape = quarter.shape[:2]
+    return _anomaly(shape, planes_at, params or ChromaParams())
+
+
+def _yuv_blocks(image: YuvImage) -> tuple[tuple[int, int], BlockChroma]:
+    """The 4 x 4 block grid of a YUV picture and its :data:`BlockChroma` (U and V are pooled
+    one plane at a time: OpenCV's fast 2x area path takes one, three or four channels)."""
+    h, w = image.height // CHROMA_SCALE, image.width // CHROMA_SCALE
+    if h < 1 or w < 1:
+        raise ValueError(
+            f"frame {image.width}x{image.height} is smaller than the chroma scale {CHROMA_SCALE}"
+        )
+    u, v = (halve(plane[: 4 * h, : 4 * w], 1) for plane in (image.u, image.v))
+
+    def planes_at(rows: slice, cols: slice) -> list[np.ndarray]:
+        return list(image.to_crcb(halve(u[rows, cols], 1), halve(v[rows, cols], 1)))
+
+    return (2 * h, 2 * w), planes_at
+
+
+def _anomaly(shape: tuple[int, int], planes_at: BlockChroma, p: ChromaParams) -> np.ndarray:
+    """The map from a picture's 4 x 4 block grid of ``shape`` and its ``planes_at``."""
     window = (p.window, p.window)
     border = cv2.BORDER_REFLECT_101
-    quarter, blocks = _pooled_pair(frame_bgr, half)
-    chroma = _chroma_planes(blocks)
+    chroma = planes_at(slice(0, shape[0]), slice(0, shape[1]))
     means = [cv2.boxFilter(plane, -1, window, borderType=border) for plane in chroma]
     energy = _deviation_energy(chroma, means)
     local = cv2.boxFilter(energy, -1, window, borderType=border)
@@ -100,9 +135,7 @@ def chroma_anomaly(
     anomaly = cv2.divide(energy, local, dst=energy)
     # The 8 x 8 windows 4 px down, right, or both: a target cut by a block edge fills one of them.
     for dy, dx in ((1, 0), (0, 1), (1, 1)):
-        rows = slice(dy, quarter.shape[0] - dy)
-        cols = slice(dx, quarter.shape[1] - dx)
-        shifted = _chroma_planes(halve(quarter[rows, cols], 1))
+        shifted = planes_at(slice(dy, shape[0] - dy), slice(dx, shape[1] - dx))
         # Window k of the shifted grid is centred on the top / left edge of block k + 1.
         blocks_at = (slice(dy, None), slice(dx, None))
         shifted_energy = _deviation_energy(shifted, [mean[blocks_at] for mean in means])
@@ -136,11 +169,15 @@ def chroma_applies(height: int, width: int) -> bool:
 
 
 def chroma_if_wanted(
-    frame_bgr: np.ndarray, wanted: bool, half: np.ndarray | None = None
+    frame_bgr: np.ndarray | YuvImage, wanted: bool, half: np.ndarray | None = None
 ) -> np.ndarray | None:
     """:func:`chroma_anomaly` of the frame when ``wanted`` and :func:`chroma_applies`, else
     ``None`` (no colour proposals)."""
-    if not (wanted and chroma_applies(*frame_bgr.shape[:2])):
+    if isinstance(frame_bgr, YuvImage):
+        size = (frame_bgr.height, frame_bgr.width)
+    else:
+        size = frame_bgr.shape[:2]
+    if not (wanted and chroma_applies(*size)):
         return None
     return chroma_anomaly(frame_bgr, half=half)
 

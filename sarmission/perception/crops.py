@@ -35,6 +35,7 @@ import numpy as np
 from numba import njit
 
 from sarmission.perception.types import MotionMaps
+from sarmission.yuv import YuvImage
 
 CROP_SIZE = 16
 _ONE = np.float32(1.0)
@@ -154,7 +155,7 @@ def _sample(
 
 
 def roi_align(
-    image: np.ndarray,
+    image: np.ndarray | YuvImage,
     boxes: np.ndarray,
     output_size: int = CROP_SIZE,
     spatial_scale: float = 1.0,
@@ -166,15 +167,24 @@ def roi_align(
     ``image``. Each output bin averages ``sampling_ratio**2`` bilinear samples; ``None`` picks
     ``ceil(largest box side on the map / output_size)`` for the whole batch (torchvision's adaptive
     rule, shared by all boxes). Values keep the image's units (uint8 → 0..255 as float).
+    A :class:`~sarmission.yuv.YuvImage` is sampled as its BGR picture, of which only the
+    windows under the boxes are converted.
     """
-    img = image if image.ndim == 3 else image[:, :, None]
-    h, w, c = img.shape
+    if isinstance(image, YuvImage):
+        h, w, c = image.height, image.width, 3
+    else:
+        img = image if image.ndim == 3 else image[:, :, None]
+        h, w, c = img.shape
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4) * spatial_scale
     if b.shape[0] == 0:
         return np.zeros((0, c, output_size, output_size), dtype=np.float32)
     ratio = sampling_ratio or _adaptive_ratio(b, output_size)
     flat, mask, grid_x, grid_y = _roi_geometry(b, h, w, output_size, ratio)
-    return _sample(img.reshape(h * w, c)[flat], mask, grid_x, grid_y, ratio)
+    if isinstance(image, YuvImage):
+        windows = image.bgr_at(*np.divmod(flat, w))
+    else:
+        windows = img.reshape(h * w, c)[flat]
+    return _sample(windows, mask, grid_x, grid_y, ratio)
 
 
 def _normalise_max_abs(x: np.ndarray) -> np.ndarray:
@@ -194,7 +204,7 @@ def enhanced_response(l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarr
 
 
 def motion_enhanced_crops(
-    frame_bgr: np.ndarray,
+    frame_bgr: np.ndarray | YuvImage,
     motion: MotionMaps,
     boxes: np.ndarray,
     polarity: np.ndarray,
@@ -202,8 +212,8 @@ def motion_enhanced_crops(
     sampling_ratio: int | None = None,
 ) -> np.ndarray:
     """Head input ``[N, 4, S, S]`` (float32): RGB crop in [0, 1] from the full-resolution BGR
-    uint8 frame and the enhanced response E from ``motion.temporal_change`` (L) and
-    ``motion.response`` (V) at 1/ds.
+    uint8 frame (or a :class:`~sarmission.yuv.YuvImage`, converted under the boxes only) and the
+    enhanced response E from ``motion.temporal_change`` (L) and ``motion.response`` (V) at 1/ds.
 
     ``boxes`` ``[N, 4]`` are full-resolution ``x1, y1, x2, y2``; ``polarity`` ``[N]`` is 1 for ON.
     """

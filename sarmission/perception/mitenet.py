@@ -37,6 +37,7 @@ from sarmission.perception.types import (
     Proposals,
 )
 from sarmission.perception.vstmd import VSTMD
+from sarmission.yuv import YuvImage
 
 STAGES = ("vstmd", "colour", "rpn", "crops", "head")
 
@@ -192,14 +193,17 @@ class MiteNet:
         self._frame_shape = None
         self.per_stage_ms = {}
 
-    def _check_frame(self, frame: np.ndarray) -> None:
-        if not isinstance(frame, np.ndarray):
-            raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
-        if frame.dtype != np.uint8:
-            raise ValueError(f"frame must be uint8 BGR, got dtype {frame.dtype}")
-        if frame.ndim != 3 or frame.shape[2] != 3:
-            raise ValueError(f"frame must have shape [H, W, 3] (BGR), got {list(frame.shape)}")
-        shape = (int(frame.shape[0]), int(frame.shape[1]))
+    def _check_frame(self, frame: np.ndarray | YuvImage) -> None:
+        if isinstance(frame, YuvImage):
+            shape = (frame.height, frame.width)
+        else:
+            if not isinstance(frame, np.ndarray):
+                raise ValueError(f"frame must be a numpy array, got {type(frame).__name__}")
+            if frame.dtype != np.uint8:
+                raise ValueError(f"frame must be uint8 BGR, got dtype {frame.dtype}")
+            if frame.ndim != 3 or frame.shape[2] != 3:
+                raise ValueError(f"frame must have shape [H, W, 3] (BGR), got {list(frame.shape)}")
+            shape = (int(frame.shape[0]), int(frame.shape[1]))
         if min(shape) < self.ds or min(shape) < 2:
             raise ValueError(f"frame {shape[1]}x{shape[0]} is too small for ds={self.ds}")
         if self._frame_shape is not None and shape != self._frame_shape:
@@ -211,9 +215,15 @@ class MiteNet:
         self._frame_shape = shape
 
     def process(
-        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+        self,
+        frame_bgr: np.ndarray | YuvImage,
+        timestamp: float,
+        shift_px: tuple[float, float] | None = None,
     ) -> FrameResult:
-        """Run the cascade on the next frame of the stream (BGR uint8 ``[H, W, 3]``).
+        """Run the cascade on the next frame of the stream: BGR uint8 ``[H, W, 3]``, or the
+        decoder's YUV planes (:class:`~sarmission.yuv.YuvImage`), of which vSTMD reads the Y
+        plane, the chroma map the U and V planes and the head the BGR of its crops alone (the
+        same detections, to within the rounding of the conversion).
 
         ``shift_px`` is the image motion since the previous frame in full-resolution pixels, when
         it is known (e.g. from telemetry); it overrides vSTMD's own ego-motion estimate.
@@ -222,17 +232,23 @@ class MiteNet:
         ``per_stage_ms`` holds this frame's wall time per stage (``vstmd``, ``rpn``, ``crops``,
         ``head``; ``crops`` is the first scale's, ``head`` includes the further scales' crops, the
         decoding and NMS). The arrays of ``result.motion`` belong to
-        the vSTMD model and stay valid until the second next call (copy them to keep them).
+        the vSTMD model and stay valid until the next call (copy them to keep them).
         """
         self._check_frame(frame_bgr)
-        frame = np.ascontiguousarray(frame_bgr)
         t0 = time.perf_counter()
         colour = self.rpn.colour_slots > 0
-        # One full-resolution pass shared by vSTMD (ds >= 2) and the chroma map.
-        half = half_resolution(frame) if self.ds >= 2 or colour else None
-        motion = self.vstmd.step(frame, shift_px=shift_px, half=half)
-        t1 = time.perf_counter()
-        chroma = chroma_if_wanted(frame, colour, half)
+        if isinstance(frame_bgr, YuvImage):
+            frame: np.ndarray | YuvImage = frame_bgr
+            motion = self._motion_from_luma(frame_bgr, shift_px)
+            t1 = time.perf_counter()
+            chroma = chroma_if_wanted(frame_bgr, colour)
+        else:
+            frame = np.ascontiguousarray(frame_bgr)
+            # One full-resolution pass shared by vSTMD (ds >= 2) and the chroma map.
+            half = half_resolution(frame) if self.ds >= 2 or colour else None
+            motion = self.vstmd.step(frame, shift_px=shift_px, half=half)
+            t1 = time.perf_counter()
+            chroma = chroma_if_wanted(frame, colour, half)
         t2 = time.perf_counter()
         proposals = self.rpn.propose(motion, chroma)
         t3 = time.perf_counter()
@@ -256,6 +272,16 @@ class MiteNet:
             camera_shift=self.vstmd.last_shift,
         )
 
+    def _motion_from_luma(
+        self, image: YuvImage, shift_px: tuple[float, float] | None
+    ) -> MotionMaps:
+        """vSTMD on the picture's gray, taken from its Y plane: at ds >= 2 only the
+        half-resolution gray is made (vSTMD then reads the full frame's size alone)."""
+        if self.ds == 1:
+            return self.vstmd.step(image.to_gray(image.y), shift_px=shift_px)
+        half = image.to_gray(half_resolution(image.y))
+        return self.vstmd.step(image.y, shift_px=shift_px, half=half)
+
     def _classify(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Best class probability, its class id and the box bins of every crop."""
         logits, ltrb = self.head.predict(crops)
@@ -265,7 +291,7 @@ class MiteNet:
 
     def _detect(
         self,
-        frame: np.ndarray,
+        frame: np.ndarray | YuvImage,
         motion: MotionMaps,
         proposals: Proposals,
         crops: np.ndarray,

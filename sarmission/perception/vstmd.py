@@ -13,7 +13,8 @@ docs/vstmd.md, the measurements behind the constants in docs/experiments.md.
 
 Map pixel ``(i, j)`` averages frame rows ``i*ds .. i*ds+ds-1`` and columns ``j*ds .. j*ds+ds-1``
 (:func:`map_to_full`). The arrays of a returned :class:`MotionMaps` belong to the model: they
-stay valid through the next :meth:`VSTMD.step` and are overwritten by the one after.
+stay valid until the next :meth:`VSTMD.step`, which overwrites them (``correlation`` and
+``response``) or the one after (the others).
 """
 
 from __future__ import annotations
@@ -205,8 +206,13 @@ class VSTMD:
         return height // self.ds, width // self.ds
 
     def _allocate(self, h: int, w: int) -> None:
-        names = ("temporal_change", "v_on", "v_off", "correlation", "response")
-        self._sets = [{n: np.zeros((h, w), np.float32) for n in names} for _ in range(2)]
+        # L, V_on and V_off are the state the next frame updates: two sets, read one and write
+        # the other. C and R are only read out: one of each (8 MB apiece at 4K and ds 2).
+        state = ("temporal_change", "v_on", "v_off")
+        outputs = {n: np.zeros((h, w), np.float32) for n in ("correlation", "response")}
+        self._sets = [
+            {**{n: np.zeros((h, w), np.float32) for n in state}, **outputs} for _ in range(2)
+        ]
         f = self.lobula_pool
         hl, wl = h // f, w // f
         lobula = ("centre", "surround", "bump") + (("coarse",) if f > 1 else ())
@@ -269,7 +275,7 @@ class VSTMD:
         the previous frame in full-resolution pixels (e.g. from telemetry); it replaces the
         estimate (and applies with ``ego_motion="none"`` too). Ignored on a stream's first frame.
         ``half`` is :func:`~sarmission.perception.pyramid.half_resolution` of ``frame`` when the
-        caller has it already (ds >= 2 starts from it).
+        caller has it already (ds >= 2 starts from it and reads only ``frame``'s size).
         """
         height, width = self._check_frame(frame)
         h, w = self.map_shape(height, width)

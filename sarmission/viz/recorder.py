@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from sarmission.yuv import YuvImage
+
 if TYPE_CHECKING:
     import rerun as rr
 
@@ -95,14 +97,20 @@ class Recorder:
         self._stream.set_time("frame", sequence=int(frame_index))
         self._stream.set_time("time", duration=float(timestamp_s))
 
-    def frame(self, frame_index: int, image_bgr: np.ndarray) -> None:
-        """Log the camera frame (every ``frame_every``-th call's frame index) as a JPEG."""
+    def frame(self, frame_index: int, image_bgr: np.ndarray | YuvImage) -> None:
+        """Log the camera frame (every ``frame_every``-th call's frame index) as a JPEG (a
+        :class:`~sarmission.yuv.YuvImage` is converted to BGR for the frames logged only)."""
         if self._stream is None:
             return
-        height, width = image_bgr.shape[:2]
+        if isinstance(image_bgr, YuvImage):
+            height, width = image_bgr.height, image_bgr.width
+        else:
+            height, width = image_bgr.shape[:2]
         self._scale = min(1.0, self.image_width / width)
         if frame_index % self.frame_every:
             return
+        if isinstance(image_bgr, YuvImage):
+            image_bgr = image_bgr.bgr
         small = (
             image_bgr
             if self._scale == 1.0

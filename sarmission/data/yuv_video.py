@@ -1,0 +1,159 @@
+"""Video files decoded to their YUV 4:2:0 planes, without the conversion to BGR.
+
+OpenCV's video reader converts every frame to BGR (about 10 ms and 25 MB for a 4K frame) and
+keeps a BGR buffer of its own; detection needs the Y, U and V planes themselves
+(:class:`~sarmission.yuv.YuvImage`). :class:`YuvVideoSource` decodes with FFmpeg's libraries
+through PyAV and hands the decoder's planes over as they are (no copy). Frames of another pixel
+format (10-bit, 4:2:2, ...) come as BGR, converted by FFmpeg.
+
+It behaves as :class:`~sarmission.data.frames.VideoFileSource`: frames in order with their
+presentation times in the file, a packet the decoder rejects skipped with a warning and counted
+in ``skipped``, a new decoder for each iteration.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sarmission.data.frames import Frame, FrameSource, FrameSourceError, _PresentationTimes
+from sarmission.yuv import YuvImage
+
+#: Pixel formats handed over as planes, and whether each is full range.
+PLANAR_FORMATS = {"yuv420p": False, "yuvj420p": True}
+#: Packets refused before the first picture after which a file is taken as unreadable (the
+#: end of the file ends the search too).
+MAX_LEADING_REJECTS = 25
+#: FFmpeg's ``AVCOL_RANGE_JPEG``: a stream tagged full range.
+_RANGE_JPEG = 2
+
+
+def yuv_decoding_available() -> bool:
+    """Whether PyAV can be imported (else videos are read by OpenCV, as BGR)."""
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def planes_of(picture: Any) -> YuvImage | None:
+    """The Y, U and V planes of a decoded PyAV ``VideoFrame`` as views on its buffers (no copy),
+    or None when its pixel format is not 8-bit 4:2:0."""
+    name = picture.format.name
+    if name not in PLANAR_FORMATS:
+        return None
+    h, w = picture.height, picture.width
+    sizes = ((h, w), ((h + 1) // 2, (w + 1) // 2), ((h + 1) // 2, (w + 1) // 2))
+    y, u, v = (
+        np.frombuffer(plane, np.uint8).reshape(-1, plane.line_size)[:rows, :cols]
+        for plane, (rows, cols) in zip(picture.planes, sizes, strict=True)
+    )
+    full = PLANAR_FORMATS[name] or int(picture.color_range) == _RANGE_JPEG
+    return YuvImage(y, u, v, full_range=full)
+
+
+class YuvVideoSource(FrameSource):
+    """Frames of a video file as :class:`~sarmission.yuv.YuvImage` planes (``Frame.yuv``).
+
+    ``fps`` is the stream's average rate (``default_fps`` when it has none); ``threads`` the
+    number of FFmpeg decoding threads (default: the thread plan's).
+    """
+
+    def __init__(self, path: Path, default_fps: float = 30.0, threads: int | None = None) -> None:
+        self.threads = threads
+        container, stream = self._open(path, threads)
+        try:
+            rate = stream.average_rate or stream.guessed_rate
+            count = int(stream.frames or 0)
+            pictures = self._pictures(container, stream)
+            rejected = 0  # packets before the first picture that the decoder refused
+            first = next(pictures, None)
+            while first is None and rejected < MAX_LEADING_REJECTS:
+                rejected += 1
+                first = next(pictures, None)
+        except BaseException:
+            container.close()
+            raise
+        if first is None:
+            container.close()
+            raise FrameSourceError(f"{path}: unsupported or unreadable video (no frame decodes)")
+        fps = float(rate) if rate else 0.0
+        super().__init__(path, fps if fps > 0 and math.isfinite(fps) else default_fps)
+        self._count = count if count > 0 else None
+        # The first iteration goes on with this decoder: a 4K key frame takes a third of a
+        # second to decode, and a second decoder would hold its own buffers meanwhile.
+        self._opened: tuple[Any, Any, Iterator[Any]] | None = (
+            container,
+            stream,
+            itertools.chain([None] * rejected, [first], pictures),
+        )
+
+    def close(self) -> None:
+        """Release the decoder opened to check the file, if no iteration has taken it over."""
+        opened, self._opened = self._opened, None
+        if opened is not None:
+            opened[0].close()
+
+    @staticmethod
+    def _open(path: Path, threads: int | None) -> tuple[Any, Any]:
+        import av
+
+        from sarmission.threads import thread_plan
+
+        try:
+            container = av.open(str(path))
+        except (av.FFmpegError, OSError) as exc:
+            raise FrameSourceError(f"{path}: FFmpeg cannot open this file as a video") from exc
+        if not container.streams.video:
+            container.close()
+            raise FrameSourceError(f"{path}: no video stream in this file")
+        stream = container.streams.video[0]
+        stream.thread_type = "AUTO"
+        stream.codec_context.thread_count = threads or thread_plan().decode
+        return container, stream
+
+    @staticmethod
+    def _pictures(container: Any, stream: Any) -> Iterator[Any]:
+        """Decoded pictures, None in place of each packet the decoder rejects."""
+        import av
+
+        for packet in container.demux(stream):
+            try:
+                decoded = packet.decode()
+            except av.FFmpegError:
+                yield None
+                continue
+            yield from decoded
+
+    @property
+    def length(self) -> int | None:
+        return self._count
+
+    def __iter__(self) -> Iterator[Frame]:
+        opened, self._opened = self._opened, None
+        if opened is None:
+            container, stream = self._open(self.path, self.threads)
+            pictures = self._pictures(container, stream)
+        else:
+            container, stream, pictures = opened
+        try:
+            base = Fraction(stream.time_base or 0)
+            start = stream.start_time or 0
+            clock = _PresentationTimes(self.fps)
+            for index, picture in enumerate(pictures):
+                if picture is None:
+                    self._skip(index, "decoder rejected a packet")
+                    continue
+                ms = float((picture.pts - start) * base * 1000) if picture.pts is not None else -1
+                yuv = planes_of(picture)
+                bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+                yield Frame(index, clock.time(index, ms), bgr, yuv=yuv)
+        finally:
+            container.close()
