@@ -227,3 +227,23 @@ def test_replay_refuses_a_log_of_another_day(tmp_path, capsys):
     assert "telemetry: none: the video was recorded 2024-05-04" in out
     assert "not the same flight; no positions" in out
     assert "frames processed: 8" in out
+
+
+def test_replay_reads_a_video_file_as_detect_does(tmp_path):
+    """The desk replay takes a video's decoder planes, as `detect` and `run --video` do, so one
+    file gives the same detections everywhere; the controller gets the planes unconverted."""
+    from sarmission.commands.replay import _file_frames
+    from sarmission.data.frames import open_frame_source
+    from sarmission.yuv import YuvImage
+
+    write_mp4(tmp_path / "clip.mp4", frames=6)
+    frames, count, _ = _file_frames(tmp_path / "clip.mp4", 10.0)
+    pictures = [image for _, _, image, _ in frames]
+    assert count == 6 and len(pictures) == 6
+    assert all(isinstance(p, YuvImage) for p in pictures)
+    as_detect = [f.image for f in open_frame_source(tmp_path / "clip.mp4", yuv=True)]
+    assert all(np.array_equal(a.y, b.y) for a, b in zip(pictures, as_detect, strict=True))
+    # grey level 10 k in every frame: the planes are the file's pictures, in order
+    assert [int(np.median(p.to_gray(p.y))) for p in pictures] == pytest.approx(
+        [10 * k for k in range(6)], abs=3
+    )

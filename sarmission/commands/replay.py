@@ -25,9 +25,10 @@ if TYPE_CHECKING:
     import numpy as np
 
     from sarmission.data.meta_conventions import MetaConventions, MetaPose, NoMetaPose
+    from sarmission.yuv import YuvImage
 
 #: (frame index, time s, image, the frame's placement from dataset meta, or why none, or None)
-ReplayFrame = tuple[int, float, "np.ndarray", "MetaPose | NoMetaPose | None"]
+ReplayFrame = tuple[int, float, "np.ndarray | YuvImage", "MetaPose | NoMetaPose | None"]
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -157,11 +158,13 @@ def _dataset_frames(
 def _file_frames(path: Path, fps: float) -> tuple[Iterator[ReplayFrame], int | None, object]:
     from sarmission.data.frames import open_frame_source
 
-    source = open_frame_source(path, fps)
+    # The decoder's YUV planes, as `detect` and `run --video` read a file: the same footage
+    # gives the same detections at the desk as on the drone.
+    source = open_frame_source(path, fps, yuv=True)
 
     def frames() -> Iterator[ReplayFrame]:
         for frame in source:
-            yield frame.index, frame.timestamp_s, frame.image_bgr, None
+            yield frame.index, frame.timestamp_s, frame.image, None
 
     return frames(), source.length, source
 
@@ -216,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.mission.live import telemetry_buffer
     from sarmission.mission.replay_telemetry import telemetry_source
     from sarmission.mission.session_runner import SessionRunner
+    from sarmission.yuv import YuvImage
 
     mission = load_mission_from_args(args)
     path = Path(args.input)
@@ -278,7 +282,10 @@ def run(args: argparse.Namespace) -> int:
                 stamp = source.timestamp(t, names[index] if index < len(names) else None)
                 frame_times[index] = (t, stamp)
                 source.before(buffer, stamp, meta, mission.area.home)
-                yield Frame(index, stamp, image)
+                if isinstance(image, YuvImage):
+                    yield Frame(index, stamp, yuv=image)
+                else:
+                    yield Frame(index, stamp, image)
 
         started = time.monotonic()
         try:
