@@ -88,14 +88,12 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
     from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
-    model = args.model
+    model, origin = args.model, ""
     if model is None and mission.detector.model != DEFAULT_MODEL:
-        model = mission.detector.model
+        model, origin = mission.detector.model, " (the mission's [detector] model)"
     head = build_head_runtime(model, args.runtime)
-    if args.model is not None:
-        note = f"model: {args.model}"
-    elif model is not None:
-        note = f"model: {model} (the mission's [detector] model)"
+    if model is not None:
+        note = f"model: {model}{origin}"
     elif DEFAULT_ONNX_MODEL.is_file() or DEFAULT_TORCH_MODEL.is_file():
         shipped = (
             DEFAULT_ONNX_MODEL
