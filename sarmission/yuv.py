@@ -90,7 +90,7 @@ class YuvImage:
         crow, ccol = rows // 2, cols // 2
         yuv = np.stack([self.y[rows, cols], self.u[crow, ccol], self.v[crow, ccol]], axis=-1)
         flat = yuv.reshape(-1, 1, 3)
-        return cv2.transform(flat, _matrix(self.full_range)).reshape(yuv.shape)
+        return cv2.transform(flat, _MATRICES[self.full_range]).reshape(yuv.shape)
 
     @cached_property
     def bgr(self) -> np.ndarray:
@@ -99,7 +99,7 @@ class YuvImage:
         h, w = self.height, self.width
         u = cv2.resize(self.u, (w, h), interpolation=cv2.INTER_NEAREST)
         v = cv2.resize(self.v, (w, h), interpolation=cv2.INTER_NEAREST)
-        return cv2.transform(cv2.merge([self.y, u, v]), _matrix(self.full_range))
+        return cv2.transform(cv2.merge([self.y, u, v]), _MATRICES[self.full_range])
 
 
 def _matrix(full_range: bool) -> np.ndarray:
@@ -109,3 +109,13 @@ def _matrix(full_range: bool) -> np.ndarray:
     rows = [(ky, _CB_B * kc, 0.0), (ky, -_CB_G * kc, -_CR_G * kc), (ky, 0.0, _CR_R * kc)]
     m = np.array([[*r, -y0 * r[0] - 128.0 * (r[1] + r[2]) - 0.5] for r in rows])
     return m.astype(np.float32)
+
+
+_MATRICES = {False: _matrix(False), True: _matrix(True)}
+
+
+def picture_size(picture: np.ndarray | YuvImage) -> tuple[int, int]:
+    """``(height, width)`` of a BGR or gray array or of a :class:`YuvImage`."""
+    if isinstance(picture, YuvImage):
+        return picture.height, picture.width
+    return int(picture.shape[0]), int(picture.shape[1])

@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 from sarmission.perception.pyramid import half_resolution, halve
-from sarmission.yuv import YuvImage
+from sarmission.yuv import YuvImage, picture_size
 
 #: Pooling factor of the chroma map (full-resolution pixels per map pixel).
 CHROMA_SCALE = 8
@@ -173,11 +173,7 @@ def chroma_if_wanted(
 ) -> np.ndarray | None:
     """:func:`chroma_anomaly` of the frame when ``wanted`` and :func:`chroma_applies`, else
     ``None`` (no colour proposals)."""
-    if isinstance(frame_bgr, YuvImage):
-        size = (frame_bgr.height, frame_bgr.width)
-    else:
-        size = frame_bgr.shape[:2]
-    if not (wanted and chroma_applies(*size)):
+    if not (wanted and chroma_applies(*picture_size(frame_bgr))):
         return None
     return chroma_anomaly(frame_bgr, half=half)
 

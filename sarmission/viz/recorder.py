@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from sarmission.yuv import YuvImage
+from sarmission.yuv import YuvImage, picture_size
 
 if TYPE_CHECKING:
     import rerun as rr
@@ -102,10 +102,7 @@ class Recorder:
         :class:`~sarmission.yuv.YuvImage` is converted to BGR for the frames logged only)."""
         if self._stream is None:
             return
-        if isinstance(image_bgr, YuvImage):
-            height, width = image_bgr.height, image_bgr.width
-        else:
-            height, width = image_bgr.shape[:2]
+        height, width = picture_size(image_bgr)
         self._scale = min(1.0, self.image_width / width)
         if frame_index % self.frame_every:
             return
