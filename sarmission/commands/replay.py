@@ -219,7 +219,6 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.mission.live import telemetry_buffer
     from sarmission.mission.replay_telemetry import telemetry_source
     from sarmission.mission.session_runner import SessionRunner
-    from sarmission.yuv import YuvImage
 
     mission = load_mission_from_args(args)
     path = Path(args.input)
@@ -282,10 +281,7 @@ def run(args: argparse.Namespace) -> int:
                 stamp = source.timestamp(t, names[index] if index < len(names) else None)
                 frame_times[index] = (t, stamp)
                 source.before(buffer, stamp, meta, mission.area.home)
-                if isinstance(image, YuvImage):
-                    yield Frame(index, stamp, yuv=image)
-                else:
-                    yield Frame(index, stamp, image)
+                yield Frame.of(index, stamp, image)
 
         started = time.monotonic()
         try:

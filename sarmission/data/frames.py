@@ -64,6 +64,13 @@ class Frame:
         self.stream_time_s = stream_time_s
         self.yuv = yuv
 
+    @classmethod
+    def of(cls, index: int, timestamp_s: float, picture: np.ndarray | YuvImage | None) -> Frame:
+        """A frame of a picture as :attr:`image` gives it (BGR array or YUV planes)."""
+        if isinstance(picture, YuvImage):
+            return cls(index, timestamp_s, yuv=picture)
+        return cls(index, timestamp_s, picture)
+
     @property
     def image_bgr(self) -> np.ndarray | None:
         """The picture as BGR uint8 (a YUV frame's converted once, on first use)."""
