@@ -35,6 +35,27 @@ def load_tool(name: str) -> ModuleType:
     return module
 
 
+def render_narrow_sea(out: Path, frames: int) -> Path:
+    """``frames`` 960x540 JPEG frames of the simulator's narrow-view maritime scene (swimmers of
+    8-30 px, boats, foam; seed 0, from 5 s on) under ``out``; the folder that holds them."""
+    from sim.generate import generate_sequence
+    from sim.scenarios import preset
+
+    chosen = preset("maritime_train_narrow")
+    generate_sequence(
+        chosen.scenario,
+        chosen.mission,
+        frames=frames,
+        size=(960, 540),
+        seed=0,
+        out_dir=out,
+        video=False,
+        progress=False,
+        start_s=5.0,
+    )
+    return next(p.parent for p in out.rglob("*.jpg"))
+
+
 def free_udp_port() -> int:
     """A UDP port on 127.0.0.1 that the OS reports free right now."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:

@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 import pytest
 import torch
+from conftest import render_narrow_sea
 from motion_scenes import moving_target, to_bgr
 
 from sarmission.perception.crops import motion_enhanced_crops
@@ -13,8 +14,6 @@ from sarmission.perception.export import head_onnx_bytes
 from sarmission.perception.head import MiteHead, head_flops_per_proposal, ltrb_to_boxes
 from sarmission.perception.mitenet import MiteNet, build_head_runtime, nms_xyxy, scaled_boxes
 from sarmission.perception.runtime import OnnxHeadRuntime, TorchHeadRuntime
-from sim.generate import generate_sequence
-from sim.scenarios import preset
 
 H, W = 120, 160
 
@@ -219,20 +218,8 @@ def _crop_scores(net: MiteNet, frame: np.ndarray, result, scale: float):
 def sea_frames(tmp_path_factory: pytest.TempPathFactory) -> list[np.ndarray]:
     """Twelve 960x540 frames of the simulator's narrow-view maritime scene (swimmers of 8-30
     px, boats, foam)."""
-    chosen = preset("maritime_train_narrow")
-    out = tmp_path_factory.mktemp("sea")
-    generate_sequence(
-        chosen.scenario,
-        chosen.mission,
-        frames=12,
-        size=(960, 540),
-        seed=0,
-        out_dir=out,
-        video=False,
-        progress=False,
-        start_s=5.0,
-    )
-    return [cv2.imread(str(path)) for path in sorted(out.rglob("*.jpg"))]
+    folder = render_narrow_sea(tmp_path_factory.mktemp("sea"), frames=12)
+    return [cv2.imread(str(path)) for path in sorted(folder.glob("*.jpg"))]
 
 
 def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):

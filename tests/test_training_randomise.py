@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from sarmission.data.coco_video import read_coco_video
 from sarmission.data.sequence import iter_sequence
 from sarmission.training.dataset import (
     BACKGROUND_MAX_NWD,
+    CropSet,
     CropSettings,
     background_boxes,
     load_crop_set,
@@ -56,11 +58,16 @@ def test_background_boxes_are_seeded_inside_the_frame_and_away_from_targets() ->
     )
 
 
-def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
+def _without_and_with(data: dict[str, Path], **extra: int) -> tuple[CropSet, CropSet]:
+    """The training crops without and with the ``extra`` crop settings (cached)."""
     plain = CropSettings(frame_stride=3, jitters_per_gt=2)
-    extra = CropSettings(frame_stride=3, jitters_per_gt=2, background_negatives=6)
-    base, _ = load_crop_set(data["train"], plain, data["cache"], progress=False)
-    more, _ = load_crop_set(data["train"], extra, data["cache"], progress=False)
+    sets = (plain, replace(plain, **extra))
+    base, more = (load_crop_set(data["train"], c, data["cache"], progress=False)[0] for c in sets)
+    return base, more
+
+
+def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
+    base, more = _without_and_with(data, background_negatives=6)
     frames = len(base.frame_ids)
     added = len(more) - len(base)
     assert 0 < added <= 6 * frames and added >= 4 * frames
@@ -84,10 +91,7 @@ def test_background_negatives_add_labelled_negatives_per_frame(data) -> None:
 
 
 def test_object_negatives_lie_on_the_boat_and_never_on_a_swimmer(data) -> None:
-    plain = CropSettings(frame_stride=3, jitters_per_gt=2)
-    extra = CropSettings(frame_stride=3, jitters_per_gt=2, object_negatives=3)
-    base, _ = load_crop_set(data["train"], plain, data["cache"], progress=False)
-    more, _ = load_crop_set(data["train"], extra, data["cache"], progress=False)
+    base, more = _without_and_with(data, object_negatives=3)
     frames = len(base.frame_ids)
     added = len(more) - len(base)
     assert int((more.labels >= 0).sum()) == int((base.labels >= 0).sum())

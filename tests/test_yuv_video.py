@@ -9,14 +9,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from conftest import render_narrow_sea
 from stream_sender import FFMPEG, needs_ffmpeg
 
 from sarmission.data.frames import FrameSourceError, VideoFileSource, open_frame_source
 from sarmission.data.yuv_video import YuvVideoSource
 from sarmission.perception.mitenet import MiteNet, build_head_runtime
 from sarmission.perception.pyramid import half_resolution
-from sim.generate import generate_sequence
-from sim.scenarios import preset
 
 pytestmark = needs_ffmpeg
 
@@ -40,21 +39,7 @@ def encode(frames: Path, out: Path, pix_fmt: str = "yuv420p") -> Path:
 def sea(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Sixteen 960x540 frames of the simulator's narrow-view maritime scene (swimmers of 8-30 px,
     boats, foam) as JPEG files."""
-    chosen = preset("maritime_train_narrow")
-    out = tmp_path_factory.mktemp("sea")
-    generate_sequence(
-        chosen.scenario,
-        chosen.mission,
-        frames=16,
-        size=(960, 540),
-        seed=0,
-        out_dir=out,
-        video=False,
-        progress=False,
-        start_s=5.0,
-    )
-    folder = next(p.parent for p in out.rglob("*.jpg"))
-    return folder
+    return render_narrow_sea(tmp_path_factory.mktemp("sea"), frames=16)
 
 
 @pytest.fixture(scope="module")
