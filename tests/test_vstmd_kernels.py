@@ -24,6 +24,7 @@ from sarmission.perception.vstmd_kernels import (
     cubic_weights,
     lamina_medulla,
     lamina_medulla_shifted,
+    ring_rows,
 )
 from sarmission.perception.vstmd_params import VSTMDParams
 
@@ -99,66 +100,30 @@ def reference_carried(s: dict[str, np.ndarray], sx: float, sy: float) -> tuple[n
     return tuple(carried)
 
 
-def outputs() -> dict[str, np.ndarray]:
+def in_place(s: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Copies of the state the kernels update in place, and a correlation map to fill."""
     return {
-        n: np.full((H, W), np.nan, np.float32)
-        for n in ("p_out", "l_out", "v_on_out", "v_off_out", "corr")
+        "p": s["p_prev"].copy(),
+        "l": s["l"].copy(),
+        "v_on": s["v_on"].copy(),
+        "v_off": s["v_off"].copy(),
+        "corr": np.full((H, W), np.nan, np.float32),
     }
 
 
-def kernel_constants() -> tuple[np.float32, ...]:
-    return tuple(np.float32(c) for c in constants())
-
-
-@pytest.mark.parametrize("seed", [0, 1])
-def test_unshifted_kernel_follows_the_equations(seed: int) -> None:
-    s = state(seed)
-    out = outputs()
-    p_prev = s["p_prev"].copy()
-    lamina_medulla(
-        s["pooled"],
-        SCALE,
-        p_prev,
-        s["l"],
-        s["v_on"],
-        s["v_off"],
-        out["l_out"],
-        out["v_on_out"],
-        out["v_off_out"],
-        out["corr"],
-        *kernel_constants(),
-    )
-    p_now = s["pooled"].astype(np.float64) / 255.0
-    expected = reference_update(
-        p_now,
-        s["p_prev"].astype(np.float64),
-        *(s[k].astype(np.float64) for k in ("l", "v_on", "v_off")),
-    )
-    for got, want in zip(
-        (out["l_out"], out["v_on_out"], out["v_off_out"], out["corr"]), expected, strict=True
-    ):
-        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
-    np.testing.assert_allclose(p_prev, p_now, rtol=1e-6)  # this frame becomes the previous
-
-
-@pytest.mark.parametrize(("sx", "sy"), [(2.3, 1.6), (-3.75, 0.4), (0.5, -2.2), (4.0, 3.0)])
-def test_shifted_kernel_follows_the_equations(sx: float, sy: float) -> None:
-    s = state(7)
-    out = outputs()
-    kx, ky = math.floor(sx), math.floor(sy)
-    fx, fy = sx - kx, sy - ky
+def run_shifted(
+    s: dict[str, np.ndarray], kx: int, ky: int, fx: float, fy: float, kept_rows: int
+) -> dict[str, np.ndarray]:
+    out = in_place(s)
     lamina_medulla_shifted(
         s["pooled"],
         SCALE,
-        s["p_prev"],
-        s["l"],
-        s["v_on"],
-        s["v_off"],
-        out["p_out"],
-        out["l_out"],
-        out["v_on_out"],
-        out["v_off_out"],
+        out["p"],
+        out["l"],
+        out["v_on"],
+        out["v_off"],
         out["corr"],
+        np.full((4, kept_rows, W), np.nan, np.float32),
         np.empty(W + 3, np.float32),
         kx,
         ky,
@@ -168,43 +133,71 @@ def test_shifted_kernel_follows_the_equations(sx: float, sy: float) -> None:
         cubic_weights(fy),
         *kernel_constants(),
     )
+    return out
+
+
+def kernel_constants() -> tuple[np.float32, ...]:
+    return tuple(np.float32(c) for c in constants())
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_unshifted_kernel_follows_the_equations(seed: int) -> None:
+    s = state(seed)
+    out = in_place(s)
+    lamina_medulla(
+        s["pooled"],
+        SCALE,
+        out["p"],
+        out["l"],
+        out["v_on"],
+        out["v_off"],
+        out["corr"],
+        *kernel_constants(),
+    )
+    p_now = s["pooled"].astype(np.float64) / 255.0
+    expected = reference_update(
+        p_now,
+        s["p_prev"].astype(np.float64),
+        *(s[k].astype(np.float64) for k in ("l", "v_on", "v_off")),
+    )
+    for got, want in zip((out["l"], out["v_on"], out["v_off"], out["corr"]), expected, strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(out["p"], p_now, rtol=1e-6)  # this frame becomes the previous
+
+
+# ky from -6 to 7: rows read below, around and above the row written in place
+@pytest.mark.parametrize(
+    ("sx", "sy"),
+    [(2.3, 1.6), (-3.75, 0.4), (0.5, -2.2), (4.0, 3.0), (1.2, 7.4), (-0.6, -5.9), (0.3, -1.5)],
+)
+def test_shifted_kernel_follows_the_equations(sx: float, sy: float) -> None:
+    s = state(7)
+    kx, ky = math.floor(sx), math.floor(sy)
+    out = run_shifted(s, kx, ky, sx - kx, sy - ky, ring_rows(ky, H))
     p_now = s["pooled"].astype(np.float64) / 255.0
     expected = reference_update(p_now, *reference_carried(s, sx, sy))
-    for got, want in zip(
-        (out["l_out"], out["v_on_out"], out["v_off_out"], out["corr"]), expected, strict=True
-    ):
+    for got, want in zip((out["l"], out["v_on"], out["v_off"], out["corr"]), expected, strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-6)
-    np.testing.assert_allclose(out["p_out"], p_now, rtol=1e-6)
+    np.testing.assert_allclose(out["p"], p_now, rtol=1e-6)
+
+
+def test_a_ring_one_row_short_reads_overwritten_state() -> None:
+    # the rows kept aside are what makes the update in place exact
+    s = state(7)
+    sx, sy = 1.2, 4.4
+    kx, ky = math.floor(sx), math.floor(sy)
+    exact = run_shifted(s, kx, ky, sx - kx, sy - ky, ring_rows(ky, H))
+    short = run_shifted(s, kx, ky, sx - kx, sy - ky, ring_rows(ky, H) - 1)
+    assert not np.allclose(short["l"], exact["l"], equal_nan=True)
 
 
 def test_a_shift_beyond_the_map_carries_nothing() -> None:
     s = state(3)
-    out = outputs()
-    lamina_medulla_shifted(
-        s["pooled"],
-        SCALE,
-        s["p_prev"],
-        s["l"],
-        s["v_on"],
-        s["v_off"],
-        out["p_out"],
-        out["l_out"],
-        out["v_on_out"],
-        out["v_off_out"],
-        out["corr"],
-        np.empty(W + 3, np.float32),
-        W + 5,
-        0,
-        np.float32(0.0),
-        np.float32(0.0),
-        cubic_weights(0.0),
-        cubic_weights(0.0),
-        *kernel_constants(),
-    )
+    out = run_shifted(s, W + 5, 0, 0.0, 0.0, ring_rows(0, H))
     p_now = s["pooled"].astype(np.float64) / 255.0
     zero = np.zeros((H, W))
     expected = reference_update(p_now, p_now, zero, zero, zero)
-    np.testing.assert_allclose(out["l_out"], 0.0, atol=1e-7)  # no temporal change at all
+    np.testing.assert_allclose(out["l"], 0.0, atol=1e-7)  # no temporal change at all
     np.testing.assert_allclose(out["corr"], expected[3], rtol=1e-4, atol=1e-7)
 
 

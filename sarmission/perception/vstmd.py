@@ -32,6 +32,7 @@ from sarmission.perception.vstmd_kernels import (
     cubic_weights,
     lamina_medulla,
     lamina_medulla_shifted,
+    ring_rows,
 )
 from sarmission.perception.vstmd_params import VSTMDParams, check_ds, gaussian_1d, lobe_radius
 
@@ -191,11 +192,9 @@ class VSTMD:
     def reset(self) -> None:
         """Forget all state: the next frame is the first of a new stream (any size)."""
         self._shape: tuple[int, int] | None = None
-        self._sets: list[dict[str, np.ndarray]] = []
+        self._state: dict[str, np.ndarray] = {}
         self._scratch: dict[str, np.ndarray] = {}
-        self._p_prev = np.zeros((0, 0), np.float32)
-        self._p_spare = np.zeros((0, 0), np.float32)
-        self._parity = 0
+        self._ring = np.zeros((4, 0, 0), np.float32)
         self._first = True
         self.last_shift: tuple[float, float] = (0.0, 0.0)
         if self._estimator is not None:
@@ -206,20 +205,23 @@ class VSTMD:
         return height // self.ds, width // self.ds
 
     def _allocate(self, h: int, w: int) -> None:
-        # L, V_on and V_off are the state the next frame updates: two sets, read one and write
-        # the other. C and R are only read out: one of each (8 MB apiece at 4K and ds 2).
-        state = ("temporal_change", "v_on", "v_off")
-        outputs = {n: np.zeros((h, w), np.float32) for n in ("correlation", "response")}
-        self._sets = [
-            {**{n: np.zeros((h, w), np.float32) for n in state}, **outputs} for _ in range(2)
-        ]
+        # One map each (8 MB apiece at 4K and ds 2): the kernels update P', L, V_on and V_off in
+        # place; C and R are only read out.
+        names = ("p_prev", "temporal_change", "v_on", "v_off", "correlation", "response")
+        self._state = {n: np.zeros((h, w), np.float32) for n in names}
         f = self.lobula_pool
         hl, wl = h // f, w // f
         lobula = ("centre", "surround", "bump") + (("coarse",) if f > 1 else ())
         self._scratch = {n: np.empty((hl, wl), np.float32) for n in lobula}
         self._scratch["column"] = np.empty(w + 3, np.float32)
-        self._p_prev = np.zeros((h, w), np.float32)
-        self._p_spare = np.zeros((h, w), np.float32)
+        self._ring = np.zeros((4, 0, w), np.float32)
+
+    def _ring_for(self, ky: int, h: int) -> np.ndarray:
+        """The shifted kernel's rows of last frame's state, grown for ``ky`` when needed."""
+        rows = ring_rows(ky, h)
+        if self._ring.shape[1] < rows:
+            self._ring = np.empty((4, rows, self._ring.shape[2]), np.float32)
+        return self._ring
 
     def _pooled(
         self, frame: np.ndarray, h: int, w: int, half: np.ndarray | None
@@ -285,42 +287,24 @@ class VSTMD:
         pooled, scale = self._pooled(frame, h, w, half)
         sx, sy = self._shift(pooled, scale, shift_px)
         self.last_shift = (sx * self.ds, sy * self.ds)
+        state = self._state
         if self._first:
-            self._p_prev[...] = pooled * scale  # D = 0 on the first frame
+            state["p_prev"][...] = pooled * scale  # D = 0 on the first frame
             self._first = False
-        old, new = self._sets[self._parity], self._sets[1 - self._parity]
-        self._parity = 1 - self._parity
         p = self.params
         f32 = np.float32
         constants = (self._a0, self._decay, f32(p.g_leak), f32(p.v_rest), f32(p.v_exc))
+        maps = (state["p_prev"], state["temporal_change"], state["v_on"], state["v_off"])
         if sx == 0.0 and sy == 0.0:
-            lamina_medulla(
-                pooled,
-                scale,
-                self._p_prev,
-                old["temporal_change"],
-                old["v_on"],
-                old["v_off"],
-                new["temporal_change"],
-                new["v_on"],
-                new["v_off"],
-                new["correlation"],
-                *constants,
-            )
+            lamina_medulla(pooled, scale, *maps, state["correlation"], *constants)
         else:
             kx, ky = math.floor(sx), math.floor(sy)
             lamina_medulla_shifted(
                 pooled,
                 scale,
-                self._p_prev,
-                old["temporal_change"],
-                old["v_on"],
-                old["v_off"],
-                self._p_spare,
-                new["temporal_change"],
-                new["v_on"],
-                new["v_off"],
-                new["correlation"],
+                *maps,
+                state["correlation"],
+                self._ring_for(ky, h),
                 self._scratch["column"],
                 kx,
                 ky,
@@ -330,15 +314,14 @@ class VSTMD:
                 cubic_weights(sy - ky),
                 *constants,
             )
-            self._p_prev, self._p_spare = self._p_spare, self._p_prev
-        self._lobula(new["correlation"], new["response"])
+        self._lobula(state["correlation"], state["response"])
         return MotionMaps(
             ds=self.ds,
-            temporal_change=new["temporal_change"],
-            v_on=new["v_on"],
-            v_off=new["v_off"],
-            correlation=new["correlation"],
-            response=new["response"],
+            temporal_change=state["temporal_change"],
+            v_on=state["v_on"],
+            v_off=state["v_off"],
+            correlation=state["correlation"],
+            response=state["response"],
         )
 
     def _shift(

@@ -52,13 +52,10 @@ def _cell(p, q, l_prev, a, b, a0, decay, g_leak, v_rest, v_exc):
 def lamina_medulla(
     pooled,
     scale,
-    p_prev,
-    l_in,
-    von_in,
-    voff_in,
-    l_out,
-    von_out,
-    voff_out,
+    p_state,
+    l_state,
+    von_state,
+    voff_state,
     corr,
     a0,
     decay,
@@ -68,26 +65,24 @@ def lamina_medulla(
 ):  # pragma: no cover - numba
     """One fused pass at 1/ds: lamina recursion, ON/OFF split, cIDP update and ``C``.
 
-    ``p_prev`` is updated in place; ``*_in`` are last frame's state, ``*_out`` this frame's.
+    The state (``P'``, ``L``, ``V_on``, ``V_off``) holds last frame's values and is updated in
+    place: each pixel reads only its own.
     """
     h, w = pooled.shape
     for i in range(h):
         src = pooled[i]
-        pp = p_prev[i]
-        li = l_in[i]
-        ai = von_in[i]
-        bi = voff_in[i]
-        lo = l_out[i]
-        ao = von_out[i]
-        bo = voff_out[i]
+        pp = p_state[i]
+        ll = l_state[i]
+        aa = von_state[i]
+        bb = voff_state[i]
         co = corr[i]
         for j in range(w):
             p = np.float32(src[j]) * scale
-            lt, a, b = _cell(p, pp[j], li[j], ai[j], bi[j], a0, decay, g_leak, v_rest, v_exc)
+            lt, a, b = _cell(p, pp[j], ll[j], aa[j], bb[j], a0, decay, g_leak, v_rest, v_exc)
             pp[j] = p
-            lo[j] = lt
-            ao[j] = a
-            bo[j] = b
+            ll[j] = lt
+            aa[j] = a
+            bb[j] = b
             co[j] = a * b
 
 
@@ -105,19 +100,23 @@ def cubic_weights(frac: float) -> np.ndarray:
     ) / np.float32(2.0)
 
 
+def ring_rows(ky: int, height: int) -> int:
+    """Rows of last frame's state :func:`lamina_medulla_shifted` keeps aside for a vertical
+    shift ``ky``: output row ``i`` reads rows ``i - ky - 2 .. i - ky + 1``, so the rows down to
+    ``i - ky - 2`` must outlive their overwrite (none when the shift leaves no row inside)."""
+    return max(1, min(ky + 3, height))
+
+
 @njit(cache=True, fastmath=True)
 def lamina_medulla_shifted(
     pooled,
     scale,
-    p_in,
-    l_in,
-    von_in,
-    voff_in,
-    p_out,
-    l_out,
-    von_out,
-    voff_out,
+    p_state,
+    l_state,
+    von_state,
+    voff_state,
     corr,
+    ring,
     column,
     kx,
     ky,
@@ -132,18 +131,22 @@ def lamina_medulla_shifted(
     v_exc,
 ):  # pragma: no cover - numba
     """:func:`lamina_medulla` with last frame's state carried by the shift ``s = k + f``
-    (integer ``k``, fraction ``f`` in [0, 1)) into this frame's coordinates.
+    (integer ``k``, fraction ``f`` in [0, 1)) into this frame's coordinates, in place.
 
     The source of map pixel ``(i, j)`` is ``(i - s_y, j - s_x)``, between columns
     ``c = j - kx`` and ``c - 1``. ``P~`` is a Catmull-Rom cubic over columns ``c + 1 .. c - 2``
     (weights ``cx``, rows likewise with ``cy``); ``L``, ``V_on``, ``V_off`` are bilinear
     (weights ``1 - fx`` on ``c``, ``fx`` on ``c - 1``). Where a tap falls outside the map
-    ``P~ = P'_t`` and ``L~ = V~ = 0``. Writes ``P'_t`` to ``p_out``; ``column`` is scratch of
-    at least ``w + 3`` values.
+    ``P~ = P'_t`` and ``L~ = V~ = 0``. Rows are written top to bottom; before row ``i`` is
+    overwritten its old values go to slot ``i % R`` of ``ring`` (float32 ``[4, R, w]``,
+    ``R >= ring_rows(ky, h)``), where the rows below it still read them. ``column`` is scratch
+    of at least ``w + 3`` values.
     """
     h, w = pooled.shape
     zero = np.float32(0.0)
     one = np.float32(1.0)
+    rows = ring.shape[1]
+    keep = ky > -3  # else every row read lies below the one written
     jlo = min(max(0, kx + 2), w)
     jhi = max(min(w, w + kx - 1), jlo)
     wx0, wx1 = one - fx, fx
@@ -151,11 +154,17 @@ def lamina_medulla_shifted(
     x0, x1, x2, x3 = cx[0], cx[1], cx[2], cx[3]
     y0, y1, y2, y3 = cy[0], cy[1], cy[2], cy[3]
     for i in range(h):
+        if keep:
+            slot = i % rows
+            ring[0, slot, :] = p_state[i]
+            ring[1, slot, :] = l_state[i]
+            ring[2, slot, :] = von_state[i]
+            ring[3, slot, :] = voff_state[i]
         src = pooled[i]
-        po = p_out[i]
-        lo = l_out[i]
-        ao = von_out[i]
-        bo = voff_out[i]
+        po = p_state[i]
+        lo = l_state[i]
+        ao = von_state[i]
+        bo = voff_state[i]
         co = corr[i]
         r0 = i - ky
         inside = r0 - 2 >= 0 and r0 + 1 <= h - 1
@@ -179,19 +188,24 @@ def lamina_medulla_shifted(
             co[j] = a * b
         if stop <= start:
             continue
+        # Last frame's rows r0 + 1 .. r0 - 2: kept aside once overwritten (rows <= i).
         # Row views aligned so that every index is the loop counter plus a constant >= 0 (lets
         # LLVM drop numba's negative-index wraparound checks and vectorise).
         base = start - kx - 2
-        qa = p_in[r0 + 1, base:]
-        qb = p_in[r0, base:]
-        qc = p_in[r0 - 1, base:]
-        qd = p_in[r0 - 2, base:]
-        l0 = l_in[r0, base + 1 :]
-        l1 = l_in[r0 - 1, base + 1 :]
-        a0r = von_in[r0, base + 1 :]
-        a1r = von_in[r0 - 1, base + 1 :]
-        b0r = voff_in[r0, base + 1 :]
-        b1r = voff_in[r0 - 1, base + 1 :]
+        ra = r0 + 1
+        rb = r0
+        rc = r0 - 1
+        rd = r0 - 2
+        qa = ring[0, ra % rows, base:] if ra <= i else p_state[ra, base:]
+        qb = ring[0, rb % rows, base:] if rb <= i else p_state[rb, base:]
+        qc = ring[0, rc % rows, base:] if rc <= i else p_state[rc, base:]
+        qd = ring[0, rd % rows, base:] if rd <= i else p_state[rd, base:]
+        l0 = ring[1, rb % rows, base + 1 :] if rb <= i else l_state[rb, base + 1 :]
+        l1 = ring[1, rc % rows, base + 1 :] if rc <= i else l_state[rc, base + 1 :]
+        a0r = ring[2, rb % rows, base + 1 :] if rb <= i else von_state[rb, base + 1 :]
+        a1r = ring[2, rc % rows, base + 1 :] if rc <= i else von_state[rc, base + 1 :]
+        b0r = ring[3, rb % rows, base + 1 :] if rb <= i else voff_state[rb, base + 1 :]
+        b1r = ring[3, rc % rows, base + 1 :] if rc <= i else voff_state[rc, base + 1 :]
         src = src[start:]
         po = po[start:]
         lo = lo[start:]
