@@ -19,12 +19,11 @@ import math
 import numpy as np
 import pytest
 
+from sarmission.perception.kernels import cubic_weights, ring_rows
 from sarmission.perception.vstmd_kernels import (
     combine_rectify,
-    cubic_weights,
     lamina_medulla,
     lamina_medulla_shifted,
-    ring_rows,
 )
 from sarmission.perception.vstmd_params import VSTMDParams
 

@@ -13,8 +13,8 @@ import math
 import cv2
 import numpy as np
 
+from sarmission.perception.kernels import translation_system
 from sarmission.perception.pyramid import halve
-from sarmission.perception.vstmd_kernels import translation_system
 from sarmission.perception.vstmd_params import VSTMDParams
 
 

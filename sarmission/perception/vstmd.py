@@ -6,8 +6,9 @@ the lobula's size-selective centre-surround response ``R`` (:class:`MotionMaps`)
 TTM-RPN proposes from. The camera's own motion is compensated first, so only what moves
 against the background responds. Everything before the 1/ds map is linear, so the only
 full-resolution work is one OpenCV pass per frame; the rest is one fused numba loop
-(:mod:`~sarmission.perception.vstmd_kernels`) plus separable lobula filters. The camera's shift
-comes from :mod:`~sarmission.perception.ego_motion`, the constants from
+(:mod:`~sarmission.perception.vstmd_kernels`, compiled ahead of time by
+:mod:`~sarmission.perception.kernels`) plus separable lobula filters. The camera's shift comes
+from :mod:`~sarmission.perception.ego_motion`, the constants from
 :mod:`~sarmission.perception.vstmd_params`. The equations, geometry and approximations are in
 docs/vstmd.md, the measurements behind the constants in docs/experiments.md.
 
@@ -25,15 +26,15 @@ import cv2
 import numpy as np
 
 from sarmission.perception.ego_motion import ShiftEstimator
-from sarmission.perception.pyramid import half_resolution, halve
-from sarmission.perception.types import VALID_DS, MotionMaps
-from sarmission.perception.vstmd_kernels import (
+from sarmission.perception.kernels import (
     combine_rectify,
     cubic_weights,
     lamina_medulla,
     lamina_medulla_shifted,
     ring_rows,
 )
+from sarmission.perception.pyramid import half_resolution, halve
+from sarmission.perception.types import VALID_DS, MotionMaps
 from sarmission.perception.vstmd_params import VSTMDParams, check_ds, gaussian_1d, lobe_radius
 
 __all__ = [

@@ -4,6 +4,7 @@ the normal equations of the shift estimate.
 
 They are kept apart from the front-end so that each can be checked against the equations
 (docs/vstmd.md) on its own; they take and fill preallocated float32 arrays and never allocate.
+The front-end calls them through :mod:`~sarmission.perception.kernels`, compiled ahead of time.
 """
 
 from __future__ import annotations
@@ -86,27 +87,6 @@ def lamina_medulla(
             co[j] = a * b
 
 
-def cubic_weights(frac: float) -> np.ndarray:
-    """Catmull-Rom (Keys, a = -0.5) weights of the taps ``k + 1, k, k - 1, k - 2`` for the
-    sample at ``k - frac`` (``frac`` in [0, 1)). With ``t = 1 - frac``::
-
-        w = [t^3 - t^2,  -3t^3 + 4t^2 + t,  3t^3 - 5t^2 + 2,  -t^3 + 2t^2 - t] / 2
-    """
-    t = 1.0 - frac
-    t2, t3 = t * t, t * t * t
-    return np.array(
-        [t3 - t2, -3.0 * t3 + 4.0 * t2 + t, 3.0 * t3 - 5.0 * t2 + 2.0, -t3 + 2.0 * t2 - t],
-        np.float32,
-    ) / np.float32(2.0)
-
-
-def ring_rows(ky: int, height: int) -> int:
-    """Rows of last frame's state :func:`lamina_medulla_shifted` keeps aside for a vertical
-    shift ``ky``: output row ``i`` reads rows ``i - ky - 2 .. i - ky + 1``, so the rows down to
-    ``i - ky - 2`` must outlive their overwrite (none when the shift leaves no row inside)."""
-    return max(1, min(ky + 3, height))
-
-
 @njit(cache=True, fastmath=True)
 def lamina_medulla_shifted(
     pooled,
@@ -139,8 +119,8 @@ def lamina_medulla_shifted(
     (weights ``1 - fx`` on ``c``, ``fx`` on ``c - 1``). Where a tap falls outside the map
     ``P~ = P'_t`` and ``L~ = V~ = 0``. Rows are written top to bottom; before row ``i`` is
     overwritten its old values go to slot ``i % R`` of ``ring`` (float32 ``[4, R, w]``,
-    ``R >= ring_rows(ky, h)``), where the rows below it still read them. ``column`` is scratch
-    of at least ``w + 3`` values.
+    ``R >= kernels.ring_rows(ky, h)``), where the rows below it still read them. ``column`` is
+    scratch of at least ``w + 3`` values.
     """
     h, w = pooled.shape
     zero = np.float32(0.0)
