@@ -7,6 +7,7 @@ import shutil
 import socket
 import subprocess
 import threading
+import time
 
 import pytest
 
@@ -94,6 +95,58 @@ class CorruptingRelay:
                 self.corrupted += 1
             out.sendto(bytes(data), self.target)
             self.forwarded += 1
+        out.close()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5)
+        self.sock.close()
+
+
+class StallingRelay:
+    """Forwards UDP datagrams from its own port to ``target``, except that from ``stall_at``
+    seconds after the first one it holds them for ``stall_s`` seconds, then sends the backlog at
+    once: a link that stalls and catches up, leaving the receiver a burst of old video."""
+
+    def __init__(self, target: int, stall_at: float, stall_s: float) -> None:
+        self.target = ("127.0.0.1", target)
+        self.stall_at, self.stall_s = stall_at, stall_s
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.port = self.sock.getsockname()[1]
+        self.held = 0
+        self.released_at: float | None = None  # time.monotonic() of the burst
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        out.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 22)
+        first: float | None = None
+        backlog: list[bytes] = []
+        while not self._stop.is_set():
+            try:
+                data = self.sock.recv(65536)
+            except TimeoutError:
+                data = b""
+            now = time.monotonic()
+            first = now if first is None and data else first
+            stalling = first is not None and 0 <= now - first - self.stall_at < self.stall_s
+            if stalling:
+                if data:
+                    backlog.append(data)
+                    self.held += 1
+                continue
+            if backlog:
+                for held in backlog:
+                    out.sendto(held, self.target)
+                    time.sleep(0.0001)  # a burst the receive buffer can take
+                backlog.clear()
+                self.released_at = time.monotonic()
+            if data:
+                out.sendto(data, self.target)
         out.close()
 
     def close(self) -> None:

@@ -11,7 +11,8 @@ Per processed frame: the latency from its capture stamp (the stream's presentati
 local clock, anchored to the least-delayed decoded frame, so the camera's encoding and the
 network's minimum delay come on top) to the controller's result; per alert: from the capture
 stamp of the frame that confirmed it to the alert leaving the controller. Also frames received,
-processed, dropped (a busy detector takes the newest frame) and lost.
+processed, dropped (a busy detector takes the newest frame), not decoded (the reader skipping
+to the next keyframe when it falls behind the camera) and lost.
 """
 
 from __future__ import annotations
@@ -163,9 +164,9 @@ def measure(clip: Path, annotations: Path) -> dict:
         try:
             while True:
                 frame = source.read()
-                if frame is None or (frame.image_bgr is None and sender.poll() is not None):
+                if frame is None or (frame.image is None and sender.poll() is not None):
                     break
-                if frame.image_bgr is None:
+                if frame.image is None:
                     continue
                 index = round((frame.stream_time_s or 0.0) * CLIP_FPS)
                 if index <= last:  # a restarted stream: the clip's frame cannot be told
@@ -173,7 +174,7 @@ def measure(clip: Path, annotations: Path) -> dict:
                 last = index
                 if isinstance(meta.get(index), MetaPose):
                     push_frame_telemetry(buffer, frame.timestamp_s, meta[index])
-                alerts = controller.process(index, frame.timestamp_s, frame.image_bgr)
+                alerts = controller.process(index, frame.timestamp_s, frame.image)
                 done = time.monotonic()
                 processed += 1
                 frame_latency.append(done - frame.timestamp_s)
@@ -188,6 +189,7 @@ def measure(clip: Path, annotations: Path) -> dict:
     return {
         "received": source.received,
         "dropped": source.dropped,
+        "behind": source.behind,
         "lost": source.lost,
         "processed": processed,
         "frame_latency": frame_latency,
@@ -217,6 +219,7 @@ def render(result: dict, clip: Path) -> str:
             "",
             f"- frames: {result['received']} received, {result['processed']} processed, "
             f"{result['dropped']} dropped while the detector was busy (the newest frame wins), "
+            f"{result['behind']} not decoded to keep up with the camera, "
             f"{result['lost']} lost on the way",
             f"- capture to controller result, per processed frame: {stats(frames)}",
             f"- capture of the confirming frame to the alert: {stats(alerts)}",

@@ -1,17 +1,27 @@
 """Live network video (RTSP, MPEG-TS or RTP over UDP, ...), read in its own thread: the newest
-frame wins.
+frame wins, and the reader never falls behind the camera.
 
 A drone's gimbal camera streams H.264 or H.265 over RTSP, or as MPEG-TS over UDP.
-:class:`StreamSource` opens the URL with OpenCV's FFmpeg backend (open and read timeouts, the
-thread plan's decoding threads), decodes every frame in a reader thread and keeps only the
-newest: a consumer slower than the camera always gets the latest frame, and every frame it never
-saw is counted in ``dropped``. Frames the camera sent that never arrived show as gaps in the
-presentation times and are counted in ``lost``.
+:class:`StreamSource` opens the URL with FFmpeg through PyAV (open and read timeouts, the thread
+plan's decoding threads; RTSP over TCP, as OpenCV's reader asked for it), decodes every frame
+in a reader thread to its YUV planes (:class:`~sarmission.yuv.YuvImage`, no BGR copy) and keeps
+only the newest: a consumer slower than the camera always gets the latest frame, and every
+frame it never saw is counted in ``dropped``. Frames the camera sent that never arrived show as
+gaps in the presentation times and are counted in ``lost``.
+
+Decoding a 4K stream can itself cost more than the cores left beside detection, and a link
+that stalls delivers seconds of old video at once. The reader measures how late it reads each
+packet (its ``lag``: the read less the packet's presentation time on the least-delayed
+arrival's clock); past ``max_lag_s / 2`` it stops decoding frames nothing refers to (B-frames,
+where the stream has them), past ``max_lag_s`` it throws packets away undecoded until the next
+keyframe (for at most ``2 * max_lag_s``, for streams refreshed without keyframes, whose next
+frames then show damage until the refresh) and starts again from there. Both are counted in
+``behind``, so that the latency stays bounded instead of growing with FFmpeg's receive buffer.
 
 A stream silent for ``read_timeout_s`` is reopened until it is back (or the source is closed),
 with one warning when it is lost, one when it is back and, while it stays away, one a minute;
 frames missing from a damaged stream are reported at most once a minute too (FFmpeg's own
-messages, several per damaged packet, are kept off the console).
+messages are kept off the console).
 Meanwhile :meth:`StreamSource.read` returns a frame without an image every ``read_timeout_s``
 (as a camera whose grab failed), so a live loop can still stop; iterating skips those.
 
@@ -24,16 +34,14 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import re
 import statistics
 import threading
 import time
 from collections import deque
 from collections.abc import Iterator
+from typing import Any
 from urllib.parse import urlsplit
-
-import cv2
 
 from sarmission.data.frames import Frame, FrameSourceError
 
@@ -45,6 +53,8 @@ STREAM_SCHEMES = frozenset({"rtsp", "rtsps", "rtp", "udp", "tcp", "srt", "rtmp",
 _PORT_REQUIRED = frozenset({"udp", "rtp", "tcp", "srt"})
 #: Seconds between the warnings of a stream that stays away.
 OUTAGE_REPORT_S = 60.0
+#: Default of how late (s) a decoded frame may come before the reader skips work to catch up.
+MAX_LAG_S = 1.0
 
 
 def is_stream_url(text: str) -> bool:
@@ -97,16 +107,6 @@ def with_udp_defaults(url: str) -> str:
     return parts._replace(query=query).geturl()
 
 
-def quiet_opencv_warnings() -> None:
-    """Keep OpenCV's warnings (a read timeout) and FFmpeg's messages (one or more per damaged
-    packet: dozens a second on a lossy link) off the console: the stream's state is reported in
-    our own, rate-limited lines. Process-wide; ``$OPENCV_FFMPEG_LOGLEVEL`` set by the user wins.
-    """
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    if cv2.utils.logging.getLogLevel() > cv2.utils.logging.LOG_LEVEL_ERROR:
-        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
-
-
 class StreamClock:
     """Maps a stream's presentation times onto ``time.monotonic()``.
 
@@ -126,6 +126,16 @@ class StreamClock:
     def reset(self) -> None:
         """Forget the anchor (a new connection: its times need not follow the old ones)."""
         self._offset = self._last_pts = None
+
+    def expected(self, pts_s: float | None) -> float | None:
+        """When a frame of presentation time ``pts_s`` would arrive with the least delay seen
+        (None before the first frame, or for a time that would restart the anchor)."""
+        last, offset = self._last_pts, self._offset
+        if pts_s is None or not math.isfinite(pts_s) or last is None or offset is None:
+            return None
+        if abs(pts_s - last) > self.max_gap_s:
+            return None
+        return pts_s + offset
 
     def stamp(self, pts_s: float | None, arrival: float) -> float:
         """The capture time of a frame with presentation time ``pts_s`` that arrived at
@@ -150,15 +160,54 @@ class FramePeriod:
     def __init__(self) -> None:
         self.steps: deque[float] = deque(maxlen=31)
 
-    def missing(self, step: float) -> int:
+    def missing(self, step: float, learn: bool = True) -> int:
         """Frames missing in a step of ``step`` seconds between two frames (0 for a step
-        shorter than two periods, or longer than 10 s: a restart, not a loss)."""
+        shorter than two periods, or longer than 10 s: a restart, not a loss). ``learn=False``
+        leaves the step out of the period (frames were left out on purpose)."""
         if not 0 < step <= 10.0:
             return 0
         known = len(self.steps) >= 5
         period = statistics.median(self.steps) if known else 0.0
-        self.steps.append(step)
+        if learn:
+            self.steps.append(step)
         return max(0, round(step / period) - 1) if known else 0
+
+
+class CatchUp:
+    """When the reader skips work to keep up with the camera (module docstring), from the lag
+    of each packet it reads (how long after the least-delayed arrival its frame is read): no
+    B-frames while a packet comes more than ``max_lag_s / 2`` late (until below
+    ``max_lag_s / 4``), no packets at all from one more than ``max_lag_s`` late until a
+    keyframe, or for at most ``2 * max_lag_s``."""
+
+    def __init__(self, max_lag_s: float) -> None:
+        self.max_lag_s = max_lag_s
+        self.nonref = False
+        self.until: float | None = None  # skipping packets until a keyframe or this time
+
+    @property
+    def decoding_all(self) -> bool:
+        """Whether every frame the stream sent is being decoded."""
+        return not self.nonref and self.until is None
+
+    def skip(self, keyframe: bool, now: float) -> bool:
+        """Whether to throw this packet away undecoded."""
+        if self.until is None:
+            return False
+        if keyframe or now >= self.until:
+            self.until = None
+            return False
+        return True
+
+    def update(self, lag_s: float, now: float) -> str:
+        """Update on a packet's lag; the decoder's ``skip_frame`` setting from now on."""
+        if lag_s > self.max_lag_s:
+            self.until = now + 2.0 * self.max_lag_s
+        if lag_s > self.max_lag_s / 2:
+            self.nonref = True
+        elif lag_s < self.max_lag_s / 4:
+            self.nonref = False
+        return "NONREF" if self.nonref else "DEFAULT"
 
 
 class StreamSource:
@@ -166,8 +215,10 @@ class StreamSource:
 
     Raises :class:`FrameSourceError` when the URL is not a stream URL, or when no frame arrives
     within ``connect_timeout_s``. Attributes: ``fps`` (the stream's nominal rate), ``received``,
-    ``dropped`` (decoded, replaced before being read), ``lost`` (missing from the presentation
-    times), ``skipped`` (image-less frames returned during outages), ``reconnects``.
+    ``dropped`` (decoded, replaced before being read), ``behind`` (not decoded, to catch up with
+    the camera: module docstring), ``lost`` (missing from the presentation times), ``skipped``
+    (image-less frames returned during outages), ``reconnects``; ``lag_s`` how late the last
+    packet was read.
     """
 
     def __init__(
@@ -177,15 +228,21 @@ class StreamSource:
         read_timeout_s: float = 3.0,
         threads: int | None = None,
         default_fps: float = 30.0,
+        max_lag_s: float = MAX_LAG_S,
     ) -> None:
         from sarmission.threads import thread_plan
 
+        if not (math.isfinite(max_lag_s) and max_lag_s > 0):
+            raise ValueError(f"max_lag_s must be a positive number of seconds, got {max_lag_s}")
         self.url = check_stream_url(str(url))
         self.path = redact(self.url)  # the name in messages, as a file source's path
         self.read_timeout_s = max(0.5, float(read_timeout_s))
         self.threads = threads or thread_plan().decode
         self.fps = default_fps
+        self.max_lag_s = float(max_lag_s)
         self.received = self.dropped = self.lost = self.skipped = self.reconnects = 0
+        self.behind = 0
+        self.lag_s = 0.0
         self.clock = StreamClock()
         self._cond = threading.Condition()
         self._latest: Frame | None = None  # the newest frame, until it is read
@@ -194,7 +251,6 @@ class StreamSource:
         self._ended = False
         self._why = "no connection yet"
         self._stop = threading.Event()
-        quiet_opencv_warnings()
         self._thread = threading.Thread(target=self._read_loop, name="stream", daemon=True)
         self._thread.start()
         with self._cond:
@@ -214,35 +270,43 @@ class StreamSource:
 
     # -- reader thread -------------------------------------------------------------------------
 
-    def _open(self) -> cv2.VideoCapture | None:
-        url = with_udp_defaults(self.url)
-        timeout_ms = int(self.read_timeout_s * 1000)
-        params = [
-            cv2.CAP_PROP_OPEN_TIMEOUT_MSEC,
-            max(timeout_ms, 5000),
-            cv2.CAP_PROP_READ_TIMEOUT_MSEC,
-            timeout_ms,
-            cv2.CAP_PROP_N_THREADS,
-            self.threads,
-        ]
-        capture = cv2.VideoCapture(url, cv2.CAP_FFMPEG, params)
-        if capture.isOpened():
-            fps = capture.get(cv2.CAP_PROP_FPS)
-            if math.isfinite(fps) and 0 < fps <= 1000:
-                self.fps = fps
-            return capture
-        capture.release()
-        self._why = "cannot open the stream (nothing sending, wrong address, or not video)"
-        return None
+    def _open(self) -> tuple[Any, Any] | None:
+        """The container and its video stream, or None (``_why`` says why)."""
+        import av
+
+        options = {"rtsp_transport": "tcp"} if self.url.lower().startswith("rtsp") else {}
+        try:
+            container = av.open(
+                with_udp_defaults(self.url),
+                options=options,
+                timeout=(max(self.read_timeout_s, 5.0), self.read_timeout_s),
+            )
+        except (av.FFmpegError, OSError) as exc:
+            self._why = f"cannot open the stream ({exc.__class__.__name__}: nothing sending, "
+            self._why += "wrong address, or not video)"
+            return None
+        if not container.streams.video:
+            container.close()
+            self._why = "the stream carries no video"
+            return None
+        stream = container.streams.video[0]
+        stream.thread_type = "AUTO"
+        stream.codec_context.thread_count = self.threads
+        rate = stream.average_rate or stream.guessed_rate
+        if rate and math.isfinite(float(rate)) and 0 < float(rate) <= 1000:
+            self.fps = float(rate)
+        return container, stream
 
     def _read_loop(self) -> None:
         last_report = 0.0
         while not self._stop.is_set():
-            capture = self._open()
-            if capture is not None:
+            opened = self._open()
+            if opened is not None:
                 self.clock.reset()
-                pumped = self._pump(capture)
-                capture.release()
+                try:
+                    pumped = self._pump(*opened)
+                finally:
+                    opened[0].close()
                 if pumped and not self._stop.is_set():
                     self._lost_since = last_report = time.monotonic()
                     self._why = "stream lost"
@@ -265,38 +329,70 @@ class StreamSource:
             self._ended = True
             self._cond.notify_all()
 
-    def _pump(self, capture: cv2.VideoCapture) -> bool:
+    def _pump(self, container: Any, stream: Any) -> bool:
         """Decode frames until the stream stops or the source is closed; whether any came."""
+        import av
+
+        from sarmission.data.yuv_video import planes_of
+
         got_any = False
         last_pts: float | None = None
         periods = FramePeriod()
+        base = float(stream.time_base or 0)
+        catch_up = CatchUp(self.max_lag_s)
+        thrown = 0  # packets thrown away since the last frame decoded
+        setting = "DEFAULT"
+        packets = container.demux(stream)
         while not self._stop.is_set():
-            if not capture.grab():
-                return got_any
-            arrival = time.monotonic()
-            pts_ms = capture.get(cv2.CAP_PROP_POS_MSEC)
-            ok, image = capture.retrieve()
-            if not ok or image is None or image.size == 0:
+            try:
+                packet = next(packets)
+            except (StopIteration, av.FFmpegError, OSError):
+                return got_any  # end of stream, read timeout or a dead connection
+            if packet.size == 0:
+                continue  # the demuxer's flush marker
+            now = time.monotonic()
+            due = self.clock.expected(packet.pts * base if packet.pts is not None else None)
+            self.lag_s = max(0.0, now - due) if due is not None else 0.0
+            wanted = catch_up.update(self.lag_s, now)
+            if wanted != setting:
+                stream.codec_context.skip_frame = setting = wanted
+            if catch_up.skip(packet.is_keyframe, now):
+                self.behind += 1
+                thrown += 1
                 continue
-            if self._lost_since is not None:
-                self.reconnects += 1
-                log.warning("%s: stream back after %.1f s", self.path, arrival - self._lost_since)
-                self._lost_since = None
-            pts = pts_ms / 1000.0 if math.isfinite(pts_ms) and pts_ms >= 0 else None
-            if pts is not None and last_pts is not None:
-                missing = periods.missing(pts - last_pts)
-                if missing:
-                    self.lost += missing
-                    self._report_loss(arrival)
-            last_pts = pts
-            got_any = True
-            frame = Frame(self.received, self.clock.stamp(pts, arrival), image, pts)
-            with self._cond:
-                if self._latest is not None:
-                    self.dropped += 1  # decoded, never read
-                self.received += 1
-                self._latest = frame
-                self._cond.notify_all()
+            try:
+                pictures = packet.decode()
+            except av.FFmpegError:
+                continue  # damaged: its frame shows as missing from the presentation times
+            for picture in pictures:
+                arrival = time.monotonic()
+                if self._lost_since is not None:
+                    self.reconnects += 1
+                    log.warning(
+                        "%s: stream back after %.1f s", self.path, arrival - self._lost_since
+                    )
+                    self._lost_since = None
+                pts = picture.pts * base if picture.pts is not None and base > 0 else None
+                if pts is not None and last_pts is not None:
+                    complete = catch_up.decoding_all and not thrown
+                    missing = periods.missing(pts - last_pts, learn=complete)
+                    if complete and missing:
+                        self.lost += missing
+                        self._report_loss(arrival)
+                    elif not catch_up.decoding_all:
+                        self.behind += missing  # B-frames the decoder left out, as told
+                last_pts, thrown = pts, 0
+                got_any = True
+                stamp = self.clock.stamp(pts, arrival)
+                yuv = planes_of(picture)
+                bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+                frame = Frame(self.received, stamp, bgr, pts, yuv=yuv)
+                with self._cond:
+                    if self._latest is not None:
+                        self.dropped += 1  # decoded, never read
+                    self.received += 1
+                    self._latest = frame
+                    self._cond.notify_all()
         return got_any
 
     def _report_loss(self, now: float) -> None:
@@ -335,14 +431,15 @@ class StreamSource:
             frame = self.read()
             if frame is None:
                 return
-            if frame.image_bgr is not None:
+            if frame.image is not None:
                 yield frame
 
     def summary(self) -> str:
-        """One line: frames received, dropped, lost, reconnections."""
+        """One line: frames received, dropped, left undecoded, lost, reconnections."""
         return (
             f"{self.path}: {self.received} frames received, {self.dropped} dropped while "
-            f"busy, {self.lost} lost on the way, {self.reconnects} reconnection(s)"
+            f"busy, {self.behind} not decoded to keep up, {self.lost} lost on the way, "
+            f"{self.reconnects} reconnection(s)"
         )
 
     def close(self) -> None:
