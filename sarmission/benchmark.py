@@ -288,20 +288,22 @@ def measure_clip(
     repeats: int = CLIP_REPEATS,
 ) -> ClipRow:
     """Alternate plain decoding passes and end-to-end passes (decoding one frame ahead in its
-    own thread, as ``detect`` does) over ``clip``; call it in a fresh process."""
+    own thread, as ``detect`` does) over ``clip``; call it in a fresh process. Both read the
+    clip as ``detect`` does (the decoder's YUV planes where PyAV is installed), so the plain
+    pass is the decoding ``detect`` cannot do without."""
     import cv2
 
-    from sarmission.data.frames import VideoFileSource
+    from sarmission.data.frames import open_frame_source
     from sarmission.data.prefetch import Prefetcher
     from sarmission.threads import apply_thread_plan
 
     apply_thread_plan()
-    source = VideoFileSource(Path(clip))
+    source = open_frame_source(Path(clip), yuv=True)
     net = _mitenet(
         ds, topn, model, runtime, ego_motion, colour_share, crop_scales, refine_threshold
     )
-    for i, frame in enumerate(source):  # warm-up: JIT caches, allocator, onnxruntime
-        net.process(frame.image_bgr, frame.timestamp_s)
+    for i, frame in enumerate(source):  # warm-up: allocator, onnxruntime
+        net.process(frame.image, frame.timestamp_s)
         if i + 1 >= WARMUP_FRAMES:
             break
     decode, detect, total, cpu = [], [], [], []
@@ -316,7 +318,7 @@ def measure_clip(
         with Prefetcher(source) as frames:
             for frame in frames:
                 t0 = time.perf_counter()
-                net.process(frame.image_bgr, frame.timestamp_s)
+                net.process(frame.image, frame.timestamp_s)
                 busy += time.perf_counter() - t0
                 count += 1
         total.append((time.perf_counter() - start) * 1e3 / max(count, 1))

@@ -33,8 +33,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "FLOPs and peak memory for each (ds, N), beside a plain memory pass (BGR copy + "
         "grayscale) on each frame. Then end to end on the same frames encoded as a video "
         "(H.264 by ffmpeg where installed, else MPEG-4), or on --clip: a plain decoding pass "
-        "against decoding overlapped with MITE-Net, as detect runs. Each configuration runs in "
-        "its own processes.",
+        "against decoding overlapped with MITE-Net, both reading the decoder's YUV planes as "
+        "detect does. Each configuration runs in its own processes.",
     )
     parser.add_argument(
         "--ds",
