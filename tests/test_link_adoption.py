@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+import socket
 
 import pytest
 from conftest import free_udp_port, wait_until
@@ -99,6 +101,64 @@ def test_spoofer_heard_first_then_silent_hands_the_link_to_the_vehicle(mission, 
             )
         finally:
             spoofer.close()
+            if vehicle is not None:
+                vehicle.stop()
+
+
+def _drain(sock: socket.socket) -> int:
+    """Datagrams waiting at ``sock``."""
+    count = 0
+    while True:
+        try:
+            sock.recv(65536)
+        except BlockingIOError:
+            return count
+        count += 1
+
+
+def test_a_listening_link_answers_the_autopilot_alone(mission):
+    # pymavlink's UDP server sends every message to every address that ever sent it a datagram
+    port = free_udp_port()
+    strangers = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(20)]
+    gcs = None
+    vehicle = None
+    imposter = None
+    with MavlinkLink(f"udpin:127.0.0.1:{port}", link_timeout_s=2.0) as link:
+        try:
+            for stranger in strangers:
+                stranger.bind(("127.0.0.1", 0))
+                stranger.setblocking(False)
+                stranger.sendto(b"\xfd\x09garbage", ("127.0.0.1", port))
+            gcs = RawPeer(port, 200, mav_type=M.MAV_TYPE_GCS, autopilot=M.MAV_AUTOPILOT_INVALID)
+            assert wait_until(lambda: link.replies.valid_from is not None, 10.0)
+            vehicle = SimVehicle(f"udpout:127.0.0.1:{port}", mission).start()
+            assert wait_until(lambda: link.autopilot == (1, 1), 10.0)
+            # another address sending with the autopilot's ids while the autopilot lives
+            imposter = RawPeer(port, 1, 1)
+            assert wait_until(lambda: link.replies.contested >= 2, 10.0)
+            heard_by_gcs = len(gcs.received)
+            heard_by_imposter = len(imposter.received)
+            sender = CommandSender(link, retries=2, ack_timeout_s=1.0)
+            for k in range(3):  # strangers keep sending while commands go out
+                for stranger in strangers:
+                    stranger.sendto(os.urandom(40), ("127.0.0.1", port))
+                assert sender.reposition(54.1705 + k * 1e-4, 7.8905, 40.0).accepted
+            assert sender.statustext("SWIMMER 54.170412 7.890231 +-4m").accepted
+            assert wait_until(lambda: len(vehicle.statustexts) == 1, 5.0)
+            assert link.replies.target == link.replies.autopilot_at is not None
+            gcs_beats = gcs.heartbeats_sent
+            assert wait_until(lambda: gcs.heartbeats_sent >= gcs_beats + 3, 5.0)
+            assert sum(_drain(stranger) for stranger in strangers) == 0
+            assert len(gcs.received) == heard_by_gcs  # a ground station beside it: nothing
+            assert len(imposter.received) == heard_by_imposter
+            repositions = [c for c in vehicle.commands if c.command == M.MAV_CMD_DO_REPOSITION]
+            assert len({c.params[4:6] for c in repositions}) == 3  # a late ACK: sent again
+        finally:
+            for stranger in strangers:
+                stranger.close()
+            for peer in (gcs, imposter):
+                if peer is not None:
+                    peer.close()
             if vehicle is not None:
                 vehicle.stop()
 

@@ -20,8 +20,11 @@ common). It runs two daemon threads:
   HEARTBEAT until asked with MAV_CMD_SET_MESSAGE_INTERVAL, lost requests, and a reboot.
 
 Sends from several threads are serialised by a lock (the MAVLink sequence number and signing
-timestamp are per connection). With ``signing_key`` (32 bytes) outgoing messages are signed and
-incoming ones must carry a valid signature (unsigned ones too, unless ``allow_unsigned``).
+timestamp are per connection). A link listening on UDP (``udp:``/``udpin:``) sends to the
+adopted autopilot's address alone, not to everyone who sent it a datagram
+(:mod:`sarmission.mavlink.udp_reply`). With ``signing_key`` (32 bytes) outgoing messages are
+signed and incoming ones must carry a valid signature (unsigned ones too, unless
+``allow_unsigned``).
 """
 
 from __future__ import annotations
@@ -50,6 +53,7 @@ from sarmission.mavlink.adoption import (
 )
 from sarmission.mavlink.signing import SignatureGate, enable_signing
 from sarmission.mavlink.streams import StreamWatchdog
+from sarmission.mavlink.udp_reply import UdpReplyTarget
 
 log = logging.getLogger(__name__)
 
@@ -180,6 +184,12 @@ class MavlinkLink:
         self._send_lock = threading.Lock()
         self._stop = threading.Event()
         self._conn = mavlink2_connection(url, source_system, source_component)
+        #: Listening on UDP: replies to the autopilot alone (:mod:`sarmission.mavlink.udp_reply`).
+        self.replies = (
+            UdpReplyTarget(self._conn, move_after_s=link_timeout_s)
+            if UdpReplyTarget.applies_to(self._conn)
+            else None
+        )
         self._gate: SignatureGate | None = None
         if signing_key is not None:
             try:
@@ -460,11 +470,15 @@ class MavlinkLink:
         if src == self.autopilot:
             self._adoption.heard(src, arrival)
             self._streams.arrived(msg.get_msgId(), arrival)
+        if self.replies is not None:
+            self.replies.admitted(src == self.autopilot, arrival)
         self._dispatch(msg, mtype, src, arrival)
 
     def _adopted(self, change: AdoptionChange) -> None:
         if change.old is not None:
             self._streams.reset()  # the new one knows nothing of our requests
+            if self.replies is not None:
+                self.replies.autopilot_changed()
         self._autopilot_seen.set()
         with self._sub_lock:
             callbacks = list(self._adopted_callbacks)
