@@ -34,9 +34,10 @@ CATEGORY_ALIASES: dict[str, str] = {
 APPLIANCE_CLASSES: frozenset[str] = frozenset(
     {"life_saving_appliances", "life_saving_appliance", "life_ring", "lifebuoy", "life_raft"}
 )
-#: Things a search meets that are neither (never alerted).
+#: Things a search meets that are neither (never alerted), VisDrone's vehicles among them.
 OBJECT_CLASSES: frozenset[str] = frozenset(
     {"boat", "jetski", "buoy", "bird", "debris", "sun_glint", "car", "vehicle", "animal"}
+    | {"bicycle", "van", "truck", "tricycle", "awning_tricycle", "bus", "motor", "others"}
 )
 
 #: The maritime head's classes: the people first (class ids 0 and 1 as in every earlier head),

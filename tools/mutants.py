@@ -1234,4 +1234,22 @@ MUTANTS: list[Mutant] = [
         "lock",
         "a person on a boat's deck cut as a negative of the boat and trained as background",
     ),
+    Mutant(
+        "training.stills_wait_for_warmup",
+        "sarmission/training/dataset.py",
+        "if not still and (offset < 0 or offset % settings.frame_stride):",
+        "if offset < 0 or offset % settings.frame_stride:",
+        ("tests/test_train_init.py",),
+        "lock",
+        "stills sampled as video frames: an image set shorter than the warm-up gives nothing",
+    ),
+    Mutant(
+        "training.init_rows_by_index",
+        "sarmission/training/init_weights.py",
+        "old = old_index.get(normalise_class(name))",
+        "old = row if row < len(old_index) else None",
+        ("tests/test_train_init.py",),
+        "lock",
+        "--init carries class weights by position, not by name: person learns from swimmer",
+    ),
 ]

@@ -5,6 +5,7 @@ Heavy imports (torch, OpenCV, pymavlink) happen inside ``run`` so ``sarmission -
 
 from sarmission.commands import (
     bench,
+    data,
     demo,
     detect,
     eval,
@@ -16,4 +17,4 @@ from sarmission.commands import (
     train,
 )
 
-COMMANDS = (info, detect, train, eval, bench, export, sim, run, replay, demo)
+COMMANDS = (info, detect, train, eval, bench, export, data, sim, run, replay, demo)

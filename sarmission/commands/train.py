@@ -119,6 +119,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="crop cache folder (default: <out folder>/.crop_cache)",
     )
     parser.add_argument(
+        "--init",
+        default=None,
+        metavar="CHECKPOINT",
+        help="start from a trained head's weights: 'default' (the shipped head) or a .pt "
+        "file; classes both heads name keep their weights (fine-tuning on your own data)",
+    )
+    parser.add_argument(
         "--resume",
         action="store_true",
         help="continue from <out stem>.last.pt with the same settings",
@@ -148,6 +155,11 @@ def config_from_args(args: argparse.Namespace):
     for flag, path in (("--train", args.train), ("--val", args.val)):
         if not path.is_file():
             raise FileNotFoundError(f"{flag} annotation file not found: {path}")
+    if args.init is not None:
+        from sarmission.training.init_weights import init_path
+
+        if not init_path(args.init).is_file():
+            raise FileNotFoundError(f"--init checkpoint not found: {init_path(args.init)}")
     if args.out.suffix.lower() not in (".pt", ".pth"):
         raise ValueError(f"--out must be a .pt or .pth file, got {args.out}")
     crops = CropSettings(
@@ -177,6 +189,7 @@ def config_from_args(args: argparse.Namespace):
         crops=crops,
         randomise=Randomisation.parse(args.randomise, args.randomise_p),
         cache_dir=args.cache_dir,
+        init=args.init,
         resume=args.resume,
         num_threads=args.threads,
         progress=bars_wanted(args),

@@ -66,7 +66,7 @@ from torch import Tensor
 
 from sarmission.boxes import xywh_to_xyxy
 from sarmission.class_roles import role_of
-from sarmission.data.coco_video import VideoDataset, read_coco_video
+from sarmission.data.coco_video import ImageRecord, VideoDataset, read_coco_video
 from sarmission.data.sequence import iter_sequence, sequence_ids, sequence_images
 from sarmission.evaluation.report import target_category_map
 from sarmission.perception.chroma import chroma_if_wanted
@@ -335,6 +335,29 @@ def background_boxes(
     return boxes[~near][:count]
 
 
+def frame_runs(images: list[ImageRecord]) -> dict[int, tuple[bool, int]]:
+    """Image id -> (whether it starts a run, the run's length) for one sequence's images in
+    order. A run is a stretch of consecutive frame indices: motion is only defined within
+    one. Images without a frame index (image sets) are runs of one: stills."""
+    out: dict[int, tuple[bool, int]] = {}
+    run: list[int] = []
+    previous: int | None = None
+
+    def close() -> None:
+        for k, image_id in enumerate(run):
+            out[image_id] = (k == 0, len(run))
+
+    for image in images:
+        index = image.frame_index
+        if not run or index is None or previous is None or index != previous + 1:
+            close()
+            run = []
+        run.append(image.id)
+        previous = index
+    close()
+    return out
+
+
 def _frame_samples(
     frame: np.ndarray,
     motion: MotionMaps,
@@ -427,15 +450,26 @@ def build_crop_set(
     n_crops = 0
     with tqdm(total=total, unit="frame", desc=desc, file=sys.stderr, disable=not progress) as bar:
         for video_id in sequence_ids(dataset):
-            vstmd = VSTMD(ds=settings.ds, **vstmd_kwargs)
-            rpn = TTMRPN(
-                topn=settings.topn, box_size=settings.box_size, colour_share=settings.colour_share
-            )
-            for position, item in enumerate(iter_sequence(dataset, video_id, counters)):
+            runs = frame_runs(sequence_images(dataset, video_id))
+            position = 0
+            for item in iter_sequence(dataset, video_id, counters):
                 bar.update(1)
+                starts, length = runs[item.image.id]
+                still = length <= settings.warmup_frames  # too short a run to warm up on
+                if starts or still:
+                    vstmd = VSTMD(ds=settings.ds, **vstmd_kwargs)
+                    rpn = TTMRPN(
+                        topn=settings.topn,
+                        box_size=settings.box_size,
+                        colour_share=settings.colour_share,
+                    )
+                    position = 0
+                # a fresh vSTMD takes its first frame as its state: a still shows no motion,
+                # as a person who does not move under a hovering camera
                 motion = vstmd.step(item.frame_bgr)
                 offset = position - settings.warmup_frames
-                if offset < 0 or offset % settings.frame_stride:
+                position += 1
+                if not still and (offset < 0 or offset % settings.frame_stride):
                     continue
                 gt = gt_by_image.get(item.image.id, (np.zeros((0, 4)), np.zeros(0, np.int64)))
                 objects = objects_by_image.get(item.image.id, np.zeros((0, 4)))

@@ -111,6 +111,9 @@ class TrainConfig:
     #: First epoch (1-based) whose head may be chosen as the best checkpoint.
     select_from: int = 1
     cache_dir: Path | None = None
+    #: Start from this trained head's weights (``"default"``: the shipped head; None: fresh);
+    #: :mod:`sarmission.training.init_weights`.
+    init: str | None = None
     resume: bool = False
     num_threads: int = 2
     progress: bool = True
@@ -399,6 +402,10 @@ def train(config: TrainConfig) -> TrainResult:
     average = WeightAverage(model, config.ema_decay) if config.ema_decay > 0 else None
     evaluated = average.model if average is not None else model
     start, best_f2, best_epoch, history = 0, -1.0, 0, []
+    if config.init is not None and not config.resume:
+        from sarmission.training.init_weights import initialise_from
+
+        print(initialise_from(model, config.init).summary(), file=sys.stderr)
     if config.resume:
         state = _load_state(config, model, optimizer, average)
         start, best_f2, best_epoch = state["epoch"], state["best_f2"], state["best_epoch"]

@@ -1,0 +1,129 @@
+"""SeaDronesSee (object detection v2 and multi-object tracking): people in open water, from
+drones, with each frame's flight log in ``meta``.
+
+The release keeps ``annotations/instances_<split>.json`` (COCO, read by
+:func:`~sarmission.data.coco_video.read_coco_video`, both meta dialects) beside
+``images/<split>/``; ``FOLDER`` may be that folder or one annotation file. What the import
+adds:
+
+- the pitch convention stated in ``info.meta_conventions`` (SeaDronesSee stores the gimbal
+  pitch as a positive angle below the horizon: docs/datasets.md), so no reader has to guess it;
+- images grouped into the videos they were cut from (``source.video``, frame
+  ``source.frame_no``; object detection v2 samples them sparsely);
+- category names as the project spells them (``floater`` is a swimmer with a life jacket);
+  boxes of ``ignored`` are ignore regions;
+- absolute image paths where the images are found (``images/<split>/``); images not found are
+  counted and named in one warning (the images are published apart from the annotations).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from sarmission.class_roles import CATEGORY_ALIASES, normalise_class
+from sarmission.data.coco_video import DatasetFormatError, VideoDataset, read_coco_video
+from sarmission.data.importers.builder import IGNORED, DatasetBuilder
+from sarmission.data.meta_conventions import DEPRESSION, INFO_KEY
+
+log = logging.getLogger(__name__)
+
+SOURCE = "SeaDronesSee"
+LICENCE = "CC0 1.0 (SeaDronesSee repository README)"
+
+
+def annotation_files(root: Path, split: str | None) -> list[Path]:
+    """The annotation file(s) to read: ``root`` itself, or its
+    ``annotations/instances_<split>*.json`` (every ``instances_*.json`` without a split)."""
+    if root.is_file():
+        return [root]
+    folder = root / "annotations" if (root / "annotations").is_dir() else root
+    pattern = f"instances_{split}*.json" if split else "instances_*.json"
+    found = sorted(folder.glob(pattern))
+    if not found:
+        raise DatasetFormatError(f"{folder}: no {pattern} (the SeaDronesSee annotation files)")
+    return found
+
+
+def _image_file(root: Path, json_path: Path, split: str, name: str) -> Path | None:
+    base = root if root.is_dir() else json_path.parent.parent
+    for candidate in (
+        base / "images" / split / name,
+        json_path.parent.parent / "images" / split / name,
+        json_path.parent / "images" / name,
+        json_path.parent / name,
+        json_path.parent.parent / "images" / name,
+    ):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _split_of(json_path: Path) -> str:
+    """``instances_val.json`` -> ``val``; ``instances_train_objects_in_water.json`` -> ``train``."""
+    stem = json_path.stem
+    return stem.removeprefix("instances_").split("_")[0] if stem.startswith("instances_") else ""
+
+
+def import_seadronessee(
+    root: Path, split: str | None = None, progress: bool = True
+) -> VideoDataset:
+    """The SeaDronesSee folder or annotation file ``root`` as the project's dataset (module
+    docstring)."""
+    out = DatasetBuilder(SOURCE, LICENCE)
+    out.info[INFO_KEY] = {"gimbal_pitch": DEPRESSION}
+    missing: list[str] = []
+    for json_path in annotation_files(root, split):
+        part = read_coco_video(json_path)
+        part_split = _split_of(json_path)
+        names = {c.id: normalise_class(c.name) for c in part.categories}
+        by_image = part.annotations_by_image()
+        videos = {v.id: v.name for v in part.videos}
+        for image in part.images:
+            source = image.extra.get("source")
+            source = source if isinstance(source, dict) else {}
+            video = source.get("video")
+            frame = source.get("frame_no", image.extra.get("frame"))
+            if video is not None:
+                video = f"{source.get('folder_name', '')}/{video}".strip("/")
+            elif image.video_id is not None:
+                video = videos.get(image.video_id, str(image.video_id))
+                frame = image.frame_index
+            path = _image_file(root, json_path, part_split, image.file_name)
+            if path is None:
+                missing.append(image.file_name)
+                path = (root if root.is_dir() else json_path.parent.parent) / "images"
+                path = path / part_split / image.file_name
+            image_id = out.image(
+                path,
+                image.width,
+                image.height,
+                video=video,
+                frame_index=int(frame) if isinstance(frame, int | float) else None,
+                meta=image.meta,
+                extra={"seadronessee_id": image.id},
+            )
+            for ann in by_image.get(image.id, []):
+                name = names.get(ann.category_id)
+                if name is None:
+                    raise DatasetFormatError(
+                        f"{json_path}: annotation {ann.id} has unknown category {ann.category_id}"
+                    )
+                name = CATEGORY_ALIASES.get(name, name)
+                out.box(
+                    image_id,
+                    name,
+                    *ann.bbox,
+                    ignore=bool(ann.iscrowd) or name == IGNORED,
+                    track_id=ann.track_id,
+                )
+    if missing:
+        out.info["images_not_found"] = len(missing)
+        log.warning(
+            "%d of %d SeaDronesSee images not found (e.g. %s): they are published apart from "
+            "the annotations; put them in images/<split>/ beside annotations/",
+            len(missing),
+            len(out.images),
+            missing[0],
+        )
+    return out.build()

@@ -1,0 +1,84 @@
+"""Start a training run from a trained head's weights (``sarmission train --init``).
+
+Fine-tuning a shipped head on a user's own dataset needs far fewer examples than training from
+scratch. The new head must have the trained one's architecture (widths, crop size, regression
+bins); its classes may differ: the class layer's rows of classes both heads name are carried
+over, rows of new classes start fresh, so a maritime head can learn ``person`` beside its
+swimmers. Every other weight is copied.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import torch
+
+from sarmission.class_roles import normalise_class
+from sarmission.perception.head import MiteHead
+from sarmission.perception.runtime import load_head_checkpoint
+
+#: ``--init`` value naming the shipped head.
+DEFAULT_INIT = "default"
+
+
+@dataclass(frozen=True)
+class InitReport:
+    """What was carried over from the trained head."""
+
+    source: Path
+    carried_classes: tuple[str, ...]
+    new_classes: tuple[str, ...]
+
+    def summary(self) -> str:
+        """One line, e.g. ``initialised from X: classes swimmer carried, person new``."""
+        parts = [f"classes {', '.join(self.carried_classes) or 'none'} carried"]
+        if self.new_classes:
+            parts.append(f"{', '.join(self.new_classes)} new")
+        return f"initialised from {self.source}: {'; '.join(parts)}"
+
+
+def init_path(value: str | Path) -> Path:
+    """The checkpoint ``--init`` names (``default``: the shipped head's ``.pt``)."""
+    if str(value) == DEFAULT_INIT:
+        from sarmission.models import DEFAULT_TORCH_MODEL
+
+        return DEFAULT_TORCH_MODEL
+    path = Path(value)
+    if path.suffix.lower() not in (".pt", ".pth"):
+        raise ValueError(f"--init needs a .pt checkpoint (the trained head), got {path}")
+    return path
+
+
+def initialise_from(model: MiteHead, source: str | Path) -> InitReport:
+    """Copy the weights of the checkpoint ``source`` into ``model`` (module docstring).
+
+    Raises :class:`~sarmission.perception.runtime.ModelLoadError` for an unreadable file and
+    ``ValueError`` when the architectures differ."""
+    path = init_path(source)
+    trained = load_head_checkpoint(path)
+    mine = {k: v for k, v in asdict(model.config).items() if k != "classes"}
+    theirs = {k: v for k, v in asdict(trained.config).items() if k != "classes"}
+    if mine != theirs:
+        differ = sorted(k for k in mine if mine[k] != theirs.get(k))
+        raise ValueError(
+            f"--init {path}: its architecture differs from the head being trained "
+            f"({', '.join(f'{k} {theirs.get(k)} vs {mine[k]}' for k in differ)})"
+        )
+    layer = model.cls_branch.fc[-1]
+    old_layer = trained.cls_branch.fc[-1]
+    skip = {name for name, p in model.named_parameters() if p is layer.weight or p is layer.bias}
+    state = {k: v for k, v in trained.state_dict().items() if k not in skip}
+    model.load_state_dict(state, strict=False)
+    old_index = {normalise_class(c): i for i, c in enumerate(trained.config.classes)}
+    carried, new = [], []
+    with torch.no_grad():
+        for row, name in enumerate(model.config.classes):
+            old = old_index.get(normalise_class(name))
+            if old is None:
+                new.append(name)
+                continue
+            layer.weight[row] = old_layer.weight[old]
+            layer.bias[row] = old_layer.bias[old]
+            carried.append(name)
+    return InitReport(path, tuple(carried), tuple(new))

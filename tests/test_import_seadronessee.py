@@ -1,0 +1,112 @@
+"""SeaDronesSee importer: the real validation annotations, and a fixture in the MOT layout."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from sarmission.data.coco_video import read_coco_video, write_coco_video
+from sarmission.data.importers import import_dataset
+from sarmission.data.meta_conventions import dataset_conventions
+
+REAL = Path(__file__).resolve().parents[2] / "shared" / "datasets" / "seadronessee"
+
+
+@pytest.mark.skipif(not (REAL / "instances_val.json").is_file(), reason="no real SeaDronesSee file")
+def test_real_validation_file(tmp_path):
+    data = import_dataset("seadronessee", REAL / "instances_val.json", progress=False)
+    names = {c.id: c.name for c in data.categories}
+    assert len(data.images) == 1547
+    assert Counter(names[a.category_id] for a in data.annotations) == {
+        "swimmer": 6206,
+        "boat": 2214,
+        "buoy": 560,
+        "life_saving_appliances": 330,
+        "jetski": 320,
+    }
+    assert data.info["meta_conventions"] == {"gimbal_pitch": "depression"}
+    assert data.info["images_not_found"] == 1547  # the images are published apart
+    first = next(im for im in data.images if im.extra["seadronessee_id"] == 3464)
+    video = next(v for v in data.videos if v.id == first.video_id)
+    assert (video.name, first.frame_index) == ("DJI_0032/DJI_0032.MP4", 5415)
+    assert first.telemetry.gimbal_pitch == pytest.approx(13.7)
+    assert sum(not im.telemetry.is_empty() for im in data.images) == 1093
+    out = tmp_path / "sds.json"
+    write_coco_video(data, out)
+    back = read_coco_video(out)
+    conventions = dataset_conventions(back)
+    assert conventions.pitch == "depression" and "stated" in conventions.how
+    assert [a.bbox for a in back.annotations] == [a.bbox for a in data.annotations]
+
+
+def test_mot_layout_with_floaters_ignored_regions_and_images(tmp_path):
+    root = tmp_path / "SeaDronesSee_MOT"
+    (root / "annotations").mkdir(parents=True)
+    for name in ("0.png", "1.png"):
+        (root / "images" / "train").mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(root / "images" / "train" / name), np.zeros((30, 40, 3), np.uint8))
+    meta = {"gps_latitude": 47.67, "gps_longitude": 9.27, "altitude": 20.0, "gimbal_pitch": 45.0}
+    doc = {
+        "videos": [{"id": 7, "name": "DJI_0057"}],
+        "images": [
+            {
+                "id": 10,
+                "file_name": "0.png",
+                "height": 30,
+                "width": 40,
+                "video_id": 7,
+                "frame_index": 0,
+                "meta": meta,
+            },
+            {
+                "id": 11,
+                "file_name": "1.png",
+                "height": 30,
+                "width": 40,
+                "video_id": 7,
+                "frame_index": 1,
+                "meta": None,
+            },
+        ],
+        "annotations": [
+            {"id": 1, "image_id": 10, "bbox": [1, 2, 5, 6], "category_id": 2, "track_id": 4},
+            {"id": 2, "image_id": 11, "bbox": [2, 2, 5, 6], "category_id": 2, "track_id": 4},
+            {"id": 3, "image_id": 11, "bbox": [20, 10, 10, 10], "category_id": 0},
+            {"id": 4, "image_id": 11, "bbox": [35, 25, 10, 10], "category_id": 1},
+        ],
+        "categories": [
+            {"id": 0, "name": "ignored"},
+            {"id": 1, "name": "swimmer"},
+            {"id": 2, "name": "floater"},
+        ],
+    }
+    (root / "annotations" / "instances_train_objects_in_water.json").write_text(json.dumps(doc))
+    (root / "annotations" / "instances_val_objects_in_water.json").write_text(
+        json.dumps(dict(doc, annotations=[]))
+    )
+    data = import_dataset("seadronessee", root, split="train", progress=False)
+    names = {c.id: c.name for c in data.categories}
+    assert [Path(im.file_name) for im in data.images] == [
+        (root / "images" / "train" / n).resolve() for n in ("0.png", "1.png")
+    ]
+    assert "images_not_found" not in data.info
+    assert [
+        (v.name, [im.frame_index for im in data.images if im.video_id == v.id]) for v in data.videos
+    ] == [("DJI_0057", [0, 1])]
+    rows = [(names[a.category_id], a.bbox, a.iscrowd, a.track_id) for a in data.annotations]
+    assert rows == [
+        ("swimmer_with_life_jacket", (1.0, 2.0, 5.0, 6.0), 0, 4),
+        ("swimmer_with_life_jacket", (2.0, 2.0, 5.0, 6.0), 0, 4),
+        ("ignored", (20.0, 10.0, 10.0, 10.0), 1, None),
+        ("swimmer", (35.0, 25.0, 5.0, 5.0), 0, None),  # clipped to the 40x30 image
+    ]
+    assert data.images[0].telemetry.altitude == 20.0
+    both = import_dataset("seadronessee", root, progress=False)
+    assert len(both.images) == 4
+    with pytest.raises(ValueError, match="no instances_test"):
+        import_dataset("seadronessee", root, split="test", progress=False)
