@@ -102,3 +102,17 @@ def test_fine_tune_an_imported_set_from_the_shipped_head(tmp_path, capsys):
     missing = tmp_path / "nothing.pt"
     assert sarmission([*args[:-4], "--init", str(missing)]) == 2
     assert f"--init checkpoint not found: {missing}" in capsys.readouterr().err
+
+
+def test_a_new_class_may_start_from_a_trained_one():
+    shipped = load_head_checkpoint(DEFAULT_TORCH_MODEL)
+    model = MiteHead(HeadConfig(classes=("person",)))
+    report = initialise_from(model, "default", {"person": "swimmer"})
+    assert (report.carried_classes, report.new_classes) == (("person (from swimmer)",), ())
+    old = shipped.config.classes.index("swimmer")
+    layer = "cls_branch.fc.2"
+    assert torch.equal(
+        model.state_dict()[f"{layer}.weight"][0], shipped.state_dict()[f"{layer}.weight"][old]
+    )
+    with pytest.raises(ValueError, match="has no class boat"):
+        initialise_from(MiteHead(HeadConfig(classes=("person",))), "default", {"person": "boat"})

@@ -25,6 +25,14 @@ maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys 
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
 trains another seed into ``mitenet_head_seed<N>.pt``.
 
+``--head land`` trains a land head (class ``person``) into ``--work`` (never installed: on the
+held-out land world it finds fewer people than the maritime head, docs/land_head.md): it
+starts from the shipped maritime head (``--init default``, ``person`` from ``swimmer``),
+fine-tunes on :data:`LAND_SPLITS` and picks its epoch on the held-out land validation clips,
+people scored as ``person``; ``--from-scratch`` starts from random weights::
+
+    python tools/train_default_model.py --head land --seed 1
+
 The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
 are copied into the package.
 """
@@ -69,6 +77,25 @@ HELDOUT_VAL_FIRST_CLIP = 100
 #: Land people are scored as the maritime head's ``swimmer`` class (as tools/heldout_eval.py
 #: scores them).
 HELDOUT_RENAME = {"person": "swimmer"}
+#: The land head's training presets: the simulator's people on land (roads, roofs, cars, grass).
+LAND_SPLITS = (("urban_train", 8, 60, "3840x2160"),)
+#: The land head's validation: the held-out land world only, people as ``person``.
+LAND_VAL = (("heldout_land", 3, 40),)
+#: Settings of the land head beside :data:`TRAIN_ARGS`: fine-tuned from the maritime head.
+LAND_ARGS = [
+    "--classes",
+    "person",
+    "--init",
+    "default",
+    "--init-class",
+    "person=swimmer",
+    "--lr",
+    "0.002",
+    "--epochs",
+    "10",
+    "--select-from",
+    "1",
+]
 TRAIN_ARGS = [
     "--epochs",
     "30",
@@ -158,11 +185,30 @@ def heldout_val_seeds(splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) ->
     ]
 
 
-def render_heldout_val(work: Path, splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> Path:
-    """Render the held-out validation clips into ``work/heldout_val`` and merge them into one
-    annotation file there (people on land as ``swimmer``); skipped when that file exists."""
-    folder = work / "heldout_val"
-    merged = folder / "heldout_val.json"
+def render_land_training_set(work: Path) -> Path:
+    """:data:`LAND_SPLITS` rendered and merged into ``work/land_train_mix.json``."""
+    merged = work / "land_train_mix.json"
+    if not merged.is_file():
+        parts = [render(work / split[0], split) for split in LAND_SPLITS]
+        write_coco_video(
+            merge_annotation_files(parts, {}, info={"presets": [s[0] for s in LAND_SPLITS]}),
+            merged,
+        )
+    return merged
+
+
+def render_heldout_val(
+    work: Path,
+    splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL,
+    rename: dict[str, str] | None = None,
+    name: str = "heldout_val",
+) -> Path:
+    """Render the held-out validation clips into ``work/<name>`` and merge them into one
+    annotation file there (people on land as ``swimmer`` unless ``rename`` says otherwise);
+    skipped when that file exists."""
+    rename = HELDOUT_RENAME if rename is None else rename
+    folder = work / name
+    merged = folder / f"{name}.json"
     if not merged.is_file():
         parts = []
         for name, clips, frames in splits:
@@ -177,7 +223,7 @@ def render_heldout_val(work: Path, splits: tuple[tuple[str, int, int], ...] = HE
         write_coco_video(
             merge_annotation_files(
                 parts,
-                HELDOUT_RENAME,
+                rename,
                 info={"worlds": [s[0] for s in splits], "first_clip": HELDOUT_VAL_FIRST_CLIP},
             ),
             merged,
@@ -219,8 +265,21 @@ def main() -> int:
         help="training seed (default 0, the shipped head's); other seeds write "
         "mitenet_head_seed<N>.pt, so that several can be compared",
     )
+    parser.add_argument(
+        "--head",
+        choices=("maritime", "land"),
+        default="maritime",
+        help="which shipped head to reproduce (default: maritime)",
+    )
+    parser.add_argument(
+        "--from-scratch",
+        action="store_true",
+        help="land head: start from random weights instead of the maritime head's",
+    )
     args, extra = parser.parse_known_args()
     args.work.mkdir(parents=True, exist_ok=True)
+    if args.head == "land":
+        return train_land(args, extra)
     train = (
         render_broad_training_set(args.work, objects=args.presets == "objects")
         if args.presets in ("broad", "objects")
@@ -257,6 +316,38 @@ def main() -> int:
             f"into {DEFAULT_TORCH_MODEL.parent}"
         )
     return 0
+
+
+def train_land(args: argparse.Namespace, extra: list[str]) -> int:
+    """Render and train a land head into ``--work`` (module docstring)."""
+    train = render_land_training_set(args.work)
+    val = render_heldout_val(args.work, LAND_VAL, rename={}, name="heldout_land_val")
+    stem = "mitenet_land_head" + ("_scratch" if args.from_scratch else "")
+    stem += "" if args.seed == 0 else f"_seed{args.seed}"
+    out = args.work / f"{stem}.pt"
+    land_args = list(LAND_ARGS)
+    if args.from_scratch:
+        for flag in ("--init", "--init-class"):
+            at = land_args.index(flag)
+            del land_args[at : at + 2]
+    code = sarmission(
+        [
+            "train",
+            "--train",
+            str(train),
+            "--val",
+            str(val),
+            "--out",
+            str(out),
+            "--onnx",
+            *TRAIN_ARGS,
+            *land_args,
+            "--seed",
+            str(args.seed),
+            *extra,
+        ]
+    )
+    return code
 
 
 if __name__ == "__main__":

@@ -126,6 +126,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "file; classes both heads name keep their weights (fine-tuning on your own data)",
     )
     parser.add_argument(
+        "--init-class",
+        action="append",
+        default=[],
+        metavar="NEW=OLD",
+        help="with --init: new class NEW starts from the trained head's class OLD "
+        "(e.g. person=swimmer); repeatable",
+    )
+    parser.add_argument(
         "--resume",
         action="store_true",
         help="continue from <out stem>.last.pt with the same settings",
@@ -136,6 +144,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--threads", type=int, default=2, help="torch CPU threads")
     add_progress_option(parser)
     parser.set_defaults(func=run)
+
+
+def _init_classes(pairs: list[str]) -> dict[str, str]:
+    """``["person=swimmer"]`` -> ``{"person": "swimmer"}`` (``ValueError`` for a bad pair)."""
+    out = {}
+    for pair in pairs:
+        new, sep, old = pair.partition("=")
+        if not sep or not new.strip() or not old.strip():
+            raise ValueError(f"--init-class expects NEW=OLD, got {pair!r}")
+        out[new.strip()] = old.strip()
+    return out
 
 
 def config_from_args(args: argparse.Namespace):
@@ -155,6 +174,8 @@ def config_from_args(args: argparse.Namespace):
     for flag, path in (("--train", args.train), ("--val", args.val)):
         if not path.is_file():
             raise FileNotFoundError(f"{flag} annotation file not found: {path}")
+    if args.init_class and args.init is None:
+        raise ValueError("--init-class needs --init (the head whose classes it names)")
     if args.init is not None:
         from sarmission.training.init_weights import init_path
 
@@ -190,6 +211,7 @@ def config_from_args(args: argparse.Namespace):
         randomise=Randomisation.parse(args.randomise, args.randomise_p),
         cache_dir=args.cache_dir,
         init=args.init,
+        init_classes=_init_classes(args.init_class),
         resume=args.resume,
         num_threads=args.threads,
         progress=bars_wanted(args),

@@ -4,7 +4,9 @@ Fine-tuning a shipped head on a user's own dataset needs far fewer examples than
 scratch. The new head must have the trained one's architecture (widths, crop size, regression
 bins); its classes may differ: the class layer's rows of classes both heads name are carried
 over, rows of new classes start fresh, so a maritime head can learn ``person`` beside its
-swimmers. Every other weight is copied.
+swimmers, unless ``renamed`` says which trained class a new one starts from (``person`` from
+``swimmer``: a land head that begins where the maritime head already finds people on land).
+Every other weight is copied.
 """
 
 from __future__ import annotations
@@ -50,8 +52,11 @@ def init_path(value: str | Path) -> Path:
     return path
 
 
-def initialise_from(model: MiteHead, source: str | Path) -> InitReport:
-    """Copy the weights of the checkpoint ``source`` into ``model`` (module docstring).
+def initialise_from(
+    model: MiteHead, source: str | Path, renamed: dict[str, str] | None = None
+) -> InitReport:
+    """Copy the weights of the checkpoint ``source`` into ``model`` (module docstring);
+    ``renamed``: new class -> the trained class its row starts from.
 
     Raises :class:`~sarmission.perception.runtime.ModelLoadError` for an unreadable file and
     ``ValueError`` when the architectures differ."""
@@ -71,14 +76,22 @@ def initialise_from(model: MiteHead, source: str | Path) -> InitReport:
     state = {k: v for k, v in trained.state_dict().items() if k not in skip}
     model.load_state_dict(state, strict=False)
     old_index = {normalise_class(c): i for i, c in enumerate(trained.config.classes)}
+    renamed = {normalise_class(k): normalise_class(v) for k, v in (renamed or {}).items()}
+    unknown = sorted(set(renamed.values()) - set(old_index))
+    if unknown:
+        raise ValueError(
+            f"--init-class: {path} has no class {', '.join(unknown)} "
+            f"(it has {', '.join(trained.config.classes)})"
+        )
     carried, new = [], []
     with torch.no_grad():
         for row, name in enumerate(model.config.classes):
-            old = old_index.get(normalise_class(name))
+            key = normalise_class(name)
+            old = old_index.get(renamed.get(key, key))
             if old is None:
                 new.append(name)
                 continue
             layer.weight[row] = old_layer.weight[old]
             layer.bias[row] = old_layer.bias[old]
-            carried.append(name)
+            carried.append(name if key not in renamed else f"{name} (from {renamed[key]})")
     return InitReport(path, tuple(carried), tuple(new))

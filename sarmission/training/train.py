@@ -114,6 +114,8 @@ class TrainConfig:
     #: Start from this trained head's weights (``"default"``: the shipped head; None: fresh);
     #: :mod:`sarmission.training.init_weights`.
     init: str | None = None
+    #: New class -> the class of the ``init`` head its weights start from.
+    init_classes: dict[str, str] = field(default_factory=dict)
     resume: bool = False
     num_threads: int = 2
     progress: bool = True
@@ -405,7 +407,8 @@ def train(config: TrainConfig) -> TrainResult:
     if config.init is not None and not config.resume:
         from sarmission.training.init_weights import initialise_from
 
-        print(initialise_from(model, config.init).summary(), file=sys.stderr)
+        report = initialise_from(model, config.init, config.init_classes)
+        print(report.summary(), file=sys.stderr)
     if config.resume:
         state = _load_state(config, model, optimizer, average)
         start, best_f2, best_epoch = state["epoch"], state["best_f2"], state["best_epoch"]
