@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -200,9 +200,36 @@ def heldout_land() -> WorldPreset:
     )
 
 
+def _without_people(preset: WorldPreset, name: str, seed: int) -> WorldPreset:
+    """``preset`` with its people left out (its distractors kept), under its own seed."""
+    kept = {k: v for k, v in preset.population.per_frame.items() if k not in PEOPLE}
+    return replace(
+        preset,
+        name=name,
+        seed=seed,
+        population=Population(kept),
+        description=f"{preset.description.rstrip('.')}; background only: no people.",
+    )
+
+
+def heldout_maritime_empty() -> WorldPreset:
+    """The held-out sea without people: buoys, debris, birds and boats only."""
+    return _without_people(heldout_maritime(), "heldout_maritime_empty", 7733)
+
+
+def heldout_land_empty() -> WorldPreset:
+    """The held-out land without people: rocks, logs, animals and birds only."""
+    return _without_people(heldout_land(), "heldout_land_empty", 7744)
+
+
+#: The kinds that are people (left out of the background-only worlds).
+PEOPLE = ("person", "swimmer", "swimmer_with_life_jacket")
+
 WORLDS: dict[str, Callable[[], WorldPreset]] = {
     "heldout_maritime": heldout_maritime,
     "heldout_land": heldout_land,
+    "heldout_maritime_empty": heldout_maritime_empty,
+    "heldout_land_empty": heldout_land_empty,
 }
 
 

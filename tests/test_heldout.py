@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -144,3 +145,21 @@ def test_command_line_rejects_an_unknown_world_with_one_line(capsys) -> None:
     assert "at least one clip" in capsys.readouterr().err
     assert generate_main(["--fps", "0", "--out", "/tmp/never-written"]) == 2
     assert "fps must be positive" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("empty", "full"),
+    [("heldout_land_empty", "heldout_land"), ("heldout_maritime_empty", "heldout_maritime")],
+)
+def test_background_only_worlds_keep_the_distractors_and_no_person(empty: str, full: str) -> None:
+    kinds = Counter()
+    for clip in range(4):
+        kinds.update(t.look.kind for t in draw_clip(world(empty), clip, 1920, 1080, 1.0).things)
+    assert not {"person", "swimmer", "swimmer_with_life_jacket"} & set(kinds)
+    distractors = set(world(full).population.per_frame) - {
+        "person",
+        "swimmer",
+        "swimmer_with_life_jacket",
+    }
+    assert set(kinds) <= distractors and len(kinds) >= 2
+    assert world(empty).seed not in {world(n).seed for n in ("heldout_land", "heldout_maritime")}

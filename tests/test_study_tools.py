@@ -1,0 +1,76 @@
+"""The land-head and background-only study tools: their tables are pure functions of the JSON."""
+
+from __future__ import annotations
+
+import math
+
+from conftest import load_tool
+
+
+def _head(label: str, scored_as: str, locked: int, ssr: float, still: float) -> dict:
+    return {
+        "head": label,
+        "scored_as": scored_as,
+        "report": {
+            "sar": {
+                "n_locked": locked,
+                "n_lockable": 17,
+                "search_success_rate": ssr,  # per cent, as `sarmission eval` reports it
+                "false_alarm_rate_detections": 70.0 + locked,
+            },
+            "module_recall": {"head": {"R@0.5": locked / 20}},
+        },
+        "study": {
+            "scores": {"false_per_frame_above_0.5": 6.0, "false_per_frame_above_0.9": 2.0},
+            "by_motion": {}
+            if math.isnan(still)
+            else {"still person, hovering camera": {"detected": still}},
+        },
+    }
+
+
+def test_land_table_groups_seeds_by_recipe():
+    tool = load_tool("land_head_eval")
+    results = {
+        "command": "c",
+        "generated": "g",
+        "wall_s": 1.0,
+        "clips": 3,
+        "frames": 40,
+        "heads": [
+            _head("maritime (shipped)", "person -> swimmer", 14, 82.35, 0.23),
+            _head("land a", "person", 12, 70.59, 0.25),
+            _head("land a_seed1", "person", 13, 76.47, 0.27),
+            _head("land b", "person", 4, 23.53, math.nan),
+        ],
+    }
+    table = tool.render(results)
+    assert "| maritime (shipped) (person -> swimmer) | 14/17 | 82.3 | 84.0 | 0.70 |" in table
+    assert "| land b (person) | 4/17 | 23.5 | 74.0 | 0.20 | 6.00 | 2.00 | — |" in table
+    assert "| **land a**, mean of 2 seeds (min-max) | 12.5/17 | 73.5 (70.6-76.5) |" in table
+    assert "**land b**" not in table  # one seed: no spread to report
+
+
+def test_background_table_reports_every_world_and_head():
+    tool = load_tool("background_eval")
+    row = {
+        "frames": 120,
+        "detections": 700,
+        "false_per_frame_above_0.5": 5.108,
+        "false_per_frame_above_0.9": 0.5166,
+        "frames_without_any_above_0.5": 0.025,
+        "score_quantiles": [0.8, 0.9, 0.951],
+    }
+    results = {
+        "command": "c",
+        "generated": "g",
+        "wall_s": 1.0,
+        "clips": 3,
+        "frames": 40,
+        "worlds": {"heldout_land_empty": {"shipped default": row}},
+    }
+    table = tool.render(results)
+    assert (
+        "| `heldout_land_empty` | shipped default | 120 | 5.11 | 0.52 | 2 % | 0.80 / 0.90 / 0.95 |"
+        in table
+    )
