@@ -207,6 +207,8 @@ def test_missing_folder_is_refused(tmp_path):
     [
         ("1,2,3,4,1,1,0\n", r":2: 7 columns, expected 8"),
         ("1,2,3,4,1,x,0,0\n", r":2: not numbers"),
+        ("1,2,nan,4,1,1,0,0\n", r":2: not numbers"),
+        ("1,2,3,4,1,1,inf,0\n", r":2: not numbers"),
         ("1,2,3,4,1,12,0,0\n", r":2: unknown VisDrone category 12"),
     ],
 )
@@ -229,3 +231,12 @@ def test_visdrone_vehicles_are_objects_and_people_people():
     vehicles = ["bicycle", "car", "van", "truck", "tricycle", "awning_tricycle", "bus", "motor"]
     assert [role_of(name) for name in vehicles] == ["object"] * len(vehicles)
     assert role_of("person") == "person"
+
+
+def test_a_binary_annotation_file_is_named(tmp_path):
+    folder = tmp_path / "VisDrone2019-DET-val"
+    write_image(folder / "images" / "a.jpg")
+    (folder / "annotations").mkdir(parents=True, exist_ok=True)
+    (folder / "annotations" / "a.txt").write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(DatasetFormatError, match=r"a\.txt: not a text file"):
+        import_visdrone(folder, progress=False)

@@ -84,7 +84,7 @@ class DatasetBuilder:
         extra: dict[str, Any] | None = None,
     ) -> int:
         """Add an image (``path`` made absolute); returns its id."""
-        if width <= 0 or height <= 0:
+        if not (width > 0 and height > 0 and math.isfinite(width) and math.isfinite(height)):
             raise DatasetFormatError(f"{path}: image size {width}x{height}")
         image_id = len(self.images) + 1
         self.images.append(

@@ -14,6 +14,7 @@ the vehicles keep their names (objects, never people: :mod:`sarmission.class_rol
 from __future__ import annotations
 
 import logging
+import math
 import re
 import sys
 from pathlib import Path
@@ -105,7 +106,11 @@ def _rows(path: Path, columns: int) -> list[tuple[int, list[float]]]:
     """The numeric rows of one annotation file with their line numbers (blank lines skipped,
     a trailing comma allowed); ``DatasetFormatError`` names the file and line of a bad one."""
     rows = []
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise DatasetFormatError(f"{path}: not a text file") from None
+    for number, line in enumerate(text.splitlines(), start=1):
         fields = [f.strip() for f in line.strip().split(",")]
         while fields and fields[-1] == "":
             fields.pop()
@@ -118,7 +123,9 @@ def _rows(path: Path, columns: int) -> list[tuple[int, list[float]]]:
         try:
             values = [float(f) for f in fields[:columns]]
         except ValueError:
-            raise DatasetFormatError(f"{path}:{number}: not numbers ({line.strip()!r})") from None
+            values = []
+        if len(values) < columns or not all(math.isfinite(v) for v in values):
+            raise DatasetFormatError(f"{path}:{number}: not numbers ({line.strip()!r})")
         rows.append((number, values))
     return rows
 
