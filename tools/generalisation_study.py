@@ -23,6 +23,8 @@ Variants (:data:`VARIANTS`):
 * ``broad_classes``: ``broad_objects`` with the maritime head's object classes
   (:data:`sarmission.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
   life-saving appliances learnt as classes of their own instead of background).
+* ``broad_person``: ``broad`` with people on land learnt as ``person``, a class of their own
+  beside the swimmers (validated so; the land test scores any person class).
 * ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
   of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
@@ -110,6 +112,9 @@ class Variant:
     description: str
     classes: tuple[str, ...] = DEFAULT_CLASSES
     object_negatives: int = 0
+    #: People on land learnt as ``person`` (a class of their own; validation keeps them so)
+    #: instead of as ``swimmer``.
+    land_person: bool = False
 
 
 VARIANTS: dict[str, Variant] = {
@@ -158,6 +163,15 @@ VARIANTS: dict[str, Variant] = {
             MARITIME_CLASSES,
         ),
         Variant(
+            "broad_person",
+            MARITIME_PARTS + EXTRA_PARTS,
+            "all",
+            8,
+            "broad, with people on land as a class of their own (person) beside the swimmers",
+            (*DEFAULT_CLASSES, "person"),
+            land_person=True,
+        ),
+        Variant(
             "broad_distractors",
             MARITIME_PARTS + EXTRA_PARTS,
             "all",
@@ -186,13 +200,21 @@ def training_file(work: Path, variant: Variant) -> Path:
 
     recipe = _tool("train_default_model")
     names = [p[0] for p in variant.parts]
-    merged = work / f"train_{'_'.join(sorted(names))}.json"
+    suffix = "_land_person" if variant.land_person else ""
+    merged = work / f"train_{'_'.join(sorted(names))}{suffix}.json"
     if not merged.is_file():
         paths = [recipe.render(work / "sim" / part[0], part) for part in variant.parts]
-        write_coco_video(
-            merge_annotation_files(paths, recipe.HELDOUT_RENAME, info={"presets": names}), merged
-        )
+        rename = {} if variant.land_person else recipe.HELDOUT_RENAME
+        write_coco_video(merge_annotation_files(paths, rename, info={"presets": names}), merged)
     return merged
+
+
+def validation_file(work: Path, variant: Variant) -> Path:
+    """The held-out validation clips, people on land as the variant learns them."""
+    recipe = _tool("train_default_model")
+    if variant.land_person:
+        return recipe.render_heldout_val(work, rename={}, name="heldout_val_land_person")
+    return recipe.render_heldout_val(work)
 
 
 def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -> dict[str, Any]:
@@ -346,12 +368,11 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-    recipe = _tool("train_default_model")
-    val = recipe.render_heldout_val(work)
     runs: dict[str, Any] = dict((previous or {}).get("runs", {}))
     for name in args.variants:
         variant = VARIANTS[name]
         train = training_file(work, variant)
+        val = validation_file(work, variant)
         for seed in args.seeds:
             key = f"{name}/seed{seed}"
             if key in runs and Path(runs[key]["checkpoint"]).is_file():
