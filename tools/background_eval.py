@@ -120,14 +120,6 @@ def render(results: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_doc(section: str, doc: Path = DOC) -> None:
-    """Replace the generated part of ``doc`` (text outside the markers is kept)."""
-    text = doc.read_text() if doc.is_file() else f"# Background only\n\n{BEGIN}\n{END}\n"
-    head, _, rest = text.partition(BEGIN)
-    _, _, tail = rest.partition(END)
-    doc.write_text(head + section + tail)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--work", default="/tmp/sarmission-background")
@@ -144,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         out = Path(args.work) / "background_results.json"
         out.write_text(json.dumps(results, indent=1))
         print(f"wrote {out}", file=sys.stderr)
-    write_doc(render(results), args.doc)
+    heldout_eval.write_doc(render(results), args.doc, "# Background only", BEGIN, END)
     print(f"wrote {args.doc}", file=sys.stderr)
     return 0
 

@@ -149,14 +149,6 @@ def render(results: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def write_doc(section: str, doc: Path = DOC) -> None:
-    """Replace the generated part of ``doc`` (text outside the markers is kept)."""
-    text = doc.read_text() if doc.is_file() else f"# The land head\n\n{BEGIN}\n{END}\n"
-    head, _, rest = text.partition(BEGIN)
-    _, _, tail = rest.partition(END)
-    doc.write_text(head + section + tail)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--work", default="/tmp/sarmission-land-eval")
@@ -173,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         out = Path(args.work) / "land_results.json"
         out.write_text(json.dumps(results, indent=1))
         print(f"wrote {out}", file=sys.stderr)
-    write_doc(render(results), args.doc)
+    heldout_eval.write_doc(render(results), args.doc, "# The land head", BEGIN, END)
     print(f"wrote {args.doc}", file=sys.stderr)
     return 0
 
