@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import cv2
@@ -116,3 +117,20 @@ def test_a_new_class_may_start_from_a_trained_one():
     )
     with pytest.raises(ValueError, match="has no class boat"):
         initialise_from(MiteHead(HeadConfig(classes=("person",))), "default", {"person": "boat"})
+
+
+def test_evaluate_an_imported_land_set_with_the_shipped_head(tmp_path, capsys):
+    root = _image_set(tmp_path / "LADD", 3)
+    data = tmp_path / "ladd.json"
+    assert (
+        sarmission(["data", "import", "ladd", str(root), "--out", str(data), "--no-progress"]) == 0
+    )
+    capsys.readouterr()
+    args = ["eval", "--annotations", str(data), "--json", "--no-progress", "--runtime", "onnx"]
+    assert sarmission(args) == 2  # people on land are no class of the maritime head
+    assert "--rename person=swimmer" in capsys.readouterr().err
+    assert sarmission([*args, "--rename", "persons=swimmer"]) == 2
+    assert "no category 'persons' (they have 'person')" in capsys.readouterr().err
+    assert sarmission([*args, "--rename", "person=swimmer"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["boxes"]["bands"]["all"]["n_gt"] == 6  # two people in each of three stills

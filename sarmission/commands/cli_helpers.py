@@ -1,4 +1,5 @@
-"""Small helpers several sub-commands share: the frame-size option and a free loopback port.
+"""Small helpers several sub-commands share: the frame-size option, ``NAME=NAME`` pairs and a
+free loopback port.
 
 One parser for every ``--size`` style option, so each command accepts the same sizes and says
 the same thing about a wrong one.
@@ -34,6 +35,18 @@ def parse_frame_size(text: str) -> tuple[int, int]:
             f"to {MAX_FRAME_SIDE} px (e.g. 960x540), got {text!r}"
         )
     return width, height
+
+
+def parse_pairs(pairs: list[str], flag: str) -> dict[str, str]:
+    """``["person=swimmer"]`` -> ``{"person": "swimmer"}``; ``ValueError`` naming ``flag`` for a
+    pair that is not ``LEFT=RIGHT``."""
+    out = {}
+    for pair in pairs:
+        left, sep, right = pair.partition("=")
+        if not sep or not left.strip() or not right.strip():
+            raise ValueError(f"{flag} expects NAME=NAME, got {pair!r}")
+        out[left.strip()] = right.strip()
+    return out
 
 
 def free_udp_port() -> int:

@@ -23,6 +23,7 @@ import argparse
 import logging
 from typing import Any
 
+from sarmission.commands.cli_helpers import parse_pairs
 from sarmission.commands.detector_options import (
     add_detector_options,
     check_colour_share,
@@ -101,6 +102,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=[10, 25, 50, 100],
         help="sweep proposal counts (default: 10,25,50,100)",
     )
+    parser.add_argument(
+        "--rename",
+        action="append",
+        default=[],
+        metavar="CATEGORY=CLASS",
+        help="score an annotation category as one of the head's classes, e.g. person=swimmer "
+        "(the shipped head reports people on land as swimmer); repeatable",
+    )
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
     add_progress_option(parser)
     add_detector_options(parser)
@@ -144,13 +153,46 @@ def _model_label(args: argparse.Namespace) -> str:
     return "untrained head (no shipped model)"
 
 
+def renamed(dataset: Any, mapping: dict[str, str]) -> Any:
+    """``dataset`` with the categories named in ``mapping`` renamed (ids kept, so a results
+    file still refers to the same images); ``ValueError`` for a category it does not have."""
+    if not mapping:
+        return dataset
+    import dataclasses
+
+    names = [c.name for c in dataset.categories]
+    unknown = sorted(set(mapping) - set(names))
+    if unknown:
+        raise ValueError(
+            f"--rename: the annotations have no category {', '.join(map(repr, unknown))} "
+            f"(they have {', '.join(map(repr, names)) or 'none'})"
+        )
+    categories = [
+        dataclasses.replace(c, name=mapping.get(c.name, c.name)) for c in dataset.categories
+    ]
+    return dataclasses.replace(dataset, categories=categories)
+
+
+def _check_targets(dataset: Any, classes: tuple[str, ...]) -> None:
+    """A clear line when no annotation category is a person class of the head."""
+    from sarmission.evaluation.report import person_category_map
+
+    try:
+        person_category_map(dataset.categories, classes)
+    except ValueError as exc:
+        raise ValueError(
+            f"{exc}; score a category as one of the head's classes with --rename, e.g. "
+            f"--rename person={classes[0]}"
+        ) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Evaluate (or sweep) and print the tables, or JSON with ``--json``."""
     from sarmission.data.coco_video import read_coco_video
     from sarmission.evaluation.report import format_report, format_sweep, report_to_json
 
     _check_args(args)
-    dataset = read_coco_video(args.annotations)
+    dataset = renamed(read_coco_video(args.annotations), parse_pairs(args.rename, "--rename"))
     metric_options = {
         "m": args.m,
         "k": args.k,
@@ -167,6 +209,7 @@ def run(args: argparse.Namespace) -> int:
 
     label = _model_label(args)
     head = build_head_runtime(args.model, args.runtime)
+    _check_targets(dataset, head.classes)
     if args.sweep:
         rows = run_sweep(
             head,

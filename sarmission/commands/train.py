@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sarmission.commands.cli_helpers import parse_pairs
 from sarmission.commands.progress import add_progress_option, bars_wanted
 from sarmission.perception.types import DEFAULT_COLOUR_SHARE, VALID_DS
 
@@ -146,17 +147,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _init_classes(pairs: list[str]) -> dict[str, str]:
-    """``["person=swimmer"]`` -> ``{"person": "swimmer"}`` (``ValueError`` for a bad pair)."""
-    out = {}
-    for pair in pairs:
-        new, sep, old = pair.partition("=")
-        if not sep or not new.strip() or not old.strip():
-            raise ValueError(f"--init-class expects NEW=OLD, got {pair!r}")
-        out[new.strip()] = old.strip()
-    return out
-
-
 def config_from_args(args: argparse.Namespace):
     """The :class:`~sarmission.training.train.TrainConfig` the arguments describe."""
     from sarmission.class_roles import MARITIME_CLASSES
@@ -211,7 +201,7 @@ def config_from_args(args: argparse.Namespace):
         randomise=Randomisation.parse(args.randomise, args.randomise_p),
         cache_dir=args.cache_dir,
         init=args.init,
-        init_classes=_init_classes(args.init_class),
+        init_classes=parse_pairs(args.init_class, "--init-class"),
         resume=args.resume,
         num_threads=args.threads,
         progress=bars_wanted(args),
