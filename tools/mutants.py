@@ -1246,7 +1246,7 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "training.init_rows_by_index",
         "sarmission/training/init_weights.py",
-        "old = old_index.get(normalise_class(name))",
+        "old = old_index.get(renamed.get(key, key))",
         "old = row if row < len(old_index) else None",
         ("tests/test_train_init.py",),
         "lock",
