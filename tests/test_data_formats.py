@@ -195,3 +195,22 @@ def test_yolo_round_trip_and_conversion(tmp_path):
     path.write_text("0 0.5 0.5 0.1\n")
     with pytest.raises(DatasetFormatError, match="img.txt:1"):
         read_yolo(path)
+
+
+def test_a_failed_write_leaves_the_old_file_whole(tmp_path, monkeypatch):
+    ds = read_coco_video(FIXTURE)
+    out = tmp_path / "ann.json"
+    write_coco_video(ds, out)
+    before = out.read_bytes()
+    real_write = Path.write_text
+
+    def disk_full(self, data, *args, **kwargs):  # half the text, then the disk is full
+        real_write(self, data[: len(data) // 2], *args, **kwargs)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(Path, "write_text", disk_full)
+    with pytest.raises(OSError, match="No space left"):
+        write_coco_video(ds, out)
+    monkeypatch.undo()
+    assert out.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["ann.json"]  # no partial file left

@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
@@ -543,7 +544,8 @@ def write_coco_video(dataset: VideoDataset, path: str | Path) -> None:
     """Write ``dataset`` as COCO video JSON; :func:`read_coco_video` reads back an equal dataset.
 
     Optional fields that are ``None`` are left out, except ``meta`` which is written as ``null``.
-    Keys kept in ``extra`` are written beside the known ones.
+    Keys kept in ``extra`` are written beside the known ones. The file appears whole or not at
+    all (written beside it, then renamed).
     """
     doc: dict[str, Any] = {"info": dataset.info}
     if dataset.licenses is not None:
@@ -590,4 +592,11 @@ def write_coco_video(dataset: VideoDataset, path: str | Path) -> None:
         {**_drop_none({"id": c.id, "name": c.name, "supercategory": c.supercategory}), **c.extra}
         for c in dataset.categories
     ]
-    Path(path).write_text(json.dumps(doc, indent=1), encoding="utf-8")
+    # beside it first, then renamed: an interrupted write never leaves half a file at ``path``
+    path = Path(path)
+    partial = path.with_name(f".{path.name}.partial")
+    try:
+        partial.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
