@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
 import shlex
 import sys
 import time
@@ -121,21 +120,10 @@ def render(results: Mapping[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--work", default="/tmp/sarmission-background")
+    parser = heldout_eval.study_parser(__doc__.split("\n\n")[0], "/tmp/sarmission-background", DOC)
     parser.add_argument("--model", action="append", default=[], help="another head (.onnx)")
-    parser.add_argument("--clips", type=int, default=3)
-    parser.add_argument("--frames", type=int, default=40)
-    parser.add_argument("--from-json", type=Path, default=None)
-    parser.add_argument("--doc", type=Path, default=DOC)
     args = parser.parse_args(argv)
-    if args.from_json:
-        results = json.loads(args.from_json.read_text())
-    else:
-        results = measure(args)
-        out = Path(args.work) / "background_results.json"
-        out.write_text(json.dumps(results, indent=1))
-        print(f"wrote {out}", file=sys.stderr)
+    results = heldout_eval.study_results(args, measure, "background_results.json")
     heldout_eval.write_doc(render(results), args.doc, "# Background only", BEGIN, END)
     print(f"wrote {args.doc}", file=sys.stderr)
     return 0

@@ -516,6 +516,30 @@ def write_doc(
     path.write_text(head + section + tail)
 
 
+def study_parser(description: str, work: str, doc: Path) -> argparse.ArgumentParser:
+    """The options the held-out study tools share: ``--work``, ``--clips``, ``--frames``,
+    ``--from-json`` and ``--doc``."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--work", default=work)
+    parser.add_argument("--clips", type=int, default=3)
+    parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--from-json", type=Path, default=None)
+    parser.add_argument("--doc", type=Path, default=doc)
+    return parser
+
+
+def study_results(args: argparse.Namespace, measure_fn: Any, json_name: str) -> Mapping[str, Any]:
+    """A study's results: read from ``--from-json``, else measured by ``measure_fn(args)`` and
+    kept as ``<work>/<json_name>``."""
+    if args.from_json:
+        return json.loads(Path(args.from_json).read_text())
+    results = measure_fn(args)
+    out = Path(args.work) / json_name
+    out.write_text(json.dumps(results, indent=1))
+    print(f"wrote {out}", file=sys.stderr)
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
 import re
 import shlex
 import sys
@@ -150,21 +149,10 @@ def render(results: Mapping[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--work", default="/tmp/sarmission-land-eval")
+    parser = heldout_eval.study_parser(__doc__.split("\n\n")[0], "/tmp/sarmission-land-eval", DOC)
     parser.add_argument("--land", action="append", default=[], help="a land head (.onnx)")
-    parser.add_argument("--clips", type=int, default=3)
-    parser.add_argument("--frames", type=int, default=40)
-    parser.add_argument("--from-json", type=Path, default=None)
-    parser.add_argument("--doc", type=Path, default=DOC)
     args = parser.parse_args(argv)
-    if args.from_json:
-        results = json.loads(args.from_json.read_text())
-    else:
-        results = measure(args)
-        out = Path(args.work) / "land_results.json"
-        out.write_text(json.dumps(results, indent=1))
-        print(f"wrote {out}", file=sys.stderr)
+    results = heldout_eval.study_results(args, measure, "land_results.json")
     heldout_eval.write_doc(render(results), args.doc, "# The land head", BEGIN, END)
     print(f"wrote {args.doc}", file=sys.stderr)
     return 0
