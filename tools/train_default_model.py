@@ -82,20 +82,10 @@ LAND_SPLITS = (("urban_train", 8, 60, "3840x2160"),)
 #: The land head's validation: the held-out land world only, people as ``person``.
 LAND_VAL = (("heldout_land", 3, 40),)
 #: Settings of the land head beside :data:`TRAIN_ARGS`: fine-tuned from the maritime head.
-LAND_ARGS = [
-    "--classes",
-    "person",
-    "--init",
-    "default",
-    "--init-class",
-    "person=swimmer",
-    "--lr",
-    "0.002",
-    "--epochs",
-    "10",
-    "--select-from",
-    "1",
-]
+LAND_ARGS = ["--classes", "person", "--lr", "0.002", "--epochs", "10", "--select-from", "1"]
+#: Where the land head starts (left out by ``--from-scratch``): the maritime head, ``person``
+#: from its ``swimmer`` row.
+LAND_INIT_ARGS = ["--init", "default", "--init-class", "person=swimmer"]
 TRAIN_ARGS = [
     "--epochs",
     "30",
@@ -290,22 +280,7 @@ def main() -> int:
     else:
         val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
     out = args.work / ("mitenet_head.pt" if args.seed == 0 else f"mitenet_head_seed{args.seed}.pt")
-    code = sarmission(
-        [
-            "train",
-            "--train",
-            str(train),
-            "--val",
-            str(val),
-            "--out",
-            str(out),
-            "--onnx",
-            *TRAIN_ARGS,
-            "--seed",
-            str(args.seed),
-            *extra,
-        ]
-    )
+    code = train_head(train, val, out, [], args.seed, extra)
     if code:
         return code
     if not args.no_install:
@@ -324,13 +299,16 @@ def train_land(args: argparse.Namespace, extra: list[str]) -> int:
     val = render_heldout_val(args.work, LAND_VAL, rename={}, name="heldout_land_val")
     stem = "mitenet_land_head" + ("_scratch" if args.from_scratch else "")
     stem += "" if args.seed == 0 else f"_seed{args.seed}"
-    out = args.work / f"{stem}.pt"
-    land_args = list(LAND_ARGS)
-    if args.from_scratch:
-        for flag in ("--init", "--init-class"):
-            at = land_args.index(flag)
-            del land_args[at : at + 2]
-    code = sarmission(
+    recipe = LAND_ARGS + ([] if args.from_scratch else LAND_INIT_ARGS)
+    return train_head(train, val, args.work / f"{stem}.pt", recipe, args.seed, extra)
+
+
+def train_head(
+    train: Path, val: Path, out: Path, recipe: list[str], seed: int, extra: list[str]
+) -> int:
+    """``sarmission train`` with :data:`TRAIN_ARGS`, then ``recipe``, the seed and the user's
+    own options (later ones win); writes ``out`` and its ONNX; returns the exit code."""
+    return sarmission(
         [
             "train",
             "--train",
@@ -341,13 +319,12 @@ def train_land(args: argparse.Namespace, extra: list[str]) -> int:
             str(out),
             "--onnx",
             *TRAIN_ARGS,
-            *land_args,
+            *recipe,
             "--seed",
-            str(args.seed),
+            str(seed),
             *extra,
         ]
     )
-    return code
 
 
 if __name__ == "__main__":
