@@ -147,8 +147,11 @@ class DatasetBuilder:
         """The dataset; raises ``DatasetFormatError`` when no image was found."""
         if not self.images:
             raise DatasetFormatError(f"{self.source}: no annotated image found")
-        for video in self.videos:  # frame order within each video
-            frames = [im for im in self.images if im.video_id == video.id]
+        by_video: dict[int, list[ImageRecord]] = {}
+        for image in self.images:
+            if image.video_id is not None:
+                by_video.setdefault(image.video_id, []).append(image)
+        for frames in by_video.values():  # frames without an index: numbered in order
             if any(im.frame_index is None for im in frames):
                 for index, im in enumerate(frames):
                     im.frame_index = index

@@ -45,18 +45,21 @@ def annotation_files(root: Path, split: str | None) -> list[Path]:
     return found
 
 
-def _image_file(root: Path, json_path: Path, split: str, name: str) -> Path | None:
+def _image_file(root: Path, json_path: Path, split: str, name: str) -> tuple[Path, bool]:
+    """Where image ``name`` lies and whether it is there; when it is not, where the release
+    keeps it (``images/<split>/``)."""
     base = root if root.is_dir() else json_path.parent.parent
-    for candidate in (
+    candidates = (
         base / "images" / split / name,
         json_path.parent.parent / "images" / split / name,
         json_path.parent / "images" / name,
         json_path.parent / name,
         json_path.parent.parent / "images" / name,
-    ):
+    )
+    for candidate in candidates:
         if candidate.is_file():
-            return candidate
-    return None
+            return candidate, True
+    return candidates[0], False
 
 
 def _split_of(json_path: Path) -> str:
@@ -89,11 +92,9 @@ def import_seadronessee(
             elif image.video_id is not None:
                 video = videos.get(image.video_id, str(image.video_id))
                 frame = image.frame_index
-            path = _image_file(root, json_path, part_split, image.file_name)
-            if path is None:
+            path, found = _image_file(root, json_path, part_split, image.file_name)
+            if not found:
                 missing.append(image.file_name)
-                path = (root if root.is_dir() else json_path.parent.parent) / "images"
-                path = path / part_split / image.file_name
             image_id = out.image(
                 path,
                 image.width,
