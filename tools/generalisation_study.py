@@ -25,6 +25,9 @@ Variants (:data:`VARIANTS`):
   life-saving appliances learnt as classes of their own instead of background).
 * ``broad_person``: ``broad`` with people on land learnt as ``person``, a class of their own
   beside the swimmers (validated so; the land test scores any person class).
+* ``broad_textures``: ``broad`` plus procedural texture negatives (dead leaves, fractal noise,
+  gratings, edges; :mod:`sarmission.training.textures`), a quarter of each batch's size, each
+  with the motion channel of a random training crop.
 * ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
   of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
@@ -115,6 +118,8 @@ class Variant:
     #: People on land learnt as ``person`` (a class of their own; validation keeps them so)
     #: instead of as ``swimmer``.
     land_person: bool = False
+    #: Procedural texture negatives per batch, as a share of the batch size.
+    texture_negatives: float = 0.0
 
 
 VARIANTS: dict[str, Variant] = {
@@ -179,6 +184,15 @@ VARIANTS: dict[str, Variant] = {
             "broad, plus 2 negatives cut around every annotated distractor (boats, debris, "
             "birds, glints) in each training frame",
             object_negatives=2,
+        ),
+        Variant(
+            "broad_textures",
+            MARITIME_PARTS + EXTRA_PARTS,
+            "all",
+            8,
+            "broad, plus procedural texture negatives (a quarter of each batch) carrying "
+            "the motion channel of random training crops",
+            texture_negatives=0.25,
         ),
     )
 }
@@ -246,6 +260,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         select_from=s["select_from"],
         crops=crops,
         randomise=Randomisation.parse(variant.randomise),
+        texture_negatives=variant.texture_negatives,
         cache_dir=work / "crop_cache",
         progress=False,
     )

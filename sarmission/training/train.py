@@ -7,7 +7,12 @@ by 90 degrees and a mirror; a nadir view has no preferred orientation), drawn fr
 generator, and its ``l, t, r, b`` targets are permuted to match. With ``randomise`` naming
 transforms, crop-level domain randomisation
 (:func:`~sarmission.training.randomise.randomise_crops`) follows, drawn from
-``numpy.random.default_rng([seed, epoch, 1])``. The loss is
+``numpy.random.default_rng([seed, epoch, 1])``. With ``texture_negatives`` above 0, that share
+of a batch's size is added to it as negatives from a bank of procedural textures
+(:mod:`sarmission.training.textures`, bank seeded by ``seed``), each with the motion channel and
+scale of a training crop drawn at random (any label: a texture is nobody whatever moves there),
+drawn from ``numpy.random.default_rng([seed, epoch, 2])``; they take the symmetries and the
+randomisation as every crop does. The loss is
 :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
 
 Learning rate per optimiser step ``i`` of ``T`` (``W`` warm-up steps, one epoch at most)::
@@ -67,11 +72,14 @@ from sarmission.perception.runtime import save_head_checkpoint
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
 from sarmission.training.losses import LossWeights, head_loss
 from sarmission.training.randomise import Randomisation, randomise_crops
+from sarmission.training.textures import texture_bank
 
 STATE_FORMAT = "sarmission.train_state"
 STATE_VERSION = 2
 #: Config fields that may differ between a run and its resumption.
 _RESUMABLE_CHANGES = ("resume", "progress", "num_threads", "cache_dir")
+#: Texture crops in the bank that ``texture_negatives`` draws from.
+TEXTURE_BANK_SIZE = 4096
 #: ``l, t, r, b`` index permutation of a crop rotated by 90 degrees (torch.rot90, k=1) and of
 #: a left-right mirror.
 _ROT90_LTRB = (1, 2, 3, 0)
@@ -104,6 +112,8 @@ class TrainConfig:
     seed: int = 0
     augment: bool = True
     randomise: Randomisation = field(default_factory=Randomisation)
+    #: Procedural texture negatives added to each batch, as a share of the batch size (0: none).
+    texture_negatives: float = 0.0
     crops: CropSettings = field(default_factory=CropSettings)
     loss: LossWeights = field(default_factory=LossWeights)
     score_threshold: float = 0.5
@@ -134,6 +144,8 @@ class TrainConfig:
             raise ValueError(f"optimizer must be 'sgd' or 'adamw', got {self.optimizer!r}")
         if not 0.0 <= self.min_lr_ratio <= 1.0:
             raise ValueError(f"min_lr_ratio must be in [0, 1], got {self.min_lr_ratio}")
+        if not 0.0 <= self.texture_negatives <= 4.0:
+            raise ValueError(f"texture_negatives must be in [0, 4], got {self.texture_negatives}")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         self.randomise.validate()
@@ -144,6 +156,8 @@ class TrainConfig:
         d = asdict(self)
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
+        if not self.texture_negatives:
+            d.pop("texture_negatives")  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
         d["randomise"] = {
             "transforms": list(self.randomise.transforms),
@@ -328,14 +342,17 @@ def _train_epoch(
     epoch: int,
     bar,
     average: WeightAverage | None = None,
+    textures: Tensor | None = None,
 ) -> dict[str, float]:
-    """One pass over the training crops; mean loss terms per batch."""
+    """One pass over the training crops; mean loss terms per batch. ``textures``: the bank
+    texture negatives are drawn from (module docstring)."""
     model.train()
     n = len(data)
     rng = np.random.default_rng([config.seed, epoch])
     order = torch.from_numpy(rng.permutation(n))
     ops = torch.from_numpy(rng.integers(0, 8, size=n))
     randomising = np.random.default_rng([config.seed, epoch, 1])
+    texturing = np.random.default_rng([config.seed, epoch, 2])
     steps = math.ceil(n / config.batch_size)
     scale_all = data.scale
     sums = dict.fromkeys(("loss", "cls", "nwd", "dfl"), 0.0)
@@ -345,14 +362,22 @@ def _train_epoch(
         for group in optimizer.param_groups:
             group["lr"] = lr
         crops, target, scale = data.crops[idx].float(), data.target_ltrb[idx], scale_all[idx]
-        if config.augment:
-            crops, target, scale = dihedral(crops, target, scale, ops[idx])
-        if config.randomise.transforms:
-            crops, target = randomise_crops(
-                crops, target, data.labels[idx], config.randomise, randomising
+        labels, symmetry = data.labels[idx], ops[idx]
+        if textures is not None:
+            extra = round(config.texture_negatives * len(idx))
+            crops, target, scale, labels, symmetry = with_texture_negatives(
+                (crops, target, scale, labels, symmetry),
+                textures,
+                (data.crops, scale_all),
+                extra,
+                texturing,
             )
+        if config.augment:
+            crops, target, scale = dihedral(crops, target, scale, symmetry)
+        if config.randomise.transforms:
+            crops, target = randomise_crops(crops, target, labels, config.randomise, randomising)
         cls_logits, bins, ltrb = model.forward_with_bins(crops)
-        terms = head_loss(cls_logits, bins, ltrb, data.labels[idx], target, scale, config.loss)
+        terms = head_loss(cls_logits, bins, ltrb, labels, target, scale, config.loss)
         optimizer.zero_grad(set_to_none=True)
         terms.total.backward()
         optimizer.step()
@@ -368,6 +393,32 @@ def _train_epoch(
         bar.update(1)
         bar.set_postfix(epoch=epoch + 1, loss=f"{sums['loss'] / (b + 1):.3f}")
     return {k: v / max(steps, 1) for k, v in sums.items()} | {"lr": lr}
+
+
+def with_texture_negatives(
+    batch: tuple[Tensor, Tensor, Tensor, Tensor, Tensor],
+    textures: Tensor,
+    donors: tuple[Tensor, Tensor],
+    count: int,
+    rng: np.random.Generator,
+) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
+    """``batch`` (crops, targets, scales, labels, symmetries) with ``count`` texture negatives
+    appended: RGB from ``textures``, motion channel and scale from random crops of ``donors``
+    (all training crops ``[N, 4, S, S]`` and their scales ``[N, 2]``)."""
+    crops, target, scale, labels, symmetry = batch
+    if count <= 0:
+        return batch
+    donor_crops, donor_scale = donors
+    picks = torch.from_numpy(rng.integers(0, len(textures), size=count))
+    chosen = torch.from_numpy(rng.integers(0, len(donor_crops), size=count))
+    added = torch.cat([textures[picks], donor_crops[chosen, 3:].float()], dim=1)
+    return (
+        torch.cat([crops, added]),
+        torch.cat([target, torch.zeros(count, 4, dtype=target.dtype)]),
+        torch.cat([scale, donor_scale[chosen]]),
+        torch.cat([labels, torch.full((count,), -1, dtype=labels.dtype)]),
+        torch.cat([symmetry, torch.from_numpy(rng.integers(0, 8, size=count))]),
+    )
 
 
 def train(config: TrainConfig) -> TrainResult:
@@ -414,6 +465,10 @@ def train(config: TrainConfig) -> TrainResult:
         start, best_f2, best_epoch = state["epoch"], state["best_f2"], state["best_epoch"]
         history = list(state["history"])
     steps = math.ceil(len(train_set) / config.batch_size)
+    textures = None
+    if config.texture_negatives > 0:
+        size = train_set.crops.shape[-1]
+        textures = torch.from_numpy(texture_bank(TEXTURE_BANK_SIZE, size, config.seed))
     with tqdm(
         total=steps * (config.epochs - start),
         unit="batch",
@@ -423,7 +478,9 @@ def train(config: TrainConfig) -> TrainResult:
     ) as bar:
         for epoch in range(start, config.epochs):
             t_epoch = time.perf_counter()
-            record = _train_epoch(model, optimizer, train_set, config, epoch, bar, average)
+            record = _train_epoch(
+                model, optimizer, train_set, config, epoch, bar, average, textures
+            )
             record |= validate_f2(evaluated, val_set, config.score_threshold, config.nms_iou)
             record |= {"epoch": epoch + 1, "seconds": time.perf_counter() - t_epoch}
             history.append(record)
