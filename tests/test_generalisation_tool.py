@@ -133,3 +133,19 @@ def test_page_reports_mean_and_range_over_seeds(tool) -> None:
     )
     assert tool.spread([None, None]) is None
     assert tool.spread([1.0, 3.0, None]) == (2.0, 1.0, 3.0)
+    assert "Background only" not in md  # no run measured it
+
+    for seed, (land, sea) in enumerate(((5.0, 1.0), (3.0, 0.5), (4.0, 0.3))):
+        runs[f"baseline/seed{seed}"]["test"] |= {
+            "heldout_land_empty": {
+                "false_per_frame_above_0.5": land,
+                "false_per_frame_above_0.9": land / 10,
+            },
+            "heldout_maritime_empty": {
+                "false_per_frame_above_0.5": sea,
+                "false_per_frame_above_0.9": None,
+            },
+        }
+    md = tool.render_section(results)
+    assert "### Background only" in md
+    assert "| `baseline` | 3 | 4.00 (3.00-5.00) | 0.40 (0.30-0.50) | 0.60 (0.30-1.00) | — |" in md

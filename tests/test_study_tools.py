@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
+import numpy as np
 from conftest import load_tool
 
 
@@ -49,6 +51,23 @@ def test_land_table_groups_seeds_by_recipe():
     assert "| land b (person) | 4/17 | 23.5 | 74.0 | 0.20 | 6.00 | 2.00 | — |" in table
     assert "| **land a**, mean of 2 seeds (min-max) | 12.5/17 | 73.5 (70.6-76.5) |" in table
     assert "**land b**" not in table  # one seed: no spread to report
+
+
+def test_background_summary_counts_every_detection_as_false():
+    tool = load_tool("background_eval")
+    frames = [
+        SimpleNamespace(scores=np.array([0.95, 0.6, 0.4])),
+        SimpleNamespace(scores=np.array([0.3])),
+        SimpleNamespace(scores=np.array([0.91, 0.92])),
+    ]
+    summary = tool.summarise(frames)
+    assert summary["frames"] == 3 and summary["detections"] == 6
+    assert summary["false_per_frame_above_0.5"] == 4 / 3
+    assert summary["false_per_frame_above_0.9"] == 1.0
+    assert summary["frames_without_any_above_0.5"] == 1 / 3
+    assert summary["score_quantiles"][0] == np.percentile([0.95, 0.6, 0.4, 0.3, 0.91, 0.92], 50)
+    empty = tool.summarise([])
+    assert empty["score_quantiles"] is None and empty["frames_without_any_above_0.5"] is None
 
 
 def test_background_table_reports_every_world_and_head():

@@ -20,7 +20,7 @@ import datetime as dt
 import shlex
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,18 +38,11 @@ WORLDS = ("heldout_land_empty", "heldout_maritime_empty")
 QUANTILES = (50, 90, 99)
 
 
-def measure_head(annotations: Path, model: str | None) -> dict[str, Any]:
-    """Every detection of ``model`` on a background-only file, summarised."""
+def summarise(per_frame: Sequence[Any]) -> dict[str, Any]:
+    """What a head said on background-only frames (detections per frame, each with ``scores``):
+    every detection is false."""
     import numpy as np
 
-    from sarmission.data.coco_video import read_coco_video
-    from sarmission.evaluation.run_model import run_mitenet
-    from sarmission.perception.mitenet import MiteNet, build_head_runtime
-
-    dataset = read_coco_video(annotations)
-    net = MiteNet(build_head_runtime(model, "onnx"), ds=2, topn=25, score_threshold=0.3)
-    run = run_mitenet(net, dataset, progress=False)
-    per_frame = [run.detections[im] for im in sorted(run.detections)]
     scores = np.concatenate([d.scores for d in per_frame]) if per_frame else np.zeros(0)
     frames = max(1, len(per_frame))
     above_05 = np.array([(d.scores > 0.5).sum() for d in per_frame])
@@ -64,6 +57,18 @@ def measure_head(annotations: Path, model: str | None) -> dict[str, Any]:
         if len(scores)
         else None,
     }
+
+
+def measure_head(annotations: Path, model: str | None) -> dict[str, Any]:
+    """Every detection of ``model`` on a background-only file, summarised."""
+    from sarmission.data.coco_video import read_coco_video
+    from sarmission.evaluation.run_model import run_mitenet
+    from sarmission.perception.mitenet import MiteNet, build_head_runtime
+
+    dataset = read_coco_video(annotations)
+    net = MiteNet(build_head_runtime(model, "onnx"), ds=2, topn=25, score_threshold=0.3)
+    run = run_mitenet(net, dataset, progress=False)
+    return summarise([run.detections[im] for im in sorted(run.detections)])
 
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:

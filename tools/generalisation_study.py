@@ -100,6 +100,8 @@ TRAIN_SETTINGS = {
 }
 #: Test clips: tools/heldout_eval.py's defaults.
 TEST_FRAMES, OWN_CLIPS, SEA_CLIPS, LAND_CLIPS = 40, 2, 3, 2
+#: Background-only held-out worlds (tools/background_eval.py) and their clips of TEST_FRAMES.
+BACKGROUND_SPLITS, BACKGROUND_CLIPS = ("heldout_land_empty", "heldout_maritime_empty"), 3
 #: Detector settings of ``sarmission eval``.
 EVAL_DS, EVAL_TOPN, EVAL_CONF = 2, 25, 0.3
 
@@ -343,6 +345,9 @@ def test_splits(folder: Path) -> dict[str, Path]:
             folder, "heldout_maritime", SEA_CLIPS, TEST_FRAMES, reused
         ),
         "heldout_land": heldout_eval.persons_as_swimmers(land),
+    } | {
+        name: heldout_eval.render_heldout(folder, name, BACKGROUND_CLIPS, TEST_FRAMES, reused)
+        for name in BACKGROUND_SPLITS
     }
 
 
@@ -359,11 +364,17 @@ def evaluate_heads(
         name: load_head_runtime(path or DEFAULT_TORCH_MODEL, "torch")
         for name, path in checkpoints.items()
     }
+    background = _tool("background_eval")
     out: dict[str, dict[str, Any]] = {name: {} for name in heads}
     for split, path in splits.items():
         print(f"testing {len(heads)} heads on {split}", file=sys.stderr)
         dataset = read_coco_video(path)
         for name, run in run_heads(heads, dataset).items():
+            if split in BACKGROUND_SPLITS:
+                out[name][split] = background.summarise(
+                    [run.detections[i] for i in sorted(run.detections)]
+                )
+                continue
             report = evaluate_detections(
                 dataset,
                 run.detections,
@@ -431,7 +442,8 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "maritime_test": OWN_CLIPS,
                 "heldout_maritime": SEA_CLIPS,
                 "heldout_land": LAND_CLIPS,
-            },
+            }
+            | dict.fromkeys(BACKGROUND_SPLITS, BACKGROUND_CLIPS),
         },
         "variants": {
             n: {
@@ -459,6 +471,18 @@ def _save(work: Path, results: Mapping[str, Any]) -> Path:
 
 SPLITS = ("maritime_test", "heldout_maritime", "heldout_land")
 METRICS = (("ssr", "SSR (%)", 1), ("far_det", "FAR/det (%)", 1), ("head_r05", "head R@0.5", 2))
+#: Figures of the background-only worlds: false detections per frame above 0.5 and 0.9.
+BACKGROUND_METRICS = (
+    ("false_per_frame_above_0.5", "false/frame > 0.5", 2),
+    ("false_per_frame_above_0.9", "false/frame > 0.9", 2),
+)
+
+
+def _figure(test: Mapping[str, Any], split: str, key: str) -> float | None:
+    """One figure of a run's test results; ``None`` where it was not measured (results
+    written before a split was added)."""
+    value = test.get(split, {}).get(key)
+    return None if value is None else float(value)
 
 
 def spread(values: Sequence[float | None]) -> tuple[float, float, float] | None:
@@ -478,6 +502,47 @@ def _cell(stats: tuple[float, float, float] | None, digits: int) -> str:
 
 def _num(value: float | None, digits: int) -> str:
     return "—" if value is None else f"{value:.{digits}f}"
+
+
+def background_table(results: Mapping[str, Any]) -> list[str]:
+    """Lines of the background-only table (false detections per frame where nobody is), mean
+    (min-max) over the seeds; none when no run measured it."""
+    runs = results["runs"]
+    measured = [r for r in runs.values() if BACKGROUND_SPLITS[0] in r.get("test", {})]
+    if not measured:
+        return []
+    header = [
+        f"{split} {label}" for split in BACKGROUND_SPLITS for _, label, _ in BACKGROUND_METRICS
+    ]
+    lines = [
+        "",
+        "### Background only: false detections per frame, mean (min-max) over the seeds",
+        "",
+        "Held-out worlds with their people left out (`tools/background_eval.py`, "
+        "docs/background_only.md): every detection is false; the land goal is 0.2 per frame.",
+        "",
+        "| variant | seeds | " + " | ".join(header) + " |",
+        "| :--- | ---: |" + " ---: |" * len(header),
+    ]
+    for name in results["variants"]:
+        mine = [r for r in measured if r["variant"] == name]
+        cells = [
+            _cell(spread([_figure(r["test"], split, key) for r in mine]), digits)
+            for split in BACKGROUND_SPLITS
+            for key, _, digits in BACKGROUND_METRICS
+        ]
+        lines.append(f"| `{name}` | {len(mine)} | " + " | ".join(cells) + " |")
+    shipped = results.get("shipped") or {}
+    if BACKGROUND_SPLITS[0] in shipped:
+        cells = [
+            _num(_figure(shipped, split, key), digits)
+            for split in BACKGROUND_SPLITS
+            for key, _, digits in BACKGROUND_METRICS
+        ]
+        lines.append(
+            "| head shipped when generated (full recipe) | — | " + " | ".join(cells) + " |"
+        )
+    return lines
 
 
 def render_section(results: Mapping[str, Any]) -> str:
@@ -519,7 +584,7 @@ def render_section(results: Mapping[str, Any]) -> str:
     for name in results["variants"]:
         mine = [r for r in runs.values() if r["variant"] == name and "test" in r]
         cells = [
-            _cell(spread([r["test"][split][key] for r in mine]), digits)
+            _cell(spread([_figure(r["test"], split, key) for r in mine]), digits)
             for split in SPLITS
             for key, _, digits in METRICS
         ]
@@ -532,6 +597,7 @@ def render_section(results: Mapping[str, Any]) -> str:
         lines.append(
             "| head shipped when generated (full recipe) | — | " + " | ".join(cells) + " |"
         )
+    lines += background_table(results)
     lines += [
         "",
         "### Every run",
