@@ -1,4 +1,4 @@
-"""Urban ground: a city texture painted once from the street layout, warped per frame.
+"""Painted ground: a texture painted once per world, warped per frame; the city painter.
 
 The texture (``texel_m`` metres per texel, north up) covers the scenario area plus a margin:
 grass and yards, asphalt roads with dashed centre lines and sidewalks, car parks with stall
@@ -27,12 +27,11 @@ TREE = (38.0, 78.0, 46.0)
 MARGIN_M = 100.0
 
 
-class UrbanGround:
-    """The painted city of one urban :class:`World`."""
+class PaintedGround:
+    """A ground texture over a world's area plus :data:`MARGIN_M`, painted once by
+    :meth:`_paint` (subclasses), its mip levels, and the per-frame warp."""
 
     def __init__(self, world: World, texel_m: float = 0.1) -> None:
-        if world.layout is None:
-            raise ValueError("UrbanGround needs an urban world (with a street layout)")
         sc = world.scenario
         self.texel_m = texel_m
         n0, e0, n1, e1 = sc.area_ne
@@ -70,6 +69,58 @@ class UrbanGround:
     def _poly(self, img: np.ndarray, pts_ne: np.ndarray, bgr: tuple[float, ...]) -> None:
         pts = np.array([self.texel(n, e) for n, e in pts_ne], dtype=np.int32)
         cv2.fillConvexPoly(img, pts, bgr, lineType=cv2.LINE_AA)
+
+    def _paint(self, world: World, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
+        raise NotImplementedError
+
+    def _paint_object(self, img: np.ndarray, obj: SceneObject) -> None:
+        state = obj.state_at(0.0)
+        draw_parts(
+            img,
+            self.texel_from_ground() @ state.local_to_ne(),
+            state.parts,
+            state.visibility,
+            blur_px=0.0,
+        )
+
+    def _paint_static(self, img: np.ndarray, world: World) -> None:
+        """Static objects (parked cars, resting animals) painted in: annotated like any object,
+        free per frame."""
+        for obj in world.objects:
+            if obj.static:
+                self._paint_object(img, obj)
+
+    # -- per frame -----------------------------------------------------------------------
+    def render(self, h_ground: np.ndarray, width: int, height: int) -> np.ndarray:
+        """The ground seen through ``h_ground`` (ground north/east -> full-resolution pixels)."""
+        half_w, half_h = math.ceil(width / 2), math.ceil(height / 2)
+        to_half = np.array([[0.5, 0.0, -0.25], [0.0, 0.5, -0.25], [0.0, 0.0, 1.0]])
+        h = to_half @ h_ground @ np.linalg.inv(self.texel_from_ground())
+        # Texels per half-resolution pixel at the image centre picks the mip level.
+        c = np.linalg.solve(h, np.array([half_w / 2, half_h / 2, 1.0]))
+        d = np.linalg.solve(h, np.array([half_w / 2 + 1, half_h / 2, 1.0]))
+        step = float(np.hypot(*(d[:2] / d[2] - c[:2] / c[2]))) if c[2] and d[2] else 1.0
+        level = int(np.clip(math.floor(math.log2(max(step, 1.0))), 0, len(self._levels) - 1))
+        scale = np.diag([2.0**-level, 2.0**-level, 1.0])
+        scale[:2, 2] = 0.5 * 2.0**-level - 0.5
+        m = h @ np.linalg.inv(scale)
+        half_img = cv2.warpPerspective(
+            self._levels[level],
+            m,
+            (half_w, half_h),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REFLECT,
+        )
+        return cv2.resize(half_img, (width, height), interpolation=cv2.INTER_LINEAR)
+
+
+class UrbanGround(PaintedGround):
+    """The painted city of one urban :class:`World`."""
+
+    def __init__(self, world: World, texel_m: float = 0.1) -> None:
+        if world.layout is None:
+            raise ValueError("UrbanGround needs an urban world (with a street layout)")
+        super().__init__(world, texel_m)
 
     def _paint(self, world: World, rows: int, cols: int, rng: np.random.Generator) -> np.ndarray:
         layout = world.layout
@@ -149,40 +200,5 @@ class UrbanGround:
         grain = cv2.resize(grain, (cols, rows), interpolation=cv2.INTER_LINEAR)
         img = np.clip(img.astype(np.float32) * (1.0 + 0.06 * grain[..., None]), 0, 255)
         img = img.astype(np.uint8)
-        for obj in world.objects:
-            if obj.static:
-                self._paint_object(img, obj)
+        self._paint_static(img, world)
         return img
-
-    def _paint_object(self, img: np.ndarray, obj: SceneObject) -> None:
-        state = obj.state_at(0.0)
-        draw_parts(
-            img,
-            self.texel_from_ground() @ state.local_to_ne(),
-            state.parts,
-            state.visibility,
-            blur_px=0.0,
-        )
-
-    # -- per frame -----------------------------------------------------------------------
-    def render(self, h_ground: np.ndarray, width: int, height: int) -> np.ndarray:
-        """The ground seen through ``h_ground`` (ground north/east -> full-resolution pixels)."""
-        half_w, half_h = math.ceil(width / 2), math.ceil(height / 2)
-        to_half = np.array([[0.5, 0.0, -0.25], [0.0, 0.5, -0.25], [0.0, 0.0, 1.0]])
-        h = to_half @ h_ground @ np.linalg.inv(self.texel_from_ground())
-        # Texels per half-resolution pixel at the image centre picks the mip level.
-        c = np.linalg.solve(h, np.array([half_w / 2, half_h / 2, 1.0]))
-        d = np.linalg.solve(h, np.array([half_w / 2 + 1, half_h / 2, 1.0]))
-        step = float(np.hypot(*(d[:2] / d[2] - c[:2] / c[2]))) if c[2] and d[2] else 1.0
-        level = int(np.clip(math.floor(math.log2(max(step, 1.0))), 0, len(self._levels) - 1))
-        scale = np.diag([2.0**-level, 2.0**-level, 1.0])
-        scale[:2, 2] = 0.5 * 2.0**-level - 0.5
-        m = h @ np.linalg.inv(scale)
-        half_img = cv2.warpPerspective(
-            self._levels[level],
-            m,
-            (half_w, half_h),
-            flags=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REFLECT,
-        )
-        return cv2.resize(half_img, (width, height), interpolation=cv2.INTER_LINEAR)

@@ -25,7 +25,7 @@ import numpy as np
 
 from sarmission.geo.camera import CameraIntrinsics, CameraPose
 from sim.billboard import billboard_for, billboard_homography, billboard_parts
-from sim.ground import UrbanGround
+from sim.ground import PaintedGround, UrbanGround
 from sim.scene import (
     CATEGORIES,
     TARGET_CATEGORIES,
@@ -42,6 +42,7 @@ from sim.sprites import draw_parts, tight_extent
 from sim.truth_camera import ground_homography, project
 from sim.truth_frames import ned_to_geodetic
 from sim.upright_world import build_upright_world
+from sim.wild import WildGround
 
 
 @dataclass
@@ -101,7 +102,7 @@ class SceneRenderer:
         self._static = [o.state_at(0.0) for o in self.world.objects if o.static]
         w, h = intrinsics.width, intrinsics.height
         self.sea: SeaSurface | None = None
-        self.ground: UrbanGround | None = None
+        self.ground: PaintedGround | None = None
         if scenario.kind == "maritime":
             self.sea = SeaSurface(scenario)
             ss = scenario.sea_state
@@ -115,7 +116,8 @@ class SceneRenderer:
                 drift_px_s=(3.0, 2.0),
             )
         else:
-            self.ground = UrbanGround(self.world)
+            painter = WildGround if scenario.kind == "wild" else UrbanGround
+            self.ground = painter(self.world)
             self.detail = DetailOverlay(
                 w, h, scenario.seed, grain_std=2.5, noise_std=1.6, grain_sigma_px=0.6
             )

@@ -315,6 +315,67 @@ def urban_test() -> Preset:
     return _urban("urban_test", 6006, 100.0, 75.0, 10.0, (120.0, 35.0))
 
 
+def _wild(
+    name: str,
+    seed: int,
+    biome: str,
+    altitude: float,
+    hfov: float,
+    per_frame: float,
+    sun: tuple[float, float],
+    home: tuple[float, float, float],
+) -> Preset:
+    rect = (30.0, -90.0, 90.0, 90.0)
+    strip, footprint = _strip(rect, altitude, hfov)
+    n = _count(per_frame, strip, footprint)
+    scenario = Scenario(
+        kind="wild",
+        seed=seed,
+        area_ne=strip,
+        biome=biome,
+        n_pedestrians=n,
+        n_animals=max(1, n // 2),
+        sun_azimuth_deg=sun[0],
+        sun_elevation_deg=sun[1],
+    )
+    return Preset(name, scenario, _mission(name, rect, altitude, hfov, home, speed=6.0))
+
+
+def wild_meadow_train() -> Preset:
+    """Meadow with bushes, a few trees and a trail at 60 m, about 5 people per frame."""
+    return _wild(
+        "wild_meadow_train", 4101, "meadow", 60.0, 70.0, 5.0, (150.0, 45.0), (47.42, 10.98, 1400.0)
+    )
+
+
+def wild_forest_train() -> Preset:
+    """Forest canopy with clearings, logs and a trail at 70 m, about 5 people per frame."""
+    return _wild(
+        "wild_forest_train", 4102, "forest", 70.0, 70.0, 5.0, (200.0, 50.0), (61.05, 24.50, 120.0)
+    )
+
+
+def wild_rock_train() -> Preset:
+    """Boulder field and scree at 60 m, about 5 people per frame."""
+    return _wild(
+        "wild_rock_train", 4103, "rock", 60.0, 75.0, 5.0, (110.0, 35.0), (46.55, 8.03, 2300.0)
+    )
+
+
+def wild_snow_train() -> Preset:
+    """Snow with rocks, conifers and tracks at 70 m, about 5 people per frame."""
+    return _wild(
+        "wild_snow_train", 4104, "snow", 70.0, 70.0, 5.0, (170.0, 25.0), (46.02, 7.75, 2600.0)
+    )
+
+
+def wild_sand_train() -> Preset:
+    """Dunes with ripples, shrubs and driftwood at 60 m, about 5 people per frame."""
+    return _wild(
+        "wild_sand_train", 4105, "sand", 60.0, 70.0, 5.0, (230.0, 60.0), (54.45, 8.30, 5.0)
+    )
+
+
 PRESETS: dict[str, Callable[[], Preset]] = {
     f.__name__: f
     for f in (
@@ -330,6 +391,11 @@ PRESETS: dict[str, Callable[[], Preset]] = {
         urban_train,
         urban_val,
         urban_test,
+        wild_meadow_train,
+        wild_forest_train,
+        wild_rock_train,
+        wild_snow_train,
+        wild_sand_train,
     )
 }
 

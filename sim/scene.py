@@ -48,6 +48,7 @@ CATEGORIES: dict[str, int] = {
     "jetski": 9,
     "buoy": 10,
     "life_saving_appliances": 11,
+    "animal": 12,
 }
 #: Categories that are people to find. The maritime detector's classes are the first two;
 #: ``person`` is a person on land in urban scenes.
@@ -314,7 +315,9 @@ class Scenario:
     waves wash over swimmers. Swimmer sizes: head-and-shoulders across ``swimmer_width_m``;
     ``head_only_fraction`` show only a head (0.18-0.26 m), ``floating_fraction`` float on their
     back (body 1.3-1.8 m long). Life-jacket wearers float on their back in half the cases.
-    Urban counts apply to ``kind == "urban"``, maritime ones to ``"maritime"``.
+    Urban counts apply to ``kind == "urban"``, maritime ones to ``"maritime"``; ``"wild"``
+    (:mod:`sim.wild`) is land away from streets of the given ``biome``, with ``n_pedestrians``
+    people and ``n_animals`` animals (flat figures only).
 
     ``figures = "flat"`` lays every object flat on its plane (the look from straight down);
     ``"upright"`` builds the world of :mod:`sim.upright_world` instead: heads and shoulders
@@ -349,10 +352,14 @@ class Scenario:
     n_buoys: int = 0
     n_life_rings: int = 0
     buoy_area_ne: tuple[float, float, float, float] | None = None
+    biome: str = "meadow"
+    n_animals: int = 0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("maritime", "urban"):
-            raise ValueError(f"kind must be 'maritime' or 'urban', got {self.kind!r}")
+        if self.kind not in ("maritime", "urban", "wild"):
+            raise ValueError(f"kind must be 'maritime', 'urban' or 'wild', got {self.kind!r}")
+        if self.kind == "wild" and self.figures != "flat":
+            raise ValueError("wild scenes have flat figures only")
         if self.figures not in ("flat", "upright"):
             raise ValueError(f"figures must be 'flat' or 'upright', got {self.figures!r}")
         if not 0 <= self.sea_state <= 6:
@@ -710,6 +717,10 @@ def build_world(scenario: Scenario) -> World:
     """Place every object of ``scenario`` (deterministic from its seed)."""
     if scenario.kind == "maritime":
         return World(scenario, _maritime_objects(scenario))
+    if scenario.kind == "wild":
+        from sim.wild import build_wild_world  # sim.wild builds on this module
+
+        return build_wild_world(scenario)
     layout = _urban_layout(scenario)
     return World(scenario, _urban_objects(scenario, layout), layout)
 
