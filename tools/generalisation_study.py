@@ -28,6 +28,9 @@ Variants (:data:`VARIANTS`):
 * ``broad_textures``: ``broad`` plus procedural texture negatives (dead leaves, fractal noise,
   gratings, edges; :mod:`sarmission.training.textures`), a quarter of each batch's size, each
   with the motion channel of a random training crop.
+* ``broad_wild``: ``broad`` plus the simulator's wild land (meadow, forest, rock, snow and
+  sand with animals and person-sized clutter; people trained as ``swimmer``), a clip of each.
+* ``broad_wild_textures``: ``broad_wild`` with the texture negatives of ``broad_textures``.
 * ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
   of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
@@ -89,6 +92,10 @@ EXTRA_PARTS = (
     ("maritime_oblique_high", 2, 40, "3840x2160"),
 )
 OBJECT_PARTS = (("maritime_objects_train", 3, 40, "3840x2160"),)
+WILD_PARTS = tuple(
+    (f"wild_{biome}_train", 1, 40, "3840x2160")
+    for biome in ("meadow", "forest", "rock", "snow", "sand")
+)
 TRAIN_SETTINGS = {
     "epochs": 12,
     "select_from": 4,
@@ -194,6 +201,22 @@ VARIANTS: dict[str, Variant] = {
             8,
             "broad, plus procedural texture negatives (a quarter of each batch) carrying "
             "the motion channel of random training crops",
+            texture_negatives=0.25,
+        ),
+        Variant(
+            "broad_wild",
+            MARITIME_PARTS + EXTRA_PARTS + WILD_PARTS,
+            "all",
+            8,
+            "broad, plus the wild land presets (meadow, forest, rock, snow, sand; people as "
+            "swimmer)",
+        ),
+        Variant(
+            "broad_wild_textures",
+            MARITIME_PARTS + EXTRA_PARTS + WILD_PARTS,
+            "all",
+            8,
+            "broad_wild, plus the texture negatives of broad_textures",
             texture_negatives=0.25,
         ),
     )
