@@ -13,8 +13,20 @@ from synthetic_video import write_dataset
 from sarmission.commands import train as train_command
 from sarmission.perception.runtime import load_head_checkpoint
 from sarmission.training.dataset import CropSettings
-from sarmission.training.textures import FAMILIES, dead_leaves, fractal, grating, texture_bank
-from sarmission.training.train import TrainConfig, train, with_texture_negatives
+from sarmission.training.textures import (
+    FAMILIES,
+    dead_leaves,
+    fractal,
+    grating,
+    paste_on_textures,
+    texture_bank,
+)
+from sarmission.training.train import (
+    TrainConfig,
+    train,
+    with_positives_on_textures,
+    with_texture_negatives,
+)
 
 torch.set_num_threads(2)
 
@@ -100,6 +112,38 @@ def test_texture_negatives_join_a_batch_with_a_donor_motion_channel():
     assert unchanged is batch
 
 
+def _person_on_sea(n: int) -> np.ndarray:
+    """Crops of a flat sea colour with a 6x4 px red 'person' in the middle."""
+    rgb = np.empty((n, 3, 16, 16))
+    rgb[:] = np.array([0.1, 0.3, 0.4])[None, :, None, None]
+    rgb[:, :, 5:11, 6:10] = np.array([0.9, 0.1, 0.1])[None, :, None, None]
+    return rgb
+
+
+def test_paste_keeps_the_person_and_replaces_the_ground():
+    rgb = _person_on_sea(4)
+    textures = texture_bank(4, 16, 0).astype(np.float64)
+    out = paste_on_textures(rgb, textures)
+    assert np.allclose(out[:, :, 5:11, 6:10], rgb[:, :, 5:11, 6:10])
+    ground = np.ones((16, 16), bool)
+    ground[5:11, 6:10] = False
+    assert np.allclose(out[:, :, ground], textures[:, :, ground])
+
+
+def test_only_positives_go_on_textures_and_motion_stays():
+    crops = torch.from_numpy(
+        np.concatenate([_person_on_sea(6), np.random.default_rng(0).random((6, 1, 16, 16))], 1)
+    ).float()
+    labels = torch.tensor([0, -1, 1, -1, 0, 0])
+    bank = torch.from_numpy(texture_bank(8, 16, 0))
+    out = with_positives_on_textures(crops, labels, bank, 1.0, np.random.default_rng(0))
+    changed = [not torch.equal(out[k, :3], crops[k, :3]) for k in range(6)]
+    assert changed == [True, False, True, False, True, True]
+    assert torch.equal(out[:, 3], crops[:, 3])
+    none = with_positives_on_textures(crops, labels, bank, 0.0, np.random.default_rng(0))
+    assert torch.equal(none, crops)
+
+
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("texture_data")
@@ -150,11 +194,15 @@ def test_texture_share_is_validated_and_reaches_the_cli(data, tmp_path):
         TrainConfig(Path("a"), Path("b"), Path("c"), texture_negatives=-0.1).validate()
     with pytest.raises(ValueError, match="texture_negatives"):
         TrainConfig(Path("a"), Path("b"), Path("c"), texture_negatives=5.0).validate()
+    with pytest.raises(ValueError, match="texture_positives"):
+        TrainConfig(Path("a"), Path("b"), Path("c"), texture_positives=1.5).validate()
     parser = argparse.ArgumentParser()
     train_command.add_parser(parser.add_subparsers())
     args = parser.parse_args(
         ["train", "--train", str(data["train"]), "--val", str(data["val"])]
         + ["--out", str(tmp_path / "o.pt"), "--texture-negatives", "0.25"]
+        + ["--texture-positives", "0.5"]
     )
-    assert train_command.config_from_args(args).texture_negatives == 0.25
+    config = train_command.config_from_args(args)
+    assert config.texture_negatives == 0.25 and config.texture_positives == 0.5
     assert len(FAMILIES) == 4

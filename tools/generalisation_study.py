@@ -28,6 +28,8 @@ Variants (:data:`VARIANTS`):
 * ``broad_textures``: ``broad`` plus procedural texture negatives (dead leaves, fractal noise,
   gratings, edges; :mod:`sarmission.training.textures`), a quarter of each batch's size, each
   with the motion channel of a random training crop.
+* ``broad_textures_paste``: ``broad_textures`` with a quarter of the positives put on a
+  texture too (their surroundings replaced), so that textures alone do not mean nobody.
 * ``broad_wild``: ``broad`` plus the simulator's wild land (meadow, forest, rock, snow and
   sand with animals and person-sized clutter; people trained as ``swimmer``), a clip of each.
 * ``broad_wild_textures``: ``broad_wild`` with the texture negatives of ``broad_textures``.
@@ -129,6 +131,8 @@ class Variant:
     land_person: bool = False
     #: Procedural texture negatives per batch, as a share of the batch size.
     texture_negatives: float = 0.0
+    #: Share of the positives put on a procedural texture.
+    texture_positives: float = 0.0
 
 
 VARIANTS: dict[str, Variant] = {
@@ -202,6 +206,15 @@ VARIANTS: dict[str, Variant] = {
             "broad, plus procedural texture negatives (a quarter of each batch) carrying "
             "the motion channel of random training crops",
             texture_negatives=0.25,
+        ),
+        Variant(
+            "broad_textures_paste",
+            MARITIME_PARTS + EXTRA_PARTS,
+            "all",
+            8,
+            "broad_textures, with a quarter of the positives put on a texture",
+            texture_negatives=0.25,
+            texture_positives=0.25,
         ),
         Variant(
             "broad_wild",
@@ -286,6 +299,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         crops=crops,
         randomise=Randomisation.parse(variant.randomise),
         texture_negatives=variant.texture_negatives,
+        texture_positives=variant.texture_positives,
         cache_dir=work / "crop_cache",
         progress=False,
     )

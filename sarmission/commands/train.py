@@ -103,6 +103,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="procedural texture crops (dead leaves, fractal noise, stripes, edges) added to "
         "each batch as negatives, as a share of the batch size, e.g. 0.25 (default: none)",
     )
+    parser.add_argument(
+        "--texture-positives",
+        type=float,
+        default=0.0,
+        metavar="SHARE",
+        help="share of the positive crops whose surroundings are replaced by a procedural "
+        "texture, e.g. 0.25 (default: none)",
+    )
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
     parser.add_argument(
         "--colour-share",
@@ -208,6 +216,7 @@ def config_from_args(args: argparse.Namespace):
         crops=crops,
         randomise=Randomisation.parse(args.randomise, args.randomise_p),
         texture_negatives=args.texture_negatives,
+        texture_positives=args.texture_positives,
         cache_dir=args.cache_dir,
         init=args.init,
         init_classes=parse_pairs(args.init_class, "--init-class"),

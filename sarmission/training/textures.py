@@ -19,6 +19,10 @@ Families (:data:`FAMILIES`), drawn in equal shares, each crop ``[3, S, S]`` RGB 
 
 Colours are drawn from muted ground tones most of the time and from any colour otherwise.
 Everything comes from one seeded ``numpy.random.Generator``: the same seed gives the same bank.
+
+Negatives alone teach "textures are nobody", which may cost people seen on unfamiliar ground;
+:func:`paste_on_textures` puts a positive crop's person on a texture
+(``TrainConfig.texture_positives``) so that the head also learns the converse.
 """
 
 from __future__ import annotations
@@ -136,3 +140,23 @@ def texture_bank(count: int, size: int, seed: int) -> np.ndarray:
     parts = [_MAKERS[name](rng, int(k), size) for name, k in zip(FAMILIES, shares, strict=True)]
     bank = np.concatenate(parts, axis=0) if count else np.zeros((0, 3, size, size))
     return bank[rng.permutation(count)].astype(np.float32)
+
+
+def person_mask(rgb: np.ndarray, low: float = 0.06, high: float = 0.15) -> np.ndarray:
+    """Soft mask ``[n, S, S]`` of what stands out from a crop's surroundings: each pixel's
+    largest channel difference from the median colour of the crop's border, ramped from
+    ``low`` (0) to ``high`` (1). A person on smooth ground keeps body and shadow; the ground
+    around goes."""
+    border = np.concatenate(
+        [rgb[:, :, 0, :], rgb[:, :, -1, :], rgb[:, :, 1:-1, 0], rgb[:, :, 1:-1, -1]], axis=2
+    )
+    ground = np.median(border, axis=2)[:, :, None, None]
+    distance = np.abs(rgb - ground).max(axis=1)
+    return np.clip((distance - low) / (high - low), 0.0, 1.0)
+
+
+def paste_on_textures(rgb: np.ndarray, textures: np.ndarray) -> np.ndarray:
+    """Crops ``[n, 3, S, S]`` with their surroundings (:func:`person_mask`) replaced by
+    ``textures`` of the same shape: a person is a person on any ground."""
+    mask = person_mask(rgb)[:, None]
+    return mask * rgb + (1.0 - mask) * textures

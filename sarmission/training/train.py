@@ -12,8 +12,10 @@ of a batch's size is added to it as negatives from a bank of procedural textures
 (:mod:`sarmission.training.textures`, bank seeded by ``seed``), each with the motion channel and
 scale of a training crop drawn at random (any label: a texture is nobody whatever moves there),
 drawn from ``numpy.random.default_rng([seed, epoch, 2])``; they take the symmetries and the
-randomisation as every crop does. The loss is
-:func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
+randomisation as every crop does. With ``texture_positives`` above 0, that share of a batch's
+positives has its surroundings replaced by a bank texture
+(:func:`~sarmission.training.textures.paste_on_textures`), drawn from the same generator.
+The loss is :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
 
 Learning rate per optimiser step ``i`` of ``T`` (``W`` warm-up steps, one epoch at most)::
 
@@ -72,7 +74,7 @@ from sarmission.perception.runtime import save_head_checkpoint
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
 from sarmission.training.losses import LossWeights, head_loss
 from sarmission.training.randomise import Randomisation, randomise_crops
-from sarmission.training.textures import texture_bank
+from sarmission.training.textures import paste_on_textures, texture_bank
 
 STATE_FORMAT = "sarmission.train_state"
 STATE_VERSION = 2
@@ -114,6 +116,8 @@ class TrainConfig:
     randomise: Randomisation = field(default_factory=Randomisation)
     #: Procedural texture negatives added to each batch, as a share of the batch size (0: none).
     texture_negatives: float = 0.0
+    #: Share of the positives put on a procedural texture (0: none).
+    texture_positives: float = 0.0
     crops: CropSettings = field(default_factory=CropSettings)
     loss: LossWeights = field(default_factory=LossWeights)
     score_threshold: float = 0.5
@@ -146,6 +150,8 @@ class TrainConfig:
             raise ValueError(f"min_lr_ratio must be in [0, 1], got {self.min_lr_ratio}")
         if not 0.0 <= self.texture_negatives <= 4.0:
             raise ValueError(f"texture_negatives must be in [0, 4], got {self.texture_negatives}")
+        if not 0.0 <= self.texture_positives <= 1.0:
+            raise ValueError(f"texture_positives must be in [0, 1], got {self.texture_positives}")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         self.randomise.validate()
@@ -156,8 +162,9 @@ class TrainConfig:
         d = asdict(self)
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
-        if not self.texture_negatives:
-            d.pop("texture_negatives")  # states written before the setting existed still resume
+        for key in ("texture_negatives", "texture_positives"):
+            if not d[key]:
+                d.pop(key)  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
         d["randomise"] = {
             "transforms": list(self.randomise.transforms),
@@ -372,6 +379,10 @@ def _train_epoch(
                 extra,
                 texturing,
             )
+            if config.texture_positives > 0:
+                crops = with_positives_on_textures(
+                    crops, labels, textures, config.texture_positives, texturing
+                )
         if config.augment:
             crops, target, scale = dihedral(crops, target, scale, symmetry)
         if config.randomise.transforms:
@@ -393,6 +404,23 @@ def _train_epoch(
         bar.update(1)
         bar.set_postfix(epoch=epoch + 1, loss=f"{sums['loss'] / (b + 1):.3f}")
     return {k: v / max(steps, 1) for k, v in sums.items()} | {"lr": lr}
+
+
+def with_positives_on_textures(
+    crops: Tensor, labels: Tensor, textures: Tensor, share: float, rng: np.random.Generator
+) -> Tensor:
+    """``crops`` with a random ``share`` of the positives' surroundings replaced by textures
+    (:func:`~sarmission.training.textures.paste_on_textures`); motion channel untouched."""
+    chosen = np.flatnonzero((labels.numpy() >= 0) & (rng.random(len(labels)) < share))
+    if not len(chosen):
+        return crops
+    picks = rng.integers(0, len(textures), size=len(chosen))
+    out = crops.clone()
+    rgb = crops[chosen, :3].numpy()
+    out[chosen, :3] = torch.from_numpy(
+        paste_on_textures(rgb, textures[picks].numpy()).astype(np.float32)
+    )
+    return out
 
 
 def with_texture_negatives(
@@ -466,7 +494,7 @@ def train(config: TrainConfig) -> TrainResult:
         history = list(state["history"])
     steps = math.ceil(len(train_set) / config.batch_size)
     textures = None
-    if config.texture_negatives > 0:
+    if config.texture_negatives > 0 or config.texture_positives > 0:
         size = train_set.crops.shape[-1]
         textures = torch.from_numpy(texture_bank(TEXTURE_BANK_SIZE, size, config.seed))
     with tqdm(
