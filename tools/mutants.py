@@ -1252,4 +1252,22 @@ MUTANTS: list[Mutant] = [
         "lock",
         "--init carries class weights by position, not by name: person learns from swimmer",
     ),
+    Mutant(
+        "training.texture_negatives_labelled_person",
+        "sarmission/training/train.py",
+        "torch.cat([labels, torch.full((count,), -1, dtype=labels.dtype)]),",
+        "torch.cat([labels, torch.full((count,), 0, dtype=labels.dtype)]),",
+        ("tests/test_training_textures.py",),
+        "lock",
+        "texture negatives trained as swimmers: the head learns that any ground is a person",
+    ),
+    Mutant(
+        "training.pasted_ground_kept",
+        "sarmission/training/textures.py",
+        "return mask * rgb + (1.0 - mask) * textures",
+        "return rgb",
+        ("tests/test_training_textures.py",),
+        "lock",
+        "positives never leave their renderer's ground: --texture-positives does nothing",
+    ),
 ]
