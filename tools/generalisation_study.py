@@ -489,6 +489,8 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "randomise": VARIANTS[n].randomise,
                 "background_negatives": VARIANTS[n].background_negatives,
                 "object_negatives": VARIANTS[n].object_negatives,
+                "texture_negatives": VARIANTS[n].texture_negatives,
+                "texture_positives": VARIANTS[n].texture_positives,
                 "classes": list(VARIANTS[n].classes),
             }
             for n in args.variants

@@ -20,6 +20,8 @@ as ``swimmer``) from clip index :data:`HELDOUT_VAL_FIRST_CLIP` on, or ``sim``, t
 :data:`HELDOUT_VAL_FIRST_CLIP` are kept for tests, so nothing is chosen on a test clip. Other
 options go to ``sarmission train`` after :data:`TRAIN_ARGS`, so they override it.
 
+``--presets wild`` adds the wild land presets (:data:`WILD_SPLITS`); other options, e.g.
+``--texture-negatives 0.25``, go to ``sarmission train``.
 ``--presets objects`` adds ``maritime_objects_train`` (:data:`OBJECT_SPLITS`); ``--classes
 maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
@@ -68,6 +70,19 @@ BROAD_SPLITS = (
 #: Added to :data:`BROAD_SPLITS` by ``--presets objects``: a sea crowded with boats, jetskis,
 #: buoys and life rings, for heads that learn them as classes (``--classes maritime``).
 OBJECT_SPLITS = (("maritime_objects_train", 4, 90, "3840x2160"),)
+#: Added to :data:`BROAD_SPLITS` by ``--presets wild``: the simulator's wild land (meadow,
+#: forest, rock, snow, sand; people trained as ``swimmer``).
+WILD_SPLITS = tuple(
+    (f"wild_{biome}_train", 2, 90, "3840x2160")
+    for biome in ("meadow", "forest", "rock", "snow", "sand")
+)
+#: ``--presets`` choice -> the splits added to :data:`TRAIN_SPLITS`.
+EXTRA_SPLITS = {
+    "maritime": (),
+    "broad": BROAD_SPLITS,
+    "objects": BROAD_SPLITS + OBJECT_SPLITS,
+    "wild": BROAD_SPLITS + WILD_SPLITS,
+}
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 #: Held-out validation: (world, clips, frames per clip), 1920x1080 frames with a 4K camera's
 #: ground sampling; clip indices from :data:`HELDOUT_VAL_FIRST_CLIP` on.
@@ -149,12 +164,13 @@ def render_training_set(work: Path) -> Path:
     return merged
 
 
-def render_broad_training_set(work: Path, objects: bool = False) -> Path:
-    """The maritime training set plus :data:`BROAD_SPLITS` (and :data:`OBJECT_SPLITS` with
-    ``objects``), merged by category name (people on land as ``swimmer``) into
-    ``work/broad_train_mix.json`` (``broad_objects_train_mix.json``)."""
-    extra = BROAD_SPLITS + (OBJECT_SPLITS if objects else ())
-    merged = work / ("broad_objects_train_mix.json" if objects else "broad_train_mix.json")
+def render_broad_training_set(work: Path, presets: str = "broad") -> Path:
+    """The maritime training set plus the splits ``presets`` adds (:data:`EXTRA_SPLITS`),
+    merged by category name (people on land as ``swimmer``) into
+    ``work/<presets>_train_mix.json`` (``broad_train_mix.json``, ``broad_objects_...``)."""
+    extra = EXTRA_SPLITS[presets]
+    stem = "broad" if presets == "broad" else f"broad_{presets}"
+    merged = work / f"{stem}_train_mix.json"
     if not merged.is_file():
         parts = [render_training_set(work)]
         parts += [render(work / split[0], split) for split in extra]
@@ -239,11 +255,11 @@ def main() -> int:
     )
     parser.add_argument(
         "--presets",
-        choices=("maritime", "broad", "objects"),
+        choices=tuple(EXTRA_SPLITS),
         default="broad",
         help="training presets: the maritime ones, those plus urban_train and the oblique "
         "maritime presets (the shipped head's recipe), or those plus "
-        "maritime_objects_train (default: broad)",
+        "maritime_objects_train or the wild land presets (default: broad)",
     )
     parser.add_argument(
         "--no-install", action="store_true", help="do not copy the result into sarmission/models"
@@ -271,9 +287,9 @@ def main() -> int:
     if args.head == "land":
         return train_land(args, extra)
     train = (
-        render_broad_training_set(args.work, objects=args.presets == "objects")
-        if args.presets in ("broad", "objects")
-        else render_training_set(args.work)
+        render_training_set(args.work)
+        if args.presets == "maritime"
+        else render_broad_training_set(args.work, args.presets)
     )
     if args.val == "heldout":
         val = render_heldout_val(args.work)
