@@ -2,14 +2,13 @@
 
 Renders the simulator's maritime training presets (``maritime_train`` at 70 m on a calm sea,
 ``maritime_train_high`` at 110 m on a rough one, both 4K, and ``maritime_train_narrow``, the
-demo's 960x540 view), :data:`BROAD_SPLITS` (``urban_train``, people on land trained as
-``swimmer``, and the oblique maritime presets) and :data:`WILD_SPLITS` (the wild land:
-meadow, forest, rock, snow, sand), merged into one training file, and the held-out
+demo's 960x540 view) and :data:`BROAD_SPLITS` (``urban_train``, people on land trained as
+``swimmer``, and the oblique maritime presets), merged into one training file, and the held-out
 validation clips; trains the head with ``sarmission train`` (seeded, deterministic on one CPU
 type; crop-level domain randomisation and 8 background negatives per frame, :data:`TRAIN_ARGS`)
 and writes ``mitenet_head.pt`` and ``mitenet_head.onnx`` into the package::
 
-    python tools/train_default_model.py            # about 35 minutes on 2 CPU cores, rendered
+    python tools/train_default_model.py            # about 30 minutes on 2 CPU cores, rendered
     python tools/train_default_model.py --work /tmp/sarmission-train --no-install
     python tools/train_default_model.py --val sim --presets maritime --randomise none \
         --background-negatives 0                   # the head shipped before 2026-11-25
@@ -21,8 +20,8 @@ as ``swimmer``) from clip index :data:`HELDOUT_VAL_FIRST_CLIP` on, or ``sim``, t
 :data:`HELDOUT_VAL_FIRST_CLIP` are kept for tests, so nothing is chosen on a test clip. Other
 options go to ``sarmission train`` after :data:`TRAIN_ARGS`, so they override it.
 
-``--presets broad`` leaves the wild land out (the head shipped from 2026-11-25 to 2026-11-26);
-other options, e.g. ``--texture-negatives 0.25``, go to ``sarmission train``.
+``--presets wild`` adds the wild land presets (:data:`WILD_SPLITS`); other options, e.g.
+``--texture-negatives 0.25``, go to ``sarmission train``.
 ``--presets objects`` adds ``maritime_objects_train`` (:data:`OBJECT_SPLITS`); ``--classes
 maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
@@ -257,10 +256,10 @@ def main() -> int:
     parser.add_argument(
         "--presets",
         choices=tuple(EXTRA_SPLITS),
-        default="wild",
-        help="training presets: the maritime ones; those plus urban_train and the oblique "
-        "maritime presets (broad); broad plus maritime_objects_train (objects); broad plus "
-        "the wild land presets (wild, the shipped head's recipe; the default)",
+        default="broad",
+        help="training presets: the maritime ones, those plus urban_train and the oblique "
+        "maritime presets (the shipped head's recipe), or those plus "
+        "maritime_objects_train or the wild land presets (default: broad)",
     )
     parser.add_argument(
         "--no-install", action="store_true", help="do not copy the result into sarmission/models"
