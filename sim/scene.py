@@ -1008,16 +1008,40 @@ def _urban_objects(sc: Scenario, layout: UrbanLayout) -> list[SceneObject]:
             heading = 0.0 if rng.random() < 0.5 else math.pi
         walking = rng.random() < 0.75
         objects.append(
-            SceneObject(
+            person_on_land(
+                rng,
                 len(objects) + 1,
-                "person",
                 start,
                 heading,
                 pedestrian_parts(rng),
-                (speed * math.cos(heading), speed * math.sin(heading)) if walking else (0.0, 0.0),
-                patrol_m=float(rng.uniform(15, 50)) if walking else 0.0,
-                period_s=1.1 / speed if walking else 4.0,
-                phase=float(rng.random()),
+                speed if walking else 0.0,
+                (15.0, 50.0),
             )
         )
     return objects
+
+
+def person_on_land(
+    rng: np.random.Generator,
+    track_id: int,
+    start: tuple[float, float],
+    heading: float,
+    parts: list[Part],
+    speed: float,
+    patrol_range_m: tuple[float, float],
+) -> SceneObject:
+    """A ``person`` walking back and forth along ``heading`` at ``speed`` over a patrol drawn
+    from ``patrol_range_m`` (limbs swinging in step), or standing still when ``speed`` is 0;
+    draws the patrol (walkers only), then the phase, from ``rng``."""
+    walking = speed > 0
+    return SceneObject(
+        track_id,
+        "person",
+        start,
+        heading,
+        parts,
+        (speed * math.cos(heading), speed * math.sin(heading)) if walking else (0.0, 0.0),
+        patrol_m=float(rng.uniform(*patrol_range_m)) if walking else 0.0,
+        period_s=1.1 / speed if walking else 4.0,
+        phase=float(rng.random()),
+    )

@@ -30,6 +30,7 @@ from sim.scene import (
     SceneObject,
     World,
     pedestrian_parts,
+    person_on_land,
     pick_colour,
     uniform_in,
 )
@@ -55,59 +56,59 @@ class Biome:
 
 BIOMES: dict[str, Biome] = {
     "meadow": Biome(
-        ((70.0, 140.0, 95.0), (85.0, 165.0, 150.0)),
-        (80.0, 110.0, 130.0),
-        (95.0, 125.0, 150.0),
-        ((35.0, 85.0, 50.0), (45.0, 100.0, 65.0)),
-        6.0,
-        40.0,
-        8.0,
-        2.0,
+        ground=((70.0, 140.0, 95.0), (85.0, 165.0, 150.0)),
+        patch=(80.0, 110.0, 130.0),
+        trail=(95.0, 125.0, 150.0),
+        crowns=((35.0, 85.0, 50.0), (45.0, 100.0, 65.0)),
+        trees_per_ha=6.0,
+        bushes_per_ha=40.0,
+        rocks_per_ha=8.0,
+        logs_per_ha=2.0,
     ),
     "forest": Biome(
-        ((40.0, 72.0, 55.0), (50.0, 85.0, 95.0)),
-        (45.0, 70.0, 85.0),
-        (80.0, 105.0, 125.0),
-        ((30.0, 68.0, 40.0), (40.0, 88.0, 52.0), (34.0, 58.0, 46.0), (42.0, 90.0, 75.0)),
-        260.0,
-        60.0,
-        6.0,
-        25.0,
+        ground=((40.0, 72.0, 55.0), (50.0, 85.0, 95.0)),
+        patch=(45.0, 70.0, 85.0),
+        trail=(80.0, 105.0, 125.0),
+        crowns=((30.0, 68.0, 40.0), (40.0, 88.0, 52.0), (34.0, 58.0, 46.0), (42.0, 90.0, 75.0)),
+        trees_per_ha=260.0,
+        bushes_per_ha=60.0,
+        rocks_per_ha=6.0,
+        logs_per_ha=25.0,
     ),
     "rock": Biome(
-        ((118.0, 124.0, 128.0), (95.0, 110.0, 126.0)),
-        (70.0, 80.0, 88.0),
-        (140.0, 150.0, 158.0),
-        ((40.0, 80.0, 55.0),),
-        2.0,
-        20.0,
-        160.0,
-        0.0,
+        ground=((118.0, 124.0, 128.0), (95.0, 110.0, 126.0)),
+        patch=(70.0, 80.0, 88.0),
+        trail=(140.0, 150.0, 158.0),
+        crowns=((40.0, 80.0, 55.0),),
+        trees_per_ha=2.0,
+        bushes_per_ha=20.0,
+        rocks_per_ha=160.0,
+        logs_per_ha=0.0,
         rock=(135.0, 140.0, 145.0),
         bush=(55.0, 95.0, 80.0),
     ),
     "snow": Biome(
-        ((238.0, 234.0, 230.0), (222.0, 210.0, 198.0)),
-        (200.0, 190.0, 182.0),
-        (215.0, 212.0, 210.0),
-        ((40.0, 60.0, 38.0), (48.0, 70.0, 45.0)),
-        10.0,
-        5.0,
-        30.0,
-        2.0,
+        ground=((238.0, 234.0, 230.0), (222.0, 210.0, 198.0)),
+        patch=(200.0, 190.0, 182.0),
+        trail=(215.0, 212.0, 210.0),
+        crowns=((40.0, 60.0, 38.0), (48.0, 70.0, 45.0)),
+        trees_per_ha=10.0,
+        bushes_per_ha=5.0,
+        rocks_per_ha=30.0,
+        logs_per_ha=2.0,
         rock=(70.0, 72.0, 75.0),
         bush=(60.0, 70.0, 60.0),
         tracks=True,
     ),
     "sand": Biome(
-        ((150.0, 190.0, 215.0), (128.0, 168.0, 198.0)),
-        (110.0, 150.0, 180.0),
-        (165.0, 200.0, 222.0),
-        ((50.0, 105.0, 80.0),),
-        1.0,
-        25.0,
-        6.0,
-        6.0,
+        ground=((150.0, 190.0, 215.0), (128.0, 168.0, 198.0)),
+        patch=(110.0, 150.0, 180.0),
+        trail=(165.0, 200.0, 222.0),
+        crowns=((50.0, 105.0, 80.0),),
+        trees_per_ha=1.0,
+        bushes_per_ha=25.0,
+        rocks_per_ha=6.0,
+        logs_per_ha=6.0,
         rock=(110.0, 130.0, 150.0),
         bush=(60.0, 110.0, 100.0),
         ripples=True,
@@ -222,38 +223,15 @@ def wild_objects(sc: Scenario) -> list[SceneObject]:
         start = _open_ground(rng, sc, trail)
         heading = float(rng.uniform(0, 2 * math.pi))
         pose = rng.choice(["walking", "standing", "sitting", "lying"], p=[0.4, 0.3, 0.15, 0.15])
-        if pose == "walking":
-            speed = float(rng.uniform(0.6, 1.5))
-            objects.append(
-                SceneObject(
-                    len(objects) + 1,
-                    "person",
-                    start,
-                    heading,
-                    pedestrian_parts(rng),
-                    (speed * math.cos(heading), speed * math.sin(heading)),
-                    patrol_m=float(rng.uniform(10, 40)),
-                    period_s=1.1 / speed,
-                    phase=float(rng.random()),
-                )
-            )
-            continue
+        speed = float(rng.uniform(0.6, 1.5)) if pose == "walking" else 0.0
         parts = {
+            "walking": pedestrian_parts,
             "standing": pedestrian_parts,
             "sitting": sitting_parts,
             "lying": lying_parts,
         }[str(pose)](rng)
         objects.append(
-            SceneObject(
-                len(objects) + 1,
-                "person",
-                start,
-                heading,
-                parts,
-                (0.0, 0.0),
-                period_s=4.0,
-                phase=float(rng.random()),
-            )
+            person_on_land(rng, len(objects) + 1, start, heading, parts, speed, (10.0, 40.0))
         )
     for _ in range(sc.n_animals):
         start = uniform_in(rng, sc.area_ne)
