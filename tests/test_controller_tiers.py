@@ -114,6 +114,26 @@ def test_a_still_person_is_a_candidate_then_confirmed_after_a_second(tmp_path, m
         assert "drift 0.0 m/s" in store.get(alert.alert_id).evidence
 
 
+def test_confirmation_and_discard_times_are_on_the_controllers_clock(tmp_path, mission):
+    """A replay maps footage time to POSIX seconds: the confirmation is stamped with its
+    frame's time on that clock, like the lock, not with the wall clock of the replay."""
+    epoch = 1.6e9  # a flight long ago
+    person = (box_at(10.0, -5.0, 60.0), 0.9, 0)
+    boat = (box_at(-5.0, 5.0, 60.0, side_px=130.0), 0.9, 0)
+    script = [[person, boat]] * 20
+    with AlertStore(tmp_path / "a.db") as store:
+        ctl = controller(
+            mission, ScriptedDetector(script), flight(3.0), store, to_posix=lambda t: epoch + t
+        )
+        run(ctl, 20)
+        (confirmed,) = [store.get(a.alert_id) for a, _, _ in ctl.stats.confirmed]
+        assert confirmed.lock_time == pytest.approx(epoch + 0.2)
+        assert confirmed.confirmed_at == pytest.approx(epoch + 1.2)  # frame 12
+        others = [a.alert_id for a in ctl.stats.candidates if a.alert_id != confirmed.alert_id]
+        (discarded,) = [store.get(i) for i in others]
+        assert discarded.discarded and epoch <= discarded.discarded_at <= epoch + 2.0
+
+
 def test_glint_that_keeps_its_place_in_the_image_is_discarded(tmp_path, mission):
     script = [[(box_at(0.0, 8.0, 60.0), 0.95, 0)]] * 30  # fixed pixel, aircraft at 10 m/s
     actions = Announced()

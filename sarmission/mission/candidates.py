@@ -95,10 +95,11 @@ class CandidateBook:
         self.candidates[target_id] = alert
 
     # -- verdicts ----------------------------------------------------------------------------
-    def review(self, now: float) -> list[Promotion]:
+    def review(self, now: float, when: float | None = None) -> list[Promotion]:
         """Count this processed frame for every candidate, assess each at time ``now``; returns
         those confirmed now (promoted in the store first). Discarded ones are recorded and
-        forgotten."""
+        forgotten. ``when``: ``now`` as POSIX seconds for the store (default: the wall clock;
+        a replay gives the footage's time, so that a confirmation and its lock share a clock)."""
         promoted = []
         for target_id in self.candidates:
             if target_id in self.evidence:
@@ -109,7 +110,7 @@ class CandidateBook:
                 continue
             del self.candidates[target_id]
             if found.verdict == "confirm":
-                stored = self.store.promote(alert.alert_id, found.summary())
+                stored = self.store.promote(alert.alert_id, found.summary(), when)
                 if stored is None:  # dismissed by the operator meanwhile: stays silent
                     log.info(
                         "target %d confirmed by evidence but dismissed by the operator", target_id
@@ -117,7 +118,7 @@ class CandidateBook:
                     continue
                 promoted.append(Promotion(stored, found))
             else:
-                self.store.discard(alert.alert_id, found.reason)
+                self.store.discard(alert.alert_id, found.reason, when)
                 self.discarded[_kind(found.reason)] += 1
                 log.info("candidate target %d discarded: %s", target_id, found.reason)
         return promoted

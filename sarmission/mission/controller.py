@@ -224,7 +224,10 @@ class MissionController:
         pose, changed = self._observe_locked(tracks, frame, frame_index, timestamp, scene)
         self._place_from_buffer(frame_index)
         self._record_drone(timestamp, pose)
-        promotions = self.candidates.review(timestamp) + self.candidates.operator_decisions()
+        promotions = (
+            self.candidates.review(timestamp, self.to_posix(timestamp))
+            + self.candidates.operator_decisions()
+        )
         alerts = [self._confirm(promotion, frame_index, timestamp) for promotion in promotions]
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
