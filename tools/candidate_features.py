@@ -26,17 +26,21 @@ import numpy as np
 from sarmission.commands.mission_options import build_detector
 from sarmission.commands.sim_score import fly
 from sarmission.evaluation.alert_scoring import nearest
+from sarmission.mission import candidates as candidate_book
 from sarmission.mission.config import load_mission
-from sarmission.mission.confirmation import drift_speed
+from sarmission.mission.confirmation import TargetEvidence, drift_speed
 from sim.suite import DEVELOPMENT, suite
 
 FEATURES = (
+    "decided_s",
     "sightings",
     "span_s",
     "seen_share",
     "score_mean",
     "score_top",
     "score_min",
+    "score_std",
+    "score_high",
     "size_m",
     "size_p25",
     "size_p75",
@@ -49,23 +53,48 @@ def features(evidence, fps: float) -> dict[str, float]:
     s = evidence.sightings
     if not s:
         return {k: math.nan for k in FEATURES}
+    decided = s[-1].t - evidence.first_seen
     span = s[-1].t - s[0].t
     scores = sorted((x.score for x in s), reverse=True)
     sizes = [x.size_m for x in s if x.size_m is not None]
     speed, sigma = drift_speed(s) if len(s) >= 3 else (math.nan, math.nan)
     return {
+        "decided_s": decided,
         "sightings": len(s),
         "span_s": span,
         "seen_share": len(s) / (span * fps + 1.0),
         "score_mean": float(np.mean(scores)),
         "score_top": float(np.mean(scores[: max(1, len(scores) // 2)])),
         "score_min": scores[-1],
+        "score_std": float(np.std(scores)),
+        "score_high": float(np.mean([x >= 0.9 for x in scores])),
         "size_m": float(np.median(sizes)) if sizes else math.nan,
         "size_p25": float(np.percentile(sizes, 25)) if sizes else math.nan,
         "size_p75": float(np.percentile(sizes, 75)) if sizes else math.nan,
         "speed_m_s": speed,
         "speed_sigma": sigma,
     }
+
+
+class VerdictRecorder:
+    """Remembers how many sightings each candidate had when its verdict fell, so that its
+    features are those the rule saw (evidence keeps growing after the verdict)."""
+
+    def __init__(self) -> None:
+        self.sightings: dict[int, int] = {}  # id(evidence) -> sightings at the verdict
+        self._assess = candidate_book.assess
+        candidate_book.assess = self._recording
+
+    def _recording(self, evidence, now, rule):
+        found = self._assess(evidence, now, rule)
+        if found.verdict != "wait":
+            self.sightings.setdefault(id(evidence), len(evidence.sightings))
+        return found
+
+    def at_verdict(self, evidence: TargetEvidence) -> TargetEvidence:
+        """``evidence`` as it stood at its verdict (all of it if none fell)."""
+        n = self.sightings.get(id(evidence), len(evidence.sightings))
+        return TargetEvidence(evidence.sightings[:n], evidence.first_seen, evidence.frames)
 
 
 def main() -> int:
@@ -79,6 +108,7 @@ def main() -> int:
     detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
     detector, _ = build_detector(detector_args, base)
     rows = []
+    recorder = VerdictRecorder()
     with tempfile.TemporaryDirectory() as tmp:
         for scenario in suite(args.scenarios.split(",")):
             flown = fly(scenario, base, detector, args.seconds, Path(tmp))
@@ -97,12 +127,13 @@ def main() -> int:
                     "under": "person" if person else (other.category if other else "water"),
                 }
                 row.update(
-                    features(book.evidence.get(alert.target_id), 30.0)
+                    features(recorder.at_verdict(book.evidence[alert.target_id]), 30.0)
                     if alert.target_id in book.evidence
                     else {k: math.nan for k in FEATURES}
                 )
                 row["verdict"] = "confirmed" if alert.target_id in confirmed else "candidate"
                 rows.append(row)
+            recorder.sightings.clear()
             print(
                 f"{scenario.name}: {len(flown.controller.stats.candidates)} candidates, "
                 f"score {flown.score.as_dict()['found']} found, "
