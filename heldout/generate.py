@@ -94,6 +94,7 @@ def render_world(
             "sea_state": spec.sea_state,
             "altitude_m": round(spec.path.altitude_m, 2),
             "tilt_deg": round(spec.path.tilt_deg, 2),
+            "hfov_deg": round(spec.lens.hfov_deg, 4),
             "speed_m_s": round(spec.path.speed_m_s, 2),
         }
         if images:
