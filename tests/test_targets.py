@@ -63,8 +63,24 @@ def test_nearest_target_wins():
     reg = TargetRegistry(merge_radius_m=6.0)
     far, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=0.5))
     near, _ = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 10, error=0.5))
-    joined, new = reg.observe(3, 0, 0.8, 0.0, fix_at(0, 6, error=0.5))
+    joined, new = reg.observe(3, 0, 0.8, 10.0, fix_at(0, 6, error=0.5))
     assert not new and joined is near and joined is not far
+
+
+def test_two_people_in_view_a_few_metres_apart_stay_two_targets():
+    """Both seen in the same frames, 6 m apart with 1 m fixes: the statistical gate (2.8 m)
+    rules, not the 8 m radius, which is for a person found again after a while."""
+    reg = TargetRegistry(merge_radius_m=8.0)
+    first, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=1.0))
+    second, new = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 6, error=1.0))
+    assert new and second is not first
+    reg.observe(1, 0, 0.8, 0.5, fix_at(0, 0, error=1.0))
+    # a third track half a second later, 4 m from the first: 2.8 m + 2 m/s x 0.5 s = 3.8 m
+    third, new = reg.observe(3, 0, 0.8, 1.0, fix_at(-4, 0, error=1.0))
+    assert new and len(reg) == 3
+    # a track on the first person again, 5 s after it was last seen there, 6 m on: joins
+    again, new = reg.observe(4, 0, 0.8, 5.5, fix_at(6, -1, error=1.0))
+    assert not new and again is first
 
 
 def test_a_track_keeps_its_target_and_one_person_is_one_target():

@@ -8,7 +8,11 @@ space, and in the image where there is no ground position to compare:
 - a new locked track with a position joins the nearest target whose position lies within
   ``max(merge_radius_m, GATE_SIGMA * hypot(target error, fix error))`` of its fix: the errors
   are 1-sigma RMS (DRMS), so two fixes of one person lie within twice their combined error
-  98 % of the time, and a target with poorer fixes gets a wider gate;
+  98 % of the time, and a target with poorer fixes gets a wider gate. The radius beyond that
+  statistical gate is for a person found again after a while: it is granted only as far as a
+  person can move since the target was last seen (:data:`PERSON_SPEED_M_S`), so two people a
+  few metres apart, both in view, stay two targets (mixed, their fixes would look like one
+  target jumping between them, and its position would lie between them);
 - a new locked track without a position (stale telemetry, ray above the horizon) cannot be
   compared on the ground, so it is compared in the image: it joins the target whose last box
   was seen at most ``merge_window_s`` earlier (or later) with its centre within
@@ -51,6 +55,10 @@ from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
 DEFAULT_FIX_ERROR_M = 10.0
 #: Merge gate in combined 1-sigma errors (see the module docstring).
 GATE_SIGMA = 2.0
+#: The fastest a person moves over the ground (m/s): walking, swimming, drifting with a current.
+#: A target last seen ``dt`` seconds ago is joined only within the statistical gate plus this
+#: speed times ``dt`` (and never beyond the merge radius's reach).
+PERSON_SPEED_M_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -229,7 +237,7 @@ class TargetRegistry:
         target = self.target_of(track_id)
         is_new = False
         if target is None:
-            target = self._nearest(fix) if placed else None
+            target = self._nearest(fix, t) if placed else None
             if target is None and box is not None:
                 target = self._nearest_in_image(box, t, unplaced_only=placed)
             if target is None:
@@ -253,7 +261,7 @@ class TargetRegistry:
             target.box_time = t
         return target, is_new
 
-    def _nearest(self, fix: GeoFix) -> Target | None:
+    def _nearest(self, fix: GeoFix, t: float) -> Target | None:
         assert fix.lat is not None and fix.lon is not None
         best: Target | None = None
         best_d = math.inf
@@ -264,7 +272,11 @@ class TargetRegistry:
             combined = math.hypot(
                 target.error_m or DEFAULT_FIX_ERROR_M, fix.error_m or DEFAULT_FIX_ERROR_M
             )
-            gate = max(self.merge_radius_m, GATE_SIGMA * combined)
+            statistical = GATE_SIGMA * combined
+            gate = max(self.merge_radius_m, statistical)
+            since = t - target.last_seen
+            if since >= 0:  # NaN for a target known from an earlier run: the whole radius
+                gate = min(gate, statistical + PERSON_SPEED_M_S * since)
             if d <= gate and d < best_d:
                 best, best_d = target, d
         return best
