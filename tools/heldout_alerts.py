@@ -149,11 +149,11 @@ def score_clip(dataset: VideoDataset, video: Video, db: Path) -> FlightScore:
 
 def fly(args: argparse.Namespace) -> Path:
     frames = round(args.seconds * 30.0)
-    commit = _commit()
     scenarios: dict[str, dict] = {}
     total = FlightScore()
     worlds = args.worlds.split(",")
     render_clips(args.work, worlds, args.clips, frames, args.jobs)
+    commit = _commit()  # the code that replays (rendering may take an hour)
     with tempfile.TemporaryDirectory(prefix="sarmission-heldout-alerts-") as tmp:
         for world in worlds:
             score = FlightScore()
