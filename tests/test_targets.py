@@ -153,6 +153,21 @@ def test_second_lock_on_the_same_person_in_the_same_frame_joins():
     assert b is a and not new and len(reg) == 1
 
 
+def test_people_in_view_together_are_told_apart_in_the_image():
+    """Fixes 3 m apart at +-3 m each lie within the statistical gate, but both people are in
+    view in the same frame, 80 px apart: the image says two people. A second track on the
+    first person (its box 5 px off) joins it."""
+    reg = TargetRegistry()
+    first, _ = reg.observe(1, 0, 0.8, 0.0, fix_at(0, 0, error=3.0), box=box_at(500, 300))
+    second, new = reg.observe(2, 0, 0.8, 0.0, fix_at(0, 3, error=3.0), box=box_at(580, 300))
+    assert new and second is not first
+    duplicate, new = reg.observe(3, 0, 0.8, 0.1, fix_at(0, 0.2, error=3.0), box=box_at(505, 300))
+    assert not new and duplicate is first
+    # seconds later the image no longer speaks for the present: the ground decides
+    later, new = reg.observe(4, 0, 0.8, 3.0, fix_at(0, 1, error=3.0), box=box_at(700, 300))
+    assert not new and later is first
+
+
 def test_image_merge_needs_proximity_and_a_recent_box():
     reg = TargetRegistry(merge_window_s=5.0, merge_gate_px=64.0)
     a, _ = reg.observe(1, 0, 0.8, 0.0, None, STALE, box=box_at(500, 300))

@@ -10,9 +10,12 @@ space, and in the image where there is no ground position to compare:
   are 1-sigma RMS (DRMS), so two fixes of one person lie within twice their combined error
   98 % of the time, and a target with poorer fixes gets a wider gate. The radius beyond that
   statistical gate is for a person found again after a while: it is granted only as far as a
-  person can move since the target was last seen (:data:`PERSON_SPEED_M_S`), so two people a
-  few metres apart, both in view, stay two targets (mixed, their fixes would look like one
-  target jumping between them, and its position would lie between them);
+  person can move since the target was last seen (:data:`PERSON_SPEED_M_S`). A target another
+  track saw moments ago (:data:`CONCURRENT_S`) is in view now: there the image says more than
+  the ground, since simultaneous fixes share their errors, so the new track joins it only if
+  its box lies within twice the larger box side of the target's. Two people a few metres
+  apart, both in view, stay two targets (mixed, their fixes would look like one target jumping
+  between them, and its position would lie between them);
 - a new locked track without a position (stale telemetry, ray above the horizon) cannot be
   compared on the ground, so it is compared in the image: it joins the target whose last box
   was seen at most ``merge_window_s`` earlier (or later) with its centre within
@@ -59,6 +62,9 @@ GATE_SIGMA = 2.0
 #: A target last seen ``dt`` seconds ago is joined only within the statistical gate plus this
 #: speed times ``dt`` (and never beyond the merge radius's reach).
 PERSON_SPEED_M_S = 2.0
+#: A target seen by another track at most this many seconds ago is in view now (see the module
+#: docstring): a new track joins it only where their boxes nearly meet.
+CONCURRENT_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -156,6 +162,15 @@ def _side(box: Sequence[float]) -> float:
     return max(box[2] - box[0], box[3] - box[1])
 
 
+def _in_view_elsewhere(target: Target, box: Sequence[float] | None, t: float) -> bool:
+    """True when another track saw ``target`` moments before ``t`` (:data:`CONCURRENT_S`) at
+    a place in the image ``box`` does not nearly meet: both in view, so another person."""
+    if box is None or target.box is None or not 0 <= t - target.box_time <= CONCURRENT_S:
+        return False
+    apart = math.dist(_centre(box), _centre(target.box))
+    return apart > 2 * max(_side(box), _side(target.box))
+
+
 class TargetRegistry:
     """Tracks -> targets (see the module docstring). Not thread-safe: one controller owns it.
 
@@ -237,7 +252,7 @@ class TargetRegistry:
         target = self.target_of(track_id)
         is_new = False
         if target is None:
-            target = self._nearest(fix, t) if placed else None
+            target = self._nearest(fix, t, box) if placed else None
             if target is None and box is not None:
                 target = self._nearest_in_image(box, t, unplaced_only=placed)
             if target is None:
@@ -261,12 +276,14 @@ class TargetRegistry:
             target.box_time = t
         return target, is_new
 
-    def _nearest(self, fix: GeoFix, t: float) -> Target | None:
+    def _nearest(self, fix: GeoFix, t: float, box: Sequence[float] | None) -> Target | None:
         assert fix.lat is not None and fix.lon is not None
         best: Target | None = None
         best_d = math.inf
         for target in self.targets.values():
             if target.position is None:
+                continue
+            if _in_view_elsewhere(target, box, t):
                 continue
             d = distance_m(target.position, (fix.lat, fix.lon))
             combined = math.hypot(
