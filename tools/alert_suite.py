@@ -147,15 +147,21 @@ def render(runs_dir: Path = SUITE_DIR, intro: list[str] = INTRO, part: str = "sc
     return "\n".join(lines)
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="what", required=True)
+def fly_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """The ``fly`` command with what every alert page's runs share: LABEL, ``--set``,
+    ``--note``, ``--model``."""
     run = sub.add_parser("fly")
     run.add_argument("label")
-    run.add_argument("--seconds", type=float, default=None)
     run.add_argument("--set", dest="overrides", action="append", default=[])
     run.add_argument("--note", default="", help="what this run is, for the page")
     run.add_argument("--model", default=None, help="head weights (default: the shipped head)")
+    return run
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="what", required=True)
+    fly_parser(sub).add_argument("--seconds", type=float, default=None)
     sub.add_parser("render")
     args = parser.parse_args()
     if args.what == "fly":

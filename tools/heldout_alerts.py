@@ -11,7 +11,7 @@ people in view for 3 s or more, found, false alerts per hour of footage and what
 time to alert, geolocation error. The background-only worlds have no people: every alert there
 is false::
 
-    nice -n 19 python tools/heldout_alerts.py fly LABEL [--clips 4] [--seconds 12]
+    nice -n 19 python tools/heldout_alerts.py fly LABEL [--clips 3] [--seconds 10]
         [--model HEAD] [--set SECTION.KEY=VALUE ...] [--note TEXT]
     python tools/heldout_alerts.py render     # docs/heldout_alerts.md from docs/heldout_alerts/
 
@@ -36,7 +36,7 @@ for folder in (ROOT, ROOT / "tools"):  # runnable from a checkout that is not in
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))
 
-from alert_suite import render  # noqa: E402
+from alert_suite import fly_parser, render  # noqa: E402
 from heldout_eval import _rendered  # noqa: E402
 from train_default_model import HELDOUT_VAL_FIRST_CLIP  # noqa: E402
 
@@ -201,16 +201,12 @@ def fly(args: argparse.Namespace) -> Path:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="what", required=True)
-    run = sub.add_parser("fly")
-    run.add_argument("label")
-    run.add_argument("--clips", type=int, default=4, help="clips per world (default: 4)")
-    run.add_argument("--seconds", type=float, default=12.0, help="per clip (default: 12)")
+    run = fly_parser(sub)
+    run.add_argument("--clips", type=int, default=3, help="clips per world (default: 3)")
+    run.add_argument("--seconds", type=float, default=10.0, help="per clip (default: 10)")
     run.add_argument("--worlds", default=",".join(WORLDS))
     run.add_argument("--jobs", type=int, default=2, help="clips rendered at once (default: 2)")
     run.add_argument("--work", type=Path, default=Path("/tmp/sarmission-heldout-alerts"))
-    run.add_argument("--set", dest="overrides", action="append", default=[])
-    run.add_argument("--note", default="", help="what this run is, for the page")
-    run.add_argument("--model", default=None, help="head weights (default: the shipped head)")
     sub.add_parser("render")
     args = parser.parse_args()
     if args.what == "fly":
