@@ -67,7 +67,9 @@ INTRO = [
     "for 3 s or more; an alert is *false* when no person was under it; *flight min* is "
     "minutes of footage. The `_empty` worlds have the same distractors and no people: every "
     "alert on them is false. The confirmation's thresholds were chosen on the simulator's "
-    "development flights, so these figures show how far they carry to a world they never saw.",
+    "development flights, so these figures show how far they carry to a world they never saw. "
+    "The replay keeps no per-frame evidence, so the reliability tables below use each "
+    "candidate's score at its lock, not the mean over its sightings the suite's page uses.",
     "",
 ]
 
