@@ -168,6 +168,18 @@ def test_people_in_view_together_are_told_apart_in_the_image():
     assert not new and later is first
 
 
+def test_without_telemetry_people_in_view_together_stay_apart_too():
+    """Telemetry out: two people 40 px apart in the same frame are two targets, though 40 px
+    is within the 64 px image gate for a person found again."""
+    reg = TargetRegistry(merge_gate_px=64.0)
+    left, _ = reg.observe(1, 0, 0.8, 0.0, None, STALE, box=box_at(100, 100))
+    right, new = reg.observe(2, 0, 0.8, 0.0, None, STALE, box=box_at(140, 100))
+    assert new and right is not left
+    # left's track is lost; a new track 15 px on, 2 s later, is left found again
+    again, new = reg.observe(3, 0, 0.8, 2.0, None, STALE, box=box_at(115, 100))
+    assert not new and again is left
+
+
 def test_image_merge_needs_proximity_and_a_recent_box():
     reg = TargetRegistry(merge_window_s=5.0, merge_gate_px=64.0)
     a, _ = reg.observe(1, 0, 0.8, 0.0, None, STALE, box=box_at(500, 300))
@@ -186,7 +198,7 @@ def test_image_gate_grows_with_the_box_and_the_nearest_target_wins():
     left, _ = reg.observe(3, 0, 0.8, 0.0, None, STALE, box=box_at(100, 100))
     right, _ = reg.observe(4, 0, 0.8, 0.0, None, STALE, box=box_at(200, 100))
     assert left is not right
-    nearest, new = reg.observe(5, 0, 0.8, 0.5, None, STALE, box=box_at(160, 100))
+    nearest, new = reg.observe(5, 0, 0.8, 1.0, None, STALE, box=box_at(160, 100))
     assert nearest is right and not new
 
 

@@ -20,8 +20,9 @@ space, and in the image where there is no ground position to compare:
   compared on the ground, so it is compared in the image: it joins the target whose last box
   was seen at most ``merge_window_s`` earlier (or later) with its centre within
   ``max(merge_gate_px, the larger side of either box)`` of the track's box centre (nearest
-  wins). This keeps one person one target while telemetry is out: a track lost and re-born,
-  or a second track locking on the same person;
+  wins), unless another track sees that target now somewhere else (as above). This keeps one
+  person one target while telemetry is out: a track lost and re-born, or a second track locking
+  on the same person;
 - a new locked track with a position that matches no target on the ground is compared in the
   image with the targets that have no position yet, the same way: the person first seen
   while telemetry was out gets their position from it;
@@ -308,6 +309,8 @@ class TargetRegistry:
             if target.box is None or (unplaced_only and target.position is not None):
                 continue
             if not abs(t - target.box_time) <= self.merge_window_s:
+                continue
+            if _in_view_elsewhere(target, box, t):
                 continue
             d = math.dist(centre, _centre(target.box))
             gate = max(self.merge_gate_px, _side(box), _side(target.box))
