@@ -8,25 +8,10 @@ import pymap3d
 import pytest
 
 from sarmission.evaluation.alert_scoring import score_flight
+from sarmission.evaluation.dataset_truth import TruthBox as Ann
+from sarmission.evaluation.dataset_truth import TruthFrame as Frame
 
 ORIGIN = (54.0, 7.0)
-
-
-@dataclass
-class Ann:
-    track_id: int
-    category: str
-    bbox_xyxy: tuple[float, float, float, float]
-    lat: float | None = None
-    lon: float | None = None
-
-
-@dataclass
-class Frame:
-    index: int
-    sim_time: float
-    targets: list
-    others: list
 
 
 @dataclass
