@@ -24,6 +24,14 @@ SUITE_DIR = ROOT / "docs" / "suite"
 PAGE = ROOT / "docs" / "alert_suite.md"
 
 
+def head_commit() -> str:
+    """The checkout's commit, short, as each run's JSON records it."""
+    done = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    )
+    return done.stdout.strip()
+
+
 def fly(
     label: str,
     seconds: float | None,
@@ -39,9 +47,7 @@ def fly(
     for item in overrides:
         cmd += ["--set", item]
     # The commit the flights start from: the tree may move on during the half hour they take.
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
-    ).stdout.strip()
+    commit = head_commit()
     done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=True)
     figures = json.loads(done.stdout[done.stdout.index("{") :])
     figures["run"] = {

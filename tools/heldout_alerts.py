@@ -16,7 +16,7 @@ is false::
     python tools/heldout_alerts.py render     # docs/heldout_alerts.md from docs/heldout_alerts/
 
 ``fly`` renders the clips into ``--work`` once, ``--jobs`` at a time (a re-run reuses them;
-rendering takes about a second per 1920x1080 frame and core), and keeps the figures as
+rendering takes about 2 s per 1920x1080 frame with two at once), and keeps the figures as
 ``docs/heldout_alerts/LABEL.json`` with the command and commit.
 """
 
@@ -36,7 +36,7 @@ for folder in (ROOT, ROOT / "tools"):  # runnable from a checkout that is not in
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))
 
-from alert_suite import fly_parser, render  # noqa: E402
+from alert_suite import fly_parser, head_commit, render  # noqa: E402
 from heldout_eval import _rendered  # noqa: E402
 from train_default_model import HELDOUT_VAL_FIRST_CLIP  # noqa: E402
 
@@ -51,6 +51,8 @@ PAGE = ROOT / "docs" / "heldout_alerts.md"
 #: Clip indices of this page: test clips (below the validation clips), apart from the clips of
 #: tools/heldout_eval.py (0 on).
 FIRST_CLIP = 50
+#: Frame rate the clips are rendered at (the generator's default).
+FPS = 30.0
 WORLDS = ("heldout_maritime", "heldout_maritime_empty", "heldout_land", "heldout_land_empty")
 INTRO = [
     "# Alerts on held-out footage",
@@ -74,13 +76,6 @@ INTRO = [
 ]
 
 
-def _commit() -> str:
-    done = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
-    )
-    return done.stdout.strip()
-
-
 def clip_path(work: Path, world: str, index: int) -> Path:
     """Where clip ``index`` of ``world`` lives (one annotation file per clip, so that clips
     render in parallel)."""
@@ -91,7 +86,7 @@ def render_clip(work: Path, world: str, index: int, frames: int) -> Path:
     """Clip ``index`` of ``world``, rendered unless it is there already."""
     path = clip_path(work, world, index)
     if not _rendered(path, 1, frames):
-        render_world(world, 1, frames, path.parent, first_clip=index)
+        render_world(world, 1, frames, path.parent, fps=FPS, first_clip=index)
     return path
 
 
@@ -123,7 +118,7 @@ def replay_command(
     ]
     cmd = [sys.executable, "-m", "sarmission.cli", "replay", str(path)]
     cmd += ["--video-id", str(video.id), "--alerts-db", str(db), "--no-progress"]
-    cmd += ["--fps", f"{video.extra.get('fps', 30.0):g}"]
+    cmd += ["--fps", f"{video.extra.get('fps', FPS):g}"]
     if model:
         cmd += ["--model", model]
     for item in [*lens, *overrides]:
@@ -135,7 +130,7 @@ def score_clip(dataset: VideoDataset, video: Video, db: Path) -> FlightScore:
     """The replay's alerts in ``db`` scored against the clip's annotations. A confirmation's
     time in the footage is its lock frame's plus the store's lock-to-confirmation interval
     (both on the replay's clock)."""
-    fps = float(video.extra.get("fps", 30.0))
+    fps = float(video.extra.get("fps", FPS))
     with AlertStore(db) as store:
         stored = store.list()
     alerts = []
@@ -150,12 +145,12 @@ def score_clip(dataset: VideoDataset, video: Video, db: Path) -> FlightScore:
 
 
 def fly(args: argparse.Namespace) -> Path:
-    frames = round(args.seconds * 30.0)
+    frames = round(args.seconds * FPS)
     scenarios: dict[str, dict] = {}
     total = FlightScore()
     worlds = args.worlds.split(",")
     render_clips(args.work, worlds, args.clips, frames, args.jobs)
-    commit = _commit()  # the code that replays (rendering may take an hour)
+    commit = head_commit()  # the code that replays (rendering may take an hour)
     with tempfile.TemporaryDirectory(prefix="sarmission-heldout-alerts-") as tmp:
         for world in worlds:
             score = FlightScore()
