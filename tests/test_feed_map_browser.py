@@ -22,6 +22,7 @@ from chromium import NEEDS_CHROMIUM, Chromium
 
 from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.model import Alert
+from sarmission.alerts.page_cards import SETTLE_S
 from sarmission.alerts.page_map import MARKER_COLOURS
 from sarmission.alerts.store import AlertStore
 
@@ -304,3 +305,36 @@ def test_phone_map_above_a_scrolling_list(
         "not confirmed from the phone",
     )
     settled(browser, {**expected, "alert": 3, "candidate": 1})
+
+
+def test_live_candidates_settle_before_they_are_shown(
+    browser: Chromium, served: tuple[Scene, FeedServer]
+) -> None:
+    """A candidate arriving live stays off the list, the count and the map for SETTLE_S; one the
+    evidence discards meanwhile never shows, one still waiting shows after it."""
+    scene, feed = served
+    store = scene.store
+    open_at(browser, feed, 1280, 800, mobile=False)
+    expected = {"alert": 2, "candidate": 2, "dismissed": 1, "discarded": 0}
+    settled(browser, expected)
+    assert browser.js("document.getElementById('review').textContent") == "2"
+
+    waiting = make_alert(20, mission_id=MISSION, position=at(-100, 50), tier="candidate")
+    clutter = make_alert(21, mission_id=MISSION, position=at(100, 50), tier="candidate")
+    arrived = time.monotonic()
+    store.add(waiting)
+    store.add(clutter)
+    browser.wait_for(f"{card(waiting)} !== null && {card(clutter)} !== null", timeout=3.0)
+    store.discard(clutter.alert_id, "mean score 0.41 below 0.85")
+    browser.wait_for(f"{card(clutter)}.dataset.kind === 'discarded'", timeout=3.0)
+    visible = f"{card(waiting)}.offsetParent !== null"
+    early = browser.js(visible), browser.js("document.getElementById('review').textContent")
+    assert time.monotonic() - arrived < SETTLE_S - 0.5, "too slow to check the settling card"
+    assert early == (False, "2")
+    assert markers(browser) == expected
+
+    browser.wait_for(visible, timeout=SETTLE_S + 3.0)
+    assert time.monotonic() - arrived >= SETTLE_S - 0.1
+    settled(browser, {**expected, "candidate": 3})
+    assert browser.js("document.getElementById('review').textContent") == "3"
+    assert not browser.js(f"{card(clutter)}.offsetParent !== null")  # discarded: hidden

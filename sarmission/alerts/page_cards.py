@@ -6,9 +6,21 @@ flash), ``discarded`` (a candidate the system gave up on: hidden unless "show di
 Confirm and Dismiss) and ``dismissed`` (grey, who and when, Confirm to change one's mind).
 Confirm and Dismiss POST ``{"by": <operator name>}`` to ``/api/alerts/<id>/confirm|dismiss``;
 the name is required, and the page asks for it instead of sending an anonymous decision.
+
+A candidate that arrives live is held back for :data:`SETTLE_S` (card, count and map marker):
+the controller decides most candidates within about two seconds of their lock (confirmed, it
+shows as an alert; discarded, it never shows), so the operator's list holds what is still
+waiting instead of a card that appears and vanishes several times a second over clutter.
+Candidates already stored when the page opens show at once.
 """
 
-CARDS_JS = r"""
+#: Seconds a live candidate stays off the page while the evidence decides it (the default
+#: confirmation waits 2 s: ``ConfirmConfig.min_seen_s``).
+SETTLE_S = 3.0
+
+CARDS_JS = (
+    f"const SETTLE_MS = {round(SETTLE_S * 1000)};\n"
+    + r"""
 const NAMES = {mavlink_loiter: "loiter", mavlink_roi: "camera ROI",
                mavlink_mission: "mission visit"};
 function kind(a) {
@@ -16,6 +28,18 @@ function kind(a) {
   if (a.tier === "confirmed") return "alert";
   if (a.discarded) return "discarded";
   return "candidate";
+}
+const settling = new Set();  // ids of live candidates held back for SETTLE_MS
+function shown(a) { return !(kind(a) === "candidate" && settling.has(a.alert_id)); }
+function settle(a) {
+  settling.add(a.alert_id);
+  setTimeout(() => {
+    settling.delete(a.alert_id);
+    const entry = alerts.get(a.alert_id);
+    if (entry) entry.card.dataset.settling = "0";
+    counts();
+    scheduleMap();
+  }, SETTLE_MS);
 }
 async function post(a, verb, body) {
   const r = await fetch("/api/alerts/" + encodeURIComponent(a.alert_id) + "/" + verb, {
@@ -62,6 +86,7 @@ function render(a) {
   card.dataset.kind = k;
   card.dataset.tier = a.tier;
   card.dataset.decision = a.decision || "";
+  card.dataset.settling = shown(a) ? "0" : "1";
   if (a.thumbnail) {
     const img = el("img", "thumb");
     img.src = a.thumbnail;
@@ -165,6 +190,10 @@ function upsert(a, fresh) {
     // a candidate the system has just confirmed is news: it flashes like a new alert
     if (fresh && kind(a) === "alert" && kind(old.alert) !== "alert") card.classList.add("fresh");
   } else {
+    if (fresh && kind(a) === "candidate") {
+      settle(a);
+      card.dataset.settling = "1";
+    }
     list.prepend(card);
     if (fresh && kind(a) === "alert") card.classList.add("fresh");
   }
@@ -177,7 +206,7 @@ function counts() {
   for (const v of alerts.values()) {
     const k = kind(v.alert);
     if (k === "alert") { total++; if (!v.alert.acknowledged) unacked++; }
-    if (k === "candidate") review++;
+    if (k === "candidate" && shown(v.alert)) review++;
   }
   document.getElementById("total").textContent = total;
   document.getElementById("unacked").textContent = unacked;
@@ -194,3 +223,4 @@ function select(id, fromMap) {
   scheduleMap();
 }
 """
+)

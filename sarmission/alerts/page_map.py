@@ -40,6 +40,7 @@ function mapAlerts() {
     if (!a.position) continue;
     if (mapView.mission !== null && a.mission_id !== mapView.mission) continue;
     if (kind(a) === "discarded" && !document.body.classList.contains("show-discarded")) continue;
+    if (!shown(a)) continue;  // a live candidate still settling
     out.push(a);
   }
   return out;

@@ -52,6 +52,7 @@ PAGE_CSS = """
            color: #555; }
   .alert[data-kind="dismissed"] .thumb { filter: grayscale(1); opacity: .6; }
   body:not(.show-discarded) .alert[data-kind="discarded"] { display: none; }
+  .alert[data-settling="1"] { display: none; }
   .alert.highlight { outline: 3px solid #1565c0; outline-offset: 1px; }
   .alert > * { grid-column: 2; }
   .alert > .thumb { grid-column: 1; grid-row: 1 / span 4; }
