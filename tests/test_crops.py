@@ -184,3 +184,38 @@ def test_empty_boxes_and_flops():
     )
     assert crops.shape == (0, 4, 16, 16)
     assert crop_flops(25) == 25 * crop_flops(1) > 0
+
+
+def test_motion_floor_keeps_faint_change_faint():
+    """Below the floor the temporal change is divided by the floor, not stretched to 1; above it
+    the floor changes nothing; V is never floored."""
+    faint = np.array([[[0.005, -0.002], [0.0, 0.001]]], np.float32)
+    strong = faint * 10  # max 0.05, above a 0.02 floor
+    v = np.array([[[1e-6, 0.0], [0.0, 0.0]]], np.float32)
+    on = np.array([1.0])
+    np.testing.assert_allclose(
+        enhanced_response(faint, v, on, motion_floor=0.02)[0],
+        [[1.0 + 0.25, 0.0], [0.0, 0.05]],
+        rtol=1e-6,
+    )
+    np.testing.assert_allclose(
+        enhanced_response(faint, v, on)[0], [[1.0 + 1.0, 0.0], [0.0, 0.2]], rtol=1e-6
+    )
+    np.testing.assert_allclose(
+        enhanced_response(strong, v, on, motion_floor=0.02), enhanced_response(strong, v, on)
+    )
+    off = enhanced_response(faint, np.zeros_like(v), np.array([0.0]), motion_floor=0.02)
+    np.testing.assert_allclose(off[0], [[0.0, 0.1], [0.0, 0.0]], rtol=1e-6)
+
+
+def test_motion_floor_reaches_the_crops():
+    frame = np.zeros((20, 20, 3), np.uint8)
+    z = np.zeros((10, 10), np.float32)
+    change = np.full((10, 10), 0.004, np.float32)
+    maps = MotionMaps(2, change, z, z, z, z)
+    box, on = np.array([[2, 2, 18, 18]], np.float32), np.ones(1)
+    plain = motion_enhanced_crops(frame, maps, box, on)
+    floored = motion_enhanced_crops(frame, maps, box, on, motion_floor=0.02)
+    np.testing.assert_allclose(plain[0, 3, 8, 8], 1.0, rtol=1e-6)
+    np.testing.assert_allclose(floored[0, 3, 8, 8], 0.2, rtol=1e-5)
+    np.testing.assert_array_equal(plain[:, :3], floored[:, :3])

@@ -131,3 +131,30 @@ def test_bad_onnx_graphs(model_files, tmp_path):
     del proto.metadata_props[:]
     onnx.save(proto, tmp_path / "no_meta.onnx")
     _expect_error(tmp_path / "no_meta.onnx", "no 'sarmission.format' metadata")
+
+
+def test_motion_floor_travels_with_the_head(tmp_path):
+    """The motion floor is part of the head's input: checkpoint and ONNX metadata carry it, and
+    the cascade cuts its crops with it."""
+    from sarmission.perception.mitenet import MiteNet
+
+    torch.manual_seed(0)
+    head = MiteHead(HeadConfig(motion_floor=0.02)).eval()
+    pt = save_head_checkpoint(head, tmp_path / "floor.pt")
+    onnx_path = export_head_onnx(pt, tmp_path / "floor.onnx").path
+    for path in (pt, onnx_path):
+        runtime = load_head_runtime(path)
+        assert runtime.config.motion_floor == 0.02
+        assert MiteNet(runtime).motion_floor == 0.02
+    assert load_head_runtime(model_files_default()).config.motion_floor == 0.0
+    with pytest.raises(ValueError, match="motion_floor"):
+        HeadConfig(motion_floor=-0.1).validate()
+    with pytest.raises(ValueError, match="motion_floor"):
+        HeadConfig.from_dict({"motion_floor": float("nan")})
+
+
+def model_files_default() -> Path:
+    """The shipped head (trained before the floor existed: its metadata has none)."""
+    from sarmission.models import DEFAULT_ONNX_MODEL
+
+    return DEFAULT_ONNX_MODEL

@@ -14,7 +14,7 @@ from synthetic_video import write_dataset
 
 from sarmission.commands import train as train_command
 from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
-from sarmission.perception.runtime import load_head_checkpoint
+from sarmission.perception.runtime import load_head_checkpoint, load_head_runtime
 from sarmission.perception.types import MotionMaps
 from sarmission.training import dataset as dataset_module
 from sarmission.training import train as train_module
@@ -425,11 +425,15 @@ def test_cli_trains_and_exports_onnx(data, tmp_path):
             str(data["cache"]),
             "--no-progress",
             "--onnx",
+            "--motion-floor",
+            "0.02",
         ]
     )
     assert args.func(args) == 0
-    assert load_head_checkpoint(out).config.classes == ("swimmer", "swimmer_with_life_jacket")
-    assert out.with_suffix(".onnx").is_file()
+    config = load_head_checkpoint(out).config
+    assert config.classes == ("swimmer", "swimmer_with_life_jacket")
+    assert config.motion_floor == 0.02  # the crops were cut with it: the head keeps it
+    assert load_head_runtime(out.with_suffix(".onnx")).config.motion_floor == 0.02
 
 
 def test_cli_errors_are_clear(data, tmp_path):
@@ -502,3 +506,5 @@ def test_settings_are_validated():
         TrainConfig(Path("a"), Path("b"), Path("c"), optimizer="rmsprop").validate()
     with pytest.raises(ValueError, match="pos_nwd"):
         replace(SETTINGS, pos_nwd=0.0).validate()
+    with pytest.raises(ValueError, match="motion_floor"):
+        replace(SETTINGS, motion_floor=-0.01).validate()

@@ -33,6 +33,8 @@ Variants (:data:`VARIANTS`):
 * ``broad_wild``: ``broad`` plus the simulator's wild land (meadow, forest, rock, snow and
   sand with animals and person-sized clutter; people trained as ``swimmer``), a clip of each.
 * ``broad_wild_textures``: ``broad_wild`` with the texture negatives of ``broad_textures``.
+* ``broad_wild_floor``: ``broad_wild`` with a motion floor (:data:`MOTION_FLOOR`): crops whose
+  temporal change is below it keep a faint motion channel instead of stretched noise.
 * ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
   of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
@@ -40,8 +42,8 @@ Test (the clips and seeds of ``tools/heldout_eval.py``, rendered with its functi
 ``maritime_test`` (own renderer, 2 x 40 frames), ``heldout_maritime`` (3 x 40) and
 ``heldout_land`` (2 x 40, people scored as ``swimmer``). Detector: the ``sarmission eval``
 defaults (ds 2, N 25, conf 0.3, lock 3 of 5 at score > 0.5 and NWD > 0.5), torch runtime; vSTMD
-and the RPN run once per frame and every head classifies the same crops
-(:func:`run_heads`), which is what running ``sarmission eval --model`` per head gives, at a
+and the RPN run once per frame and every head classifies the same crops (cut once per motion
+floor, :func:`run_heads`), which is what running ``sarmission eval --model`` per head gives, at a
 fraction of the cost. The shipped head is evaluated beside the variants for reference::
 
     nice -n 19 python tools/generalisation_study.py                  # renders, trains, tests
@@ -111,6 +113,9 @@ TRAIN_SETTINGS = {
 TEST_FRAMES, OWN_CLIPS, SEA_CLIPS, LAND_CLIPS = 40, 2, 3, 2
 #: Background-only held-out worlds (tools/background_eval.py) and their clips of TEST_FRAMES.
 BACKGROUND_SPLITS, BACKGROUND_CLIPS = ("heldout_land_empty", "heldout_maritime_empty"), 3
+#: Motion floor of the floor variant: 5 grey levels of frame-to-frame change, above what sensor
+#: noise and compression leave on still ground and below what a moving person makes.
+MOTION_FLOOR = 0.02
 #: Detector settings of ``sarmission eval``.
 EVAL_DS, EVAL_TOPN, EVAL_CONF = 2, 25, 0.3
 
@@ -133,6 +138,8 @@ class Variant:
     texture_negatives: float = 0.0
     #: Share of the positives put on a procedural texture.
     texture_positives: float = 0.0
+    #: The head's motion floor (``sarmission train --motion-floor``; 0: per-crop max-abs).
+    motion_floor: float = 0.0
 
 
 VARIANTS: dict[str, Variant] = {
@@ -225,6 +232,15 @@ VARIANTS: dict[str, Variant] = {
             "swimmer)",
         ),
         Variant(
+            "broad_wild_floor",
+            MARITIME_PARTS + EXTRA_PARTS + WILD_PARTS,
+            "all",
+            8,
+            f"broad_wild, with a motion floor of {MOTION_FLOOR} ({MOTION_FLOOR * 255:.0f} grey "
+            "levels): a crop whose temporal change stays below it keeps a faint motion channel",
+            motion_floor=MOTION_FLOOR,
+        ),
+        Variant(
             "broad_wild_textures",
             MARITIME_PARTS + EXTRA_PARTS + WILD_PARTS,
             "all",
@@ -286,6 +302,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         background_negatives=variant.background_negatives,
         object_negatives=variant.object_negatives,
         seed=0,
+        motion_floor=variant.motion_floor,
     )
     config = TrainConfig(
         train=train,
@@ -339,12 +356,18 @@ def run_heads(heads: Mapping[str, Any], dataset: Any) -> dict[str, Any]:
             result = driver.process(frame, position / NOMINAL_FPS)
             prop = result.proposals
             first = scaled_boxes(prop.boxes, driver.crop_scales[0])
-            crops = motion_enhanced_crops(frame, result.motion, first, prop.polarity)
+            crops: dict[float, Any] = {}  # motion floor -> first crops
             for name, net in nets.items():
+                if net is not driver and net.motion_floor not in crops:
+                    crops[net.motion_floor] = motion_enhanced_crops(
+                        frame, result.motion, first, prop.polarity, motion_floor=net.motion_floor
+                    )
                 det = (
                     result.detections
                     if net is driver
-                    else net._detect(frame, result.motion, prop, crops.copy(), first.copy())
+                    else net._detect(
+                        frame, result.motion, prop, crops[net.motion_floor].copy(), first.copy()
+                    )
                 )
                 run = runs[name]
                 run.detections[item.image.id] = FrameBoxes.of(det.boxes, det.scores, det.class_ids)
@@ -491,6 +514,7 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "object_negatives": VARIANTS[n].object_negatives,
                 "texture_negatives": VARIANTS[n].texture_negatives,
                 "texture_positives": VARIANTS[n].texture_positives,
+                "motion_floor": VARIANTS[n].motion_floor,
                 "classes": list(VARIANTS[n].classes),
             }
             for n in args.variants

@@ -69,6 +69,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "its side (the RPN's boxes land up to about half a side off)",
     )
     parser.add_argument(
+        "--motion-floor",
+        type=float,
+        default=0.0,
+        help="temporal change (luma, 0-1) below which a crop's motion channel is not "
+        "stretched to full scale; stored in the head (0 = per-crop max-abs, as in the paper)",
+    )
+    parser.add_argument(
         "--background-negatives",
         type=int,
         default=0,
@@ -201,6 +208,7 @@ def config_from_args(args: argparse.Namespace):
         background_negatives=args.background_negatives,
         object_negatives=args.object_negatives,
         seed=args.seed,
+        motion_floor=args.motion_floor,
     )
     return TrainConfig(
         train=args.train,

@@ -26,6 +26,10 @@ Head input channels (``[N, 4, S, S]`` float32):
 * 3: the enhanced response ``E = V + p * L_on + (1 - p) * L_off`` where ``L_on = max(L, 0)``,
   ``L_off = max(-L, 0)`` and each of ``V``, ``L_on``, ``L_off`` is divided by its own max-abs over
   the crop (a crop whose max is 0 stays 0), ``p`` the proposal polarity (1 = ON). E lies in [-1, 2].
+  With a *motion floor* ``f > 0`` (the head's :attr:`~sarmission.perception.head_config.HeadConfig.
+  motion_floor`), ``L_on`` and ``L_off`` are divided by ``max(max-abs, f)`` instead: a crop whose
+  temporal change stays below ``f`` (sensor noise, compression, rounding, a still scene) keeps a
+  faint E rather than having that noise stretched to full scale.
 """
 
 from __future__ import annotations
@@ -141,18 +145,24 @@ def roi_align(
     return _sample(windows, mask, grid_x, grid_y, ratio)
 
 
-def _normalise_max_abs(x: np.ndarray) -> np.ndarray:
-    """Divide each crop ``[N, S, S]`` by its max-abs; all-zero crops stay zero."""
+def _normalise_max_abs(x: np.ndarray, floor: float = 0.0) -> np.ndarray:
+    """Divide each crop ``[N, S, S]`` by its max-abs, or by ``floor`` where that is larger;
+    all-zero crops stay zero."""
     m = np.abs(x).max(axis=(1, 2), keepdims=True)
+    if floor > 0:
+        m = np.maximum(m, np.float32(floor))
     return x / np.where(m > 0, m, _ONE)
 
 
-def enhanced_response(l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarray) -> np.ndarray:
-    """``E = V/max|V| + p * L_on/max(L_on) + (1 - p) * L_off/max(L_off)``, crops ``[N, S, S]``."""
+def enhanced_response(
+    l_crop: np.ndarray, v_crop: np.ndarray, polarity: np.ndarray, motion_floor: float = 0.0
+) -> np.ndarray:
+    """``E = V/max|V| + p * L_on/max(L_on, f) + (1 - p) * L_off/max(L_off, f)``, crops
+    ``[N, S, S]``, ``f`` the motion floor (0: the paper's per-crop max-abs)."""
     l_crop = np.asarray(l_crop, dtype=np.float32)
     p = np.asarray(polarity, dtype=np.float32).reshape(-1, 1, 1)
-    l_on = _normalise_max_abs(np.maximum(l_crop, np.float32(0)))
-    l_off = _normalise_max_abs(np.maximum(-l_crop, np.float32(0)))
+    l_on = _normalise_max_abs(np.maximum(l_crop, np.float32(0)), motion_floor)
+    l_off = _normalise_max_abs(np.maximum(-l_crop, np.float32(0)), motion_floor)
     v = _normalise_max_abs(np.asarray(v_crop, dtype=np.float32))
     return v + p * l_on + (_ONE - p) * l_off
 
@@ -164,12 +174,14 @@ def motion_enhanced_crops(
     polarity: np.ndarray,
     output_size: int = CROP_SIZE,
     sampling_ratio: int | None = None,
+    motion_floor: float = 0.0,
 ) -> np.ndarray:
     """Head input ``[N, 4, S, S]`` (float32): RGB crop in [0, 1] from the full-resolution BGR
     uint8 frame (or a :class:`~sarmission.yuv.YuvImage`, converted under the boxes only) and the
     enhanced response E from ``motion.temporal_change`` (L) and ``motion.response`` (V) at 1/ds.
 
-    ``boxes`` ``[N, 4]`` are full-resolution ``x1, y1, x2, y2``; ``polarity`` ``[N]`` is 1 for ON.
+    ``boxes`` ``[N, 4]`` are full-resolution ``x1, y1, x2, y2``; ``polarity`` ``[N]`` is 1 for ON;
+    ``motion_floor`` the head's motion floor (module docstring).
     """
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
     if b.shape[0] == 0:
@@ -182,7 +194,7 @@ def motion_enhanced_crops(
     flat, mask, grid_x, grid_y = _roi_geometry(bm, h, w, output_size, ratio)
     lv = np.stack([motion.temporal_change.reshape(-1)[flat], motion.response.reshape(-1)[flat]], -1)
     lv_crop = _sample(lv, mask, grid_x, grid_y, ratio)
-    e = enhanced_response(lv_crop[:, 0], lv_crop[:, 1], polarity)
+    e = enhanced_response(lv_crop[:, 0], lv_crop[:, 1], polarity, motion_floor)
     return np.concatenate([rgb, e[:, None]], axis=1)
 
 

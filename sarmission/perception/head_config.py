@@ -20,6 +20,9 @@ class HeadConfig:
 
     ``widths`` is ``(stem, backbone)`` channels, ``reg_bottleneck`` the channels of the regression
     bottleneck before the linear layer, ``crop_size`` the side S of the square input crops.
+    ``motion_floor`` is part of the input's definition, not of the network: the temporal change
+    below which the motion channel is not stretched to full scale
+    (:func:`~sarmission.perception.crops.enhanced_response`; 0 for heads trained without one).
     """
 
     classes: tuple[str, ...] = DEFAULT_CLASSES
@@ -30,6 +33,7 @@ class HeadConfig:
     in_channels: int = 4
     attention_reduction: int = 4
     cls_hidden: int = 32
+    motion_floor: float = 0.0
 
     @property
     def num_classes(self) -> int:
@@ -63,6 +67,8 @@ class HeadConfig:
             raise ValueError(f"HeadConfig has non-positive sizes: {self}")
         if len(self.widths) != 2 or min(self.widths) < 1 or self.reg_bottleneck < 1:
             raise ValueError(f"HeadConfig.widths must be two positive ints, got {self.widths}")
+        if not 0.0 <= self.motion_floor < 1.0:
+            raise ValueError(f"HeadConfig.motion_floor must be in [0, 1), got {self.motion_floor}")
 
 
 def ltrb_to_boxes(ltrb: np.ndarray, proposal_boxes: np.ndarray, crop_size: int = 16) -> np.ndarray:

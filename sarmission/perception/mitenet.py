@@ -187,6 +187,11 @@ class MiteNet:
         """Class names, index = class id."""
         return self.head.classes
 
+    @property
+    def motion_floor(self) -> float:
+        """The head's motion floor: part of how its input crops are cut."""
+        return self.head.config.motion_floor
+
     def reset(self) -> None:
         """Forget the motion state and the frame size: the next frame starts a new stream."""
         self.vstmd.reset()
@@ -253,7 +258,9 @@ class MiteNet:
         proposals = self.rpn.propose(motion, chroma)
         t3 = time.perf_counter()
         first = scaled_boxes(proposals.boxes, self.crop_scales[0])
-        crops = motion_enhanced_crops(frame, motion, first, proposals.polarity)
+        crops = motion_enhanced_crops(
+            frame, motion, first, proposals.polarity, motion_floor=self.motion_floor
+        )
         t4 = time.perf_counter()
         detections = self._detect(frame, motion, proposals, crops, first)
         t5 = time.perf_counter()
@@ -314,7 +321,12 @@ class MiteNet:
             # (RoIAlign's adaptive ratio at 2 S) costs more and changed nothing measurable.
             wide_scores, wide_ids, wide_ltrb = self._classify(
                 motion_enhanced_crops(
-                    frame, motion, wide, proposals.polarity[refine], sampling_ratio=1
+                    frame,
+                    motion,
+                    wide,
+                    proposals.polarity[refine],
+                    sampling_ratio=1,
+                    motion_floor=self.motion_floor,
                 )
             )
             seen = ltrb_to_boxes(wide_ltrb, wide, self.head.config.crop_size)

@@ -95,7 +95,8 @@ class CropSettings:
     ``colour_share`` are the RPN's N, S and share of colour proposals; ``jitters_per_gt`` 0
     disables GT jittering (validation), ``background_negatives`` 0 the background negatives and
     ``object_negatives`` 0 the object negatives (the defaults, and validation); ``crop_dtype`` is
-    ``"float16"`` or ``"float32"``.
+    ``"float16"`` or ``"float32"``; ``motion_floor`` the head's motion floor
+    (:func:`~sarmission.perception.crops.enhanced_response`), recorded in the trained head.
     """
 
     classes: tuple[str, ...] = DEFAULT_CLASSES
@@ -114,6 +115,7 @@ class CropSettings:
     object_negatives: int = 0
     seed: int = 0
     crop_dtype: str = "float16"
+    motion_floor: float = 0.0
 
     def validate(self) -> None:
         """Raise ``ValueError`` for settings that cannot build a dataset."""
@@ -134,6 +136,8 @@ class CropSettings:
             raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
         if not 0.0 < self.pos_nwd <= 1.0:
             raise ValueError(f"pos_nwd must be in (0, 1], got {self.pos_nwd}")
+        if not 0.0 <= self.motion_floor < 1.0:
+            raise ValueError(f"motion_floor must be in [0, 1), got {self.motion_floor}")
         if self.crop_dtype not in ("float16", "float32"):
             raise ValueError(f"crop_dtype must be float16 or float32, got {self.crop_dtype!r}")
 
@@ -379,7 +383,12 @@ def _frame_samples(
     rpn_targets[pos] = ltrb_targets(proposals.boxes[pos], gt_boxes[assignment.gt_index[pos]])
     boxes = [proposals.boxes.astype(np.float64)]
     targets = [rpn_targets]
-    crops = [motion_enhanced_crops(frame, motion, proposals.boxes, proposals.polarity)]
+    floor = settings.motion_floor
+    crops = [
+        motion_enhanced_crops(
+            frame, motion, proposals.boxes, proposals.polarity, motion_floor=floor
+        )
+    ]
     all_labels = [labels]
     jittered = [np.zeros(len(proposals), bool)]
     if settings.jitters_per_gt and len(gt_classes):
@@ -395,7 +404,11 @@ def _frame_samples(
         polarity = polarity_near(motion, centres, settings.box_size)[src]
         boxes.append(jboxes)
         targets.append(ltrb_targets(jboxes, gt_boxes[src]))
-        crops.append(motion_enhanced_crops(frame, motion, jboxes, polarity, sampling_ratio=1))
+        crops.append(
+            motion_enhanced_crops(
+                frame, motion, jboxes, polarity, sampling_ratio=1, motion_floor=floor
+            )
+        )
         all_labels.append(gt_classes[src])
         jittered.append(np.ones(len(src), bool))
     negatives = []
@@ -415,7 +428,11 @@ def _frame_samples(
             polarity = polarity_near(motion, centres, settings.box_size)
             boxes.append(nboxes)
             targets.append(np.zeros((len(nboxes), 4)))
-            crops.append(motion_enhanced_crops(frame, motion, nboxes, polarity, sampling_ratio=1))
+            crops.append(
+                motion_enhanced_crops(
+                    frame, motion, nboxes, polarity, sampling_ratio=1, motion_floor=floor
+                )
+            )
             all_labels.append(np.full(len(nboxes), -1, np.int64))
             jittered.append(np.zeros(len(nboxes), bool))
     dtype = getattr(torch, settings.crop_dtype)

@@ -478,7 +478,9 @@ def train(config: TrainConfig) -> TrainResult:
     )
 
     torch.manual_seed(config.seed)
-    model = MiteHead(HeadConfig(classes=tuple(config.crops.classes)))
+    model = MiteHead(
+        HeadConfig(classes=tuple(config.crops.classes), motion_floor=config.crops.motion_floor)
+    )
     optimizer = _optimizer(model, config)
     average = WeightAverage(model, config.ema_decay) if config.ema_decay > 0 else None
     evaluated = average.model if average is not None else model
