@@ -3,36 +3,24 @@ their times, and MITE-Net's detections on a simulator clip encoded by ffmpeg as 
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-from conftest import render_narrow_sea
-from stream_sender import FFMPEG, needs_ffmpeg
+from conftest import load_tool, render_narrow_sea
+from stream_sender import needs_ffmpeg
 
 from sarmission.data.frames import FrameSourceError, VideoFileSource, open_frame_source
 from sarmission.data.yuv_video import YuvVideoSource
-from sarmission.perception.mitenet import MiteNet, build_head_runtime
 from sarmission.perception.pyramid import half_resolution
 
 pytestmark = needs_ffmpeg
 
 
-def encode(frames: Path, out: Path, pix_fmt: str = "yuv420p") -> Path:
-    """The JPEG frames of a folder as one H.264 file of ``pix_fmt`` (30 frames/s)."""
-    assert FFMPEG is not None
-    subprocess.run(
-        [
-            FFMPEG, "-loglevel", "error", "-y", "-framerate", "30", "-pattern_type", "glob",
-            "-i", str(frames / "*.jpg"), "-c:v", "libx264", "-preset", "veryfast", "-crf", "10",
-            "-pix_fmt", pix_fmt, str(out),
-        ],
-        check=True,
-        timeout=300,
-    )  # fmt: skip
-    return out
+#: The tool that measures the same gap for any head (its encoder and its measure are these).
+ROUNDING = load_tool("rounding_gap")
+encode = ROUNDING.encode
 
 
 @pytest.fixture(scope="module")
@@ -115,22 +103,6 @@ def test_unreadable_files(tmp_path: Path) -> None:
         open_frame_source(text, yuv=True)
 
 
-def match(a, b, max_px: float):
-    """Pairs ``(i, j)`` of detections of ``a`` and ``b`` of one class whose boxes' corners lie
-    within ``max_px`` (each of ``b`` used once, best first)."""
-    pairs, used = [], set()
-    for i in np.argsort(-a.scores):
-        if not len(b):
-            break
-        gap = np.abs(b.boxes - a.boxes[i]).max(axis=1)
-        gap[[j for j in range(len(b)) if j in used or b.class_ids[j] != a.class_ids[i]]] = np.inf
-        j = int(np.argmin(gap))
-        if gap[j] <= max_px:
-            pairs.append((int(i), j))
-            used.add(j)
-    return pairs
-
-
 def test_detections_from_the_planes_are_those_from_bgr(clip: Path) -> None:
     """The shipped head over the clip, YUV in against BGR in. The conversions round differently,
     by a level or two, which reorders near-equal maxima of the motion and colour maps at the end
@@ -138,18 +110,15 @@ def test_detections_from_the_planes_are_those_from_bgr(clip: Path) -> None:
     make. The rest are the same targets, boxed within 3 px and scored within 0.06. (Swapping U
     and V, moving Y or the chroma by one pixel, or reading limited-range Y as full range, each
     matches 42-86 % or moves scores by 0.14-0.49.)"""
-    head = build_head_runtime(None, "onnx")
-    from_yuv = MiteNet(head, ds=2, topn=25)
-    from_bgr = MiteNet(head, ds=2, topn=25)
-    total, matched, box_gap, score_gap = 0, 0, 0.0, 0.0
-    for planar, packed in pairs(clip):
-        a = from_yuv.process(planar.image, planar.timestamp_s).detections
-        b = from_bgr.process(packed.image_bgr, packed.timestamp_s).detections
-        total += len(a) + len(b)
-        for i, j in match(a, b, max_px=4.0):
-            matched += 2
-            box_gap = max(box_gap, float(np.abs(a.boxes[i] - b.boxes[j]).max()))
-            score_gap = max(score_gap, abs(float(a.scores[i]) - float(b.scores[j])))
-    assert total >= 100  # the clip has detections to compare
-    assert matched >= 0.85 * total, (matched, total)
-    assert score_gap <= 0.1, score_gap
+    gaps = ROUNDING.score_gaps(clip, "shipped")
+    assert gaps["detections"] >= 100  # the clip has detections to compare
+    assert gaps["matched"] >= 0.85, gaps
+    assert gaps["max"] <= 0.1, gaps
+
+
+def test_the_rounding_table_states_each_head() -> None:
+    row = {"detections": 120, "matched": 0.9, "max": 0.08, "p90": 0.03, "p50": 0.003, "floor": 0.0}
+    text = ROUNDING.table({"shipped": row, "b.onnx": {**row, "floor": 0.02}}, "cmd")
+    assert text.startswith(ROUNDING.BEGIN) and text.endswith(ROUNDING.END)
+    assert "| `shipped` | 0 | 90 % | 0.080 | 0.030 | 0.0030 |" in text
+    assert "| `b.onnx` | 0.02 |" in text
