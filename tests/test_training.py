@@ -383,7 +383,14 @@ def test_resume_continues_exactly(data, tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         train(_config(data, out, ema_decay=0.99))
     monkeypatch.setattr(train_module, "_train_epoch", real_epoch)
-    assert torch.load(state_path(out), weights_only=True)["epoch"] == 2
+    state = torch.load(state_path(out), weights_only=True)
+    assert state["epoch"] == 2
+    # a state written before the motion floor existed has no such setting: it still resumes
+    assert state["config"]["crops"].pop("motion_floor", None) is None
+    torch.save(state, state_path(out))
+    with pytest.raises(ValueError, match="crops"):
+        floored = replace(SETTINGS, motion_floor=0.02)
+        train(_config(data, out, resume=True, ema_decay=0.99, crops=floored))
     resumed = train(_config(data, out, resume=True, ema_decay=0.99))
     assert resumed.epochs_run == 1 and len(resumed.history) == 3
     a, b = _weights(full.state), _weights(resumed.state)

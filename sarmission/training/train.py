@@ -166,6 +166,8 @@ class TrainConfig:
             if not d[key]:
                 d.pop(key)  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
+        if not d["crops"]["motion_floor"]:
+            d["crops"].pop("motion_floor")  # likewise
         d["randomise"] = {
             "transforms": list(self.randomise.transforms),
             "probability": self.randomise.probability,
