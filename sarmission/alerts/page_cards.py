@@ -182,18 +182,15 @@ function actions(a, k) {
   return side;
 }
 function upsert(a, fresh) {
-  const card = render(a);
   const old = alerts.get(a.alert_id);
+  if (!old && fresh && kind(a) === "candidate") settle(a);  // before render: it reads settling
+  const card = render(a);
   if (old) {
     if (old.card.classList.contains("highlight")) card.classList.add("highlight");
     old.card.replaceWith(card);
     // a candidate the system has just confirmed is news: it flashes like a new alert
     if (fresh && kind(a) === "alert" && kind(old.alert) !== "alert") card.classList.add("fresh");
   } else {
-    if (fresh && kind(a) === "candidate") {
-      settle(a);
-      card.dataset.settling = "1";
-    }
     list.prepend(card);
     if (fresh && kind(a) === "alert") card.classList.add("fresh");
   }
