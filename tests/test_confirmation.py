@@ -129,3 +129,36 @@ def test_a_target_the_head_calls_an_object_is_discarded(labels, verdict):
     assert found.verdict == verdict, found
     if verdict == "discard":
         assert found.reason.startswith(f"called {labels[-1]} in "), found
+
+
+def improving(seconds=4.0, low=0.2, high=0.9, switch_s=2.0):
+    """A person first seen poorly (score ``low``), then better (``high``) from ``switch_s`` on."""
+    return [
+        Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, low if s.t < 100.0 + switch_s else high)
+        for s in sightings(seconds=seconds)
+    ]
+
+
+def test_a_score_window_waits_for_a_better_view():
+    windowed = ConfirmConfig(**{**RULE.__dict__, "score_window_s": 1.0})
+    first = evidence_of([s for s in improving() if s.t <= 101.5])
+    # over all sightings the poor start decides at once; over the latest second it waits
+    assert assess(first, 101.5, RULE).verdict == "discard"
+    waiting = assess(first, 101.5, windowed)
+    assert waiting.verdict == "wait" and "score 0.20 below 0.6" in waiting.reason, waiting
+    later = assess(evidence_of(improving()), 104.0, windowed)
+    assert later.verdict == "confirm" and later.score == pytest.approx(0.9), later
+    assert assess(evidence_of(improving()), 104.0, RULE).verdict == "discard"  # mean 0.55
+
+
+def test_a_score_window_still_gives_up_and_still_drops_flicker():
+    windowed = ConfirmConfig(**{**RULE.__dict__, "score_window_s": 1.0})
+    faint = evidence_of(sightings(seconds=3.0, score=0.45))
+    assert assess(faint, 103.0, windowed).verdict == "wait"
+    late = assess(faint, 100.0 + RULE.give_up_s + 0.1, windowed)
+    assert late.verdict == "discard" and "score 0.45 below 0.6" in late.reason, late
+    every = sightings(seconds=2.0, score=0.45)
+    flicker = evidence_of(every[::4])
+    flicker.frames = len(every)
+    found = assess(flicker, 102.0, windowed)
+    assert found.verdict == "discard" and "seen in 26 % of frames" in found.reason, found

@@ -79,6 +79,8 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[detector]\nds = 3", "[detector] ds: expected one of 1, 2, 4, 8"),
         ("[telemetry]\nlatency_s = -1", "[telemetry] latency_s: expected a number >= 0"),
         ("[confirm]\nmin_size_m = 3.0", "[confirm] sizes/speed/score"),
+        ("[confirm]\nscore_window_s = 30", "[confirm] score_window_s: expected 0"),
+        ("[confirm]\nscore_window_s = -1", "[confirm] score_window_s: expected 0"),
         ("[geolocation]\nmax_off_nadir_deg = 95", "[geolocation] max_off_nadir_deg"),
         ("[actions]\nvisit_interval_s = -1", "[actions] visit_interval_s: expected a number >= 0"),
         ("[detector]\ncrop_scales = [1.0, -2.0]", "[detector] crop_scales"),

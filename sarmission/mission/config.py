@@ -218,8 +218,11 @@ class ConfirmConfig:
     seen for ``min_seen_s`` in ``min_sightings`` geolocated frames, at least ``min_seen_share``
     of the frames since its first sighting, drifting no faster than ``max_speed_m_s``,
     ``min_size_m``-``max_size_m`` across on the ground, its scores' mean at least
-    ``min_score``; discarded if not confirmed within ``give_up_s``. The defaults were chosen on
-    the development scenarios (``tools/candidate_features.py``), never on the scored suite."""
+    ``min_score``; discarded if not confirmed within ``give_up_s``. ``score_window_s`` > 0 judges
+    the score over the latest seconds only and lets a low one wait for a better view instead
+    of discarding it (0: the mean of all sightings, decided once). The defaults were chosen on
+    the development scenarios (``tools/candidate_features.py``, ``tools/confirmation_rules.py``),
+    never on the scored suite."""
 
     min_seen_s: float = 2.0
     min_sightings: int = 20
@@ -229,6 +232,7 @@ class ConfirmConfig:
     max_size_m: float = 2.5
     min_score: float = 0.85
     give_up_s: float = 20.0
+    score_window_s: float = 0.0
 
 
 @dataclass

@@ -170,6 +170,8 @@ def confirm_problem(c: ConfirmConfig) -> Problem:
             "sizes/speed/score",
             "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1",
         )
+    if not 0 <= c.score_window_s <= c.give_up_s:
+        return "score_window_s", "expected 0 (all sightings) up to give_up_s"
     return None
 
 

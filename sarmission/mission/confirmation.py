@@ -11,7 +11,10 @@ the frames processed since its first sighting (a person stays in view; clutter f
 - its size on the ground fits a person: the median over sightings of the box's larger ground
   extent lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck centimetres);
 - the head's scores of its sightings agree: their mean is at least ``min_score`` (a few lucky
-  crops do not make a person);
+  crops do not make a person). With ``score_window_s`` > 0 the mean is over the sightings of
+  the latest ``score_window_s`` only, and a candidate below it waits (until ``give_up_s``)
+  rather than being discarded: a person first seen at the edge of the view, small or blurred,
+  gets the score of the better view that follows;
 - the head calls it a person (or a life-saving appliance) in most of its sightings: a target
   called a boat, jetski or buoy in at least half of them is discarded
   (:mod:`sarmission.class_roles`).
@@ -141,6 +144,15 @@ def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
     return speed, sigma_v * math.sqrt(2)
 
 
+def track_score(sightings: list[Sighting], window_s: float = 0.0) -> float:
+    """The mean of the head's scores of ``sightings`` (non-empty), over those of the latest
+    ``window_s`` seconds when it is > 0."""
+    if window_s > 0:
+        since = sightings[-1].t - window_s
+        sightings = [s for s in sightings if s.t >= since]
+    return float(np.mean([s.score for s in sightings]))
+
+
 def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessment:
     """The verdict on one candidate at time ``now`` (see the module docstring)."""
     sightings = evidence.sightings
@@ -152,7 +164,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     seen = sightings[-1].t - sightings[0].t
     sizes = [s.size_m for s in sightings if s.size_m is not None]
     size = float(np.median(sizes)) if sizes else None
-    score = float(np.mean([s.score for s in sightings]))
+    score = track_score(sightings, rule.score_window_s)
     share = evidence.seen_share if evidence.frames else None
     speed = spread = None
     if len(sightings) >= 3:
@@ -192,8 +204,10 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
             **figures,
         )
     if enough and seen >= rule.min_seen_s:
-        if score < rule.min_score:
-            return Assessment("discard", f"score {score:.2f} below {rule.min_score:g}", **figures)
+        low = f"score {score:.2f} below {rule.min_score:g}"
+        may_wait = rule.score_window_s > 0 and age <= rule.give_up_s
+        if score < rule.min_score and not may_wait:
+            return Assessment("discard", low, **figures)
         if share is not None and share < rule.min_seen_share:
             return Assessment(
                 "discard",
@@ -201,6 +215,8 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
                 f"stays in view: {100 * rule.min_seen_share:.0f} %)",
                 **figures,
             )
+        if score < rule.min_score:
+            return Assessment("wait", low, **figures)
         if size is None:
             return Assessment("wait", "size on the ground unknown", **figures)
         return Assessment("confirm", "", **figures)

@@ -1,0 +1,261 @@
+"""Confirmation rules compared on the same evidence: fly the development scenarios once, then
+replay every candidate's sightings frame by frame through each rule.
+
+    python tools/confirmation_rules.py [--record F.json] [--seconds 240]
+        [--variant NAME:KEY=VALUE,KEY=VALUE ...]
+
+A flight keeps each candidate's whole evidence (sightings go on after its verdict), the times
+of the frames the controller reviewed and the truth under it at its lock (as in
+``tools/candidate_features.py``; never the scored suite). ``--record`` keeps that as JSON, and
+a later run with the same file replays without flying. Each variant is the defaults with
+``[confirm]`` keys changed; its candidates are judged by :func:`assess` itself, once per
+reviewed frame from the candidate's lock on, until a verdict. The defaults' replay must give
+the flight's own verdicts: a replay that disagrees is reported, and its figures mean nothing.
+
+Printed: per variant, candidates with a person under them and how many were confirmed, clutter
+candidates and how many were confirmed (false alerts), and time from lock to confirmation. A
+confirmed alert sends the simulated drone to look, so a rule that confirms other candidates
+would have flown a slightly different path: the figures are a ranking, not a suite result.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:  # runnable from a checkout that is not installed
+    sys.path.insert(0, str(ROOT))
+
+from sarmission.mission.candidates import CandidateBook  # noqa: E402
+from sarmission.mission.config import ConfirmConfig  # noqa: E402
+from sarmission.mission.confirmation import Sighting, TargetEvidence, assess  # noqa: E402
+
+
+@dataclasses.dataclass
+class Recorded:
+    """One candidate as flown: its scenario, whether a person was under it at its lock, what
+    else was, the flight's verdict, the time of its first review and all its sightings."""
+
+    scenario: str
+    target: int
+    person: bool
+    under: str
+    verdict: str
+    first_review: float
+    first_seen: float
+    sightings: list[Sighting]
+
+
+@contextmanager
+def recording() -> Iterator[dict]:
+    """While flying: the times ``CandidateBook.review`` ran (every processed frame) and, per
+    book and target, the first review after the candidate was added."""
+    seen: dict = {"frames": [], "first_review": {}}
+    pending: list[tuple[int, int]] = []
+    review, add = CandidateBook.review, CandidateBook.add
+
+    def recording_review(book, now, when=None):
+        seen["frames"].append(now)
+        for key in pending:
+            seen["first_review"].setdefault(key, now)
+        pending.clear()
+        return review(book, now, when)
+
+    def recording_add(book, target_id, alert):
+        pending.append((id(book), target_id))
+        return add(book, target_id, alert)
+
+    CandidateBook.review, CandidateBook.add = recording_review, recording_add
+    try:
+        yield seen
+    finally:
+        CandidateBook.review, CandidateBook.add = review, add
+
+
+def fly_development(scenarios: list[str], seconds: float) -> dict:
+    """Fly ``scenarios`` with the defaults and keep every candidate's evidence (see module)."""
+    from sarmission.commands.mission_options import build_detector
+    from sarmission.commands.sim_score import fly
+    from sarmission.evaluation.alert_scoring import nearest
+    from sarmission.mission.config import load_mission
+    from sim.suite import suite
+
+    base = load_mission(None, [])
+    detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
+    detector, _ = build_detector(detector_args, base)
+    flights = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for scenario in suite(scenarios):
+            with recording() as seen:
+                flown = fly(scenario, base, detector, seconds, Path(tmp))
+            book = flown.controller.candidates
+            by_index = {f.index: f for f in flown.truth}
+            confirmed = {a.target_id for a, _, _ in flown.controller.stats.confirmed}
+            candidates = []
+            for alert in flown.controller.stats.candidates:
+                frame = by_index.get(alert.frame_index)
+                cx, cy = alert.pixel_track[-1][1:]
+                person = frame is not None and nearest(frame.targets, cx, cy) is not None
+                other = None if frame is None or person else nearest(frame.others, cx, cy)
+                evidence = book.evidence.get(alert.target_id, TargetEvidence())
+                still = alert.target_id in book.candidates
+                candidates.append(
+                    {
+                        "target": alert.target_id,
+                        "person": person,
+                        "under": "person" if person else (other.category if other else "water"),
+                        "verdict": "confirm"
+                        if alert.target_id in confirmed
+                        else ("wait" if still else "discard"),
+                        "first_review": seen["first_review"].get((id(book), alert.target_id)),
+                        "first_seen": evidence.first_seen,
+                        "sightings": [dataclasses.astuple(s) for s in evidence.sightings],
+                    }
+                )
+            flights.append(
+                {"scenario": scenario.name, "frames": seen["frames"], "candidates": candidates}
+            )
+            print(
+                f"{scenario.name}: {len(candidates)} candidates, "
+                f"{sum(c['person'] for c in candidates)} on people",
+                flush=True,
+            )
+    return {"seconds": seconds, "flights": flights}
+
+
+def recorded(record: dict) -> Iterator[tuple[list[float], Recorded]]:
+    """Each candidate of ``record`` with the reviewed frame times of its flight."""
+    for flight in record["flights"]:
+        for c in flight["candidates"]:
+            if c["first_review"] is None:  # added in the flight's last frame: never reviewed
+                continue
+            yield (
+                flight["frames"],
+                Recorded(
+                    flight["scenario"],
+                    c["target"],
+                    bool(c["person"]),
+                    c["under"],
+                    c["verdict"],
+                    c["first_review"],
+                    c["first_seen"],
+                    [Sighting(*s) for s in c["sightings"]],
+                ),
+            )
+
+
+def replay(frames: list[float], candidate: Recorded, rule: ConfirmConfig) -> tuple[str, float]:
+    """The verdict ``rule`` gives ``candidate`` reviewed at ``frames`` from its first review on,
+    and the time from that review to it (``wait``: none fell before the flight ended)."""
+    evidence = TargetEvidence(first_seen=candidate.first_seen)
+    pending = list(candidate.sightings)
+    for now in frames:
+        if now < candidate.first_review:
+            continue
+        while pending and pending[0].t <= now:
+            evidence.sightings.append(pending.pop(0))
+        if not math.isnan(evidence.first_seen):
+            evidence.frames += 1
+        found = assess(evidence, now, rule)
+        if found.verdict != "wait":
+            return found.verdict, now - candidate.first_review
+    return "wait", math.nan
+
+
+def variant(text: str) -> tuple[str, ConfirmConfig]:
+    """``NAME:KEY=VALUE,...`` as the default rule with those keys changed."""
+    name, _, changes = text.partition(":")
+    rule = ConfirmConfig()
+    fields = {f.name: f.type for f in dataclasses.fields(ConfirmConfig)}
+    for change in filter(None, changes.split(",")):
+        key, _, value = change.partition("=")
+        if key not in fields:
+            raise SystemExit(f"error: unknown [confirm] key {key!r} in {text!r}")
+        try:
+            setattr(rule, key, int(value) if fields[key] in ("int", int) else float(value))
+        except ValueError:
+            raise SystemExit(f"error: {key} expects a number, got {value!r}") from None
+    return name, rule
+
+
+def compare(record: dict, variants: list[tuple[str, ConfirmConfig]]) -> list[dict]:
+    """One row per variant (see module)."""
+    rows = []
+    for name, rule in variants:
+        people = clutter = found = false = 0
+        delays: list[float] = []
+        disagree = 0
+        for frames, candidate in recorded(record):
+            verdict, delay = replay(frames, candidate, rule)
+            if rule == ConfirmConfig() and verdict != candidate.verdict:
+                disagree += 1
+            people += candidate.person
+            clutter += not candidate.person
+            if verdict == "confirm":
+                found += candidate.person
+                false += not candidate.person
+                if candidate.person:
+                    delays.append(delay)
+        rows.append(
+            {
+                "variant": name,
+                "people": people,
+                "people confirmed": found,
+                "clutter": clutter,
+                "clutter confirmed": false,
+                "delay p50": float(np.median(delays)) if delays else math.nan,
+                "delay p90": float(np.percentile(delays, 90)) if delays else math.nan,
+                "disagree": disagree if rule == ConfirmConfig() else None,
+            }
+        )
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    head = "| variant | people confirmed | clutter confirmed | lock to confirmation p50 / p90 s |"
+    lines = [head, "|---|---|---|---|"]
+    for r in rows:
+        lines.append(
+            f"| {r['variant']} | {r['people confirmed']} of {r['people']} | "
+            f"{r['clutter confirmed']} of {r['clutter']} | "
+            f"{r['delay p50']:.1f} / {r['delay p90']:.1f} |"
+        )
+    return "\n".join(lines)
+
+
+def main() -> int:
+    from sim.suite import DEVELOPMENT
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenarios", default=",".join(s.name for s in DEVELOPMENT))
+    parser.add_argument("--seconds", type=float, default=240.0)
+    parser.add_argument("--record", type=Path, default=None, help="evidence JSON, kept/reused")
+    parser.add_argument("--variant", action="append", default=[], help="NAME:KEY=VALUE,...")
+    args = parser.parse_args()
+    variants = [("defaults", ConfirmConfig()), *map(variant, args.variant)]
+    if args.record and args.record.exists():
+        record = json.loads(args.record.read_text())
+    else:
+        record = fly_development(args.scenarios.split(","), args.seconds)
+        if args.record:
+            args.record.write_text(json.dumps(record))
+    rows = compare(record, variants)
+    print(table(rows))
+    disagree = rows[0]["disagree"]
+    if disagree:
+        print(f"warning: the defaults' replay disagrees with the flight on {disagree} candidates")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
