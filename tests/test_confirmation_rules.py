@@ -90,3 +90,20 @@ def test_a_record_file_round_trips_and_bad_variants_are_refused(tmp_path):
         rules.variant("x:min_scor=0.7")
     with pytest.raises(SystemExit, match="min_score expects a number"):
         rules.variant("x:min_score=high")
+
+
+def test_what_lay_under_a_lock_is_read_from_the_truth_of_its_frame():
+    from types import SimpleNamespace as Box
+
+    features = load_tool("candidate_features")
+    person = Box(bbox_xyxy=(100, 100, 110, 110))
+    debris = Box(bbox_xyxy=(300, 300, 310, 310), category="debris")
+    truth = {7: Box(index=7, targets=[person], others=[debris])}
+
+    def lock(frame, x, y):
+        return Box(frame_index=frame, pixel_track=[(frame, x, y)])
+
+    assert features.under_lock(truth, lock(7, 106, 104)) == "person"
+    assert features.under_lock(truth, lock(7, 304, 306)) == "debris"
+    assert features.under_lock(truth, lock(7, 600, 600)) == "water"
+    assert features.under_lock(truth, lock(8, 106, 104)) == "water"  # no truth for the frame

@@ -97,6 +97,26 @@ class VerdictRecorder:
         return TargetEvidence(evidence.sightings[:n], evidence.first_seen, evidence.frames)
 
 
+def development_detector(base):
+    """The shipped head's detector with the tools' defaults (ONNX, estimated ego-motion)."""
+    detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
+    detector, _ = build_detector(detector_args, base)
+    return detector
+
+
+def under_lock(truth_by_index: dict, alert) -> str:
+    """What lay under ``alert`` at its lock (truth frames by index): "person", another
+    object's category, or "water"."""
+    frame = truth_by_index.get(alert.frame_index)
+    if frame is None:
+        return "water"
+    cx, cy = alert.pixel_track[-1][1:]
+    if nearest(frame.targets, cx, cy) is not None:
+        return "person"
+    other = nearest(frame.others, cx, cy)
+    return other.category if other else "water"
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenarios", default=",".join(s.name for s in DEVELOPMENT))
@@ -105,8 +125,7 @@ def main() -> int:
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     args = parser.parse_args()
     base = load_mission(None, args.overrides)
-    detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
-    detector, _ = build_detector(detector_args, base)
+    detector = development_detector(base)
     rows = []
     recorder = VerdictRecorder()
     with tempfile.TemporaryDirectory() as tmp:
@@ -116,15 +135,12 @@ def main() -> int:
             book = flown.controller.candidates
             confirmed = {a.target_id for a, _, _ in flown.controller.stats.confirmed}
             for alert in flown.controller.stats.candidates:
-                frame = by_index.get(alert.frame_index)
-                cx, cy = alert.pixel_track[-1][1:]
-                person = frame is not None and nearest(frame.targets, cx, cy) is not None
-                other = None if frame is None or person else nearest(frame.others, cx, cy)
+                under = under_lock(by_index, alert)
                 row = {
                     "scenario": scenario.name,
                     "target": alert.target_id,
-                    "person": int(person),
-                    "under": "person" if person else (other.category if other else "water"),
+                    "person": int(under == "person"),
+                    "under": under,
                 }
                 row.update(
                     features(recorder.at_verdict(book.evidence[alert.target_id]), 30.0)

@@ -47,13 +47,10 @@ from sarmission.mission.confirmation import Sighting, TargetEvidence, assess  # 
 
 @dataclasses.dataclass
 class Recorded:
-    """One candidate as flown: its scenario, whether a person was under it at its lock, what
-    else was, the flight's verdict, the time of its first review and all its sightings."""
+    """One candidate as flown: whether a person was under it at its lock, the flight's verdict,
+    the time of its first review, its first sighting and all its sightings."""
 
-    scenario: str
-    target: int
     person: bool
-    under: str
     verdict: str
     first_review: float
     first_seen: float
@@ -88,15 +85,14 @@ def recording() -> Iterator[dict]:
 
 def fly_development(scenarios: list[str], seconds: float) -> dict:
     """Fly ``scenarios`` with the defaults and keep every candidate's evidence (see module)."""
-    from sarmission.commands.mission_options import build_detector
+    from candidate_features import development_detector, under_lock
+
     from sarmission.commands.sim_score import fly
-    from sarmission.evaluation.alert_scoring import nearest
     from sarmission.mission.config import load_mission
     from sim.suite import suite
 
     base = load_mission(None, [])
-    detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
-    detector, _ = build_detector(detector_args, base)
+    detector = development_detector(base)
     flights = []
     with tempfile.TemporaryDirectory() as tmp:
         for scenario in suite(scenarios):
@@ -107,20 +103,20 @@ def fly_development(scenarios: list[str], seconds: float) -> dict:
             confirmed = {a.target_id for a, _, _ in flown.controller.stats.confirmed}
             candidates = []
             for alert in flown.controller.stats.candidates:
-                frame = by_index.get(alert.frame_index)
-                cx, cy = alert.pixel_track[-1][1:]
-                person = frame is not None and nearest(frame.targets, cx, cy) is not None
-                other = None if frame is None or person else nearest(frame.others, cx, cy)
+                under = under_lock(by_index, alert)
                 evidence = book.evidence.get(alert.target_id, TargetEvidence())
-                still = alert.target_id in book.candidates
+                if alert.target_id in confirmed:
+                    verdict = "confirm"
+                elif alert.target_id in book.candidates:
+                    verdict = "wait"
+                else:
+                    verdict = "discard"
                 candidates.append(
                     {
                         "target": alert.target_id,
-                        "person": person,
-                        "under": "person" if person else (other.category if other else "water"),
-                        "verdict": "confirm"
-                        if alert.target_id in confirmed
-                        else ("wait" if still else "discard"),
+                        "person": under == "person",
+                        "under": under,
+                        "verdict": verdict,
                         "first_review": seen["first_review"].get((id(book), alert.target_id)),
                         "first_seen": evidence.first_seen,
                         "sightings": [dataclasses.astuple(s) for s in evidence.sightings],
@@ -146,10 +142,7 @@ def recorded(record: dict) -> Iterator[tuple[list[float], Recorded]]:
             yield (
                 flight["frames"],
                 Recorded(
-                    flight["scenario"],
-                    c["target"],
                     bool(c["person"]),
-                    c["under"],
                     c["verdict"],
                     c["first_review"],
                     c["first_seen"],
@@ -162,12 +155,13 @@ def replay(frames: list[float], candidate: Recorded, rule: ConfirmConfig) -> tup
     """The verdict ``rule`` gives ``candidate`` reviewed at ``frames`` from its first review on,
     and the time from that review to it (``wait``: none fell before the flight ended)."""
     evidence = TargetEvidence(first_seen=candidate.first_seen)
-    pending = list(candidate.sightings)
+    sightings, taken = candidate.sightings, 0
     for now in frames:
         if now < candidate.first_review:
             continue
-        while pending and pending[0].t <= now:
-            evidence.sightings.append(pending.pop(0))
+        while taken < len(sightings) and sightings[taken].t <= now:
+            evidence.sightings.append(sightings[taken])
+            taken += 1
         if not math.isnan(evidence.first_seen):
             evidence.frames += 1
         found = assess(evidence, now, rule)
@@ -196,12 +190,13 @@ def compare(record: dict, variants: list[tuple[str, ConfirmConfig]]) -> list[dic
     """One row per variant (see module)."""
     rows = []
     for name, rule in variants:
+        is_default = rule == ConfirmConfig()
         people = clutter = found = false = 0
         delays: list[float] = []
         disagree = 0
         for frames, candidate in recorded(record):
             verdict, delay = replay(frames, candidate, rule)
-            if rule == ConfirmConfig() and verdict != candidate.verdict:
+            if is_default and verdict != candidate.verdict:
                 disagree += 1
             people += candidate.person
             clutter += not candidate.person
@@ -219,7 +214,7 @@ def compare(record: dict, variants: list[tuple[str, ConfirmConfig]]) -> list[dic
                 "clutter confirmed": false,
                 "delay p50": float(np.median(delays)) if delays else math.nan,
                 "delay p90": float(np.percentile(delays, 90)) if delays else math.nan,
-                "disagree": disagree if rule == ConfirmConfig() else None,
+                "disagree": disagree if is_default else None,
             }
         )
     return rows
