@@ -157,6 +157,34 @@ def test_restart_on_the_same_store_does_not_re_announce(tmp_path, mission):
         assert store.count() == 1 and ctl.stats.merged_tracks == 1
 
 
+@pytest.mark.parametrize(("other_person", "candidates"), [(False, 1), (True, 2)])
+def test_a_track_re_born_far_off_in_the_image_joins_only_once_alone(
+    tmp_path, mission, other_person, candidates
+):
+    """From frame 10 a box 40 px (1.6 m) right of the first: the person swept across the
+    image (the first box is gone) or a second person beside the first (the first box stays,
+    missing frame 12 only, when the new track locks). The new track is pending until the
+    registry can tell: one candidate, or two."""
+    u, v = target_pixel(mission)
+    first, beside = (u - 5, v - 5, u + 5, v + 5), (u + 35, v - 5, u + 45, v + 5)
+    n = 20
+    script = []
+    for i in range(n):
+        boxes = [(first, 0.8, 0)] if i < 10 or (other_person and i != 12) else []
+        script.append(boxes + ([(beside, 0.8, 0)] if i >= 10 else []))
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            filled_buffer(mission, n / FPS),
+            store,
+            console=lambda s: None,
+        )
+        run_frames(ctl, n)
+        assert store.count() == candidates
+        assert ctl.stats.locks == 2 and ctl.stats.merged_tracks == 2 - candidates
+
+
 def test_stale_telemetry_gives_an_alert_without_position_and_the_reason(tmp_path, mission):
     n = 8
     buf = filled_buffer(mission, 1.0)  # telemetry ends at t = 1 s; frames from t = 5 s

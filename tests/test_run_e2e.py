@@ -119,7 +119,7 @@ def test_targets_alerted_once_loiter_acknowledged_despite_garbage(tmp_path):
         vehicle.stop()
     with AlertStore(tmp_path / "alerts.db") as store:
         alerts = store.list()
-    assert len(alerts) == 2, lines
+    assert len(alerts) == 2, "\n".join(lines)
     for alert, (n, e) in zip(sorted(alerts, key=lambda a: a.position[1]), targets, strict=True):
         assert distance_m(alert.position, truth(mission, n, e)) < 5.0
         assert set(alert.delivered) == {"mavlink_loiter"}  # acknowledged

@@ -168,6 +168,36 @@ def test_people_in_view_together_are_told_apart_in_the_image():
     assert not new and later is first
 
 
+def test_a_person_swept_across_the_image_by_a_turn_is_one_target():
+    """The drone turns towards a person: their 5 px dot crosses the image at 128 px/s, the
+    tracker loses it and a new track locks 0.2 s later, 26 px on, its fix 2.3 m from the
+    target's. Pending while the old box is recent; once no other track sees the person, the
+    ground decides: the same person."""
+    reg = TargetRegistry()
+    person, _ = reg.observe(1, 0, 0.9, 0.0, fix_at(0, 0, error=1.0), box=box_at(180, 80, 5))
+    reg.observe(1, 0, 0.9, 1 / 15, fix_at(0, 0, error=1.0), box=box_at(188.5, 75, 5))
+    for t, x in ((0.27, 211.0), (0.33, 219.0), (0.53, 245.0)):
+        assert reg.observe(2, 0, 0.9, t, fix_at(1, 2, error=1.0), box=box_at(x, 61, 5)) == (
+            None,
+            False,
+        )
+    assert reg.target_of(2) is None and person.track_ids == {1} and person.last_seen < 0.1
+    again, new = reg.observe(2, 0, 0.9, 0.6, fix_at(1, 2, error=1.0), box=box_at(253, 57, 5))
+    assert again is person and not new and len(reg) == 1 and person.track_ids == {1, 2}
+
+
+def test_a_person_seen_just_before_elsewhere_is_another_once_seen_together():
+    """The first person's track missed the frame in which a second track locks 26 px away
+    (fixes 2.2 m apart): pending; in the next frame both are seen apart: two people."""
+    reg = TargetRegistry()
+    first, _ = reg.observe(1, 0, 0.9, 0.0, fix_at(0, 0, error=1.0), box=box_at(180, 80, 5))
+    pending = reg.observe(2, 0, 0.9, 0.2, fix_at(1, 2, error=1.0), box=box_at(206, 80, 5))
+    assert pending == (None, False)
+    reg.observe(1, 0, 0.9, 0.27, fix_at(0, 0, error=1.0), box=box_at(180, 80, 5))
+    second, new = reg.observe(2, 0, 0.9, 0.27, fix_at(1, 2, error=1.0), box=box_at(206, 80, 5))
+    assert new and second is not first and len(reg) == 2
+
+
 def test_without_telemetry_people_in_view_together_stay_apart_too():
     """Telemetry out: two people 40 px apart in the same frame are two targets, though 40 px
     is within the 64 px image gate for a person found again."""

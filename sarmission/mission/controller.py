@@ -194,6 +194,7 @@ class MissionController:
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
         self._objects: set[int] = set()  # targets locked but called an object (not alerted)
+        self._pending_locks: set[int] = set()  # tracks locked while the registry was unsure
         # target id -> (capture time, box centre) of its sightings, to place it from buffered
         # telemetry once the autopilot's state allows a fix
         self._unplaced_sightings: dict[int, list[tuple[float, float, float]]] = {}
@@ -278,12 +279,17 @@ class MissionController:
         (looked up only when a track needs it) and the targets changed."""
         pose: PlatformPose | StaleTelemetry | None = None
         changed: list[Target] = []
-        for track in tracks:
-            if not track.locked or track.misses:
-                continue
+        seen = [t for t in tracks if t.locked and not t.misses]
+        # tracks with a target first: a new track is compared with their boxes of this frame
+        seen.sort(key=lambda t: self.registry.target_of(t.track_id) is None)
+        for track in seen:
             if pose is None:
                 pose = self.telemetry.lookup(timestamp)
-            changed.append(self._observe_track(track, frame, frame_index, timestamp, pose, scene))
+            target = self._observe_track(track, frame, frame_index, timestamp, pose, scene)
+            if target is not None:
+                changed.append(target)
+        alive = {t.track_id for t in tracks}
+        self._pending_locks.intersection_update(alive)
         return pose, changed
 
     def _observe_track(
@@ -294,13 +300,18 @@ class MissionController:
         timestamp: float,
         pose: PlatformPose | StaleTelemetry,
         scene: np.ndarray,
-    ) -> Target:
+    ) -> Target | None:
         fix, note = self._locate(track, pose)
         target, is_new = self.registry.observe(
             track.track_id, track.class_id, track.score, timestamp, fix, note, box=track.box - scene
         )
+        if target is None:  # unsure yet whose: the registry decides on a later frame
+            if track.just_locked:
+                self._pending_locks.add(track.track_id)
+            return None
         self._sighting(target, track, timestamp, pose, fix)
-        if track.just_locked:
+        if track.just_locked or track.track_id in self._pending_locks:
+            self._pending_locks.discard(track.track_id)
             self.stats.locks += 1
             if is_new:
                 self._candidate(target, track, frame, frame_index, pose, fix)

@@ -15,12 +15,18 @@ space, and in the image where there is no ground position to compare:
   the ground, since simultaneous fixes share their errors, so the new track joins it only if
   its box lies within twice the larger box side of the target's. Two people a few metres
   apart, both in view, stay two targets (mixed, their fixes would look like one target jumping
-  between them, and its position would lie between them);
+  between them, and its position would lie between them). Only boxes of the same frame are
+  compared at once: a box seen moments before may be far only because a turning drone swept
+  the person across the image (the camera shift is no rotation) and the tracker lost them, so
+  the new track is *pending* (``observe`` returns no target) until the target's own track sees
+  it again in one frame with the new one (two people) or has not seen it for
+  :data:`CONCURRENT_S` (the same person, found again);
 - a new locked track without a position (stale telemetry, ray above the horizon) cannot be
   compared on the ground, so it is compared in the image: it joins the target whose last box
   was seen at most ``merge_window_s`` earlier (or later) with its centre within
   ``max(merge_gate_px, the larger side of either box)`` of the track's box centre (nearest
-  wins), unless another track sees that target now somewhere else (as above). This keeps one
+  wins), unless another track sees that target now somewhere else (as above, pending
+  included). This keeps one
   person one target while telemetry is out: a track lost and re-born, or a second track locking
   on the same person;
 - a new locked track with a position that matches no target on the ground is compared in the
@@ -163,13 +169,21 @@ def _side(box: Sequence[float]) -> float:
     return max(box[2] - box[0], box[3] - box[1])
 
 
-def _in_view_elsewhere(target: Target, box: Sequence[float] | None, t: float) -> bool:
-    """True when another track saw ``target`` moments before ``t`` (:data:`CONCURRENT_S`) at
-    a place in the image ``box`` does not nearly meet: both in view, so another person."""
-    if box is None or target.box is None or not 0 <= t - target.box_time <= CONCURRENT_S:
-        return False
-    apart = math.dist(_centre(box), _centre(target.box))
-    return apart > 2 * max(_side(box), _side(target.box))
+#: :func:`_in_view_elsewhere`'s answers.
+APART, UNSURE, NOT_ELSEWHERE = "apart", "unsure", ""
+
+
+def _in_view_elsewhere(target: Target, box: Sequence[float] | None, t: float) -> str:
+    """Whether another track saw ``target`` moments before ``t`` (:data:`CONCURRENT_S`) at a
+    place in the image ``box`` does not nearly meet: :data:`APART` in the same frame (both in
+    view, so another person), :data:`UNSURE` in an earlier one (another person, or this one
+    swept across the image since), else :data:`NOT_ELSEWHERE`."""
+    since = t - target.box_time
+    if box is None or target.box is None or not 0 <= since <= CONCURRENT_S:
+        return NOT_ELSEWHERE
+    if math.dist(_centre(box), _centre(target.box)) <= 2 * max(_side(box), _side(target.box)):
+        return NOT_ELSEWHERE
+    return APART if since == 0 else UNSURE
 
 
 class TargetRegistry:
@@ -241,21 +255,26 @@ class TargetRegistry:
         fix: GeoFix | None,
         note: str = "",
         box: Sequence[float] | None = None,
-    ) -> tuple[Target, bool]:
+    ) -> tuple[Target | None, bool]:
         """Record a locked track's sighting at capture time ``t``; returns ``(target, is_new)``.
 
         ``fix`` is the sighting's geolocation (None or not ``ok`` when there is none; ``note``,
         or the fix's own note, then says why). ``box`` is the track's box in scene pixels (see
         the module docstring); without it a new track is compared on the ground only.
-        ``is_new`` is True only when this sighting created the target.
+        ``is_new`` is True only when this sighting created the target. A new track whose match
+        is still unsure (see the module docstring) is pending: ``(None, False)``, nothing is
+        recorded, and a later sighting decides. Observe the tracks that have a target first in
+        each frame, so that a new one is compared with their boxes of that frame.
         """
         placed = fix is not None and fix.ok
         target = self.target_of(track_id)
         is_new = False
         if target is None:
-            target = self._nearest(fix, t, box) if placed else None
-            if target is None and box is not None:
-                target = self._nearest_in_image(box, t, unplaced_only=placed)
+            target, unsure = self._nearest(fix, t, box) if placed else (None, False)
+            if target is None and not unsure and box is not None:
+                target, unsure = self._nearest_in_image(box, t, unplaced_only=placed)
+            if unsure:
+                return None, False
             if target is None:
                 is_new = True
                 target = Target(self._next_id, t, t)
@@ -277,14 +296,18 @@ class TargetRegistry:
             target.box_time = t
         return target, is_new
 
-    def _nearest(self, fix: GeoFix, t: float, box: Sequence[float] | None) -> Target | None:
+    def _nearest(
+        self, fix: GeoFix, t: float, box: Sequence[float] | None
+    ) -> tuple[Target | None, bool]:
+        """The target ``fix`` joins on the ground, and whether that match is unsure (the
+        target's box of an earlier frame lies elsewhere in the image)."""
         assert fix.lat is not None and fix.lon is not None
         best: Target | None = None
         best_d = math.inf
         for target in self.targets.values():
             if target.position is None:
                 continue
-            if _in_view_elsewhere(target, box, t):
+            if _in_view_elsewhere(target, box, t) == APART:
                 continue
             d = distance_m(target.position, (fix.lat, fix.lon))
             combined = math.hypot(
@@ -297,11 +320,12 @@ class TargetRegistry:
                 gate = min(gate, statistical + PERSON_SPEED_M_S * since)
             if d <= gate and d < best_d:
                 best, best_d = target, d
-        return best
+        return best, best is not None and _in_view_elsewhere(best, box, t) == UNSURE
 
     def _nearest_in_image(
         self, box: Sequence[float], t: float, unplaced_only: bool
-    ) -> Target | None:
+    ) -> tuple[Target | None, bool]:
+        """The target ``box`` joins in the image, and whether that match is unsure."""
         centre = _centre(box)
         best: Target | None = None
         best_d = math.inf
@@ -310,10 +334,10 @@ class TargetRegistry:
                 continue
             if not abs(t - target.box_time) <= self.merge_window_s:
                 continue
-            if _in_view_elsewhere(target, box, t):
+            if _in_view_elsewhere(target, box, t) == APART:
                 continue
             d = math.dist(centre, _centre(target.box))
             gate = max(self.merge_gate_px, _side(box), _side(target.box))
             if d <= gate and d < best_d:
                 best, best_d = target, d
-        return best
+        return best, best is not None and _in_view_elsewhere(best, box, t) == UNSURE
