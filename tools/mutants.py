@@ -1300,11 +1300,20 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "targets.concurrent_image_check_off",
         "sarmission/mission/targets.py",
-        "return apart > 2 * max(_side(box), _side(target.box))",
-        "return False",
+        "return APART if since == 0 else UNSURE",
+        "return NOT_ELSEWHERE",
         ("tests/test_targets.py",),
         "position",
         "two people in view side by side merge: one is never alerted",
+    ),
+    Mutant(
+        "targets.earlier_box_decides_at_once",
+        "sarmission/mission/targets.py",
+        "return APART if since == 0 else UNSURE",
+        "return APART",
+        ("tests/test_targets.py", "tests/test_controller.py"),
+        "position",
+        "a person swept across the image by a turn is alerted a second time",
     ),
     Mutant(
         "candidates.verdict_on_wall_clock",
