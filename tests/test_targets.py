@@ -83,6 +83,24 @@ def test_two_people_in_view_a_few_metres_apart_stay_two_targets():
     assert not new and again is first
 
 
+def test_a_drifting_person_found_again_joins_at_their_latest_fix():
+    """A swimmer drifting east at 0.5 m/s, tracked for 20 s: the mean of their fixes lies 5 m
+    behind them. A new track on them just after (the first one lost them), or 7 s later 3.5 m
+    on (8.4 m from the mean), joins the target by its latest fix; someone 6.5 m from that fix
+    in the same instant does not."""
+    reg = TargetRegistry(merge_radius_m=8.0)
+    for k in range(21):
+        swimmer, _ = reg.observe(1, 0, 0.9, float(k), fix_at(0, 0.5 * k, error=1.0))
+    assert distance_m(swimmer.position, ll(0, 5)) < 0.05
+    again, new = reg.observe(2, 0, 0.9, 20.2, fix_at(0, 10.1, error=1.0))
+    assert again is swimmer and not new
+    later, new = reg.observe(3, 0, 0.9, 27.2, fix_at(0, 13.6, error=1.0))
+    assert later is swimmer and not new
+    assert distance_m(swimmer.position, ll(0, 13.6)) > 8.0  # the mean alone would not admit it
+    other, new = reg.observe(4, 0, 0.9, 27.2, fix_at(6, 16.0, error=1.0))
+    assert new and other is not swimmer
+
+
 def test_a_track_keeps_its_target_and_one_person_is_one_target():
     reg = TargetRegistry(merge_radius_m=5.0)
     first, _ = reg.observe(7, 1, 0.6, 0.0, fix_at(100, -40))

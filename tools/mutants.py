@@ -1307,6 +1307,15 @@ MUTANTS: list[Mutant] = [
         "two people in view side by side merge: one is never alerted",
     ),
     Mutant(
+        "targets.latest_fix_ignored",
+        "sarmission/mission/targets.py",
+        "if target.last_fix is not None:",
+        "if False:",
+        ("tests/test_targets.py",),
+        "position",
+        "a drifting person found again is alerted a second time",
+    ),
+    Mutant(
         "targets.earlier_box_decides_at_once",
         "sarmission/mission/targets.py",
         "return APART if since == 0 else UNSURE",

@@ -10,7 +10,11 @@ space, and in the image where there is no ground position to compare:
   are 1-sigma RMS (DRMS), so two fixes of one person lie within twice their combined error
   98 % of the time, and a target with poorer fixes gets a wider gate. The radius beyond that
   statistical gate is for a person found again after a while: it is granted only as far as a
-  person can move since the target was last seen (:data:`PERSON_SPEED_M_S`). A target another
+  person can move since the target was last seen (:data:`PERSON_SPEED_M_S`). The same gate
+  around the target's latest fix (its error, the time since that fix) also admits the track:
+  a person drifting with a current lies, after a while, far from the mean of their fixes and
+  near the latest one, so a new track on them minutes later, or moments after another track
+  saw them, is not a second person. A target another
   track saw moments ago (:data:`CONCURRENT_S`) is in view now: there the image says more than
   the ground, since simultaneous fixes share their errors, so the new track joins it only if
   its box lies within twice the larger box side of the target's. Two people a few metres
@@ -107,6 +111,8 @@ class Target:
     announced: bool = False
     box: tuple[float, float, float, float] | None = None
     box_time: float = math.nan
+    #: ``(lat, lon, error_m, capture time)`` of the latest fix (None: none yet, or seeded)
+    last_fix: tuple[float, float, float, float] | None = None
     _sum_w: float = 0.0
     _sum_wn: float = 0.0
     _sum_we: float = 0.0
@@ -284,6 +290,9 @@ class TargetRegistry:
             target.track_ids.add(track_id)
         if placed:
             target.add_fix(fix)
+            assert fix.lat is not None and fix.lon is not None
+            error = fix.error_m if fix.error_m is not None and fix.error_m > 0 else math.nan
+            target.last_fix = (fix.lat, fix.lon, error, t)
         elif target.position is None:
             target.note = note or (fix.note if fix is not None else "") or "no position"
         target.class_votes[int(class_id)] += 1
@@ -309,18 +318,31 @@ class TargetRegistry:
                 continue
             if _in_view_elsewhere(target, box, t) == APART:
                 continue
-            d = distance_m(target.position, (fix.lat, fix.lon))
-            combined = math.hypot(
-                target.error_m or DEFAULT_FIX_ERROR_M, fix.error_m or DEFAULT_FIX_ERROR_M
-            )
-            statistical = GATE_SIGMA * combined
-            gate = max(self.merge_radius_m, statistical)
-            since = t - target.last_seen
-            if since >= 0:  # NaN for a target known from an earlier run: the whole radius
-                gate = min(gate, statistical + PERSON_SPEED_M_S * since)
-            if d <= gate and d < best_d:
+            here = (fix.lat, fix.lon)
+            d = distance_m(target.position, here)
+            near = self._within(d, target.error_m, fix.error_m, t - target.last_seen)
+            if target.last_fix is not None:
+                lat, lon, error, when = target.last_fix
+                d_last = distance_m((lat, lon), here)
+                if self._within(d_last, error, fix.error_m, t - when):
+                    d = min(d, d_last) if near else d_last
+                    near = True
+            if near and d < best_d:
                 best, best_d = target, d
         return best, best is not None and _in_view_elsewhere(best, box, t) == UNSURE
+
+    def _within(self, d: float, error_a: float | None, error_b: float | None, since: float) -> bool:
+        """Whether two positions ``d`` metres apart, with 1-sigma errors ``error_a`` and
+        ``error_b`` (None or NaN: :data:`DEFAULT_FIX_ERROR_M`) and ``since`` seconds between
+        them, may be one person (the module docstring's gate; NaN ``since``: a target known from
+        an earlier run, the whole radius)."""
+        a = DEFAULT_FIX_ERROR_M if error_a is None or not error_a > 0 else error_a
+        b = DEFAULT_FIX_ERROR_M if error_b is None or not error_b > 0 else error_b
+        statistical = GATE_SIGMA * math.hypot(a, b)
+        gate = max(self.merge_radius_m, statistical)
+        if since >= 0:
+            gate = min(gate, statistical + PERSON_SPEED_M_S * since)
+        return d <= gate
 
     def _nearest_in_image(
         self, box: Sequence[float], t: float, unplaced_only: bool
