@@ -178,6 +178,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         score=score,
     )
     enough = len(sightings) >= rule.min_sightings
+    late = f"not confirmed within {rule.give_up_s:g} s"
     objects = Counter(s.label for s in sightings if s.label and role_of(s.label) == "object")
     if enough and 2 * sum(objects.values()) >= len(sightings):
         name, _ = objects.most_common(1)[0]
@@ -218,8 +219,13 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         if score < rule.min_score:
             return Assessment("wait", low, **figures)
         if size is None:
-            return Assessment("wait", "size on the ground unknown", **figures)
+            unknown = "size on the ground unknown"
+            if age > rule.give_up_s:
+                return Assessment("discard", f"{late} ({unknown})", **figures)
+            return Assessment("wait", unknown, **figures)
         return Assessment("confirm", "", **figures)
     if age > rule.give_up_s:
-        return Assessment("discard", f"not confirmed within {rule.give_up_s:g} s", **figures)
+        return Assessment(
+            "discard", f"{late} ({len(sightings)} sightings over {seen:.1f} s)", **figures
+        )
     return Assessment("wait", f"{len(sightings)} sightings over {seen:.1f} s", **figures)
