@@ -112,7 +112,7 @@ class Target:
     box: tuple[float, float, float, float] | None = None
     box_time: float = math.nan
     #: ``(lat, lon, error_m, capture time)`` of the latest fix (None: none yet, or seeded)
-    last_fix: tuple[float, float, float, float] | None = None
+    last_fix: tuple[float, float, float | None, float] | None = None
     _sum_w: float = 0.0
     _sum_wn: float = 0.0
     _sum_we: float = 0.0
@@ -291,8 +291,7 @@ class TargetRegistry:
         if placed:
             target.add_fix(fix)
             assert fix.lat is not None and fix.lon is not None
-            error = fix.error_m if fix.error_m is not None and fix.error_m > 0 else math.nan
-            target.last_fix = (fix.lat, fix.lon, error, t)
+            target.last_fix = (fix.lat, fix.lon, fix.error_m, t)
         elif target.position is None:
             target.note = note or (fix.note if fix is not None else "") or "no position"
         target.class_votes[int(class_id)] += 1
