@@ -136,8 +136,8 @@ def table(rows: list[tuple[str, FlightScore]]) -> str:
 
     lines = [
         "| scenario | flight min | people in view | found | false alerts | false per hour "
-        "| time to alert p50 / p90 s | geolocation error p50 / p95 m |",
-        "|---|---|---|---|---|---|---|---|",
+        "| duplicate alerts | time to alert p50 / p90 s | geolocation error p50 / p95 m |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in rows:
         d = s.as_dict()
@@ -145,7 +145,7 @@ def table(rows: list[tuple[str, FlightScore]]) -> str:
         lines.append(
             f"| {name} | {s.flight_s / 60:.1f} | {s.people_in_view} | {s.found}"
             f" ({'-' if math.isnan(s.found_share) else f'{100 * s.found_share:.0f} %'})"
-            f" | {s.false_alerts} | {'-' if fph is None else f'{fph:.1f}'}"
+            f" | {s.false_alerts} | {'-' if fph is None else f'{fph:.1f}'} | {s.duplicates}"
             f" | {pct(d['time_to_alert_s'], 'p50')} / {pct(d['time_to_alert_s'], 'p90')}"
             f" | {pct(d['geo_error_m'], 'p50')} / {pct(d['geo_error_m'], 'p95')} |"
         )
