@@ -458,3 +458,42 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
         link.close()
         vehicle.stop()
         store.close()
+
+
+def test_a_glint_that_joined_a_person_first_yields_them_to_their_own_track(tmp_path, mission):
+    """A person alerted, then out of sight for 4 s; a glint 7 m off (179 px) locks first and
+    joins them by the re-find radius, the person's own track locks a frame later 1 m from
+    where they were. The person's track takes their target over and the glint becomes a
+    candidate of its own, at its own place: not a second alert on the person."""
+    confirm_at_lock(mission)
+    u, v = target_pixel(mission)
+    person, moved, glint = (
+        (u - 5, v - 5, u + 5, v + 5),
+        (u + 21, v - 5, u + 31, v + 5),
+        (u + 174, v - 5, u + 184, v + 5),
+    )
+    n = 70
+    script = []
+    for i in range(n):
+        boxes = [(person, 0.9, 0)] if i < 10 else []
+        boxes += [(glint, 0.8, 0)] if i >= 50 else []
+        boxes += [(moved, 0.9, 0)] if i >= 51 else []
+        script.append(boxes)
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            filled_buffer(mission, n / FPS),
+            store,
+            console=lambda s: None,
+        )
+        run_frames(ctl, n)
+        alerts = sorted(store.list(), key=lambda a: a.target_id)
+        assert len(alerts) == 2
+        first, second = alerts
+        assert distance_m(first.position, truth_latlon(mission)) < 1.5
+        assert distance_m(second.position, first.position) > 5.0  # the glint, not the person
+        # the glint's sightings left the person's evidence with it
+        evidence = ctl.candidates.evidence[first.target_id].sightings
+        assert len(evidence) > 10
+        assert all(distance_m((s.lat, s.lon), truth_latlon(mission)) < 2.5 for s in evidence)

@@ -307,3 +307,47 @@ def test_a_known_target_without_a_stored_error_counts_as_poorly_placed():
     assert reg.targets[2].error_m == pytest.approx(10.0)
     joined, new = reg.observe(1, 0, 0.8, 0.0, fix_at(15, 0, error=2.0))  # 2 * hypot(10, 2)
     assert not new and joined.target_id == 2
+
+
+def test_a_track_joined_by_the_re_find_radius_yields_to_a_better_one_in_the_same_frame():
+    """A person seen 20 s ago; on the next pass a sun glint 6 m off locks first and joins them
+    by the 8 m re-find radius (beyond the 3.7 m statistical gate of two 1.3 m fixes); the
+    person's own track locks a frame later 1.5 m from their position, 100 px from the glint's
+    box. The person's track takes the target over; the glint's track leaves it (the target's
+    position, latest fix and votes are the person's again) and is compared as a new track at
+    its next sighting: a target of its own."""
+    reg = TargetRegistry(merge_radius_m=8.0)
+    for k in range(3):
+        person, _ = reg.observe(1, 0, 0.9, 0.1 * k, fix_at(0, 0, 1.3), box=box_at(500, 300))
+    glint, new = reg.observe(2, 1, 0.7, 20.0, fix_at(0, 6, 1.3), box=box_at(600, 300))
+    assert glint is person and not new
+    assert distance_m(person.position, ll(0, 0)) > 1.0  # the glint's fix pulled it
+    reg.observe(2, 1, 0.7, 20.1, fix_at(0, 6, 1.3), box=box_at(600, 300))
+    taker, new = reg.observe(3, 0, 0.9, 20.1, fix_at(0, 1.5, 1.3), box=box_at(515, 300))
+    assert taker is person and not new
+    assert reg.target_of(2) is None and reg.detached == {2: person.target_id}
+    assert person.track_ids == {1, 3}
+    assert distance_m(person.position, ll(0, 0.375)) < 0.05  # fixes 0, 0, 0 and 1.5
+    assert person.class_votes == {0: 4} and person.best_score == pytest.approx(0.9)
+    assert distance_m(person.last_fix[:2], ll(0, 1.5)) < 0.05
+    again, new = reg.observe(2, 1, 0.7, 20.2, fix_at(0, 6, 1.3), box=box_at(600, 300))
+    assert new and again is not person and reg.target_of(2) is again
+
+
+def test_a_track_joined_within_the_statistical_gate_keeps_its_target():
+    """Two people 3 m apart (within the 3.7 m gate) both in view: the one whose track locked
+    first keeps the target, the other is a target of its own, however close to the first
+    fix; and a track joined by the re-find radius longer ago than YIELD_S keeps it too."""
+    reg = TargetRegistry(merge_radius_m=8.0)
+    person, _ = reg.observe(1, 0, 0.9, 0.0, fix_at(0, 0, 1.3), box=box_at(500, 300))
+    near, _ = reg.observe(2, 0, 0.9, 20.0, fix_at(0, 3, 1.3), box=box_at(560, 300))
+    assert near is person
+    other, new = reg.observe(3, 0, 0.9, 20.0, fix_at(0, 0.5, 1.3), box=box_at(505, 380))
+    assert new and other is not person and reg.target_of(2) is person
+
+    reg = TargetRegistry(merge_radius_m=8.0)
+    person, _ = reg.observe(1, 0, 0.9, 0.0, fix_at(0, 0, 1.3), box=box_at(500, 300))
+    for k in range(30):  # joined loosely, then its own for 3 s
+        reg.observe(2, 0, 0.9, 20.0 + 0.1 * k, fix_at(0, 6, 1.3), box=box_at(600, 300))
+    late, new = reg.observe(3, 0, 0.9, 22.9, fix_at(0, 1.0, 1.3), box=box_at(500, 300))
+    assert new and late is not person and reg.target_of(2) is person

@@ -69,14 +69,22 @@ class CandidateBook:
         size_m: float | None,
         score: float,
         label: str = "",
+        track_id: int | None = None,
     ) -> None:
         """One frame's sighting of a target (``lat`` None: no fix this frame; ``label`` the
-        head's class for it, empty when unknown)."""
+        head's class for it, empty when unknown; ``track_id`` the track that saw it)."""
         evidence = self.evidence.setdefault(target_id, TargetEvidence())
         if lat is None or lon is None or error_m is None:
             evidence.note_unplaced(t)
         else:
-            evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label))
+            evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label, track_id))
+
+    def forget(self, target_id: int, track_id: int) -> None:
+        """Drop ``track_id``'s sightings from ``target_id``'s evidence (the registry took the
+        track back out of that target)."""
+        evidence = self.evidence.get(target_id)
+        if evidence is not None:
+            evidence.forget(track_id)
 
     def suppressing(
         self, position: tuple[float, float] | None

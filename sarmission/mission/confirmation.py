@@ -48,7 +48,8 @@ Verdict = Literal["confirm", "wait", "discard"]
 class Sighting:
     """One frame's evidence of a target: capture time, fix, its 1-sigma error, the box's larger
     extent on the ground (metres; None when it could not be measured), the head's score and
-    its class name (empty: unknown, taken for a person)."""
+    its class name (empty: unknown, taken for a person), and the track that saw it (None:
+    not known)."""
 
     t: float
     lat: float
@@ -57,6 +58,7 @@ class Sighting:
     size_m: float | None
     score: float
     label: str = ""
+    track_id: int | None = None
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,10 @@ class TargetEvidence:
             self.first_seen = sighting.t
         if not self.sightings or sighting.t > self.sightings[-1].t:
             self.sightings.append(sighting)
+
+    def forget(self, track_id: int) -> None:
+        """Drop the sightings of ``track_id`` (a track the target registry took back out)."""
+        self.sightings = [s for s in self.sightings if s.track_id != track_id]
 
     def note_unplaced(self, t: float) -> None:
         """A sighting without a fix still starts the give-up clock."""

@@ -290,6 +290,8 @@ class MissionController:
                 changed.append(target)
         alive = {t.track_id for t in tracks}
         self._pending_locks.intersection_update(alive)
+        for gone in set(self.registry.detached) - alive:
+            del self.registry.detached[gone]
         return pose, changed
 
     def _observe_track(
@@ -302,6 +304,10 @@ class MissionController:
         scene: np.ndarray,
     ) -> Target | None:
         fix, note = self._locate(track, pose)
+        former = self.registry.detached.pop(track.track_id, None)
+        if former is not None:  # taken back out of a target: its evidence goes, a new lock
+            self.candidates.forget(former, track.track_id)
+            self._pending_locks.add(track.track_id)
         target, is_new = self.registry.observe(
             track.track_id, track.class_id, track.score, timestamp, fix, note, box=track.box - scene
         )
@@ -484,6 +490,7 @@ class MissionController:
             size,
             track.last_score,
             label,
+            track.track_id,
         )
 
     def _candidate(

@@ -24,7 +24,14 @@ space, and in the image where there is no ground position to compare:
   the person across the image (the camera shift is no rotation) and the tracker lost them, so
   the new track is *pending* (``observe`` returns no target) until the target's own track sees
   it again in one frame with the new one (two people) or has not seen it for
-  :data:`CONCURRENT_S` (the same person, found again);
+  :data:`CONCURRENT_S` (the same person, found again). One exception: a track that joined
+  the target at most :data:`YIELD_S` ago only by the re-find radius (a sun glint or debris a
+  few metres from a person seen a while ago, which locked first on the next pass) yields the
+  target to a new track that sees it in the same frame within the statistical gate of the
+  target's position without the yielding track's fixes. The yielding track's fixes, votes and
+  score leave the target and its next sighting is compared as a new track's (it is listed in
+  :attr:`TargetRegistry.detached` until then), so the person is not alerted twice and the
+  glint gets no share of their position;
 - a new locked track without a position (stale telemetry, ray above the horizon) cannot be
   compared on the ground, so it is compared in the image: it joins the target whose last box
   was seen at most ``merge_window_s`` earlier (or later) with its centre within
@@ -57,6 +64,7 @@ announced twice.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
@@ -64,6 +72,8 @@ from dataclasses import dataclass, field
 
 from sarmission.geo.geolocate import GeoFix
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+
+log = logging.getLogger(__name__)
 
 #: Weight floor: a fix without an error estimate counts as this error (metres).
 DEFAULT_FIX_ERROR_M = 10.0
@@ -76,6 +86,10 @@ PERSON_SPEED_M_S = 2.0
 #: A target seen by another track at most this many seconds ago is in view now (see the module
 #: docstring): a new track joins it only where their boxes nearly meet.
 CONCURRENT_S = 0.5
+#: A track that joined a target only by the re-find radius (beyond the statistical gate) yields
+#: the target for this long to a track that fits it within the gate in the same frame (see the
+#: module docstring).
+YIELD_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -85,6 +99,23 @@ class KnownTarget:
 
     position: tuple[float, float] | None
     error_m: float | None = None
+
+
+@dataclass
+class TrackShare:
+    """What one track added to a target, so that it can be taken out again: its fixes' weighted
+    sums (metres around the target's first fix), smallest error, latest fix, class votes and
+    best score, when it joined and whether it joined only by the re-find radius (``loose``)."""
+
+    joined: float
+    loose: bool = False
+    sum_w: float = 0.0
+    sum_wn: float = 0.0
+    sum_we: float = 0.0
+    min_error_m: float | None = None
+    last_fix: tuple[float, float, float | None, float] | None = None
+    class_votes: Counter[int] = field(default_factory=Counter)
+    best_score: float = 0.0
 
 
 @dataclass
@@ -113,6 +144,10 @@ class Target:
     box_time: float = math.nan
     #: ``(lat, lon, error_m, capture time)`` of the latest fix (None: none yet, or seeded)
     last_fix: tuple[float, float, float | None, float] | None = None
+    #: the track whose box :attr:`box` is
+    box_track: int | None = None
+    #: track id -> what it added (:meth:`detach` takes it out)
+    shares: dict[int, TrackShare] = field(default_factory=dict)
     _sum_w: float = 0.0
     _sum_wn: float = 0.0
     _sum_we: float = 0.0
@@ -132,8 +167,9 @@ class Target:
             return -1
         return self.class_votes.most_common(1)[0][0]
 
-    def add_fix(self, fix: GeoFix) -> None:
-        """Fold one geolocated observation into the weighted mean position."""
+    def add_fix(self, fix: GeoFix, track_id: int | None = None) -> None:
+        """Fold one geolocated observation into the weighted mean position (and into the share
+        of ``track_id``, when given)."""
         assert fix.lat is not None and fix.lon is not None
         error = fix.error_m if fix.error_m is not None and fix.error_m > 0 else DEFAULT_FIX_ERROR_M
         if self._origin is None:
@@ -143,17 +179,61 @@ class Target:
         self._sum_w += w
         self._sum_wn += w * n
         self._sum_we += w * e
-        lat, lon, _ = ned_to_geodetic(
-            self._sum_wn / self._sum_w,
-            self._sum_we / self._sum_w,
-            0.0,
-            self._origin[0],
-            self._origin[1],
-            0.0,
-        )
-        self.lat, self.lon = float(lat), float(lon)
+        share = self.shares.get(track_id) if track_id is not None else None
+        if share is not None:
+            share.sum_w += w
+            share.sum_wn += w * n
+            share.sum_we += w * e
+            low = share.min_error_m
+            share.min_error_m = error if low is None else min(low, error)
+        self._place()
         self.error_m = error if self.error_m is None else min(self.error_m, error)
         self.note = fix.note
+
+    def _place(self) -> None:
+        """``lat``/``lon`` from the weighted sums."""
+        self.lat, self.lon = self._mean(self._sum_w, self._sum_wn, self._sum_we)
+
+    def _mean(self, sum_w: float, sum_wn: float, sum_we: float) -> tuple[float, float]:
+        """``(lat, lon)`` of weighted sums of metres around the first fix."""
+        assert self._origin is not None and sum_w > 0
+        lat, lon, _ = ned_to_geodetic(
+            sum_wn / sum_w, sum_we / sum_w, 0.0, self._origin[0], self._origin[1], 0.0
+        )
+        return float(lat), float(lon)
+
+    def position_without(self, track_id: int) -> tuple[float, float] | None:
+        """The position the target would have without ``track_id``'s fixes (None: none left)."""
+        share = self.shares.get(track_id)
+        if share is None:
+            return self.position
+        sum_w = self._sum_w - share.sum_w
+        if self._origin is None or sum_w <= 1e-12 * max(self._sum_w, 1.0):
+            return None
+        return self._mean(sum_w, self._sum_wn - share.sum_wn, self._sum_we - share.sum_we)
+
+    def detach(self, track_id: int) -> None:
+        """Take ``track_id`` and what it added out of the target (its position, error, latest
+        fix, class votes and best score are those of the other tracks again)."""
+        share = self.shares.pop(track_id, None)
+        self.track_ids.discard(track_id)
+        if share is None:
+            return
+        self._sum_w -= share.sum_w
+        self._sum_wn -= share.sum_wn
+        self._sum_we -= share.sum_we
+        self.class_votes.subtract(share.class_votes)
+        self.class_votes = +self.class_votes
+        others = list(self.shares.values())
+        self.best_score = max((o.best_score for o in others), default=0.0)
+        errors = [o.min_error_m for o in others if o.min_error_m is not None]
+        self.error_m = min(errors) if errors else self.error_m
+        fixes = [o.last_fix for o in others if o.last_fix is not None]
+        self.last_fix = max(fixes, key=lambda f: f[3]) if fixes else None
+        if self._sum_w > 1e-12:
+            self._place()
+        if self.box_track == track_id:
+            self.box, self.box_time, self.box_track = None, math.nan, None
 
 
 def offset_m(origin: tuple[float, float], point: tuple[float, float]) -> tuple[float, float]:
@@ -192,6 +272,18 @@ def _in_view_elsewhere(target: Target, box: Sequence[float] | None, t: float) ->
     return APART if since == 0 else UNSURE
 
 
+@dataclass
+class Match:
+    """A new track's match: the target it joins (None: none), whether that is still unsure
+    (pending), whether it lies only within the re-find radius (``loose``), and the track it
+    takes the target over from (None: none)."""
+
+    target: Target | None = None
+    unsure: bool = False
+    loose: bool = False
+    takes_from: int | None = None
+
+
 class TargetRegistry:
     """Tracks -> targets (see the module docstring). Not thread-safe: one controller owns it.
 
@@ -220,6 +312,9 @@ class TargetRegistry:
         self.targets: dict[int, Target] = {}
         self._by_track: dict[int, int] = {}
         self._next_id = 1
+        #: track -> the target it was taken out of (:meth:`_detach`), until the caller clears
+        #: it; the track's next sighting is compared as a new track's
+        self.detached: dict[int, int] = {}
 
     def __len__(self) -> int:
         return len(self.targets)
@@ -276,76 +371,133 @@ class TargetRegistry:
         target = self.target_of(track_id)
         is_new = False
         if target is None:
-            target, unsure = self._nearest(fix, t, box) if placed else (None, False)
-            if target is None and not unsure and box is not None:
-                target, unsure = self._nearest_in_image(box, t, unplaced_only=placed)
-            if unsure:
+            match = self._nearest(fix, t, box) if placed else Match()
+            if match.target is None and not match.unsure and box is not None:
+                match = self._nearest_in_image(box, t, unplaced_only=placed)
+            if match.unsure:
                 return None, False
+            target = match.target
             if target is None:
                 is_new = True
                 target = Target(self._next_id, t, t)
                 self._next_id += 1
                 self.targets[target.target_id] = target
+            elif match.takes_from is not None:
+                self._detach(target, match.takes_from)
+                log.info(
+                    "track %d took target %d over from track %d, which had joined it only by "
+                    "the re-find radius and sees something else in this frame",
+                    track_id,
+                    target.target_id,
+                    match.takes_from,
+                )
             self._by_track[track_id] = target.target_id
             target.track_ids.add(track_id)
+            target.shares[track_id] = TrackShare(joined=t, loose=match.loose)
+        share = target.shares.get(track_id)
         if placed:
-            target.add_fix(fix)
+            target.add_fix(fix, track_id)
             assert fix.lat is not None and fix.lon is not None
             target.last_fix = (fix.lat, fix.lon, fix.error_m, t)
+            if share is not None:
+                share.last_fix = target.last_fix
         elif target.position is None:
             target.note = note or (fix.note if fix is not None else "") or "no position"
         target.class_votes[int(class_id)] += 1
         target.best_score = max(target.best_score, float(score))
+        if share is not None:
+            share.class_votes[int(class_id)] += 1
+            share.best_score = max(share.best_score, float(score))
         if math.isnan(target.first_seen):
             target.first_seen = t
         target.last_seen = t if math.isnan(target.last_seen) else max(target.last_seen, t)
         if box is not None:
             target.box = (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
             target.box_time = t
+            target.box_track = track_id
         return target, is_new
 
-    def _nearest(
-        self, fix: GeoFix, t: float, box: Sequence[float] | None
-    ) -> tuple[Target | None, bool]:
-        """The target ``fix`` joins on the ground, and whether that match is unsure (the
-        target's box of an earlier frame lies elsewhere in the image)."""
+    def _detach(self, target: Target, track_id: int) -> None:
+        """``track_id`` leaves ``target``: its next sighting is compared as a new track's."""
+        target.detach(track_id)
+        self._by_track.pop(track_id, None)
+        self.detached[track_id] = target.target_id
+
+    def _nearest(self, fix: GeoFix, t: float, box: Sequence[float] | None) -> Match:
+        """The target ``fix`` joins on the ground: the nearest one within the gate, unsure when
+        its box of an earlier frame lies elsewhere in the image. A target another track sees
+        elsewhere in this frame is someone else, unless that track joined it moments ago only
+        by the re-find radius and ``fix`` lies within the statistical gate of the target
+        without it: then this track is the better match and takes the target over."""
         assert fix.lat is not None and fix.lon is not None
-        best: Target | None = None
+        here = (fix.lat, fix.lon)
+        best = Match()
         best_d = math.inf
         for target in self.targets.values():
             if target.position is None:
                 continue
+            takes_from = None
             if _in_view_elsewhere(target, box, t) == APART:
+                takes_from = self._yielding_track(target, fix, t)
+                if takes_from is None:
+                    continue
+                position = target.position_without(takes_from)
+                assert position is not None
+                d = distance_m(position, here)
+                if d < best_d:
+                    best, best_d = Match(target, takes_from=takes_from), d
                 continue
-            here = (fix.lat, fix.lon)
             d = distance_m(target.position, here)
             near = self._within(d, target.error_m, fix.error_m, t - target.last_seen)
+            tight = near and d <= self._statistical(target.error_m, fix.error_m)
             if target.last_fix is not None:
                 lat, lon, error, when = target.last_fix
                 d_last = distance_m((lat, lon), here)
                 if self._within(d_last, error, fix.error_m, t - when):
                     d = min(d, d_last) if near else d_last
                     near = True
+                    tight = tight or d_last <= self._statistical(error, fix.error_m)
             if near and d < best_d:
-                best, best_d = target, d
-        return best, best is not None and _in_view_elsewhere(best, box, t) == UNSURE
+                best, best_d = Match(target, loose=not tight), d
+        if best.target is not None and best.takes_from is None:
+            best.unsure = _in_view_elsewhere(best.target, box, t) == UNSURE
+        return best
+
+    def _yielding_track(self, target: Target, fix: GeoFix, t: float) -> int | None:
+        """The track that saw ``target`` in this frame, when it joined at most :data:`YIELD_S`
+        ago only by the re-find radius and ``fix`` lies within the statistical gate of the
+        target without it (see :meth:`_nearest`); else None."""
+        holder = target.box_track
+        share = target.shares.get(holder) if holder is not None else None
+        if share is None or not share.loose or not 0 <= t - share.joined <= YIELD_S:
+            return None
+        position = target.position_without(holder)
+        if position is None:
+            return None
+        assert fix.lat is not None and fix.lon is not None
+        d = distance_m(position, (fix.lat, fix.lon))
+        return holder if d <= self._statistical(target.error_m, fix.error_m) else None
+
+    @staticmethod
+    def _statistical(error_a: float | None, error_b: float | None) -> float:
+        """The statistical gate (metres) of two fixes with 1-sigma errors ``error_a`` and
+        ``error_b`` (None or NaN: :data:`DEFAULT_FIX_ERROR_M`)."""
+        a = DEFAULT_FIX_ERROR_M if error_a is None or not error_a > 0 else error_a
+        b = DEFAULT_FIX_ERROR_M if error_b is None or not error_b > 0 else error_b
+        return GATE_SIGMA * math.hypot(a, b)
 
     def _within(self, d: float, error_a: float | None, error_b: float | None, since: float) -> bool:
         """Whether two positions ``d`` metres apart, with 1-sigma errors ``error_a`` and
         ``error_b`` (None or NaN: :data:`DEFAULT_FIX_ERROR_M`) and ``since`` seconds between
         them, may be one person (the module docstring's gate; NaN ``since``: a target known from
         an earlier run, the whole radius)."""
-        a = DEFAULT_FIX_ERROR_M if error_a is None or not error_a > 0 else error_a
-        b = DEFAULT_FIX_ERROR_M if error_b is None or not error_b > 0 else error_b
-        statistical = GATE_SIGMA * math.hypot(a, b)
+        statistical = self._statistical(error_a, error_b)
         gate = max(self.merge_radius_m, statistical)
         if since >= 0:
             gate = min(gate, statistical + PERSON_SPEED_M_S * since)
         return d <= gate
 
-    def _nearest_in_image(
-        self, box: Sequence[float], t: float, unplaced_only: bool
-    ) -> tuple[Target | None, bool]:
+    def _nearest_in_image(self, box: Sequence[float], t: float, unplaced_only: bool) -> Match:
         """The target ``box`` joins in the image, and whether that match is unsure."""
         centre = _centre(box)
         best: Target | None = None
@@ -361,4 +513,4 @@ class TargetRegistry:
             gate = max(self.merge_gate_px, _side(box), _side(target.box))
             if d <= gate and d < best_d:
                 best, best_d = target, d
-        return best, best is not None and _in_view_elsewhere(best, box, t) == UNSURE
+        return Match(best, unsure=best is not None and _in_view_elsewhere(best, box, t) == UNSURE)
