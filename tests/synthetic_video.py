@@ -46,10 +46,12 @@ def write_dataset(
     width: int = 320,
     targets: int = 4,
     glints: int = 6,
+    boat_size: float = 14.0,
 ) -> Path:
     """Write the dataset under ``folder`` (``images/`` and ``annotations.json``); returns the
     JSON path. Each video has ``targets`` moving swimmers (alternating classes), one boat and
-    ``glints`` sun glints per frame, each shown for one frame only (false motion).
+    ``glints`` sun glints per frame, each shown for one frame only (false motion); the boat
+    is a disc ``boat_size`` pixels across.
     """
     rng = np.random.default_rng(seed)
     (folder / "images").mkdir(parents=True, exist_ok=True)
@@ -68,7 +70,7 @@ def write_dataset(
         movers.append(
             (
                 3,
-                14.0,
+                boat_size,
                 (0.6, 0.6, 0.6),
                 rng.uniform([60, 60], [width - 60, height - 60]),
                 rng.uniform(0.5, 1.0, 2),

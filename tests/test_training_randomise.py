@@ -22,6 +22,7 @@ from sarmission.training.dataset import (
     background_boxes,
     load_crop_set,
     object_negative_boxes,
+    part_of_objects,
 )
 from sarmission.training.randomise import TRANSFORMS, Randomisation
 from sarmission.training.train import TrainConfig, train
@@ -192,3 +193,54 @@ def test_cli_options_reach_the_config(data, tmp_path) -> None:
     args.randomise = "glitter"
     with pytest.raises(ValueError, match="glitter"):
         train_command.config_from_args(args)
+
+
+def test_part_of_objects_takes_the_smallest_larger_object_under_the_centre() -> None:
+    proposals = np.array(
+        [
+            [100.0, 100.0, 116.0, 116.0],  # centre (108, 108): on the boat's stern
+            [190.0, 100.0, 206.0, 116.0],  # centre (198, 108): on the buoy beside the hull
+            [300.0, 300.0, 316.0, 316.0],  # open water
+            [400.0, 400.0, 416.0, 416.0],  # on a swimmer (a person class: NWD decides)
+            [500.0, 500.0, 516.0, 516.0],  # on an object no larger than the proposal
+        ]
+    )
+    gt = np.array(
+        [
+            [90.0, 90.0, 220.0, 140.0],  # boat
+            [185.0, 95.0, 215.0, 125.0],  # buoy, 30 px
+            [395.0, 395.0, 425.0, 425.0],  # swimmer
+            [502.0, 502.0, 514.0, 530.0],  # a life ring 12 px wide
+        ]
+    )
+    is_object = np.array([True, True, False, True])
+    assert part_of_objects(proposals, gt, is_object).tolist() == [0, 1, -1, -1, -1]
+    assert part_of_objects(proposals, gt, np.zeros(4, bool)).tolist() == [-1] * 5
+    assert part_of_objects(np.zeros((0, 4)), gt, is_object).shape == (0,)
+
+
+def test_object_parts_label_the_rpn_crops_on_the_boat_as_boat(data) -> None:
+    """With boats a head class, the RPN's proposals whose centre lies on a boat larger than
+    them are cut as boats with --object-parts, and as negatives without; nothing else moves."""
+    classes = ("swimmer", "swimmer_with_life_jacket", "boat")
+    root = data["cache"].parent / "big_boat"
+    train = write_dataset(root, n_videos=1, n_frames=12, seed=3, boat_size=60.0)
+    plain = CropSettings(classes=classes, frame_stride=3, jitters_per_gt=2)
+    base, parts = (
+        load_crop_set(train, c, data["cache"], progress=False)[0]
+        for c in (plain, replace(plain, object_parts=True))
+    )
+    assert len(parts) == len(base) and torch.equal(parts.boxes, base.boxes)
+    boat = classes.index("boat")
+    changed = parts.labels != base.labels
+    assert int(changed.sum()) > 0
+    assert bool(torch.all(base.labels[changed] == -1)) and bool(
+        torch.all(parts.labels[changed] == boat)
+    )
+    dataset = read_coco_video(train)
+    boats = {a.image_id: a.bbox for a in dataset.annotations if a.category_id == 3}
+    for row in torch.nonzero(changed).flatten().tolist():
+        x, y, w, h = boats[int(parts.image_ids[row])]
+        cx, cy = ((parts.boxes[row, :2] + parts.boxes[row, 2:]) / 2).tolist()
+        assert x <= cx < x + w and y <= cy < y + h
+        assert float(parts.target_ltrb[row].abs().sum()) > 0

@@ -23,6 +23,10 @@ Variants (:data:`VARIANTS`):
 * ``broad_classes``: ``broad_objects`` with the maritime head's object classes
   (:data:`sarmission.class_roles.MARITIME_CLASSES`: boats, jetskis, buoys and
   life-saving appliances learnt as classes of their own instead of background).
+* ``broad_classes_parts``: ``broad_classes`` with the RPN's proposals on part of a larger
+  object of those classes labelled with its class (``sarmission train --object-parts``): NWD
+  gives a proposal on a boat's stern or wake a negative, yet those are the crops inference
+  classifies on boats.
 * ``broad_person``: ``broad`` with people on land learnt as ``person``, a class of their own
   beside the swimmers (validated so; the land test scores any person class).
 * ``broad_textures``: ``broad`` plus procedural texture negatives (dead leaves, fractal noise,
@@ -131,6 +135,9 @@ class Variant:
     description: str
     classes: tuple[str, ...] = DEFAULT_CLASSES
     object_negatives: int = 0
+    #: RPN proposals on part of a larger object of a head class labelled with that class
+    #: (:func:`sarmission.training.dataset.part_of_objects`) rather than as negatives.
+    object_parts: bool = False
     #: People on land learnt as ``person`` (a class of their own; validation keeps them so)
     #: instead of as ``swimmer``.
     land_person: bool = False
@@ -186,6 +193,16 @@ VARIANTS: dict[str, Variant] = {
             "broad_objects, with boats, jetskis, buoys and life-saving appliances as classes "
             "of their own",
             MARITIME_CLASSES,
+        ),
+        Variant(
+            "broad_classes_parts",
+            MARITIME_PARTS + EXTRA_PARTS + OBJECT_PARTS,
+            "all",
+            8,
+            "broad_classes, with the RPN's proposals on part of a larger boat, jetski, buoy or "
+            "life-saving appliance labelled with its class instead of as negatives",
+            MARITIME_CLASSES,
+            object_parts=True,
         ),
         Variant(
             "broad_person",
@@ -301,6 +318,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         jitters_per_gt=s["jitters_per_gt"],
         background_negatives=variant.background_negatives,
         object_negatives=variant.object_negatives,
+        object_parts=variant.object_parts,
         seed=0,
         motion_floor=variant.motion_floor,
     )
@@ -512,6 +530,7 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "randomise": VARIANTS[n].randomise,
                 "background_negatives": VARIANTS[n].background_negatives,
                 "object_negatives": VARIANTS[n].object_negatives,
+                "object_parts": VARIANTS[n].object_parts,
                 "texture_negatives": VARIANTS[n].texture_negatives,
                 "texture_positives": VARIANTS[n].texture_positives,
                 "motion_floor": VARIANTS[n].motion_floor,

@@ -90,6 +90,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "(boats, debris, birds, glints), copies per object (0 = only the RPN's proposals)",
     )
     parser.add_argument(
+        "--object-parts",
+        action="store_true",
+        help="label the RPN's proposals on part of a larger object of a head class (a boat "
+        "of --classes maritime) with that class rather than as negatives",
+    )
+    parser.add_argument(
         "--randomise",
         default="none",
         help="crop-level domain randomisation: comma-separated transforms of "
@@ -207,6 +213,7 @@ def config_from_args(args: argparse.Namespace):
         jitter_shift=args.jitter_shift,
         background_negatives=args.background_negatives,
         object_negatives=args.object_negatives,
+        object_parts=args.object_parts,
         seed=args.seed,
         motion_floor=args.motion_floor,
     )

@@ -95,7 +95,8 @@ class CropSettings:
     ``colour_share`` are the RPN's N, S and share of colour proposals; ``jitters_per_gt`` 0
     disables GT jittering (validation), ``background_negatives`` 0 the background negatives and
     ``object_negatives`` 0 the object negatives (the defaults, and validation); ``crop_dtype`` is
-    ``"float16"`` or ``"float32"``; ``motion_floor`` the head's motion floor
+    ``"float16"`` or ``"float32"``; ``object_parts`` labels RPN proposals on part of a larger
+    object of a head class (see :func:`part_of_objects`); ``motion_floor`` the head's motion floor
     (:func:`~sarmission.perception.crops.enhanced_response`), recorded in the trained head.
     """
 
@@ -113,6 +114,7 @@ class CropSettings:
     jitter_shift: float = 0.5
     background_negatives: int = 0
     object_negatives: int = 0
+    object_parts: bool = False
     seed: int = 0
     crop_dtype: str = "float16"
     motion_floor: float = 0.0
@@ -220,6 +222,39 @@ _TENSOR_FIELDS = (
     "gt_classes",
     "gt_image_ids",
 )
+
+
+def part_of_objects(
+    boxes: np.ndarray, gt_boxes: np.ndarray, gt_is_object: np.ndarray
+) -> np.ndarray:
+    """For each proposal box ``[N, 4]``, the index of the object GT box it is part of, or -1.
+
+    A proposal is part of a GT box of an object class (``gt_is_object [M]``: a boat, jetski,
+    buoy or life-saving appliance a head names) when its centre lies inside that box and the
+    box is larger than the proposal on both sides: NWD, made for tiny targets, gives a 16-px
+    proposal on a 120-px boat about 0.03, so without this the crops the RPN cuts on boats,
+    which are what inference classifies there, would all be negatives and the head would
+    learn a boat only from its centre's jittered crops. The smallest such box wins (a buoy
+    beside a boat's hull)."""
+    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    g = np.asarray(gt_boxes, dtype=np.float64).reshape(-1, 4)
+    out = np.full(len(b), -1, np.int64)
+    if not len(b) or not len(g) or not np.any(gt_is_object):
+        return out
+    cx = (b[:, 0] + b[:, 2])[:, None] / 2
+    cy = (b[:, 1] + b[:, 3])[:, None] / 2
+    inside = (cx >= g[None, :, 0]) & (cx < g[None, :, 2]) & (cy >= g[None, :, 1])
+    inside &= cy < g[None, :, 3]
+    larger = ((g[None, :, 2] - g[None, :, 0]) > (b[:, 2] - b[:, 0])[:, None]) & (
+        (g[None, :, 3] - g[None, :, 1]) > (b[:, 3] - b[:, 1])[:, None]
+    )
+    ok = inside & larger & np.asarray(gt_is_object, bool)[None, :]
+    area = (g[:, 2] - g[:, 0]) * (g[:, 3] - g[:, 1])
+    masked = np.where(ok, area[None, :], np.inf)
+    best = np.argmin(masked, axis=1)
+    has = np.isfinite(masked[np.arange(len(b)), best])
+    out[has] = best[has]
+    return out
 
 
 def ltrb_targets(
@@ -381,6 +416,12 @@ def _frame_samples(
     labels[pos] = gt_classes[assignment.gt_index[pos]]
     rpn_targets = np.zeros((len(proposals), 4))
     rpn_targets[pos] = ltrb_targets(proposals.boxes[pos], gt_boxes[assignment.gt_index[pos]])
+    if settings.object_parts and len(gt_classes):
+        is_object = np.array([role_of(settings.classes[c]) != "person" for c in gt_classes])
+        part_gt = part_of_objects(proposals.boxes, gt_boxes, is_object)
+        part = (part_gt >= 0) & ~pos
+        labels[part] = gt_classes[part_gt[part]]
+        rpn_targets[part] = ltrb_targets(proposals.boxes[part], gt_boxes[part_gt[part]])
     boxes = [proposals.boxes.astype(np.float64)]
     targets = [rpn_targets]
     floor = settings.motion_floor
