@@ -82,9 +82,11 @@ def test_short_evidence_waits_then_gives_up():
     short = evidence_of(sightings(seconds=0.5))
     assert assess(short, 100.5, RULE).verdict == "wait"
     late = assess(short, 100.0 + RULE.give_up_s + 0.1, RULE)
-    # the reason says what was still missing: here a second of six sightings
+    # the reason says what was still missing: here a second of evidence
     assert late.verdict == "discard", late
-    assert late.reason == "not confirmed within 20 s (16 sightings over 0.5 s)", late
+    assert late.reason == (
+        "not confirmed within 20 s (16 sightings over 0.5 s; needs 6 over 1 s)"
+    ), late
     # enough evidence but no size on the ground (no ground extent): waits, then gives up
     unsized = evidence_of(sightings(seconds=3.0, size=None))
     assert assess(unsized, 103.0, RULE).reason == "size on the ground unknown"

@@ -864,8 +864,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "confirmation.give_up_inclusive",
         _CONFIRMATION,
-        'if age > rule.give_up_s:\n        return Assessment(\n            "discard", f"{late} (',
-        'if age >= rule.give_up_s:\n        return Assessment(\n            "discard", f"{late} (',
+        'if age > rule.give_up_s:\n        return Assessment("discard", f"{late} ({have})"',
+        'if age >= rule.give_up_s:\n        return Assessment("discard", f"{late} ({have})"',
         _T_CONFIRM,
         "lock",
         "a candidate given up at exactly give_up_s",

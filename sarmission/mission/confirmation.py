@@ -230,8 +230,10 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
                 return Assessment("discard", f"{late} ({unknown})", **figures)
             return Assessment("wait", unknown, **figures)
         return Assessment("confirm", "", **figures)
+    have = (
+        f"{len(sightings)} sightings over {seen:.1f} s; "
+        f"needs {rule.min_sightings} over {rule.min_seen_s:g} s"
+    )
     if age > rule.give_up_s:
-        return Assessment(
-            "discard", f"{late} ({len(sightings)} sightings over {seen:.1f} s)", **figures
-        )
-    return Assessment("wait", f"{len(sightings)} sightings over {seen:.1f} s", **figures)
+        return Assessment("discard", f"{late} ({have})", **figures)
+    return Assessment("wait", have, **figures)
