@@ -436,7 +436,6 @@ class TargetRegistry:
         for target in self.targets.values():
             if target.position is None:
                 continue
-            takes_from = None
             if _in_view_elsewhere(target, box, t) == APART:
                 takes_from = self._yielding_track(target, fix, t)
                 if takes_from is None:
