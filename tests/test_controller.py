@@ -96,6 +96,19 @@ def run_frames(ctl, n_frames: int, t0: float = 0.0, frames=None, start: int = 0)
     return alerts
 
 
+def run_script(mission, script: list, store: AlertStore) -> MissionController:
+    """A controller on ``script`` (a hovering drone, exact telemetry), run over every frame."""
+    ctl = MissionController(
+        mission,
+        ScriptedDetector(script),
+        filled_buffer(mission, len(script) / FPS),
+        store,
+        console=lambda s: None,
+    )
+    run_frames(ctl, len(script))
+    return ctl
+
+
 def test_target_seen_3_of_5_frames_is_alerted_once_within_1m(tmp_path, mission):
     mission.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_score=0.6)
     n = 20
@@ -173,14 +186,7 @@ def test_a_track_re_born_far_off_in_the_image_joins_only_once_alone(
         boxes = [(first, 0.8, 0)] if i < 10 or (other_person and i != 12) else []
         script.append(boxes + ([(beside, 0.8, 0)] if i >= 10 else []))
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            filled_buffer(mission, n / FPS),
-            store,
-            console=lambda s: None,
-        )
-        run_frames(ctl, n)
+        ctl = run_script(mission, script, store)
         assert store.count() == candidates
         assert ctl.stats.locks == 2 and ctl.stats.merged_tracks == 2 - candidates
 
@@ -480,14 +486,7 @@ def test_a_glint_that_joined_a_person_first_yields_them_to_their_own_track(tmp_p
         boxes += [(moved, 0.9, 0)] if i >= 51 else []
         script.append(boxes)
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            filled_buffer(mission, n / FPS),
-            store,
-            console=lambda s: None,
-        )
-        run_frames(ctl, n)
+        ctl = run_script(mission, script, store)
         alerts = sorted(store.list(), key=lambda a: a.target_id)
         assert len(alerts) == 2
         first, second = alerts

@@ -290,8 +290,9 @@ class MissionController:
                 changed.append(target)
         alive = {t.track_id for t in tracks}
         self._pending_locks.intersection_update(alive)
-        for gone in set(self.registry.detached) - alive:
-            del self.registry.detached[gone]
+        if self.registry.detached:  # tracks taken out of a target that died unseen since
+            for gone in set(self.registry.detached) - alive:
+                del self.registry.detached[gone]
         return pose, changed
 
     def _observe_track(

@@ -394,20 +394,17 @@ class TargetRegistry:
             self._by_track[track_id] = target.target_id
             target.track_ids.add(track_id)
             target.shares[track_id] = TrackShare(joined=t, loose=match.loose)
-        share = target.shares.get(track_id)
+        share = target.shares[track_id]  # every track that joined through here has one
         if placed:
             target.add_fix(fix, track_id)
             assert fix.lat is not None and fix.lon is not None
-            target.last_fix = (fix.lat, fix.lon, fix.error_m, t)
-            if share is not None:
-                share.last_fix = target.last_fix
+            target.last_fix = share.last_fix = (fix.lat, fix.lon, fix.error_m, t)
         elif target.position is None:
             target.note = note or (fix.note if fix is not None else "") or "no position"
         target.class_votes[int(class_id)] += 1
         target.best_score = max(target.best_score, float(score))
-        if share is not None:
-            share.class_votes[int(class_id)] += 1
-            share.best_score = max(share.best_score, float(score))
+        share.class_votes[int(class_id)] += 1
+        share.best_score = max(share.best_score, float(score))
         if math.isnan(target.first_seen):
             target.first_seen = t
         target.last_seen = t if math.isnan(target.last_seen) else max(target.last_seen, t)
@@ -437,14 +434,9 @@ class TargetRegistry:
             if target.position is None:
                 continue
             if _in_view_elsewhere(target, box, t) == APART:
-                takes_from = self._yielding_track(target, fix, t)
-                if takes_from is None:
-                    continue
-                position = target.position_without(takes_from)
-                assert position is not None
-                d = distance_m(position, here)
-                if d < best_d:
-                    best, best_d = Match(target, takes_from=takes_from), d
+                yielding = self._yielding_track(target, fix, t)
+                if yielding is not None and yielding[1] < best_d:
+                    best, best_d = Match(target, takes_from=yielding[0]), yielding[1]
                 continue
             d = distance_m(target.position, here)
             near = self._within(d, target.error_m, fix.error_m, t - target.last_seen)
@@ -462,10 +454,11 @@ class TargetRegistry:
             best.unsure = _in_view_elsewhere(best.target, box, t) == UNSURE
         return best
 
-    def _yielding_track(self, target: Target, fix: GeoFix, t: float) -> int | None:
-        """The track that saw ``target`` in this frame, when it joined at most :data:`YIELD_S`
-        ago only by the re-find radius and ``fix`` lies within the statistical gate of the
-        target without it (see :meth:`_nearest`); else None."""
+    def _yielding_track(self, target: Target, fix: GeoFix, t: float) -> tuple[int, float] | None:
+        """The track that saw ``target`` in this frame and the distance (metres) of ``fix``
+        from the target without it, when that track joined at most :data:`YIELD_S` ago only by
+        the re-find radius and ``fix`` lies within the statistical gate (see :meth:`_nearest`);
+        else None."""
         holder = target.box_track
         share = target.shares.get(holder) if holder is not None else None
         if share is None or not share.loose or not 0 <= t - share.joined <= YIELD_S:
@@ -475,7 +468,7 @@ class TargetRegistry:
             return None
         assert fix.lat is not None and fix.lon is not None
         d = distance_m(position, (fix.lat, fix.lon))
-        return holder if d <= self._statistical(target.error_m, fix.error_m) else None
+        return (holder, d) if d <= self._statistical(target.error_m, fix.error_m) else None
 
     @staticmethod
     def _statistical(error_a: float | None, error_b: float | None) -> float:
