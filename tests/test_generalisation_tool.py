@@ -33,13 +33,23 @@ def _head(seed: int) -> TorchHeadRuntime:
 
 
 def test_shared_pass_detects_what_each_head_detects_alone(tool, tmp_path) -> None:
+    """Each head at its own crop scales (the same head at two settings gives two runs)."""
     dataset = read_coco_video(write_dataset(tmp_path / "d", n_videos=2, n_frames=6, seed=3))
-    heads = {"a": _head(0), "b": _head(1)}
-    shared = tool.run_heads(heads, dataset)
+    heads = {"a": _head(0), "b": _head(1), "a_wide": _head(0)}
+    scales = {"a_wide": (1.0, 2.0, 4.0, 8.0), "b": None}
+    shared = tool.run_heads(heads, dataset, scales)
     total = 0
     for name, head in heads.items():
         alone = run_mitenet(
-            MiteNet(head, ds=2, topn=25, score_threshold=0.3), dataset, progress=False
+            MiteNet(
+                head,
+                ds=2,
+                topn=25,
+                score_threshold=0.3,
+                crop_scales=scales.get(name) or (1.0, 2.0),
+            ),
+            dataset,
+            progress=False,
         )
         assert list(alone.detections) == list(shared[name].detections)
         for image_id, det in alone.detections.items():
@@ -49,10 +59,13 @@ def test_shared_pass_detects_what_each_head_detects_alone(tool, tmp_path) -> Non
             np.testing.assert_array_equal(det.class_ids, other.class_ids)
             total += len(det.boxes)
     assert total > 0
-    assert any(
-        not np.array_equal(shared["a"].detections[i].scores, shared["b"].detections[i].scores)
-        for i in shared["a"].detections
-    )
+    for other in ("b", "a_wide"):
+        assert any(
+            not np.array_equal(shared["a"].detections[i].scores, shared[other].detections[i].scores)
+            for i in shared["a"].detections
+        )
+    with pytest.raises(ValueError, match="first crop scale"):
+        tool.run_heads(heads, dataset, {"b": (2.0,)})
 
 
 def _split(ssr, far, r05):

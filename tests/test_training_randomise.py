@@ -25,6 +25,12 @@ from sarmission.training.dataset import (
     part_of_objects,
 )
 from sarmission.training.randomise import TRANSFORMS, Randomisation
+from sarmission.training.sampling import (
+    CONTEXT_MAX_SCALE,
+    CONTEXT_MIN_SCALE,
+    context_boxes,
+    context_negative_boxes,
+)
 from sarmission.training.train import TrainConfig, train
 
 torch.set_num_threads(2)
@@ -219,17 +225,27 @@ def test_part_of_objects_takes_the_smallest_larger_object_under_the_centre() -> 
     assert part_of_objects(np.zeros((0, 4)), gt, is_object).shape == (0,)
 
 
+BOAT_CLASSES = ("swimmer", "swimmer_with_life_jacket", "boat")
+
+
+def _big_boat_crops(data, **change) -> tuple[Path, CropSettings, CropSet, CropSet]:
+    """A clip with a 60-px boat (a head class here); its crop sets without and with
+    ``change`` to the settings."""
+    root = data["cache"].parent / "big_boat"
+    train = write_dataset(root, n_videos=1, n_frames=12, seed=3, boat_size=60.0)
+    plain = CropSettings(classes=BOAT_CLASSES, frame_stride=3, jitters_per_gt=2)
+    base, changed = (
+        load_crop_set(train, c, data["cache"], progress=False)[0]
+        for c in (plain, replace(plain, **change))
+    )
+    return train, plain, base, changed
+
+
 def test_object_parts_label_the_rpn_crops_on_the_boat_as_boat(data) -> None:
     """With boats a head class, the RPN's proposals whose centre lies on a boat larger than
     them are cut as boats with --object-parts, and as negatives without; nothing else moves."""
-    classes = ("swimmer", "swimmer_with_life_jacket", "boat")
-    root = data["cache"].parent / "big_boat"
-    train = write_dataset(root, n_videos=1, n_frames=12, seed=3, boat_size=60.0)
-    plain = CropSettings(classes=classes, frame_stride=3, jitters_per_gt=2)
-    base, parts = (
-        load_crop_set(train, c, data["cache"], progress=False)[0]
-        for c in (plain, replace(plain, object_parts=True))
-    )
+    classes = BOAT_CLASSES
+    train, _, base, parts = _big_boat_crops(data, object_parts=True)
     assert len(parts) == len(base) and torch.equal(parts.boxes, base.boxes)
     boat = classes.index("boat")
     changed = parts.labels != base.labels
@@ -244,3 +260,78 @@ def test_object_parts_label_the_rpn_crops_on_the_boat_as_boat(data) -> None:
         cx, cy = ((parts.boxes[row, :2] + parts.boxes[row, 2:]) / 2).tolist()
         assert x <= cx < x + w and y <= cy < y + h
         assert float(parts.target_ltrb[row].abs().sum()) > 0
+
+
+def test_context_boxes_see_large_boxes_whole_at_the_wide_crop_scales() -> None:
+    """Wide squares only for boxes larger than S, 2-8 S, centred on the box's central part,
+    at least 1.2 times the box's side unless 8 S caps them."""
+    gt = np.array(
+        [
+            [0.0, 0.0, 12.0, 12.0],  # fits in a 16-px proposal: none
+            [100.0, 100.0, 140.0, 120.0],  # 40 px wide
+            [300.0, 300.0, 500.0, 360.0],  # 200 px: capped at 8 S
+        ]
+    )
+    boxes, src = context_boxes(gt, np.random.default_rng(0), 50, 16.0)
+    assert sorted(set(src.tolist())) == [1, 2] and len(boxes) == 100
+    side = boxes[:, 2] - boxes[:, 0]
+    assert np.allclose(side, boxes[:, 3] - boxes[:, 1])
+    assert side.min() >= CONTEXT_MIN_SCALE * 16 - 1e-9
+    assert side.max() <= CONTEXT_MAX_SCALE * 16 + 1e-9
+    assert np.all(side[src == 1] >= 1.2 * 40 - 1e-9)
+    assert np.allclose(side[src == 2], CONTEXT_MAX_SCALE * 16)
+    g = gt[src]
+    cx, cy = (boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2
+    w, h = g[:, 2] - g[:, 0], g[:, 3] - g[:, 1]
+    assert np.all(np.abs(cx - (g[:, 0] + g[:, 2]) / 2) <= 0.35 * w + 1e-9)
+    assert np.all(np.abs(cy - (g[:, 1] + g[:, 3]) / 2) <= 0.35 * h + 1e-9)
+    empty, none = context_boxes(gt[:1], np.random.default_rng(0), 3, 16.0)
+    assert empty.shape == (0, 4) and none.size == 0
+    with pytest.raises(ValueError):
+        context_boxes(gt, np.random.default_rng(0), -1, 16.0)
+
+
+def test_context_negatives_hold_no_target_and_stay_in_the_frame() -> None:
+    targets = np.array([[200.0, 100.0, 210.0, 110.0], [600.0, 300.0, 620.0, 320.0]])
+    boxes = context_negative_boxes((540, 960), targets, 40, 16.0, np.random.default_rng(1))
+    assert 0 < len(boxes) <= 40
+    side = boxes[:, 2] - boxes[:, 0]
+    assert side.min() >= 32 - 1e-9 and side.max() <= 128 + 1e-9
+    assert boxes[:, :2].min() >= 0 and boxes[:, 2].max() <= 960 and boxes[:, 3].max() <= 540
+    for tx, ty in ((205.0, 105.0), (610.0, 310.0)):
+        holds = (
+            (boxes[:, 0] <= tx) & (tx <= boxes[:, 2]) & (boxes[:, 1] <= ty) & (ty <= boxes[:, 3])
+        )
+        assert not holds.any()
+    assert context_negative_boxes((20, 20), targets, 5, 16.0, np.random.default_rng(1)).size == 0
+    assert context_negative_boxes((540, 960), targets, 0, 16.0, np.random.default_rng(1)).size == 0
+
+
+def test_object_context_adds_wide_boat_crops_and_wide_negatives(data) -> None:
+    """--object-context adds wide crops on the boat labelled boat with its box as target, and
+    wide negatives that hold no person; the other crops keep their labels."""
+    classes = BOAT_CLASSES
+    train, plain, base, wide = _big_boat_crops(data, object_context=2)
+    side = wide.boxes[:, 2] - wide.boxes[:, 0]
+    added = side >= CONTEXT_MIN_SCALE * plain.box_size - 1e-3
+    assert len(wide) == len(base) + int(added.sum())
+    assert torch.equal(wide.labels[~added], base.labels)
+    boat = classes.index("boat")
+    dataset = read_coco_video(train)
+    boats = {a.image_id: a.bbox for a in dataset.annotations if a.category_id == 3}
+    on_boat = added & (wide.labels == boat)
+    negative = added & (wide.labels == -1)
+    assert int(on_boat.sum()) >= 2 and int(negative.sum()) >= 2
+    for row in torch.nonzero(on_boat).flatten().tolist():
+        x, y, w, h = boats[int(wide.image_ids[row])]
+        cx, cy = ((wide.boxes[row, :2] + wide.boxes[row, 2:]) / 2).tolist()
+        assert x <= cx < x + w and y <= cy < y + h
+        assert float(side[row]) >= 1.2 * max(w, h) - 1e-3
+    people = [a for a in dataset.annotations if a.category_id != 3]
+    for row in torch.nonzero(negative).flatten().tolist():
+        b = wide.boxes[row].tolist()
+        for a in (a for a in people if a.image_id == int(wide.image_ids[row])):
+            x, y, w, h = a.bbox
+            assert not (b[0] <= x + w / 2 <= b[2] and b[1] <= y + h / 2 <= b[3])
+    with pytest.raises(ValueError, match="object_context"):
+        replace(plain, object_context=-1).validate()

@@ -12,7 +12,7 @@ person. A head that names
 the object classes is also scored on calling each its own class.
 
     nice -n 19 python tools/class_confusion.py [--frames 15] [--width 960] \
-        [--models shipped,/path/head.pt]
+        [--models shipped,/path/head.pt] [--crop-scales 1,2,4,8]
 """
 
 from __future__ import annotations
@@ -143,6 +143,11 @@ def main() -> int:
         default="shipped",
         help="comma-separated heads: 'shipped' or checkpoint paths (default: shipped)",
     )
+    parser.add_argument(
+        "--crop-scales",
+        default=None,
+        help="the detector's crop scales, comma-separated multiples of S (default: its own)",
+    )
     parser.add_argument("--note", default="", help="a paragraph on the heads, printed first")
     parser.add_argument("--out", type=Path, default=OUT, help="Markdown file to write")
     args = parser.parse_args()
@@ -150,13 +155,19 @@ def main() -> int:
         DEFAULT_DS,
         DEFAULT_SCORE_THRESHOLD,
         DEFAULT_TOPN,
+        parse_crop_scales,
     )
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
+    from sarmission.perception.types import DEFAULT_CROP_SCALES
     from sim.generate import generate_sequence
     from sim.scenarios import preset
 
     started = time.monotonic()
+    try:
+        scales = parse_crop_scales(args.crop_scales) if args.crop_scales else DEFAULT_CROP_SCALES
+    except argparse.ArgumentTypeError as error:
+        parser.error(f"--crop-scales: {error}")
     paths = parse_models(args.models)
     models = list(paths)
     heads = {
@@ -192,7 +203,11 @@ def main() -> int:
             dataset = read_coco_video(path)
             for m, head in heads.items():
                 net = MiteNet(
-                    head, ds=DEFAULT_DS, topn=DEFAULT_TOPN, score_threshold=DEFAULT_SCORE_THRESHOLD
+                    head,
+                    ds=DEFAULT_DS,
+                    topn=DEFAULT_TOPN,
+                    score_threshold=DEFAULT_SCORE_THRESHOLD,
+                    crop_scales=scales,
                 )
                 run = run_mitenet(net, dataset, progress=False)
                 b, c, o, u = count_calls(dataset, run.detections, tuple(head.classes))
@@ -206,6 +221,7 @@ def main() -> int:
         f"nice -n 19 python tools/class_confusion.py --frames {args.frames} "
         f"--seeds {args.seeds} --width {args.width}"
         + (f" --models {args.models}" if args.models != "shipped" else "")
+        + (f" --crop-scales {args.crop_scales}" if args.crop_scales else "")
     )
     lines = [
         "# Which classes the head calls a person",

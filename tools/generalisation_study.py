@@ -18,6 +18,7 @@ Variants (:data:`VARIANTS`):
 * ``more_presets``: more of the simulator's presets: ``urban_train`` (people on land, trained as
   ``swimmer``), ``maritime_oblique_mid`` and ``maritime_oblique_high``, no randomisation.
 * ``broad``: both, ``randomised`` on the ``more_presets`` data.
+* ``broad_context``: ``broad`` with the context crops of ``broad_classes_context``.
 * ``broad_objects``: ``broad`` plus ``maritime_objects_train`` (an oblique sea crowded with
   boats, jetskis, buoys and life rings), all of them background.
 * ``broad_classes``: ``broad_objects`` with the maritime head's object classes
@@ -27,6 +28,10 @@ Variants (:data:`VARIANTS`):
   object of those classes labelled with its class (``sarmission train --object-parts``): NWD
   gives a proposal on a boat's stern or wake a negative, yet those are the crops inference
   classifies on boats.
+* ``broad_classes_context``: ``broad_classes_parts`` with two context crops per target box
+  larger than S and two wide crops of open background per frame (``sarmission train
+  --object-context 2``): the 16-px crop sees a boat's cabin, a crop of 8 S the whole boat
+  (``--crop-scales 1,2,4,8`` at inference).
 * ``broad_person``: ``broad`` with people on land learnt as ``person``, a class of their own
   beside the swimmers (validated so; the land test scores any person class).
 * ``broad_textures``: ``broad`` plus procedural texture negatives (dead leaves, fractal noise,
@@ -138,6 +143,11 @@ class Variant:
     #: RPN proposals on part of a larger object of a head class labelled with that class
     #: (:func:`sarmission.training.dataset.part_of_objects`) rather than as negatives.
     object_parts: bool = False
+    #: Context crops per target box larger than S and per frame (``sarmission train
+    #: --object-context``).
+    object_context: int = 0
+    #: The crop scales the variant's heads are tested with (None: the detector's default).
+    crop_scales: tuple[float, ...] | None = None
     #: People on land learnt as ``person`` (a class of their own; validation keeps them so)
     #: instead of as ``swimmer``.
     land_person: bool = False
@@ -178,6 +188,15 @@ VARIANTS: dict[str, Variant] = {
             "randomised, plus urban_train (people as swimmer) and the oblique maritime presets",
         ),
         Variant(
+            "broad_context",
+            MARITIME_PARTS + EXTRA_PARTS,
+            "all",
+            8,
+            "broad, plus 2 context crops (2-8 S) per target box larger than S and 2 of open "
+            "background per frame",
+            object_context=2,
+        ),
+        Variant(
             "broad_objects",
             MARITIME_PARTS + EXTRA_PARTS + OBJECT_PARTS,
             "all",
@@ -203,6 +222,17 @@ VARIANTS: dict[str, Variant] = {
             "life-saving appliance labelled with its class instead of as negatives",
             MARITIME_CLASSES,
             object_parts=True,
+        ),
+        Variant(
+            "broad_classes_context",
+            MARITIME_PARTS + EXTRA_PARTS + OBJECT_PARTS,
+            "all",
+            8,
+            "broad_classes_parts, with 2 context crops (2-8 S) per target box larger than S "
+            "and 2 of open background per frame",
+            MARITIME_CLASSES,
+            object_parts=True,
+            object_context=2,
         ),
         Variant(
             "broad_person",
@@ -319,6 +349,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         background_negatives=variant.background_negatives,
         object_negatives=variant.object_negatives,
         object_parts=variant.object_parts,
+        object_context=variant.object_context,
         seed=0,
         motion_floor=variant.motion_floor,
     )
@@ -349,19 +380,34 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
     }
 
 
-def run_heads(heads: Mapping[str, Any], dataset: Any) -> dict[str, Any]:
+def run_heads(
+    heads: Mapping[str, Any],
+    dataset: Any,
+    crop_scales: Mapping[str, tuple[float, ...] | None] | None = None,
+) -> dict[str, Any]:
     """Run MITE-Net with every head of ``heads`` (name -> HeadRuntime) over ``dataset``: vSTMD,
     the RPN and the first crops once per frame, each head's classification, refinement and NMS
-    on them (:meth:`MiteNet._detect`, exactly as :meth:`MiteNet.process` calls it).
-    Returns name -> :class:`~sarmission.evaluation.run_model.ModelRun`."""
+    on them (:meth:`MiteNet._detect`, exactly as :meth:`MiteNet.process` calls it), at the crop
+    scales ``crop_scales`` gives the head (absent or None: the default; the first scale must be
+    the default's). Returns name -> :class:`~sarmission.evaluation.run_model.ModelRun`."""
     from sarmission.data.sequence import iter_sequence, sequence_ids
     from sarmission.evaluation.matching import FrameBoxes
     from sarmission.evaluation.run_model import NOMINAL_FPS, ModelRun
     from sarmission.perception.crops import motion_enhanced_crops
     from sarmission.perception.mitenet import MiteNet, scaled_boxes
+    from sarmission.perception.types import DEFAULT_CROP_SCALES
 
+    scales = {name: (crop_scales or {}).get(name) or DEFAULT_CROP_SCALES for name in heads}
+    if len({s[0] for s in scales.values()}) > 1:
+        raise ValueError("every head must share the first crop scale")
     nets = {
-        name: MiteNet(head, ds=EVAL_DS, topn=EVAL_TOPN, score_threshold=EVAL_CONF)
+        name: MiteNet(
+            head,
+            ds=EVAL_DS,
+            topn=EVAL_TOPN,
+            score_threshold=EVAL_CONF,
+            crop_scales=scales[name],
+        )
         for name, head in heads.items()
     }
     driver = next(iter(nets.values()))
@@ -430,9 +476,12 @@ def test_splits(folder: Path) -> dict[str, Path]:
 
 
 def evaluate_heads(
-    checkpoints: Mapping[str, str | None], splits: Mapping[str, Path]
+    checkpoints: Mapping[str, str | None],
+    splits: Mapping[str, Path],
+    crop_scales: Mapping[str, tuple[float, ...] | None] | None = None,
 ) -> dict[str, dict[str, Any]]:
-    """Head name -> split -> :func:`figures`; a checkpoint ``None`` is the shipped head."""
+    """Head name -> split -> :func:`figures`; a checkpoint ``None`` is the shipped head;
+    ``crop_scales`` as :func:`run_heads`."""
     from sarmission.data.coco_video import read_coco_video
     from sarmission.evaluation.report import evaluate_detections
     from sarmission.models import DEFAULT_TORCH_MODEL
@@ -447,7 +496,7 @@ def evaluate_heads(
     for split, path in splits.items():
         print(f"testing {len(heads)} heads on {split}", file=sys.stderr)
         dataset = read_coco_video(path)
-        for name, run in run_heads(heads, dataset).items():
+        for name, run in run_heads(heads, dataset, crop_scales).items():
             if split in BACKGROUND_SPLITS:
                 out[name][split] = background.summarise(
                     [run.detections[i] for i in sorted(run.detections)]
@@ -497,7 +546,8 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
         for key, run in runs.items()
         if run["variant"] in args.variants and run["seed"] in args.seeds
     }
-    tests = evaluate_heads(checkpoints, splits)
+    scales = {key: VARIANTS[runs[key]["variant"]].crop_scales for key in checkpoints if key in runs}
+    tests = evaluate_heads(checkpoints, splits, scales)
     for key, per_split in tests.items():
         if key in runs:
             runs[key]["test"] = per_split
@@ -531,6 +581,8 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "background_negatives": VARIANTS[n].background_negatives,
                 "object_negatives": VARIANTS[n].object_negatives,
                 "object_parts": VARIANTS[n].object_parts,
+                "object_context": VARIANTS[n].object_context,
+                "crop_scales": VARIANTS[n].crop_scales,
                 "texture_negatives": VARIANTS[n].texture_negatives,
                 "texture_positives": VARIANTS[n].texture_positives,
                 "motion_floor": VARIANTS[n].motion_floor,

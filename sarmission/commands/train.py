@@ -96,6 +96,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "of --classes maritime) with that class rather than as negatives",
     )
     parser.add_argument(
+        "--object-context",
+        type=int,
+        default=0,
+        help="wide crops (2-8 S) per target box larger than S, and as many of open background "
+        "per frame, so that the wider --crop-scales of inference see a boat whole "
+        "(0 = none)",
+    )
+    parser.add_argument(
         "--randomise",
         default="none",
         help="crop-level domain randomisation: comma-separated transforms of "
@@ -214,6 +222,7 @@ def config_from_args(args: argparse.Namespace):
         background_negatives=args.background_negatives,
         object_negatives=args.object_negatives,
         object_parts=args.object_parts,
+        object_context=args.object_context,
         seed=args.seed,
         motion_floor=args.motion_floor,
     )

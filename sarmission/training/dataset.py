@@ -32,6 +32,12 @@ frames before it responds) the frame yields:
   GT box (a person on a boat's deck stays a person). The RPN shows the head such clutter only
   when it is among the frame's most salient spots; these show it every annotated distractor,
   the false alarms a search meets most.
+* **Context crops** (training only, ``object_context > 0``): that many wide squares per target GT
+  box larger than S (:func:`~.sampling.context_boxes`: side 1.2-2.5 times the box's, 2-8 S,
+  centred on part of it), labelled with its class, and that many wide squares of open
+  background per frame (:func:`~.sampling.context_negative_boxes`), all cut like the jittered
+  GT. Inference's wider crop scales (``crop_scales``) then see a boat whole where the 16-px
+  crop sees its cabin; without these the head meets crops of 4 or 8 S only at inference.
 
 Targets: annotations of the categories that map to a head class
 (:func:`sarmission.evaluation.report.target_category_map`: normalised name equal to a class or an
@@ -75,7 +81,12 @@ from sarmission.perception.head import DEFAULT_CLASSES
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.types import DEFAULT_COLOUR_SHARE, MotionMaps
 from sarmission.perception.vstmd import VSTMD, full_to_map_index
-from sarmission.training.sampling import assign_by_nwd, jitter_boxes
+from sarmission.training.sampling import (
+    assign_by_nwd,
+    context_boxes,
+    context_negative_boxes,
+    jitter_boxes,
+)
 
 log = logging.getLogger(__name__)
 
@@ -115,6 +126,7 @@ class CropSettings:
     background_negatives: int = 0
     object_negatives: int = 0
     object_parts: bool = False
+    object_context: int = 0
     seed: int = 0
     crop_dtype: str = "float16"
     motion_floor: float = 0.0
@@ -129,10 +141,11 @@ class CropSettings:
             or self.jitters_per_gt < 0
             or self.background_negatives < 0
             or self.object_negatives < 0
+            or self.object_context < 0
         ):
             raise ValueError(
                 "frame_stride must be >= 1, warmup_frames, jitters_per_gt, "
-                "background_negatives and object_negatives >= 0"
+                "background_negatives, object_negatives and object_context >= 0"
             )
         if not 0.0 <= self.colour_share <= 1.0:
             raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
@@ -432,22 +445,30 @@ def _frame_samples(
     ]
     all_labels = [labels]
     jittered = [np.zeros(len(proposals), bool)]
+    samples = []  # (boxes, source GT) labelled with their GT: jittered, then context crops
     if settings.jitters_per_gt and len(gt_classes):
-        jboxes, src = jitter_boxes(
-            gt_boxes,
-            rng,
-            settings.jitters_per_gt,
-            settings.jitter_scale,
-            settings.jitter_shift,
-            side=settings.box_size,
+        samples.append(
+            jitter_boxes(
+                gt_boxes,
+                rng,
+                settings.jitters_per_gt,
+                settings.jitter_scale,
+                settings.jitter_shift,
+                side=settings.box_size,
+            )
         )
+    if settings.object_context:
+        samples.append(context_boxes(gt_boxes, rng, settings.object_context, settings.box_size))
+    for sboxes, src in samples:
+        if not len(src):
+            continue
         centres = (gt_boxes[:, :2] + gt_boxes[:, 2:]) / 2
         polarity = polarity_near(motion, centres, settings.box_size)[src]
-        boxes.append(jboxes)
-        targets.append(ltrb_targets(jboxes, gt_boxes[src]))
+        boxes.append(sboxes)
+        targets.append(ltrb_targets(sboxes, gt_boxes[src]))
         crops.append(
             motion_enhanced_crops(
-                frame, motion, jboxes, polarity, sampling_ratio=1, motion_floor=floor
+                frame, motion, sboxes, polarity, sampling_ratio=1, motion_floor=floor
             )
         )
         all_labels.append(gt_classes[src])
@@ -462,6 +483,12 @@ def _frame_samples(
     if settings.object_negatives:
         negatives.append(
             object_negative_boxes(objects, gt_boxes, settings.object_negatives, settings, rng)
+        )
+    if settings.object_context:
+        negatives.append(
+            context_negative_boxes(
+                frame.shape[:2], gt_boxes, settings.object_context, settings.box_size, rng
+            )
         )
     for nboxes in negatives:
         if len(nboxes):

@@ -129,3 +129,72 @@ def hardest_negatives(
     if k == 0:
         return torch.zeros(0, dtype=torch.long)
     return torch.topk(scores, k, largest=True, sorted=True).indices
+
+
+#: Context crops are squares of this many times S at most: the widest crop inference cuts
+#: (:data:`sarmission.perception.types.MAX_CROP_SCALE`).
+CONTEXT_MAX_SCALE = 8.0
+#: ... and of twice S at least: the first wider crop of the default crop scales.
+CONTEXT_MIN_SCALE = 2.0
+
+
+def context_boxes(
+    boxes_xyxy: np.ndarray, rng: np.random.Generator, copies: int, side: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``copies`` wide squares per box larger than ``side`` (a proposal's S) on either axis,
+    the way inference's wider crops see a large object: centred on a random point of the box's
+    central 70 % (a proposal lands on part of a boat, not on its centre), of side
+    ``max(w, h) * U(1.2, 2.5)`` clipped to ``[2, 8] * side`` (the wider crop scales).
+
+    Returns ``(boxes [K, 4] xyxy, source [K])`` as :func:`jitter_boxes`; boxes that fit in a
+    proposal get none (the S-sized jittered samples cover them)."""
+    if copies < 0:
+        raise ValueError(f"copies must be non-negative, got {copies}")
+    if not side > 0:
+        raise ValueError(f"side must be positive, got {side}")
+    gt = xyxy_to_cxcywh(np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4))
+    large = np.flatnonzero(np.maximum(gt[:, 2], gt[:, 3]) > side)
+    source = np.repeat(large, copies)
+    base = gt[source]
+    n = source.size
+    extent = np.maximum(base[:, 2], base[:, 3]) * rng.uniform(1.2, 2.5, n)
+    square = np.clip(extent, CONTEXT_MIN_SCALE * side, CONTEXT_MAX_SCALE * side)
+    centre = base[:, :2] + rng.uniform(-0.35, 0.35, (n, 2)) * base[:, 2:]
+    sizes = np.repeat(square[:, None], 2, axis=1)
+    return cxcywh_to_xyxy(np.concatenate([centre, sizes], axis=1)), source
+
+
+def context_negative_boxes(
+    shape: tuple[int, int],
+    targets_xyxy: np.ndarray,
+    count: int,
+    side: float,
+    rng: np.random.Generator,
+    tries: int = 4,
+) -> np.ndarray:
+    """Up to ``count`` squares of side ``side * 2^U(1, 3)`` (the wider crops' sides, log-uniform)
+    inside a frame of ``shape`` (height, width), none holding the centre of a box of
+    ``targets_xyxy`` ``[M, 4]``: what a wide crop of open background looks like, so that a
+    wide crop is not learnt as the sign of a large object. ``[K, 4]`` xyxy, ``K <= count``."""
+    height, width = shape
+    if count <= 0:
+        return np.zeros((0, 4))
+    n = count * tries
+    sides = side * np.exp2(rng.uniform(1.0, 3.0, n))
+    half = sides / 2
+    fits = (2 * half <= width) & (2 * half <= height)
+    cx = half + rng.uniform(0.0, 1.0, n) * np.maximum(width - 2 * half, 0.0)
+    cy = half + rng.uniform(0.0, 1.0, n) * np.maximum(height - 2 * half, 0.0)
+    boxes = np.stack([cx - half, cy - half, cx + half, cy + half], axis=1)
+    t = np.asarray(targets_xyxy, dtype=np.float64).reshape(-1, 4)
+    if len(t):
+        tx = (t[:, 0] + t[:, 2]) / 2
+        ty = (t[:, 1] + t[:, 3]) / 2
+        holds = (
+            (tx[None, :] >= boxes[:, :1])
+            & (tx[None, :] <= boxes[:, 2:3])
+            & (ty[None, :] >= boxes[:, 1:2])
+            & (ty[None, :] <= boxes[:, 3:4])
+        ).any(axis=1)
+        fits &= ~holds
+    return boxes[fits][:count]

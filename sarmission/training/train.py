@@ -465,8 +465,14 @@ def train(config: TrainConfig) -> TrainResult:
     train_set, _ = load_crop_set(
         config.train, config.crops, cache_dir, config.progress, "train crops"
     )
+    # validation scores the crops inference classifies first: the RPN's, no training samples
     val_settings = replace(
-        config.crops, jitters_per_gt=0, background_negatives=0, frame_stride=1, seed=0
+        config.crops,
+        jitters_per_gt=0,
+        background_negatives=0,
+        object_context=0,
+        frame_stride=1,
+        seed=0,
     )
     val_set, _ = load_crop_set(config.val, val_settings, cache_dir, config.progress, "val crops")
     if not (train_set.labels >= 0).any():
