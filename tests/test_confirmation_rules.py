@@ -90,6 +90,10 @@ def test_a_record_file_round_trips_and_bad_variants_are_refused(tmp_path):
         rules.variant("x:min_scor=0.7")
     with pytest.raises(SystemExit, match="min_score expects a number"):
         rules.variant("x:min_score=high")
+    with pytest.raises(SystemExit, match="score_window_s in 'x:score_window_s=-1'"):
+        rules.variant("x:score_window_s=-1")
+    with pytest.raises(SystemExit, match="give_up_s"):
+        rules.variant("x:min_seen_s=90")
 
 
 def test_what_lay_under_a_lock_is_read_from_the_truth_of_its_frame():

@@ -42,6 +42,7 @@ from alert_suite import head_commit  # noqa: E402
 
 from sarmission.mission.candidates import CandidateBook  # noqa: E402
 from sarmission.mission.config import ConfirmConfig  # noqa: E402
+from sarmission.mission.config_rules import confirm_problem  # noqa: E402
 from sarmission.mission.confirmation import Sighting, TargetEvidence, assess  # noqa: E402
 
 
@@ -183,6 +184,9 @@ def variant(text: str) -> tuple[str, ConfirmConfig]:
             setattr(rule, key, int(value) if fields[key] in ("int", int) else float(value))
         except ValueError:
             raise SystemExit(f"error: {key} expects a number, got {value!r}") from None
+    problem = confirm_problem(rule)
+    if problem is not None:
+        raise SystemExit(f"error: [confirm] {problem[0]} in {text!r}: {problem[1]}")
     return name, rule
 
 
