@@ -35,6 +35,12 @@ from sarmission.class_roles import (  # noqa: E402
     person_class_ids,
     role_of,
 )
+from sarmission.commands.detector_options import (  # noqa: E402
+    DEFAULT_DS,
+    DEFAULT_SCORE_THRESHOLD,
+    DEFAULT_TOPN,
+    parse_crop_scales,
+)
 from sarmission.data.coco_video import VideoDataset, read_coco_video  # noqa: E402
 from sarmission.evaluation.matching import FrameBoxes, nwd_matrix  # noqa: E402
 from sarmission.evaluation.report import people_only  # noqa: E402
@@ -145,18 +151,13 @@ def main() -> int:
     )
     parser.add_argument(
         "--crop-scales",
+        type=parse_crop_scales,
         default=None,
         help="the detector's crop scales, comma-separated multiples of S (default: its own)",
     )
     parser.add_argument("--note", default="", help="a paragraph on the heads, printed first")
     parser.add_argument("--out", type=Path, default=OUT, help="Markdown file to write")
     args = parser.parse_args()
-    from sarmission.commands.detector_options import (
-        DEFAULT_DS,
-        DEFAULT_SCORE_THRESHOLD,
-        DEFAULT_TOPN,
-        parse_crop_scales,
-    )
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
     from sarmission.perception.types import DEFAULT_CROP_SCALES
@@ -164,10 +165,7 @@ def main() -> int:
     from sim.scenarios import preset
 
     started = time.monotonic()
-    try:
-        scales = parse_crop_scales(args.crop_scales) if args.crop_scales else DEFAULT_CROP_SCALES
-    except argparse.ArgumentTypeError as error:
-        parser.error(f"--crop-scales: {error}")
+    scales = args.crop_scales or DEFAULT_CROP_SCALES
     paths = parse_models(args.models)
     models = list(paths)
     heads = {
@@ -221,7 +219,7 @@ def main() -> int:
         f"nice -n 19 python tools/class_confusion.py --frames {args.frames} "
         f"--seeds {args.seeds} --width {args.width}"
         + (f" --models {args.models}" if args.models != "shipped" else "")
-        + (f" --crop-scales {args.crop_scales}" if args.crop_scales else "")
+        + (f" --crop-scales {','.join(f'{v:g}' for v in scales)}" if args.crop_scales else "")
     )
     lines = [
         "# Which classes the head calls a person",

@@ -459,11 +459,14 @@ def _frame_samples(
         )
     if settings.object_context:
         samples.append(context_boxes(gt_boxes, rng, settings.object_context, settings.box_size))
+    gt_polarity = None  # the RPN-like polarity at each GT, looked up once for every group
     for sboxes, src in samples:
         if not len(src):
             continue
-        centres = (gt_boxes[:, :2] + gt_boxes[:, 2:]) / 2
-        polarity = polarity_near(motion, centres, settings.box_size)[src]
+        if gt_polarity is None:
+            centres = (gt_boxes[:, :2] + gt_boxes[:, 2:]) / 2
+            gt_polarity = polarity_near(motion, centres, settings.box_size)
+        polarity = gt_polarity[src]
         boxes.append(sboxes)
         targets.append(ltrb_targets(sboxes, gt_boxes[src]))
         crops.append(
