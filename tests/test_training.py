@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from dataclasses import replace
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +34,7 @@ from sarmission.training.train import (
     dihedral,
     state_path,
     train,
+    validation_settings,
 )
 
 torch.set_num_threads(2)
@@ -225,6 +226,32 @@ def data(tmp_path_factory) -> dict[str, Path]:
 
 
 SETTINGS = CropSettings(frame_stride=2, jitters_per_gt=3)
+
+
+def test_validation_scores_the_rpn_crops_only():
+    """Validation sees what inference classifies first: every training-only sampler is off
+    (including any a later recipe adds under the same naming), the RPN's settings are kept."""
+    samplers = [
+        f.name
+        for f in fields(CropSettings)
+        if f.name.endswith(("_negatives", "_per_gt", "_context"))
+    ]
+    assert {"jitters_per_gt", "background_negatives", "object_negatives", "object_context"} <= set(
+        samplers
+    )
+    busy = replace(
+        CropSettings(),
+        **{name: 3 for name in samplers},
+        frame_stride=5,
+        seed=7,
+        topn=30,
+        ds=2,
+        colour_share=0.25,
+    )
+    val = validation_settings(busy)
+    assert {name: getattr(val, name) for name in samplers} == dict.fromkeys(samplers, 0)
+    assert (val.frame_stride, val.seed) == (1, 0)
+    assert (val.topn, val.ds, val.colour_share, val.classes) == (30, 2, 0.25, busy.classes)
 
 
 def test_crop_cache_key_follows_the_recipe_source(tmp_path, monkeypatch):

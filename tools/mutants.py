@@ -1316,6 +1316,16 @@ MUTANTS: list[Mutant] = [
         "a wide background negative may hold a person: the head learns people as background",
     ),
     Mutant(
+        "training.validation_keeps_object_negatives",
+        "sarmission/training/train.py",
+        "        object_negatives=0,\n",
+        "",
+        ("tests/test_training.py",),
+        "lock",
+        "validation scores object negatives, training samples: the epoch is chosen on crops "
+        "inference never classifies",
+    ),
+    Mutant(
         "targets.person_speed_ignored",
         "sarmission/mission/targets.py",
         "gate = min(gate, statistical + PERSON_SPEED_M_S * since)",

@@ -451,6 +451,20 @@ def with_texture_negatives(
     )
 
 
+def validation_settings(crops: CropSettings) -> CropSettings:
+    """The crops validation scores: those inference classifies first, the RPN's on every frame,
+    with none of the training-only samples (jittered GT, background, object and context crops)."""
+    return replace(
+        crops,
+        jitters_per_gt=0,
+        background_negatives=0,
+        object_negatives=0,
+        object_context=0,
+        frame_stride=1,
+        seed=0,
+    )
+
+
 def train(config: TrainConfig) -> TrainResult:
     """Train the head (module docstring); returns where the best checkpoint went and the history.
 
@@ -465,16 +479,9 @@ def train(config: TrainConfig) -> TrainResult:
     train_set, _ = load_crop_set(
         config.train, config.crops, cache_dir, config.progress, "train crops"
     )
-    # validation scores the crops inference classifies first: the RPN's, no training samples
-    val_settings = replace(
-        config.crops,
-        jitters_per_gt=0,
-        background_negatives=0,
-        object_context=0,
-        frame_stride=1,
-        seed=0,
+    val_set, _ = load_crop_set(
+        config.val, validation_settings(config.crops), cache_dir, config.progress, "val crops"
     )
-    val_set, _ = load_crop_set(config.val, val_settings, cache_dir, config.progress, "val crops")
     if not (train_set.labels >= 0).any():
         raise ValueError(
             f"{config.train}: no positive training crop (no target GT boxes in the sampled frames)"
