@@ -224,7 +224,7 @@ class ConfirmConfig:
     the development scenarios (``tools/candidate_features.py``, ``tools/confirmation_rules.py``),
     never on the scored suite."""
 
-    min_seen_s: float = 2.0
+    min_seen_s: float = 1.5
     min_sightings: int = 20
     min_seen_share: float = 0.4
     max_speed_m_s: float = 1.5
