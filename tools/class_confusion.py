@@ -144,17 +144,18 @@ def parse_models(text: str) -> dict[str, str]:
 
 
 def parse_presets(text: str) -> tuple[str, ...]:
-    """Comma-separated simulator preset names (argparse type): each must be one of the
-    simulator's, at least one."""
-    from sim.scenarios import PRESETS as SIM_PRESETS
+    """Comma-separated simulator preset names (argparse type), at least one; an unknown name
+    gets :func:`sim.scenarios.preset`'s own message."""
+    from sim.scenarios import preset
 
     names = tuple(n.strip() for n in text.split(",") if n.strip())
-    unknown = [n for n in names if n not in SIM_PRESETS]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(
-            f"unknown preset(s) {', '.join(unknown) or '(none given)'}; "
-            f"choose from {', '.join(SIM_PRESETS)}"
-        )
+    if not names:
+        raise argparse.ArgumentTypeError("no preset: none given")
+    for name in names:
+        try:
+            preset(name)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
     return names
 
 
