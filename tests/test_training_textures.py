@@ -8,11 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from synthetic_video import write_dataset
+from small_training import small_config, write_small_training_data
 
 from sarmission.commands import train as train_command
 from sarmission.perception.runtime import load_head_checkpoint
-from sarmission.training.dataset import CropSettings
 from sarmission.training.textures import (
     FAMILIES,
     dead_leaves,
@@ -146,23 +145,7 @@ def test_only_positives_go_on_textures_and_motion_stays():
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> dict[str, Path]:
-    root = tmp_path_factory.mktemp("texture_data")
-    return {
-        "train": write_dataset(root / "train", n_videos=2, n_frames=14, seed=1),
-        "val": write_dataset(root / "val", n_videos=1, n_frames=14, seed=2),
-        "cache": root / "cache",
-    }
-
-
-def _config(data: dict[str, Path], out: Path, **kw) -> TrainConfig:
-    base = {
-        "epochs": 4,
-        "batch_size": 32,
-        "crops": CropSettings(frame_stride=2, jitters_per_gt=3),
-        "cache_dir": data["cache"],
-        "progress": False,
-    }
-    return TrainConfig(train=data["train"], val=data["val"], out=out, **(base | kw))
+    return write_small_training_data(tmp_path_factory.mktemp("texture_data"))
 
 
 def _texture_scores(checkpoint: Path, motion: torch.Tensor) -> torch.Tensor:
@@ -176,9 +159,9 @@ def _texture_scores(checkpoint: Path, motion: torch.Tensor) -> torch.Tensor:
 
 
 def test_training_with_textures_lowers_scores_on_unseen_textures(data, tmp_path):
-    plain = train(_config(data, tmp_path / "plain" / "head.pt"))
-    textured = train(_config(data, tmp_path / "tex" / "head.pt", texture_negatives=0.5))
-    again = train(_config(data, tmp_path / "again" / "head.pt", texture_negatives=0.5))
+    plain = train(small_config(data, tmp_path / "plain" / "head.pt"))
+    textured = train(small_config(data, tmp_path / "tex" / "head.pt", texture_negatives=0.5))
+    again = train(small_config(data, tmp_path / "again" / "head.pt", texture_negatives=0.5))
     a = torch.load(textured.state, weights_only=True)["model"]
     b = torch.load(again.state, weights_only=True)["model"]
     assert all(torch.equal(a[k], b[k]) for k in a)

@@ -44,6 +44,10 @@ Variants (:data:`VARIANTS`):
 * ``broad_wild_textures``: ``broad_wild`` with the texture negatives of ``broad_textures``.
 * ``broad_wild_floor``: ``broad_wild`` with a motion floor (:data:`MOTION_FLOOR`): crops whose
   temporal change is below it keep a faint motion channel instead of stretched noise.
+* ``broad_wild_rounding``: ``broad_wild`` with the rounding-consistency term
+  (:mod:`sarmission.training.consistency`, weight 10): the head's scores of a crop and of its
+  copy as another decoder would round it (shifted by a pixel or two, the motion channel
+  moved) are kept together.
 * ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
   of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
@@ -157,6 +161,8 @@ class Variant:
     texture_positives: float = 0.0
     #: The head's motion floor (``sarmission train --motion-floor``; 0: per-crop max-abs).
     motion_floor: float = 0.0
+    #: Weight of the rounding-consistency term (``sarmission train --rounding-consistency``).
+    rounding_consistency: float = 0.0
 
 
 VARIANTS: dict[str, Variant] = {
@@ -295,6 +301,16 @@ VARIANTS: dict[str, Variant] = {
             "broad_wild, plus the texture negatives of broad_textures",
             texture_negatives=0.25,
         ),
+        Variant(
+            "broad_wild_rounding",
+            MARITIME_PARTS + EXTRA_PARTS + WILD_PARTS,
+            "all",
+            8,
+            "broad_wild, with a rounding-consistency term of weight 10: the class scores of "
+            "a crop and of its copy as another decoder would round it (shifted by a pixel or "
+            "two, the motion channel moved) are kept together",
+            rounding_consistency=10,
+        ),
     )
 }
 
@@ -366,6 +382,7 @@ def train_run(work: Path, variant: Variant, seed: int, train: Path, val: Path) -
         randomise=Randomisation.parse(variant.randomise),
         texture_negatives=variant.texture_negatives,
         texture_positives=variant.texture_positives,
+        rounding_consistency=variant.rounding_consistency,
         cache_dir=work / "crop_cache",
         progress=False,
     )
@@ -586,6 +603,7 @@ def measure(args: argparse.Namespace, previous: Mapping[str, Any] | None) -> dic
                 "texture_negatives": VARIANTS[n].texture_negatives,
                 "texture_positives": VARIANTS[n].texture_positives,
                 "motion_floor": VARIANTS[n].motion_floor,
+                "rounding_consistency": VARIANTS[n].rounding_consistency,
                 "classes": list(VARIANTS[n].classes),
             }
             for n in args.variants

@@ -132,6 +132,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="share of the positive crops whose surroundings are replaced by a procedural "
         "texture, e.g. 0.25 (default: none)",
     )
+    parser.add_argument(
+        "--rounding-consistency",
+        type=float,
+        default=0.0,
+        metavar="WEIGHT",
+        help="weight of a loss term that keeps the class scores of a crop and of its copy as "
+        "another decoder would round it together, e.g. 1 (default: none)",
+    )
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
     parser.add_argument(
         "--colour-share",
@@ -241,6 +249,7 @@ def config_from_args(args: argparse.Namespace):
         randomise=Randomisation.parse(args.randomise, args.randomise_p),
         texture_negatives=args.texture_negatives,
         texture_positives=args.texture_positives,
+        rounding_consistency=args.rounding_consistency,
         cache_dir=args.cache_dir,
         init=args.init,
         init_classes=parse_pairs(args.init_class, "--init-class"),

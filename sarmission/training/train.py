@@ -16,6 +16,10 @@ randomisation as every crop does. With ``texture_positives`` above 0, that share
 positives has its surroundings replaced by a bank texture
 (:func:`~sarmission.training.textures.paste_on_textures`), drawn from the same generator.
 The loss is :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
+With ``rounding_consistency`` above 0, each batch also goes through the head as another
+decoder's rounding would give it (:func:`~sarmission.training.consistency.rounding_perturbation`,
+drawn from ``numpy.random.default_rng([seed, epoch, 3])``) and that weight times the squared gap
+of the two class probabilities is added to the loss (:mod:`sarmission.training.consistency`).
 
 Learning rate per optimiser step ``i`` of ``T`` (``W`` warm-up steps, one epoch at most)::
 
@@ -71,6 +75,7 @@ from sarmission.evaluation.matching import FrameBoxes
 from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
 from sarmission.perception.mitenet import nms_xyxy
 from sarmission.perception.runtime import save_head_checkpoint
+from sarmission.training.consistency import consistency_loss, rounding_perturbation
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
 from sarmission.training.losses import LossWeights, head_loss
 from sarmission.training.randomise import Randomisation, randomise_crops
@@ -118,6 +123,8 @@ class TrainConfig:
     texture_negatives: float = 0.0
     #: Share of the positives put on a procedural texture (0: none).
     texture_positives: float = 0.0
+    #: Weight of the rounding-consistency term (0: none; :mod:`sarmission.training.consistency`).
+    rounding_consistency: float = 0.0
     crops: CropSettings = field(default_factory=CropSettings)
     loss: LossWeights = field(default_factory=LossWeights)
     score_threshold: float = 0.5
@@ -152,6 +159,10 @@ class TrainConfig:
             raise ValueError(f"texture_negatives must be in [0, 4], got {self.texture_negatives}")
         if not 0.0 <= self.texture_positives <= 1.0:
             raise ValueError(f"texture_positives must be in [0, 1], got {self.texture_positives}")
+        if not 0.0 <= self.rounding_consistency <= 100.0:
+            raise ValueError(
+                f"rounding_consistency must be in [0, 100], got {self.rounding_consistency}"
+            )
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         self.randomise.validate()
@@ -162,7 +173,7 @@ class TrainConfig:
         d = asdict(self)
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
-        for key in ("texture_negatives", "texture_positives"):
+        for key in ("texture_negatives", "texture_positives", "rounding_consistency"):
             if not d[key]:
                 d.pop(key)  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
@@ -362,9 +373,10 @@ def _train_epoch(
     ops = torch.from_numpy(rng.integers(0, 8, size=n))
     randomising = np.random.default_rng([config.seed, epoch, 1])
     texturing = np.random.default_rng([config.seed, epoch, 2])
+    rounding = np.random.default_rng([config.seed, epoch, 3])
     steps = math.ceil(n / config.batch_size)
     scale_all = data.scale
-    sums = dict.fromkeys(("loss", "cls", "nwd", "dfl"), 0.0)
+    sums = dict.fromkeys(("loss", "cls", "nwd", "dfl", "rounding"), 0.0)
     for b in range(steps):
         idx = order[b * config.batch_size : (b + 1) * config.batch_size]
         lr = lr_at(epoch * steps + b, config.epochs * steps, steps, config.lr, config.min_lr_ratio)
@@ -389,15 +401,27 @@ def _train_epoch(
             crops, target, scale = dihedral(crops, target, scale, symmetry)
         if config.randomise.transforms:
             crops, target = randomise_crops(crops, target, labels, config.randomise, randomising)
-        cls_logits, bins, ltrb = model.forward_with_bins(crops)
+        if config.rounding_consistency > 0:
+            both = torch.cat([crops, rounding_perturbation(crops, rounding)])
+            all_logits, all_bins, all_ltrb = model.forward_with_bins(both)
+            m = len(crops)
+            cls_logits, bins, ltrb = all_logits[:m], all_bins[:m], all_ltrb[:m]
+            steady = consistency_loss(cls_logits, all_logits[m:])
+        else:
+            cls_logits, bins, ltrb = model.forward_with_bins(crops)
+            steady = None
         terms = head_loss(cls_logits, bins, ltrb, labels, target, scale, config.loss)
+        total = terms.total
+        if steady is not None:
+            total = total + config.rounding_consistency * steady
+            sums["rounding"] += float(steady.detach())
         optimizer.zero_grad(set_to_none=True)
-        terms.total.backward()
+        total.backward()
         optimizer.step()
         if average is not None:
             average.update(model)
         for key, value in (
-            ("loss", terms.total.detach()),
+            ("loss", total.detach()),
             ("cls", terms.cls),
             ("nwd", terms.nwd),
             ("dfl", terms.dfl),
@@ -534,8 +558,9 @@ def train(config: TrainConfig) -> TrainResult:
                 save_head_checkpoint(evaluated, config.out)
             bar.write(
                 f"epoch {epoch + 1}/{config.epochs}: loss {record['loss']:.4f} "
-                f"(cls {record['cls']:.3f} nwd {record['nwd']:.3f} dfl {record['dfl']:.3f})"
-                f" val F2 {record['f2']:.4f} P {record['precision']:.3f} "
+                f"(cls {record['cls']:.3f} nwd {record['nwd']:.3f} dfl {record['dfl']:.3f}"
+                + (f" rounding {record['rounding']:.4f}" if config.rounding_consistency else "")
+                + f") val F2 {record['f2']:.4f} P {record['precision']:.3f} "
                 f"R {record['recall']:.3f} best {best_f2:.4f}@{best_epoch}"
             )
             _save_state(config, model, optimizer, average, epoch + 1, best_f2, best_epoch, history)
