@@ -107,18 +107,30 @@ def test_detections_from_the_planes_are_those_from_bgr(clip: Path) -> None:
     """The shipped head over the clip, YUV in against BGR in. The conversions round differently,
     by a level or two, which reorders near-equal maxima of the motion and colour maps at the end
     of the N proposals: about 10 % of the detections come from a proposal the other run does not
-    make. The rest are the same targets, boxed within 3 px and scored within 0.06. (Swapping U
-    and V, moving Y or the chroma by one pixel, or reading limited-range Y as full range, each
-    matches 42-86 % or moves scores by 0.14-0.49.)"""
+    make. The rest are the same targets, boxed within 3 px, nine in ten scored within 0.03; so
+    are the crops of proposals both runs made at the same place.
+
+    The bounds are on the 90th percentile: the largest gap is one detection's and a property of
+    the head, not of the conversion (on this clip 0.08 for the shipped head, 0.14-0.23 for other
+    heads with a correct conversion). Planted conversion bugs, shipped head and a wild-recipe
+    head (``tools/mutants.py``, the ``yuv.*`` mutants): U and V swapped in the head's crops
+    match 43 % of the detections, p90 0.24-0.30; the chroma row off by one 78 %, 0.12-0.13; Y
+    a pixel off 81-83 %, 0.055-0.073. Limited-range Y read as full range (scores barely move:
+    the motion channel is normalised per crop) and Cr and Cb swapped in the colour map are
+    caught by the planes test above."""
     gaps = ROUNDING.score_gaps(clip, "shipped")
     assert gaps["detections"] >= 100  # the clip has detections to compare
+    assert gaps["same_proposals"] >= 50
     assert gaps["matched"] >= 0.85, gaps
-    assert gaps["max"] <= 0.1, gaps
+    assert gaps["p90"] <= 0.04, gaps
+    assert gaps["same_p90"] <= 0.04, gaps
 
 
 def test_the_rounding_table_states_each_head() -> None:
     row = {"detections": 120, "matched": 0.9, "max": 0.08, "p90": 0.03, "p50": 0.003, "floor": 0.0}
-    text = ROUNDING.table({"shipped": row, "b.onnx": {**row, "floor": 0.02}}, "cmd")
+    row |= {"same_proposals": 77, "same_max": 0.05, "same_p90": 0.02}
+    text = ROUNDING.table({"shipped": row, "b.onnx": {**row, "floor": 0.02}}, "cmd", "narrow", 16)
     assert text.startswith(ROUNDING.BEGIN) and text.endswith(ROUNDING.END)
-    assert "| `shipped` | 0 | 90 % | 0.080 | 0.030 | 0.0030 |" in text
+    assert "| `shipped` | 0 | 90 % | 0.080 | 0.030 | 0.0030 | 77 | 0.050 | 0.020 |" in text
+    assert "Clip: 16 frames of `narrow`" in text
     assert "| `b.onnx` | 0.02 |" in text
