@@ -210,16 +210,17 @@ def test_replay_gives_no_position_to_a_frame_looking_above_the_horizon(tmp_path,
 
 
 def test_replay_refuses_positions_beyond_the_missions_off_nadir_limit(tmp_path, capsys):
-    # The centre looks 60 degrees off nadir and the clip's dots lie 51-76 degrees off it: the
-    # mission allows 50, then 89.
+    # The centre looks 60 degrees off nadir; the 70-degree lens sees 43 degrees from top to
+    # bottom of the 320x180 frame, so no pixel lies within 38 degrees of nadir: the mission
+    # allows 35 (whatever the head detects, nothing gets a fix), then 89.
     path = write_dataset(tmp_path, [30.0])
-    replay(path, "--set", "geolocation.max_off_nadir_deg=50")
+    replay(path, "--set", "geolocation.max_off_nadir_deg=35")
     out = capsys.readouterr().out
     alerts = alert_lines(out)
     assert alerts, out
     assert all(
         "position unknown: no ground fix: ray" in line
-        and "from straight down (a fix needs at most 50" in line
+        and "from straight down (a fix needs at most 35" in line
         for line in alerts
     ), out
     replay(path, "--set", "geolocation.max_off_nadir_deg=89")
