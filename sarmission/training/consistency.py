@@ -8,8 +8,9 @@ level of rounding in a faint change is stretched. Measured on a ``maritime_test`
 percentile, up to 1; neighbouring pixels move together (correlation 0.7); the crop's largest
 change is 0.27 at the median. A head's score gap between the two decodings comes almost all from
 E. And the RPN's peaks move with it: a proposal of the one decoding lies a pixel or two from
-the other's (up to 2.7 px on ``tests/test_yuv_video.py``'s clip), and the largest score gaps
-(0.3) are those of shifted proposals: on identical proposals they stay below 0.05.
+the other's (up to 2.7 px on ``tests/test_yuv_video.py``'s clip); for some heads the largest
+score gaps (0.3) are those of shifted proposals (identical ones stay below 0.1), for others
+they sit on identical proposals (docs/generalisation_rounding.md).
 
 :func:`rounding_perturbation` makes a copy of a batch with those kinds of change:
 
@@ -22,7 +23,8 @@ the other's (up to 2.7 px on ``tests/test_yuv_video.py``'s clip), and the larges
 
 :func:`consistency_loss` is the squared difference of the class probabilities of a crop and its
 copy, summed over classes and averaged over crops (stability training: the head is taught that
-the copy is the same thing). ``TrainConfig.rounding_consistency`` weights it.
+the copy is the same thing). ``TrainConfig.rounding_consistency`` weights it; training puts a
+batch and its copy through the head together, so batch statistics cover both.
 """
 
 from __future__ import annotations
