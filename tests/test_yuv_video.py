@@ -112,12 +112,12 @@ def test_detections_from_the_planes_are_those_from_bgr(clip: Path) -> None:
 
     The bounds are on the 90th percentile: the largest gap is one detection's and a property of
     the head, not of the conversion (on this clip 0.225 for the shipped head, 0.08 for the one
-    shipped before 2026-11-28, 0.12-0.18 for other heads; each with a correct conversion). Planted conversion bugs, shipped head and a wild-recipe
-    head (``tools/mutants.py``, the ``yuv.*`` mutants): U and V swapped in the head's crops
-    match 43 % of the detections, p90 0.24-0.30; the chroma row off by one 78 %, 0.12-0.13; Y
-    a pixel off 81-83 %, 0.055-0.073. Limited-range Y read as full range (scores barely move:
-    the motion channel is normalised per crop) and Cr and Cb swapped in the colour map are
-    caught by the planes test above."""
+    shipped before 2026-11-28, 0.12-0.18 for other heads; each with a correct conversion).
+    Planted conversion bugs, with either of the two shipped heads (``tools/mutants.py``, the
+    ``yuv.*`` mutants): U and V swapped in the head's crops match 43 % of the detections, p90
+    0.24-0.30; the chroma row off by one 78 %, 0.12-0.13; Y a pixel off 81-83 %, 0.055-0.073.
+    Limited-range Y read as full range (scores barely move: the motion channel is normalised
+    per crop) and Cr and Cb swapped in the colour map are caught by the planes test above."""
     gaps = ROUNDING.score_gaps(clip, "shipped")
     assert gaps["detections"] >= 100  # the clip has detections to compare
     assert gaps["same_proposals"] >= 50
