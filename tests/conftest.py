@@ -37,23 +37,9 @@ def load_tool(name: str) -> ModuleType:
 
 def render_narrow_sea(out: Path, frames: int) -> Path:
     """``frames`` 960x540 JPEG frames of the simulator's narrow-view maritime scene (swimmers of
-    8-30 px, boats, foam; seed 0, from 5 s on) under ``out``; the folder that holds them."""
-    from sim.generate import generate_sequence
-    from sim.scenarios import preset
-
-    chosen = preset("maritime_train_narrow")
-    generate_sequence(
-        chosen.scenario,
-        chosen.mission,
-        frames=frames,
-        size=(960, 540),
-        seed=0,
-        out_dir=out,
-        video=False,
-        progress=False,
-        start_s=5.0,
-    )
-    return next(p.parent for p in out.rglob("*.jpg"))
+    8-30 px, boats, foam; seed 0, from 5 s on) under ``out``; the folder that holds them (what
+    ``tools/rounding_gap.py --preset maritime_train_narrow`` renders)."""
+    return load_tool("rounding_gap").render_frames(out, "maritime_train_narrow", frames)
 
 
 def free_udp_port() -> int:

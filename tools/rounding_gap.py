@@ -51,19 +51,23 @@ def encode(jpgs: Path, out: Path, pix_fmt: str = "yuv420p") -> Path:
     return out
 
 
-def render_clip(folder: Path, name: str = PRESET, count: int = FRAMES) -> Path:
-    """``count`` frames of preset ``name`` (seed 0, from 5 s on) encoded as H.264 (yuv420p)
-    into ``folder``."""
+def render_frames(out: Path, name: str = PRESET, count: int = FRAMES) -> Path:
+    """``count`` JPEG frames of preset ``name`` at :data:`SIZE` (seed 0, from 5 s on) under
+    ``out``; the folder that holds them."""
     from sim.generate import generate_sequence
     from sim.scenarios import preset
 
     chosen = preset(name)
-    frames = folder / "frames"
     generate_sequence(
-        chosen.scenario, chosen.mission, frames=count, size=SIZE, seed=0, out_dir=frames,
+        chosen.scenario, chosen.mission, frames=count, size=SIZE, seed=0, out_dir=out,
         video=False, progress=False, start_s=5.0,
     )  # fmt: skip
-    return encode(next(p.parent for p in frames.rglob("*.jpg")), folder / "clip.mp4")
+    return next(p.parent for p in out.rglob("*.jpg"))
+
+
+def render_clip(folder: Path, name: str = PRESET, count: int = FRAMES) -> Path:
+    """:func:`render_frames` encoded as H.264 (yuv420p) into ``folder``."""
+    return encode(render_frames(folder / "frames", name, count), folder / "clip.mp4")
 
 
 def matched_pairs(a, b, max_px: float = 4.0) -> list[tuple[int, int]]:
@@ -87,12 +91,14 @@ def _best_probability(head, crops: np.ndarray) -> np.ndarray:
     return (1.0 / (1.0 + np.exp(-logits.astype(np.float64)))).max(axis=1)
 
 
-def _same_proposal_gaps(head, planar, packed, a, b, floor: float) -> list[float]:
-    """Score gaps of the first-scale crops of the proposals both runs made at exactly the same
-    place (frames ``planar``, ``packed``; results ``a``, ``b``), those either scores over the
-    detection threshold."""
+def _same_proposal_gaps(net, planar, packed, a, b) -> list[float]:
+    """Score gaps of ``net``'s first-scale crops of the proposals both runs made at exactly the
+    same place (frames ``planar``, ``packed``; results ``a``, ``b``), those either scores over
+    the detection threshold."""
     from sarmission.perception.crops import motion_enhanced_crops
     from sarmission.perception.mitenet import scaled_boxes
+
+    scale, floor = net.crop_scales[0], net.motion_floor
 
     pa, pb = a.proposals, b.proposals
     if not len(pa.boxes) or not len(pb.boxes):
@@ -107,11 +113,11 @@ def _same_proposal_gaps(head, planar, packed, a, b, floor: float) -> list[float]
     ia, ib = (np.array(k) for k in zip(*same, strict=True))
     crops = [
         motion_enhanced_crops(
-            frame, result.motion, scaled_boxes(p.boxes[k], 1.0), p.polarity[k], motion_floor=floor
+            frame, result.motion, scaled_boxes(p.boxes[k], scale), p.polarity[k], motion_floor=floor
         )
         for frame, result, p, k in ((planar, a, pa, ia), (packed, b, pb, ib))
     ]
-    sa, sb = (_best_probability(head, c) for c in crops)
+    sa, sb = (_best_probability(net.head, c) for c in crops)
     keep = np.maximum(sa, sb) >= SCORE_THRESHOLD
     return np.abs(sa - sb)[keep].tolist()
 
@@ -126,7 +132,6 @@ def score_gaps(clip: Path, model: str) -> dict[str, float]:
 
     head = build_head_runtime(None if model == "shipped" else model, "onnx")
     planar_net, packed_net = MiteNet(head), MiteNet(head)
-    floor = planar_net.motion_floor
     frames = zip(open_frame_source(clip, yuv=True), open_frame_source(clip), strict=True)
     gaps, same, total, matched = [], [], 0, 0
     for planar, packed in frames:
@@ -137,7 +142,7 @@ def score_gaps(clip: Path, model: str) -> dict[str, float]:
         for i, j in matched_pairs(a, b):
             matched += 2
             gaps.append(abs(float(a.scores[i]) - float(b.scores[j])))
-        same += _same_proposal_gaps(head, planar.image, packed.image_bgr, ra, rb, floor)
+        same += _same_proposal_gaps(planar_net, planar.image, packed.image_bgr, ra, rb)
     g = np.asarray(gaps) if gaps else np.zeros(1)
     s = np.asarray(same) if same else np.zeros(1)
     return {
