@@ -45,9 +45,9 @@ Variants (:data:`VARIANTS`):
 * ``broad_wild_floor``: ``broad_wild`` with a motion floor (:data:`MOTION_FLOOR`): crops whose
   temporal change is below it keep a faint motion channel instead of stretched noise.
 * ``broad_wild_rounding``: ``broad_wild`` with the rounding-consistency term
-  (:mod:`sarmission.training.consistency`, weight 10): the head's scores of a crop and of its
-  copy as another decoder would round it (shifted by a pixel or two, the motion channel
-  moved) are kept together.
+  (:mod:`sarmission.training.consistency`, weight :data:`ROUNDING_WEIGHT`): the head's scores
+  of a crop and of its copy as another decoder would round it (shifted by a pixel or two, the
+  motion channel moved) are kept together.
 * ``broad_distractors``: ``broad`` plus two negatives cut around every annotated distractor
   of each training frame (``--object-negatives 2``: boats, debris, birds, sun glints).
 
@@ -129,6 +129,8 @@ BACKGROUND_SPLITS, BACKGROUND_CLIPS = ("heldout_land_empty", "heldout_maritime_e
 #: Motion floor of the floor variant: 5 grey levels of frame-to-frame change, above what sensor
 #: noise and compression leave on still ground and below what a moving person makes.
 MOTION_FLOOR = 0.02
+#: Weight of the rounding-consistency term of ``broad_wild_rounding``.
+ROUNDING_WEIGHT = 10.0
 #: Detector settings of ``sarmission eval``.
 EVAL_DS, EVAL_TOPN, EVAL_CONF = 2, 25, 0.3
 
@@ -306,10 +308,10 @@ VARIANTS: dict[str, Variant] = {
             MARITIME_PARTS + EXTRA_PARTS + WILD_PARTS,
             "all",
             8,
-            "broad_wild, with a rounding-consistency term of weight 10: the class scores of "
-            "a crop and of its copy as another decoder would round it (shifted by a pixel or "
-            "two, the motion channel moved) are kept together",
-            rounding_consistency=10,
+            f"broad_wild, with a rounding-consistency term of weight {ROUNDING_WEIGHT:g}: the "
+            "class scores of a crop and of its copy as another decoder would round it "
+            "(shifted by a pixel or two, the motion channel moved) are kept together",
+            rounding_consistency=ROUNDING_WEIGHT,
         ),
     )
 }
