@@ -351,3 +351,24 @@ def test_a_track_joined_within_the_statistical_gate_keeps_its_target():
         reg.observe(2, 0, 0.9, 20.0 + 0.1 * k, fix_at(0, 6, 1.3), box=box_at(600, 300))
     late, new = reg.observe(3, 0, 0.9, 22.9, fix_at(0, 1.0, 1.3), box=box_at(500, 300))
     assert new and late is not person and reg.target_of(2) is person
+
+
+def test_a_known_targets_stored_position_is_averaged_with_new_fixes_not_replaced():
+    """After a restart the stored position counts as one fix of its stored error: the first
+    new fix moves the target halfway (equal errors), a better fix pulls it further, and a track
+    taken back out leaves the stored position and its error as they were."""
+    from sarmission.mission.targets import KnownTarget
+
+    reg = TargetRegistry(merge_radius_m=8.0)
+    reg.seed({3: KnownTarget(ll(0, 0), error_m=2.0)})
+    assert distance_m(reg.targets[3].position, ll(0, 0)) < 0.01
+    joined, new = reg.observe(1, 0, 0.8, 0.0, fix_at(4, 0, error=2.0))
+    assert not new and joined.target_id == 3
+    assert distance_m(joined.position, ll(2, 0)) < 0.05
+    assert joined.error_m == pytest.approx(2.0)
+    reg.observe(1, 0, 0.8, 0.1, fix_at(4, 0, error=1.0))  # weights 1/4, 1/4, 1
+    assert distance_m(joined.position, ll(20 / 6, 0)) < 0.05
+    assert joined.error_m == pytest.approx(1.0)
+    joined.detach(1)
+    assert distance_m(joined.position, ll(0, 0)) < 0.05
+    assert joined.error_m == pytest.approx(2.0)  # the stored error again, not the track's

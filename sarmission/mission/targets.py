@@ -59,7 +59,8 @@ target's error is the smallest error of any of its fixes.
 A restarted controller seeds the registry from the alert store's known targets
 (:meth:`TargetRegistry.seed`), each with the error of its stored position: they are already
 announced, so a person found again joins them (through the same gate) instead of being
-announced twice.
+announced twice. The stored position counts as one fix of its stored error, so the fixes of
+the new run are averaged with it rather than replacing it.
 """
 
 from __future__ import annotations
@@ -152,6 +153,8 @@ class Target:
     _sum_wn: float = 0.0
     _sum_we: float = 0.0
     _origin: tuple[float, float] | None = None
+    #: the stored error of a seeded target's position (None: not seeded)
+    _seed_error_m: float | None = None
 
     @property
     def position(self) -> tuple[float, float] | None:
@@ -190,6 +193,17 @@ class Target:
         self.error_m = error if self.error_m is None else min(self.error_m, error)
         self.note = fix.note
 
+    def seed_position(self, position: tuple[float, float], error_m: float) -> None:
+        """Start from a stored position as one fix of ``error_m``: fixes found after a restart
+        are averaged with it, never put in its place (the stored position is already the
+        mean of the fixes the earlier run had)."""
+        self._origin = position
+        self._sum_w = 1.0 / error_m**2
+        self._sum_wn = self._sum_we = 0.0
+        self._place()
+        self.error_m = self._seed_error_m = error_m
+        self.note = "known from an earlier run"
+
     def _place(self) -> None:
         """``lat``/``lon`` from the weighted sums."""
         self.lat, self.lon = self._mean(self._sum_w, self._sum_wn, self._sum_we)
@@ -227,6 +241,8 @@ class Target:
         others = list(self.shares.values())
         self.best_score = max((o.best_score for o in others), default=0.0)
         errors = [o.min_error_m for o in others if o.min_error_m is not None]
+        if self._seed_error_m is not None:
+            errors.append(self._seed_error_m)
         self.error_m = min(errors) if errors else self.error_m
         fixes = [o.last_fix for o in others if o.last_fix is not None]
         self.last_fix = max(fixes, key=lambda f: f[3]) if fixes else None
@@ -330,13 +346,12 @@ class TargetRegistry:
             position = entry.position
             target = Target(int(target_id), math.nan, math.nan, announced=True)
             if position is not None:
-                target.lat, target.lon = float(position[0]), float(position[1])
-                target.error_m = (
+                error = (
                     entry.error_m
                     if entry.error_m is not None and entry.error_m > 0
                     else DEFAULT_FIX_ERROR_M
                 )
-                target.note = "known from an earlier run"
+                target.seed_position((float(position[0]), float(position[1])), error)
             else:
                 target.note = "known from an earlier run, without a position"
             self.targets[target.target_id] = target
