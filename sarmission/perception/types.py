@@ -32,9 +32,10 @@ VALID_DS = (1, 2, 4, 8)
 #: Share of the N proposals that come from the chromatic anomaly map by default
 #: (:class:`~sarmission.perception.rpn.TTMRPN`).
 DEFAULT_COLOUR_SHARE = 0.4
-#: Crop sides (multiples of the proposal box) the head sees by default: every proposal at 1,
-#: would-be detections also at 2 (:class:`~sarmission.perception.mitenet.MiteNet`).
-DEFAULT_CROP_SCALES = (1.0, 2.0)
+#: Crop sides (multiples of the proposal box) the head sees by default: every proposal at 1, the
+#: paper's single crop (:class:`~sarmission.perception.mitenet.MiteNet`; ``(1.0, 2.0)`` also crops
+#: would-be detections at 2: docs/experiments.md, "the second look").
+DEFAULT_CROP_SCALES = (1.0,)
 #: Largest crop scale (multiple of the proposal box) the command line and mission files accept.
 MAX_CROP_SCALE = 8.0
 
