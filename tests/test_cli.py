@@ -147,7 +147,7 @@ def test_bench_prints_a_json_row_per_configuration() -> None:
     for row in rows:
         assert row["total_ms"] > 0 and row["memory_pass_ms"] > 0 and row["peak_rss_mb"] > 0
         assert set(row["ms"]) == {"vstmd", "colour", "rpn", "crops", "head"}
-        assert row["colour_share"] == 0.4 and row["crop_scales"] == [1.0, 2.0]
+        assert row["colour_share"] == 0.4 and row["crop_scales"] == [1.0]  # the defaults
 
 
 def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
@@ -173,14 +173,15 @@ def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
             ).stdout
         )[0]
         for extra in (
-            [],
+            ["--crop-scales", "1,2"],
             ["--colour-share", "0", "--crop-scales", "1"],
-            ["--refine-threshold", "0"],
+            ["--crop-scales", "1,2", "--refine-threshold", "0"],
         )
     ]
     assert runs[1]["colour_share"] == 0.0 and runs[1]["crop_scales"] == [1.0]
+    assert runs[0]["crop_scales"] == [1.0, 2.0]
     assert runs[0]["refine_threshold"] == 0.3 and runs[2]["refine_threshold"] == 0.0
-    # The default second crop scale may refine every proposal: its bound is twice the single.
+    # A second crop scale may refine every proposal: its bound is twice the single.
     assert runs[0]["gflops"]["head"] == pytest.approx(2 * runs[1]["gflops"]["head"], rel=1e-3)
 
 

@@ -119,8 +119,10 @@ def test_complexity(head: MiteHead):
     report = net.complexity(2160, 3840)
     flops = report["flops"]
     assert flops["vstmd"] == net.vstmd.flops(2160, 3840)
-    # The default second crop scale may refine every proposal: the head's FLOPs are that bound.
-    assert flops["head"] == 2 * 25 * head_flops_per_proposal(head)
+    assert flops["head"] == 25 * head_flops_per_proposal(head)  # the default single crop
+    # A second crop scale may refine every proposal: the head's FLOPs are that bound.
+    two = MiteNet(TorchHeadRuntime(head), ds=2, topn=25, crop_scales=(1.0, 2.0))
+    assert two.complexity(2160, 3840)["flops"]["head"] == 2 * 25 * head_flops_per_proposal(head)
     assert flops["rpn_other"] > net.rpn.flops(1080, 1920)
     assert flops["total"] == flops["vstmd"] + flops["rpn_other"] + flops["head"]
     assert report["parameters"]["head"] < 140_000
@@ -240,8 +242,7 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
         wides.append(_crop_scores(single, frame, result, 2.0))
         np.testing.assert_allclose(result.detections.scores, firsts[-1][0], atol=1e-5)
     net = MiteNet(shipped, crop_scales=(1.0, 2.0), refine_threshold=threshold, **options)
-    every = MiteNet(shipped, refine_threshold=0.0, **options)
-    assert every.crop_scales == (1.0, 2.0)  # the default
+    every = MiteNet(shipped, crop_scales=(1.0, 2.0), refine_threshold=0.0, **options)
     outcomes = set()
     for result, best, (first_scores, first_boxes), (wide_scores, wide_boxes) in zip(
         _run(net, sea_frames)[3:], _run(every, sea_frames)[3:], firsts, wides, strict=True
