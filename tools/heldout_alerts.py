@@ -76,7 +76,9 @@ INTRO = [
     "its person was alerted before; *flight min* is "
     "minutes of footage. The `_empty` worlds have the same distractors and no people: every "
     "alert on them is false. The confirmation's thresholds were chosen on the simulator's "
-    "development flights, so these figures show how far they carry to a world they never saw. "
+    "development flights, and since 2026-11-28 the crop scales and `min_score` on held-out "
+    "validation clips ([heldout_alerts_validation.md](heldout_alerts_validation.md)), never "
+    "on these: the figures show how far they carry to footage they never saw. "
     "The replay keeps no per-frame evidence, so the reliability tables below use each "
     "candidate's score at its lock, not the mean over its sightings the suite's page uses.",
     "",
