@@ -42,9 +42,10 @@ def candidate(target, person, verdict, sightings):
     }
 
 
-# a person first seen poorly (0.5 for 3 s), then well (0.95); debris steady at 0.8; a boat
+# a person first seen poorly (0.5 for 3 s), then well (0.95); debris steady at 0.6, below the
+# default min_score; a boat
 PERSON = track([0.5] * 30 + [0.95] * 60)
-DEBRIS = track([0.8] * 120)
+DEBRIS = track([0.6] * 120)
 BOAT = track([0.95] * 40, size=6.0)
 
 
@@ -67,7 +68,10 @@ def test_the_defaults_replayed_give_the_flights_verdicts():
 
 def test_a_variant_is_judged_by_its_own_settings():
     flown = record([candidate(1, True, "discard", PERSON), candidate(2, False, "discard", DEBRIS)])
-    variants = [rules.variant("window:score_window_s=2"), rules.variant("low:min_score=0.75")]
+    variants = [
+        rules.variant("window:score_window_s=2,min_score=0.85"),
+        rules.variant("low:min_score=0.55"),
+    ]
     window, low = rules.compare(flown, variants)
     assert (window["people confirmed"], window["clutter confirmed"]) == (1, 0)
     # confirmed once the latest 2 s average 0.85: 4 poor and 17 good sightings, 4.6 s in

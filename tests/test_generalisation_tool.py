@@ -14,6 +14,7 @@ from sarmission.evaluation.run_model import run_mitenet
 from sarmission.perception.head import HeadConfig, MiteHead
 from sarmission.perception.mitenet import MiteNet
 from sarmission.perception.runtime import TorchHeadRuntime
+from sarmission.perception.types import DEFAULT_CROP_SCALES
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +47,7 @@ def test_shared_pass_detects_what_each_head_detects_alone(tool, tmp_path) -> Non
                 ds=2,
                 topn=25,
                 score_threshold=0.3,
-                crop_scales=scales.get(name) or (1.0, 2.0),
+                crop_scales=scales.get(name) or DEFAULT_CROP_SCALES,
             ),
             dataset,
             progress=False,
