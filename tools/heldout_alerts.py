@@ -57,6 +57,11 @@ VALIDATION_FIRST_CLIP = HELDOUT_VAL_FIRST_CLIP + 50
 #: Where ``--split validation`` keeps its runs, and their page.
 VALIDATION_RUNS_DIR = RUNS_DIR / "validation"
 VALIDATION_PAGE = ROOT / "docs" / "heldout_alerts_validation.md"
+#: ``--split`` -> (first clip index, folder of its runs).
+SPLITS = {
+    "test": (FIRST_CLIP, RUNS_DIR),
+    "validation": (VALIDATION_FIRST_CLIP, VALIDATION_RUNS_DIR),
+}
 #: Frame rate the clips are rendered at (the generator's default).
 FPS = 30.0
 WORLDS = ("heldout_maritime", "heldout_maritime_empty", "heldout_land", "heldout_land_empty")
@@ -173,7 +178,7 @@ def fly(args: argparse.Namespace) -> Path:
     scenarios: dict[str, dict] = {}
     total = FlightScore()
     worlds = args.worlds.split(",")
-    first = VALIDATION_FIRST_CLIP if args.split == "validation" else FIRST_CLIP
+    first, runs_dir = SPLITS[args.split]
     render_clips(args.work, worlds, first, args.clips, frames, args.jobs)
     commit = head_commit()  # the code that replays (rendering may take an hour)
     with tempfile.TemporaryDirectory(prefix="sarmission-heldout-alerts-") as tmp:
@@ -215,7 +220,6 @@ def fly(args: argparse.Namespace) -> Path:
             "command": shlex.join(command),
         },
     }
-    runs_dir = VALIDATION_RUNS_DIR if args.split == "validation" else RUNS_DIR
     runs_dir.mkdir(parents=True, exist_ok=True)
     out = runs_dir / f"{args.label}.json"
     out.write_text(json.dumps(figures, indent=2) + "\n")
@@ -233,7 +237,7 @@ def main() -> int:
     run.add_argument("--work", type=Path, default=Path("/tmp/sarmission-heldout-alerts"))
     run.add_argument(
         "--split",
-        choices=("test", "validation"),
+        choices=tuple(SPLITS),
         default="test",
         help=f"test clips ({FIRST_CLIP} on, docs/heldout_alerts.md) or validation clips "
         f"({VALIDATION_FIRST_CLIP} on, where thresholds are chosen: "

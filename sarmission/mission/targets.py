@@ -175,13 +175,7 @@ class Target:
         of ``track_id``, when given)."""
         assert fix.lat is not None and fix.lon is not None
         error = fix.error_m if fix.error_m is not None and fix.error_m > 0 else DEFAULT_FIX_ERROR_M
-        if self._origin is None:
-            self._origin = (fix.lat, fix.lon)
-        n, e = offset_m(self._origin, (fix.lat, fix.lon))
-        w = 1.0 / error**2
-        self._sum_w += w
-        self._sum_wn += w * n
-        self._sum_we += w * e
+        w, n, e = self._fold((fix.lat, fix.lon), error)
         share = self.shares.get(track_id) if track_id is not None else None
         if share is not None:
             share.sum_w += w
@@ -197,12 +191,22 @@ class Target:
         """Start from a stored position as one fix of ``error_m``: fixes found after a restart
         are averaged with it, never put in its place (the stored position is already the
         mean of the fixes the earlier run had)."""
-        self._origin = position
-        self._sum_w = 1.0 / error_m**2
-        self._sum_wn = self._sum_we = 0.0
+        self._fold(position, error_m)
         self._place()
         self.error_m = self._seed_error_m = error_m
         self.note = "known from an earlier run"
+
+    def _fold(self, position: tuple[float, float], error_m: float) -> tuple[float, float, float]:
+        """Add ``position`` with weight ``1 / error_m^2`` to the weighted sums (metres around
+        the first position folded in); returns the weight and the north, east offsets."""
+        if self._origin is None:
+            self._origin = position
+        n, e = offset_m(self._origin, position)
+        w = 1.0 / error_m**2
+        self._sum_w += w
+        self._sum_wn += w * n
+        self._sum_we += w * e
+        return w, n, e
 
     def _place(self) -> None:
         """``lat``/``lon`` from the weighted sums."""
