@@ -301,3 +301,29 @@ def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: P
     args = parser.parse_args(["replay", "clip.mp4"])
     _, note = build_detector(args, load_mission_from_args(args))
     assert note.startswith("model: the shipped default")
+
+
+def test_a_mission_names_a_shipped_head_by_name(tmp_path: Path) -> None:
+    """``[detector] model = "land"`` loads the shipped land head (never a file named "land" next
+    to the mission); ``--model maritime`` wins over it; an unknown name is one clear error."""
+    from sarmission.commands.mission_options import build_detector, load_mission_from_args
+    from sarmission.mission.config import MissionConfigError
+
+    mission_file = tmp_path / "m.toml"
+    mission_file.write_text('[detector]\nmodel = "land"\n')
+    parser = build_parser()
+    args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    mission = load_mission_from_args(args)
+    assert mission.detector.model == "land"
+    detector, note = build_detector(args, mission)
+    assert note == "model: land (the mission's [detector] model)"
+    assert detector.classes == ("person",)
+    args = parser.parse_args(
+        ["replay", "clip.mp4", "--mission", str(mission_file), "--model", "maritime"]
+    )
+    detector, _ = build_detector(args, load_mission_from_args(args))
+    assert detector.classes == ("swimmer", "swimmer_with_life_jacket")
+    mission_file.write_text('[detector]\nmodel = "sea"\n')
+    args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    with pytest.raises(MissionConfigError, match='model: expected "default", "maritime", "land"'):
+        load_mission_from_args(args)

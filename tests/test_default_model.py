@@ -49,3 +49,22 @@ def test_the_shipped_head_locks_people_in_an_unseen_maritime_clip(unseen_clip, c
     assert sar["n_locked"] >= 0.7 * sar["n_lockable"], sar
     assert sar["false_alarm_rate_detections"] < 40.0, sar
     assert report["module_recall"]["head"]["R@0.5"] > 0.5
+
+
+def test_the_shipped_land_head_is_a_small_person_head_with_a_matching_onnx() -> None:
+    """The land head (``model = "land"``) ships as a checkpoint and an ONNX of the same
+    weights: the two runtimes give the same scores on the same crops."""
+    import numpy as np
+
+    from sarmission.models import shipped_head_path
+    from sarmission.perception.runtime import load_head_runtime
+
+    checkpoint = shipped_head_path("land", "torch")
+    head = load_head_checkpoint(checkpoint)
+    assert sum(p.numel() for p in head.parameters()) < 140_000
+    assert head.config.classes == ("person",)
+    crops = np.random.default_rng(0).random((8, 4, 16, 16), dtype=np.float32)
+    torch_logits, _ = load_head_runtime("land", "torch").predict(crops)
+    onnx_logits, _ = load_head_runtime("land", "onnx").predict(crops)
+    assert shipped_head_path("land", "onnx").suffix == ".onnx"
+    np.testing.assert_allclose(onnx_logits, torch_logits, atol=1e-4)

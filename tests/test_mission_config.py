@@ -85,7 +85,7 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[actions]\nvisit_interval_s = -1", "[actions] visit_interval_s: expected a number >= 0"),
         ("[detector]\ncrop_scales = [1.0, -2.0]", "[detector] crop_scales"),
         ("[detector]\nrefine_threshold = 1.5", "[detector] refine_threshold"),
-        ('[detector]\nmodel = "head.tflite"', '[detector] model: expected "default" or a path'),
+        ('[detector]\nmodel = "head.tflite"', '[detector] model: expected "default", "maritime"'),
         ("[detector]\nmodel = 3", "[detector] model: expected string, got integer"),
         ('[actions]\npolicy = ["alert", "dance"]', "unknown action 'dance'"),
         ("[actions]\nroi_hold_s = 0", "[actions] roi_hold_s: expected a positive number"),

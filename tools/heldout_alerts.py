@@ -206,6 +206,7 @@ def fly(args: argparse.Namespace) -> Path:
             total.add(score)
     command = ["python", "tools/heldout_alerts.py", "fly", args.label]
     command += ["--clips", str(args.clips), "--seconds", f"{args.seconds:g}"]
+    command += ["--worlds", args.worlds] if worlds != list(WORLDS) else []
     command += ["--split", args.split] if args.split != "test" else []
     command += ["--model", args.model] if args.model else []
     for item in args.overrides:

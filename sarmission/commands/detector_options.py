@@ -25,7 +25,9 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
     --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument(
-        "--model", default=None, help="head weights (.pt or .onnx); default: the shipped model"
+        "--model",
+        default=None,
+        help="head weights (.pt or .onnx) or a shipped head: maritime (the default) or land",
     )
     group.add_argument(
         "--runtime",

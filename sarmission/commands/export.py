@@ -14,7 +14,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "that onnxruntime and torch agree on random crops.",
     )
     parser.add_argument(
-        "--model", default=None, help="torch weights (.pt); default: the shipped model"
+        "--model",
+        default=None,
+        help="torch weights (.pt) or a shipped head's name (maritime, land); default: maritime",
     )
     parser.add_argument("--out", default="mitenet_head.onnx", help="ONNX file to write")
     parser.add_argument("--opset", type=int, default=17)
@@ -23,10 +25,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export and verify."""
-    from sarmission.models import default_model_path
+    from sarmission.models import default_model_path, is_head_name, shipped_head_path
     from sarmission.perception.export import export_head_onnx
 
     model = args.model or default_model_path("torch")
+    if is_head_name(model):
+        model = shipped_head_path(model, "torch")
     report = export_head_onnx(model, args.out, opset=args.opset)
     print(f"wrote {args.out}: {report}")
     return 0

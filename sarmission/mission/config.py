@@ -39,6 +39,7 @@ from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.mission.config_rules import ACTION_POLICIES as ACTION_POLICIES
 from sarmission.mission.config_rules import DEFAULT_MODEL, SECTION_RULES
+from sarmission.models import is_head_name
 from sarmission.perception.types import (
     DEFAULT_COLOUR_SHARE,
     DEFAULT_CROP_SCALES,
@@ -147,9 +148,10 @@ class DetectorConfig:
     share ``colour_share`` comes from colour anomalies), the head's ``crop_scales`` and the
     first-crop score from which a proposal gets the further ones, ``refine_threshold`` (None: the
     detection threshold; see :class:`~sarmission.perception.mitenet.MiteNet`), detection
-    threshold; ``model`` the head: ``"default"`` (the one shipped with the package) or a
-    ``.pt``/``.pth``/``.onnx`` file, relative to the mission file's folder when written there (a
-    head fine-tuned for the area's sea or land goes with its mission)."""
+    threshold; ``model`` the head: a shipped one by name (``"default"`` or ``"maritime"``,
+    ``"land"``: :mod:`sarmission.models`) or a ``.pt``/``.pth``/``.onnx`` file, relative to the
+    mission file's folder when written there (a head fine-tuned for the area's sea or land goes
+    with its mission)."""
 
     model: str = DEFAULT_MODEL
     ds: int = 2
@@ -454,7 +456,7 @@ def load_mission(
         cfg.source = str(p)
         _apply(cfg, data, origin)
         model = cfg.detector.model
-        if model != DEFAULT_MODEL and not Path(model).is_absolute():
+        if not is_head_name(model) and not Path(model).is_absolute():
             cfg.detector.model = str(p.parent / model)
     if overrides:
         _apply(cfg, _nest(overrides), f"{origin} (override)")

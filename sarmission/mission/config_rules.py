@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from sarmission.models import SHIPPED_HEADS, is_head_name
 from sarmission.perception.types import MAX_CROP_SCALE, VALID_DS
 
 if TYPE_CHECKING:
@@ -28,7 +29,8 @@ if TYPE_CHECKING:
     )
 
 ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
-#: ``[detector] model`` value that names the head shipped with the package.
+#: ``[detector] model`` value that names the package's default head (the other shipped heads
+#: go by their names, :data:`sarmission.models.SHIPPED_HEADS`).
 DEFAULT_MODEL = "default"
 #: File name endings of a head model.
 MODEL_SUFFIXES = (".pt", ".pth", ".onnx")
@@ -86,11 +88,9 @@ def camera_problem(c: CameraConfig) -> Problem:
 
 
 def detector_problem(d: DetectorConfig) -> Problem:
-    if d.model != DEFAULT_MODEL and not d.model.lower().endswith(MODEL_SUFFIXES):
-        return (
-            "model",
-            f'expected "{DEFAULT_MODEL}" or a path ending in {", ".join(MODEL_SUFFIXES)}',
-        )
+    if not is_head_name(d.model) and not d.model.lower().endswith(MODEL_SUFFIXES):
+        names = ", ".join(f'"{n}"' for n in (DEFAULT_MODEL, *SHIPPED_HEADS))
+        return "model", f"expected {names} or a path ending in {', '.join(MODEL_SUFFIXES)}"
     if d.ds not in VALID_DS:
         return "ds", f"expected one of {', '.join(map(str, VALID_DS))} (vSTMD pooling factor)"
     if d.topn < 1:

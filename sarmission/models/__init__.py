@@ -1,4 +1,10 @@
-"""The default MITE-Net head shipped with the package (torch weights and ONNX)."""
+"""The MITE-Net heads shipped with the package (torch weights and ONNX), by name.
+
+``maritime`` (the default; also what ``default`` means) has the classes ``swimmer`` and
+``swimmer_with_life_jacket`` and was trained on sea and land alike; ``land`` (class ``person``)
+is fine-tuned from it on the simulator's land (docs/land_head.md). A mission's ``[detector]
+model`` and every ``--model`` take either name or a model file.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +13,39 @@ from pathlib import Path
 from sarmission.errors import SarmissionError
 
 MODEL_DIR = Path(__file__).resolve().parent
-DEFAULT_TORCH_MODEL = MODEL_DIR / "mitenet_head.pt"
-DEFAULT_ONNX_MODEL = MODEL_DIR / "mitenet_head.onnx"
+#: Shipped head name -> file stem in :data:`MODEL_DIR` (``.pt`` and ``.onnx``).
+SHIPPED_HEADS: dict[str, str] = {"maritime": "mitenet_head", "land": "mitenet_land_head"}
+#: The head used when none is named; ``"default"`` names it too.
+DEFAULT_HEAD = "maritime"
+DEFAULT_TORCH_MODEL = MODEL_DIR / f"{SHIPPED_HEADS[DEFAULT_HEAD]}.pt"
+DEFAULT_ONNX_MODEL = MODEL_DIR / f"{SHIPPED_HEADS[DEFAULT_HEAD]}.onnx"
+
+
+def is_head_name(model: str | Path) -> bool:
+    """True when ``model`` names a shipped head (or ``default``) rather than a file."""
+    return isinstance(model, str) and (model in SHIPPED_HEADS or model == "default")
+
+
+def shipped_head_path(name: str, runtime: str = "torch") -> Path:
+    """The file of the shipped head ``name`` for ``runtime`` ("torch" or "onnx"; the ``.pt``
+    when the package has no ``.onnx`` of it). ``SarmissionError`` for an unknown name or a
+    package installed without that head's files."""
+    if name == "default":
+        name = DEFAULT_HEAD
+    if name not in SHIPPED_HEADS:
+        raise SarmissionError(
+            f"no shipped head named {name!r}; expected one of {', '.join(SHIPPED_HEADS)} "
+            "or a .pt/.onnx file"
+        )
+    torch_path = MODEL_DIR / f"{SHIPPED_HEADS[name]}.pt"
+    onnx_path = torch_path.with_suffix(".onnx")
+    for path in (onnx_path, torch_path) if runtime == "onnx" else (torch_path,):
+        if path.is_file():
+            return path
+    raise SarmissionError(
+        f"the package has no {name} head at {torch_path}; pass --model PATH "
+        "(train one with `sarmission train`)"
+    )
 
 
 def default_model_path(runtime: str = "torch") -> Path:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from sarmission.errors import SarmissionError
 from sarmission.perception.head_config import HeadConfig
 
 if TYPE_CHECKING:
@@ -330,17 +331,29 @@ RuntimeName = Literal["auto", "torch", "onnx"]
 def load_head_runtime(
     path: str | Path, runtime: RuntimeName = "auto", intra_op_threads: int | None = None
 ) -> HeadRuntime:
-    """Load a head model file into a runtime.
+    """Load a head model file, or a shipped head by name (:mod:`sarmission.models`:
+    ``maritime``, ``land``, ``default``), into a runtime.
 
     ``auto`` picks by extension: ``.pt``/``.pth`` → :class:`TorchHeadRuntime`, ``.onnx`` →
-    :class:`OnnxHeadRuntime`. ``onnx`` with a checkpoint exports it in memory first; ``torch`` with
-    an ONNX file is an error. ``intra_op_threads`` applies to onnxruntime only (default: the thread
-    plan's).
+    :class:`OnnxHeadRuntime` (a name: the shipped ONNX). ``onnx`` with a checkpoint exports it
+    in memory first; ``torch`` with an ONNX file is an error. ``intra_op_threads`` applies to
+    onnxruntime only (default: the thread plan's).
     """
+    from sarmission.models import SHIPPED_HEADS, is_head_name, shipped_head_path
+
+    if is_head_name(path):
+        try:
+            path = shipped_head_path(str(path), "torch" if runtime == "torch" else "onnx")
+        except SarmissionError as exc:
+            raise ModelLoadError(str(exc)) from exc
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in TORCH_SUFFIXES + ONNX_SUFFIXES:
-        raise _fail(path, f"unknown model extension '{suffix}' (use .pt, .pth or .onnx)")
+        raise _fail(
+            path,
+            f"unknown model extension '{suffix}' (use .pt, .pth or .onnx, or a shipped "
+            f"head's name: {', '.join(SHIPPED_HEADS)})",
+        )
     if runtime not in ("auto", "torch", "onnx"):
         raise ValueError(f"runtime must be 'auto', 'torch' or 'onnx', got {runtime!r}")
     is_onnx = suffix in ONNX_SUFFIXES
