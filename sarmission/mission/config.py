@@ -224,12 +224,12 @@ class ConfirmConfig:
     the score over the latest seconds only and lets a low one wait for a better view instead
     of discarding it (0: the mean of all sightings, decided once). The defaults were chosen on
     the development scenarios (``tools/candidate_features.py``, ``tools/confirmation_rules.py``),
-    ``min_score`` on held-out validation clips (``tools/heldout_alerts.py --split validation``),
-    never on the scored suite or a test clip."""
+    ``min_seen_s``, ``min_seen_share`` and ``min_score`` on held-out validation clips
+    (``tools/heldout_alerts.py --split validation``), never on the scored suite or a test clip."""
 
-    min_seen_s: float = 1.5
+    min_seen_s: float = 2.0
     min_sightings: int = 20
-    min_seen_share: float = 0.4
+    min_seen_share: float = 0.3
     max_speed_m_s: float = 1.5
     min_size_m: float = 0.15
     max_size_m: float = 2.5
