@@ -134,3 +134,15 @@ def test_evaluate_an_imported_land_set_with_the_shipped_head(tmp_path, capsys):
     assert sarmission([*args, "--rename", "person=swimmer"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["boxes"]["bands"]["all"]["n_gt"] == 6  # two people in each of three stills
+
+
+def test_init_by_a_shipped_heads_name_starts_from_that_head():
+    """``--init land`` starts from the shipped land head: its person row is carried."""
+    from sarmission.models import shipped_head_path
+
+    land = load_head_checkpoint(shipped_head_path("land", "torch"))
+    model = MiteHead(HeadConfig(classes=("person",)))
+    report = initialise_from(model, "land")
+    assert report.carried_classes == ("person",)
+    for key, value in model.state_dict().items():
+        assert torch.equal(value, land.state_dict()[key]), key

@@ -168,8 +168,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--init",
         default=None,
         metavar="CHECKPOINT",
-        help="start from a trained head's weights: 'default' (the shipped head) or a .pt "
-        "file; classes both heads name keep their weights (fine-tuning on your own data)",
+        help="start from a trained head's weights: a shipped head ('default' or "
+        "'maritime', 'land') or a .pt file; classes both heads name keep their weights "
+        "(fine-tuning on your own data)",
     )
     parser.add_argument(
         "--init-class",

@@ -41,11 +41,14 @@ class InitReport:
 
 
 def init_path(value: str | Path) -> Path:
-    """The checkpoint ``--init`` names (``default``: the shipped head's ``.pt``)."""
-    if str(value) == DEFAULT_INIT:
-        from sarmission.models import DEFAULT_TORCH_MODEL
+    """The checkpoint ``--init`` names (``default``: the shipped default head's ``.pt``;
+    ``maritime``, ``land``: that shipped head's)."""
+    from sarmission.models import DEFAULT_TORCH_MODEL, is_head_name, shipped_head_path
 
+    if str(value) == DEFAULT_INIT:
         return DEFAULT_TORCH_MODEL
+    if is_head_name(value):
+        return shipped_head_path(str(value), "torch")
     path = Path(value)
     if path.suffix.lower() not in (".pt", ".pth"):
         raise ValueError(f"--init needs a .pt checkpoint (the trained head), got {path}")
