@@ -1235,6 +1235,15 @@ MUTANTS: list[Mutant] = [
         "the head a mission file names looked for in the working folder, not beside the file",
     ),
     Mutant(
+        "mission.head_name_taken_for_a_file",
+        "sarmission/mission/config.py",
+        "        if not is_head_name(model) and not Path(model).is_absolute():\n",
+        "        if not Path(model).is_absolute():\n",
+        ("tests/test_cli.py",),
+        "lock",
+        'model = "land" looked for as a file beside the mission, not the shipped land head',
+    ),
+    Mutant(
         "mission.file_head_beats_command_line",
         "sarmission/commands/mission_options.py",
         "    if model is None and mission.detector.model != DEFAULT_MODEL:\n",
