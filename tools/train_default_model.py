@@ -57,7 +57,7 @@ from heldout.presets import world
 from sarmission.cli import main as sarmission
 from sarmission.data.coco_video import read_coco_video, write_coco_video
 from sarmission.data.merge import merge_annotation_files
-from sarmission.models import DEFAULT_TORCH_MODEL, MODEL_DIR, SHIPPED_HEADS
+from sarmission.models import DEFAULT_TORCH_MODEL, shipped_checkpoint
 from sim.generate import merge_datasets
 
 #: The recipe of the shipped model: (preset, clips, frames per clip, frame size) and the
@@ -349,7 +349,7 @@ def train_land(args: argparse.Namespace, extra: list[str]) -> int:
     code = train_head(train, val, out, recipe, args.seed, extra)
     if code or args.no_install or args.from_scratch:
         return code
-    install(out, MODEL_DIR / f"{SHIPPED_HEADS['land']}.pt")
+    install(out, shipped_checkpoint("land"))
     return 0
 
 

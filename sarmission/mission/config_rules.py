@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from sarmission.models import SHIPPED_HEADS, is_head_name
+from sarmission.models import DEFAULT_NAME, SHIPPED_HEADS, is_head_name
 from sarmission.perception.types import MAX_CROP_SCALE, VALID_DS
 
 if TYPE_CHECKING:
@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 ACTION_POLICIES = ("alert", "loiter", "roi", "mission")
 #: ``[detector] model`` value that names the package's default head (the other shipped heads
 #: go by their names, :data:`sarmission.models.SHIPPED_HEADS`).
-DEFAULT_MODEL = "default"
+DEFAULT_MODEL = DEFAULT_NAME
 #: File name endings of a head model.
 MODEL_SUFFIXES = (".pt", ".pth", ".onnx")
 

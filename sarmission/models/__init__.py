@@ -15,29 +15,38 @@ from sarmission.errors import SarmissionError
 MODEL_DIR = Path(__file__).resolve().parent
 #: Shipped head name -> file stem in :data:`MODEL_DIR` (``.pt`` and ``.onnx``).
 SHIPPED_HEADS: dict[str, str] = {"maritime": "mitenet_head", "land": "mitenet_land_head"}
-#: The head used when none is named; ``"default"`` names it too.
+#: The head used when none is named, and the name that means it whichever it is.
 DEFAULT_HEAD = "maritime"
-DEFAULT_TORCH_MODEL = MODEL_DIR / f"{SHIPPED_HEADS[DEFAULT_HEAD]}.pt"
-DEFAULT_ONNX_MODEL = MODEL_DIR / f"{SHIPPED_HEADS[DEFAULT_HEAD]}.onnx"
+DEFAULT_NAME = "default"
+
+
+def shipped_checkpoint(name: str) -> Path:
+    """Where the shipped head ``name`` (a key of :data:`SHIPPED_HEADS`) keeps its ``.pt``; its
+    ``.onnx`` sits beside it. Whether the file exists is not checked."""
+    return MODEL_DIR / f"{SHIPPED_HEADS[name]}.pt"
+
+
+DEFAULT_TORCH_MODEL = shipped_checkpoint(DEFAULT_HEAD)
+DEFAULT_ONNX_MODEL = DEFAULT_TORCH_MODEL.with_suffix(".onnx")
 
 
 def is_head_name(model: str | Path) -> bool:
     """True when ``model`` names a shipped head (or ``default``) rather than a file."""
-    return isinstance(model, str) and (model in SHIPPED_HEADS or model == "default")
+    return isinstance(model, str) and (model in SHIPPED_HEADS or model == DEFAULT_NAME)
 
 
 def shipped_head_path(name: str, runtime: str = "torch") -> Path:
     """The file of the shipped head ``name`` for ``runtime`` ("torch" or "onnx"; the ``.pt``
     when the package has no ``.onnx`` of it). ``SarmissionError`` for an unknown name or a
     package installed without that head's files."""
-    if name == "default":
+    if name == DEFAULT_NAME:
         name = DEFAULT_HEAD
     if name not in SHIPPED_HEADS:
         raise SarmissionError(
             f"no shipped head named {name!r}; expected one of {', '.join(SHIPPED_HEADS)} "
             "or a .pt/.onnx file"
         )
-    torch_path = MODEL_DIR / f"{SHIPPED_HEADS[name]}.pt"
+    torch_path = shipped_checkpoint(name)
     onnx_path = torch_path.with_suffix(".onnx")
     for path in (onnx_path, torch_path) if runtime == "onnx" else (torch_path,):
         if path.is_file():

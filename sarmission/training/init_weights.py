@@ -20,9 +20,6 @@ from sarmission.class_roles import normalise_class
 from sarmission.perception.head import MiteHead
 from sarmission.perception.runtime import load_head_checkpoint
 
-#: ``--init`` value naming the shipped head.
-DEFAULT_INIT = "default"
-
 
 @dataclass(frozen=True)
 class InitReport:
@@ -43,9 +40,9 @@ class InitReport:
 def init_path(value: str | Path) -> Path:
     """The checkpoint ``--init`` names (``default``: the shipped default head's ``.pt``;
     ``maritime``, ``land``: that shipped head's)."""
-    from sarmission.models import DEFAULT_TORCH_MODEL, is_head_name, shipped_head_path
+    from sarmission.models import DEFAULT_NAME, DEFAULT_TORCH_MODEL, is_head_name, shipped_head_path
 
-    if str(value) == DEFAULT_INIT:
+    if str(value) == DEFAULT_NAME:
         return DEFAULT_TORCH_MODEL
     if is_head_name(value):
         return shipped_head_path(str(value), "torch")
