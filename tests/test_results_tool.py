@@ -301,13 +301,13 @@ def test_colour_section_sets_the_variants_side_by_side(tool):
     md = tool.render_results_md(results)
     assert "N = 25 proposals (40% of them from colour anomalies" in md
     section = _section(md, "## 1b. Colour proposals", "## 2.")
-    mixed = _line(section, "`maritime_test`, motion + colour").split("|")[2:9]
-    paper = _line(section, "`maritime_test`, motion only (paper)").split("|")[2:9]
+    mixed = _line(section, "`maritime_test`, motion + colour, single crop").split("|")[2:9]
+    paper = _line(section, "`maritime_test`, motion only (paper), single crop").split("|")[2:9]
     assert mixed == [" 80.00 ", " 8/10 ", " 50.00 ", " 12.50 ", " 0.8123 ", " 0.5123 ", " 250.00 "]
     assert paper == [" 60.00 ", " 8/10 ", " 30.00 ", " 25.00 ", " 0.5512 ", " 0.4412 ", " 240.00 "]
     assert "`urban_test`" not in section  # no motion-only run there
-    assert "colour, single crop" not in section and "colour, every proposal" not in section
-    results["splits"]["maritime_test"]["single_crop"] = _run(
+    assert "crops S and 2 S" not in section and "colour, every proposal" not in section
+    results["splits"]["maritime_test"]["second_look"] = _run(
         2,
         95.0,
         45.0,
@@ -332,7 +332,25 @@ def test_colour_section_sets_the_variants_side_by_side(tool):
         {"R@0.1": 0.7012, "R@0.5": 0.3},
     )
     section = _section(tool.render_results_md(results), "## 1b. Colour proposals", "## 2.")
-    two = _line(section, "`maritime_test`, motion + colour, single crop").split("|")[2:9]
+    two = _line(section, "`maritime_test`, motion + colour, crops S and 2 S").split("|")[2:9]
     every = _line(section, "`maritime_test`, motion + colour, every proposal").split("|")[2:9]
     assert every == [" 70.00 ", " 8/10 ", " 35.00 ", " 6.00 ", " 0.8123 ", " 0.7012 ", " 270.00 "]
     assert two == [" 95.00 ", " 8/10 ", " 45.00 ", " 5.00 ", " 0.8123 ", " 0.8012 ", " 260.00 "]
+    # a JSON of the days when the second look was the default: the single crop beside it
+    results["settings"]["crop_scales"] = [1.0, 2.0]
+    split = results["splits"]["maritime_test"]
+    split["single_crop"] = split.pop("second_look")
+    section = _section(tool.render_results_md(results), "## 1b. Colour proposals", "## 2.")
+    main = _line(section, "`maritime_test`, motion + colour, crops S and 2 S").split("|")[2:9]
+    one = _line(section, "`maritime_test`, motion + colour, single crop (paper)").split("|")[2:9]
+    assert main == mixed and one == two
+
+
+def test_a_single_crop_run_measures_the_second_look_beside_it(tool):
+    single = tool.ds2_variants([1.0])
+    assert single["second_look"][1] == {"crop_scales": [1.0, 2.0]}
+    assert "single_crop" not in single
+    assert tool.ds2_variants([1.0, 2.0])["single_crop"][1] == {"crop_scales": [1.0]}
+    for scales in ([1.0], [1.0, 2.0]):
+        refine = tool.ds2_variants(scales)["refine_all"][1]
+        assert refine == {"crop_scales": [1.0, 2.0], "refine_threshold": 0.0}

@@ -21,7 +21,8 @@ function of that dict (:func:`render_results_md`). Its keys::
               conf, ego_motion, m, k, score_thr, nwd_thr},
     splits {<preset>: {preset {seed, description}, runs {"<ds>": run},
                        motion_only: run at ds=2 with colour_share 0 (or None),
-                       single_crop: run at ds=2 with crop_scales (1,) (or None),
+                       second_look: run at ds=2 with crop_scales (1, 2) (or None),
+                       single_crop: run at ds=2 with crop_scales (1,) (older JSON, or None),
                        refine_all: run at ds=2 refining every proposal (or None)}},
     sweep  [rows of sarmission.evaluation.run_model.run_sweep] or None,
     definitions {name: text}
@@ -611,9 +612,14 @@ def _sar_section(results: Mapping[str, Any]) -> list[str]:
                 why={
                     "worse": (
                         "Counted the same way (per 4K frame, all stages, N proposals); the "
-                        "difference is in the vSTMD/RPN filter sizes, the head layout and the "
-                        "second crop scale (counted as if every proposal were cropped twice, "
-                        "the most it can cost), see section 3 for the split per stage."
+                        "difference is in the vSTMD/RPN filter sizes"
+                        + (
+                            ", the head layout and the second crop scale (counted as if every "
+                            "proposal were cropped twice, the most it can cost)"
+                            if len(results["settings"].get("crop_scales", [1.0])) > 1
+                            else " and the head layout"
+                        )
+                        + "; see section 3 for the split per stage."
                     ),
                     "better": (
                         "Counted the same way (per 4K frame, all stages, N proposals); see "
@@ -647,6 +653,11 @@ def _crop_scales_text(scales: Sequence[float]) -> str:
     )
 
 
+def _crop_label(scales: Sequence[float]) -> str:
+    """A run's crops in a table row: the paper's single crop or the second look."""
+    return "single crop" if len(scales) == 1 else "crops S and 2 S"
+
+
 def _colour_section(results: Mapping[str, Any]) -> list[str]:
     """Colour proposals against the paper's motion-only RPN and (when measured) the second crop
     scale against the single crop, same head, same frames."""
@@ -669,21 +680,23 @@ def _colour_section(results: Mapping[str, Any]) -> list[str]:
         "with the water barely moves against it once the camera's motion is compensated, "
         "and one larger than vSTMD's preferred size is suppressed by the lobula's "
         "surround; colour still singles both out. Same head, frames and ds = "
-        f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. The head also departs from "
-        "the paper: every proposal is cropped at its box (S) and the proposals the head "
-        "would keep are cropped again at 2 S; the wider crop wins when the head scores it "
-        "higher and boxes the target larger than S, so that the head sees swimmers of "
-        "25-40 px whole. Where measured, further rows show the paper's single crop "
-        "(`--crop-scales 1`) and every proposal cropped at both scales "
+        f"{MAIN_DS}; `--colour-share 0` restores the paper's RPN. Where measured, further "
+        "rows show the second look (`--crop-scales 1,2`: the proposals the head would keep "
+        "are cropped again at 2 S, and the wider crop wins when the head scores it higher and "
+        "boxes the target larger than S), the single crop of the paper (`--crop-scales 1`, "
+        "the default since 2026-11-28) and every proposal cropped at both scales "
         "(`--refine-threshold 0`).",
         "",
     ]
     rows = []
     for split, mixed, motion, info in pairs:
+        crops = _crop_label(results["settings"].get("crop_scales", [1.0]))
         variants = [
-            ("motion + colour, crops S and 2 S", mixed),
-            ("motion only (paper), crops S and 2 S", motion),
+            (f"motion + colour, {crops}", mixed),
+            (f"motion only (paper), {crops}", motion),
         ]
+        if info.get("second_look") is not None:
+            variants.append(("motion + colour, crops S and 2 S", info["second_look"]))
         if info.get("single_crop") is not None:
             variants.append(("motion + colour, single crop (paper)", info["single_crop"]))
         if info.get("refine_all") is not None:
@@ -1165,12 +1178,23 @@ def evaluate_split(
     }
 
 
-#: The extra ds = 2 runs of every split (section 1b): key -> (log label, settings changed).
-DS2_VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
-    "motion_only": ("motion proposals only", {"colour_share": 0.0}),
-    "single_crop": ("single crop", {"crop_scales": [1.0]}),
-    "refine_all": ("every proposal at every crop scale", {"refine_threshold": 0.0}),
-}
+def ds2_variants(crop_scales: Sequence[float]) -> dict[str, tuple[str, dict[str, Any]]]:
+    """The extra ds = 2 runs of every split (section 1b) beside a main run cropping at
+    ``crop_scales``: key -> (log label, settings changed). A single-crop main run gets the
+    second look beside it, a second-look main run the single crop."""
+    second_look = [1.0, 2.0]
+    variants: dict[str, tuple[str, dict[str, Any]]] = {
+        "motion_only": ("motion proposals only", {"colour_share": 0.0})
+    }
+    if len(crop_scales) == 1:
+        variants["second_look"] = ("crops at S and 2 S", {"crop_scales": second_look})
+    else:
+        variants["single_crop"] = ("single crop", {"crop_scales": [1.0]})
+    variants["refine_all"] = (
+        "every proposal at S and 2 S",
+        {"crop_scales": second_look, "refine_threshold": 0.0},
+    )
+    return variants
 
 
 def evaluate_ds2_variant(
@@ -1182,7 +1206,7 @@ def evaluate_ds2_variant(
     prefix: str,
     progress: bool,
 ) -> dict[str, Any]:
-    """One :data:`DS2_VARIANTS` run (without the shared metric definitions)."""
+    """One :func:`ds2_variants` run (without the shared metric definitions)."""
     print(f"{prefix}, {label}", file=sys.stderr)
     run = evaluate_split(head, dataset, MAIN_DS, {**settings, **overrides}, progress)
     run.pop("definitions")
@@ -1262,7 +1286,7 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
                 f"{name}: evaluating ds={MAIN_DS}, N={TOPN}",
                 not args.no_progress,
             )
-            for key, (label, overrides) in DS2_VARIANTS.items()
+            for key, (label, overrides) in ds2_variants(settings["crop_scales"]).items()
             if key != "motion_only" or args.colour_share > 0
         }
         results["splits"][name] = {
