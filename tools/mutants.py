@@ -1460,4 +1460,22 @@ MUTANTS: list[Mutant] = [
         "delivery",
         "a replay's confirmation is stamped with the wall clock, not the footage's time",
     ),
+    Mutant(
+        "replay.meta_keeps_sea_level_ground",
+        "sarmission/mission/replay_telemetry.py",
+        "    ground = mission.area.ground_alt_m\n    if ground is None:",
+        "    ground = mission.area.ground_alt_m\n    if True:",
+        ("tests/test_replay_meta_ground.py",),
+        "position",
+        "a replay from meta puts the ground plane a sea-level altitude below the take-off",
+    ),
+    Mutant(
+        "replay.meta_takeoff_altitude_dropped",
+        "sarmission/mission/replay_telemetry.py",
+        "push_frame_telemetry(buffer.buffer, t, meta, self.takeoff_alt_m or 0.0)",
+        "push_frame_telemetry(buffer.buffer, t, meta)",
+        ("tests/test_replay_meta_ground.py",),
+        "position",
+        "--takeoff-alt is printed but home stays at 0, below the mission's ground",
+    ),
 ]

@@ -84,6 +84,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "time",
     )
     parser.add_argument(
+        "--takeoff-alt",
+        type=float,
+        default=None,
+        metavar="M",
+        help="dataset meta: the take-off's altitude above sea level in metres (meta heights "
+        "are above take-off); needed for --dem and the mission's ground_alt_m, else the "
+        "ground plane is the take-off's",
+    )
+    parser.add_argument(
         "--dem",
         default=None,
         metavar="FILE",
@@ -217,7 +226,7 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.data.frames import Frame
     from sarmission.mission.controller import MissionController
     from sarmission.mission.live import telemetry_buffer
-    from sarmission.mission.replay_telemetry import telemetry_source
+    from sarmission.mission.replay_telemetry import meta_ground, telemetry_source
     from sarmission.mission.session_runner import SessionRunner
 
     mission = load_mission_from_args(args)
@@ -239,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
         mission=mission,
         meta_conventions=conventions,
     )
+    mission = meta_ground(source, mission, args.takeoff_alt, args.dem is not None)
     ground_model = _ground_model(args)
     detector, model_note = build_detector(args, mission)
     recorder = build_recorder(args)

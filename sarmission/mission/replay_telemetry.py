@@ -10,7 +10,9 @@ simulated flight only when asked for (``--telemetry sim``). Beside flight logs, 
   headings from north) into a :class:`~sarmission.data.meta_conventions.MetaPose`: position,
   vehicle yaw from the compass heading, and the gimbal's earth-frame attitude. Roll and pitch of
   the vehicle are not in the data and are taken as level, which does not matter for an
-  earth-stabilised gimbal. Home is the first frame's position at altitude 0 (take-off height).
+  earth-stabilised gimbal. Home is the first frame's position at the take-off's altitude above
+  sea level when the user gives it (``--takeoff-alt``), else at 0: meta heights are above
+  take-off, so without it the ground plane is the take-off's (:func:`meta_ground`).
   A frame whose meta cannot place the camera (:class:`~sarmission.data.meta_conventions.NoMetaPose`)
   has no position, for the reason it gives (warned about at most every few seconds), and is
   never given a neighbour's.
@@ -21,6 +23,7 @@ simulated flight only when asked for (``--telemetry sim``). Beside flight logs, 
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Callable
@@ -42,11 +45,14 @@ from sarmission.ratelimit import RateLimitedLog
 log = logging.getLogger(__name__)
 
 
-def push_frame_telemetry(buffer: TelemetryBuffer, t: float, pose: MetaPose) -> None:
+def push_frame_telemetry(
+    buffer: TelemetryBuffer, t: float, pose: MetaPose, takeoff_alt_m: float = 0.0
+) -> None:
     """Push one frame's placement from dataset meta at time ``t``; sets home from the first
-    frame pushed."""
+    frame pushed, at ``takeoff_alt_m`` (metres above sea level of the take-off, which meta
+    heights are measured from; 0 when unknown: the ground plane is then the take-off's)."""
     if buffer.home is None:
-        buffer.set_home(pose.latitude, pose.longitude, 0.0)
+        buffer.set_home(pose.latitude, pose.longitude, takeoff_alt_m)
     buffer.push_position(t, pose.latitude, pose.longitude, pose.height_m)
     buffer.push_attitude(t, 0.0, 0.0, math.radians(pose.heading_deg))
     buffer.push_gimbal(
@@ -145,6 +151,8 @@ class ReplaySource:
     none_reason: str = NoTelemetry.REASON
     #: ``(t, lat, lon)`` of the drone at the replayed frames, every TRACK_STEP_S
     flown: list[tuple[float, float, float]] = field(default_factory=list)
+    #: dataset meta: the take-off's altitude above sea level, when the user gives it
+    takeoff_alt_m: float | None = None
 
     def timestamp(self, frame_t: float, name: str | None = None) -> float:
         """The controller's time of a frame at ``frame_t`` in the footage."""
@@ -174,7 +182,7 @@ class ReplaySource:
         position there for the track."""
         if self.kind == "meta" and isinstance(buffer, MetaReplayTelemetry):
             if isinstance(meta, MetaPose):
-                push_frame_telemetry(buffer.buffer, t, meta)
+                push_frame_telemetry(buffer.buffer, t, meta, self.takeoff_alt_m or 0.0)
             else:
                 buffer.refuse(t, meta.reason if meta is not None else "frame has no meta")
         elif self.kind == "sim" and self.flight is not None:
@@ -293,3 +301,43 @@ def _home_text(log: FlightLog) -> str:
     lat, lon, alt = log.home
     alt_text = f"{alt:.1f} m AMSL" if math.isfinite(alt) else "altitude unknown"
     return f"{lat:.7f}, {lon:.7f}, {alt_text} ({log.home_note})"
+
+
+def meta_ground(source: ReplaySource, mission: Any, takeoff_alt_m: float | None, dem: bool) -> Any:
+    """The mission a replay geolocates with, and the take-off altitude its source uses.
+
+    Dataset meta gives heights above take-off, not above sea level, while a mission's
+    ``ground_alt_m`` and a terrain model are above sea level. With ``takeoff_alt_m`` (metres
+    above sea level) the two agree. Without it a terrain model cannot be used (ValueError) and
+    the mission's ``ground_alt_m`` is left out, with a line in ``source.lines``: the ground
+    plane is the take-off's. ``takeoff_alt_m`` with telemetry other than meta is a ValueError:
+    a flight log or the simulated flight carries its own home altitude.
+    """
+    if source.kind != "meta":
+        if takeoff_alt_m is not None:
+            raise ValueError(
+                "--takeoff-alt places a dataset's meta heights; this replay's telemetry is "
+                f"{source.description}, which carries its own home altitude"
+            )
+        return mission
+    if takeoff_alt_m is not None:
+        if not math.isfinite(takeoff_alt_m) or not -500.0 <= takeoff_alt_m <= 9000.0:
+            raise ValueError(
+                f"--takeoff-alt must be metres above sea level, -500 to 9000, got {takeoff_alt_m}"
+            )
+        source.takeoff_alt_m = float(takeoff_alt_m)
+        source.lines.append(f"take-off at {takeoff_alt_m:g} m above sea level (--takeoff-alt)")
+        return mission
+    if dem:
+        raise ValueError(
+            "--dem with dataset meta needs --takeoff-alt M (the take-off's altitude above sea "
+            "level): meta heights are above take-off, the terrain above sea level"
+        )
+    ground = mission.area.ground_alt_m
+    if ground is None:
+        return mission
+    source.lines.append(
+        f"the mission's ground_alt_m ({ground:g} m above sea level) is not used: meta heights are "
+        "above take-off, so the ground plane is the take-off's (--takeoff-alt M places it)"
+    )
+    return dataclasses.replace(mission, area=dataclasses.replace(mission.area, ground_alt_m=None))
