@@ -85,13 +85,18 @@ def test_what_cannot_be_placed_is_refused_in_one_line(kind, takeoff, dem, messag
         meta_ground(source, load_mission(URBAN), takeoff, dem)
 
 
-def test_replay_says_which_ground_it_uses(tmp_path, capsys) -> None:
+def test_replay_says_which_ground_and_lens_it_uses(tmp_path, capsys) -> None:
     ann = write_dataset(tmp_path, [-90.0])
     args = ["replay", str(ann), "--fps", "10", "--max-frames", "3", "--no-progress"]
     assert main([*args, "--mission", str(URBAN)]) == 0
     out = capsys.readouterr().out
     assert "the mission's ground_alt_m (519 m above sea level) is not used" in out
+    assert "camera: 70 degrees across at 3840x2160 (the mission's [camera]" in out
     assert main([*args, "--mission", str(URBAN), "--takeoff-alt", "519"]) == 0
     assert "take-off at 519 m above sea level" in capsys.readouterr().out
+    assert main([*args, "--set", "camera.hfov_deg=44.5", "--telemetry", "none"]) == 0
+    assert "camera:" not in capsys.readouterr().out  # no position, no lens to name
+    assert main([*args, "--set", "camera.hfov_deg=44.5"]) == 0
+    assert "camera: 44.5 degrees across" in capsys.readouterr().out
     assert main([*args, "--telemetry", "none", "--takeoff-alt", "519"]) == 2
     assert "carries its own home altitude" in capsys.readouterr().err

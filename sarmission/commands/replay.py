@@ -258,6 +258,11 @@ def run(args: argparse.Namespace) -> int:
     )
     for line in source.lines:
         print(f"  {line}")
+    if source.kind != "none":
+        print(
+            f"camera: {mission.camera.describe()} (the mission's [camera], scaled to the "
+            "frames; a lens other than the footage's misplaces every position)"
+        )
     print(model_note)
     frame_times: dict[int, tuple[float, float]] = {}  # frame index -> (footage t, clock t)
 

@@ -131,6 +131,12 @@ class CameraConfig:
     cy: float | None = None
     distortion: tuple[float, ...] = ()
 
+    def describe(self) -> str:
+        """The lens in one line, for a replay's console: positions are only as right as it."""
+        if self.fx is not None:
+            return f"calibrated, fx {self.fx:g} px at {self.width}x{self.height}"
+        return f"{self.hfov_deg:g} degrees across at {self.width}x{self.height}"
+
     def intrinsics(self) -> CameraIntrinsics:
         """Calibrated intrinsics if fx is given, else the ideal pinhole from ``hfov_deg``."""
         if self.fx is None:
