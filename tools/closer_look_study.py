@@ -75,8 +75,12 @@ TRAIN_PRESETS = (
     "maritime_train",
     "maritime_train_high",
 )
-TEST_PRESETS = ("maritime_oblique_low", "maritime_oblique_mid", "maritime_oblique_high")
-TEST_PRESETS += ("maritime_test",)
+TEST_PRESETS = (
+    "maritime_oblique_low",
+    "maritime_oblique_mid",
+    "maritime_oblique_high",
+    "maritime_test",
+)
 #: World seeds: the preset's plus these and the world's index.
 TRAIN_OFFSET = 100
 TEST_OFFSET = 500
@@ -107,16 +111,19 @@ def cut_context_crop(image: np.ndarray, cx: float, cy: float, side: float) -> np
 
 
 def _frames(path: Path) -> Any:
-    """``(image record, BGR frame)`` of a COCO-video file rendered as JPEG folders."""
+    """``(BGR frame, [(class name, box)])`` of each readable frame of a COCO-video file rendered
+    as JPEG folders."""
     import cv2
 
     from sarmission.data.coco_video import read_coco_video
 
     dataset = read_coco_video(path)
+    names = {c.id: c.name for c in dataset.categories}
+    by_image = dataset.annotations_by_image()
     for image in dataset.images:
         frame = cv2.imread(str(path.parent / image.file_name))
         if frame is not None:
-            yield dataset, image, frame
+            yield frame, [(names[a.category_id], a.bbox) for a in by_image.get(image.id, [])]
 
 
 def _clear_of(boxes: Sequence[Sequence[float]], cx: float, cy: float, side: float) -> bool:
@@ -137,13 +144,10 @@ def box_crops(
     index [N])``."""
     crops: list[np.ndarray] = []
     labels: list[int] = []
-    for dataset, image, frame in _frames(path):
-        names = {c.id: c.name for c in dataset.categories}
-        annotations = dataset.annotations_by_image().get(image.id, [])
-        boxes = [a.bbox for a in annotations]
-        for a in annotations:
-            group = group_of(names[a.category_id])
-            x, y, w, h = a.bbox
+    for frame, annotated in _frames(path):
+        boxes = [box for _, box in annotated]
+        for name, (x, y, w, h) in annotated:
+            group = group_of(name)
             if group is None or min(w, h) < 2:
                 continue
             side = max(w, h)

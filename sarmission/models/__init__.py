@@ -58,13 +58,9 @@ def shipped_head_path(name: str, runtime: str = "torch") -> Path:
 
 
 def default_model_path(runtime: str = "torch") -> Path:
-    """Path of the shipped default head for ``runtime`` ("torch" or "onnx").
+    """Path of the shipped default head for ``runtime`` ("torch" or "onnx"):
+    :func:`shipped_head_path` of ``default``.
 
     Raises ``SarmissionError`` when the package was installed without its model files.
     """
-    path = DEFAULT_ONNX_MODEL if runtime == "onnx" else DEFAULT_TORCH_MODEL
-    if not path.is_file():
-        raise SarmissionError(
-            f"no default model at {path}; pass --model PATH (train one with `sarmission train`)"
-        )
-    return path
+    return shipped_head_path(DEFAULT_NAME, runtime)

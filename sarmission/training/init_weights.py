@@ -40,10 +40,8 @@ class InitReport:
 def init_path(value: str | Path) -> Path:
     """The checkpoint ``--init`` names (``default``: the shipped default head's ``.pt``;
     ``maritime``, ``land``: that shipped head's)."""
-    from sarmission.models import DEFAULT_NAME, DEFAULT_TORCH_MODEL, is_head_name, shipped_head_path
+    from sarmission.models import is_head_name, shipped_head_path
 
-    if str(value) == DEFAULT_NAME:
-        return DEFAULT_TORCH_MODEL
     if is_head_name(value):
         return shipped_head_path(str(value), "torch")
     path = Path(value)
