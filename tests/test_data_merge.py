@@ -69,3 +69,24 @@ def test_heldout_validation_clips_are_not_test_clips() -> None:
     }
     assert not test_seeds & set(seeds)
     assert tool.HELDOUT_VAL_FIRST_CLIP >= 50
+
+
+def test_the_recipe_adds_the_alternative_world_with_land_people_as_swimmers(
+    data, tmp_path, monkeypatch
+) -> None:
+    """``--altworld`` renders the alternative world's clips beside the training file and
+    merges them: every frame is readable and land people count as ``swimmer``."""
+    tool = load_tool("train_default_model")
+    monkeypatch.setattr(tool, "ALTWORLD_SPLITS", (("sea", 1, 3), ("land", 1, 3)))
+    merged = tool.add_altworld(tmp_path, Path(data["train"]))
+    again = read_coco_video(merged)
+    names = {c.id: c.name for c in again.categories}
+    land = read_coco_video(tmp_path / "altworld" / "altworld_land.json")
+    land_names = {c.id: c.name for c in land.categories}
+    n_people = sum(land_names[a.category_id] == "person" for a in land.annotations)
+    assert n_people > 0 and "person" not in names.values()
+    first = read_coco_video(data["train"])
+    assert len(again.images) == len(first.images) + 6
+    sea_video = next(v for v in again.videos if v.name == "altworld_sea_00")
+    assert len(list(iter_sequence(again, sea_video.id))) == 3
+    assert tool.add_altworld(tmp_path, Path(data["train"])) == merged  # reused, not redone

@@ -99,6 +99,14 @@ def test_meta_flight_reproduces_the_meta_and_interpolates_gaps(dataset):
     assert flight.time_source == "meta time"
     assert flight.home[:2] == (images[0].telemetry.latitude, images[0].telemetry.longitude)
     assert flight.mission.area.home[:2] == flight.home[:2]
+    # Meta heights are above take-off: the note names the take-off altitude it assumes.
+    assert flight.home[2] == flight.mission.area.home_alt_m
+    assert f"take-off at {flight.home[2]:g} m above sea level (the mission's home_alt_m)" in (
+        flight.note
+    )
+    given = MetaFlight(dataset, 1, home=(*flight.home[:2], 812.0))
+    assert "take-off at 812 m above sea level (given)" in given.note
+    assert given.position_ned[0, 2] == pytest.approx(flight.position_ned[0, 2], abs=1e-6)
     assert abs(flight.survey_duration - (FRAMES - 1) / FPS) < 1e-6
     check_against_meta(flight, images)
     # The survey moves: the recorded positions are not all the same place.

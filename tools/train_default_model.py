@@ -23,6 +23,8 @@ as ``swimmer``) from clip index :data:`HELDOUT_VAL_FIRST_CLIP` on, or ``sim``, t
 :data:`HELDOUT_VAL_FIRST_CLIP` are kept for tests, so nothing is chosen on a test clip. Other
 options go to ``sarmission train`` after :data:`TRAIN_ARGS`, so they override it.
 
+``--altworld`` adds clips of the alternative training world (:mod:`altworld`, a renderer
+of its own, docs/altworld.md; :data:`ALTWORLD_SPLITS`) to the training set.
 ``--presets broad`` leaves the wild land presets out; other options, e.g.
 ``--texture-negatives 0.25``, go to ``sarmission train``.
 ``--presets objects`` adds ``maritime_objects_train`` (:data:`OBJECT_SPLITS`); ``--classes
@@ -52,6 +54,7 @@ import shutil
 import sys
 from pathlib import Path
 
+from altworld.generate import render_world as render_altworld_world
 from heldout.generate import render_world
 from heldout.presets import world
 from sarmission.cli import main as sarmission
@@ -89,6 +92,9 @@ EXTRA_SPLITS = {
     "objects": BROAD_SPLITS + OBJECT_SPLITS,
     "wild": BROAD_SPLITS + WILD_SPLITS,
 }
+#: ``--altworld``: clips of the alternative training world (:mod:`altworld`, its own renderer):
+#: (world, clips, frames per clip), 1920x1080 with a 4K camera's ground sampling.
+ALTWORLD_SPLITS = (("sea", 12, 72), ("land", 12, 72))
 VAL_SPLIT = ("maritime_val", 2, 60, "3840x2160")
 #: Held-out validation: (world, clips, frames per clip), 1920x1080 frames with a 4K camera's
 #: ground sampling; clip indices from :data:`HELDOUT_VAL_FIRST_CLIP` on.
@@ -200,6 +206,25 @@ def render_broad_training_set(work: Path, presets: str = "broad") -> Path:
     return merged
 
 
+def add_altworld(work: Path, train: Path) -> Path:
+    """``train`` merged with the alternative world's clips (:data:`ALTWORLD_SPLITS`, rendered
+    into ``work/altworld`` unless there), people on land as ``swimmer``, into
+    ``work/<train stem>_altworld.json``."""
+    merged = work / f"{train.stem}_altworld.json"
+    if merged.is_file():
+        return merged
+    parts = [train]
+    for name, clips, frames in ALTWORLD_SPLITS:
+        path = work / "altworld" / f"altworld_{name}.json"
+        if not path.is_file():
+            print(f"rendering altworld {name}: {clips} x {frames} frames", file=sys.stderr)
+            render_altworld_world(name, clips, frames, path.parent)
+        parts.append(path)
+    info = {"train": train.name, "altworld": [s[0] for s in ALTWORLD_SPLITS]}
+    write_coco_video(merge_annotation_files(parts, HELDOUT_RENAME, info=info), merged)
+    return merged
+
+
 def heldout_val_seeds(splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL) -> list[int]:
     """Seeds of the held-out validation clips (a clip's seed is its world's seed * 1000 plus its
     index, :func:`heldout.presets.draw_clip`)."""
@@ -285,6 +310,12 @@ def main() -> int:
         "(the shipped head's recipe; default: wild)",
     )
     parser.add_argument(
+        "--altworld",
+        action="store_true",
+        help="add the alternative training world's clips (altworld/, its own renderer; "
+        "docs/altworld.md) to the maritime head's training set",
+    )
+    parser.add_argument(
         "--no-install", action="store_true", help="do not copy the result into sarmission/models"
     )
     parser.add_argument(
@@ -324,6 +355,8 @@ def main() -> int:
         if args.presets == "maritime"
         else render_broad_training_set(args.work, args.presets)
     )
+    if args.altworld:
+        train = add_altworld(args.work, train)
     if args.val == "heldout":
         val = render_heldout_val(args.work)
     else:
