@@ -131,3 +131,21 @@ def test_the_page_shows_mean_and_range_over_seeds(tool) -> None:
     assert "| variant | person (10) | buoy (4) |" in page
     assert "| plain | 50 % (40-60) | 25 % (25-25) |" in page
     assert page.count("### ") == 4
+
+
+def test_box_crops_read_video_clips_every_stride_frame(tool, tmp_path, monkeypatch) -> None:
+    """A file whose videos name an MP4 (the alternative world's) is read from the video, every
+    ``VIDEO_STRIDE``-th frame, with the boxes of those frames."""
+    from altworld.generate import render_world
+
+    path = render_world("sea", clips=1, frames=5, out=tmp_path, log=lambda _: None)
+    monkeypatch.setattr(tool, "VIDEO_STRIDE", 2)
+    frames = list(tool._frames(path))
+    assert len(frames) == 3  # frames 0, 2 and 4
+    doc = json.loads(path.read_text())
+    by_frame: dict[int, int] = {}
+    for a in doc["annotations"]:
+        by_frame[a["image_id"]] = by_frame.get(a["image_id"], 0) + 1
+    first_id = min(im["id"] for im in doc["images"])
+    assert [len(boxes) for _, boxes in frames] == [by_frame.get(first_id + k, 0) for k in (0, 2, 4)]
+    assert frames[0][0].shape == (1080, 1920, 3)
