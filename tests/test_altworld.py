@@ -170,3 +170,11 @@ def test_the_world_imports_no_other_renderer_and_no_sarmission() -> None:
                     source.name,
                     name,
                 )
+
+
+def test_without_ffmpeg_clips_are_written_by_opencv(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setattr("altworld.encode.shutil.which", lambda _: None)
+    render_clip(9_310_004, "sea", 3, tmp_path / "clip.mp4")
+    capture = cv2.VideoCapture(str(tmp_path / "clip.mp4"))
+    assert int(capture.get(cv2.CAP_PROP_FRAME_COUNT)) == 3
+    assert capture.read()[1].shape == (HEIGHT, WIDTH, 3)
