@@ -53,8 +53,8 @@ class Flight:
         speed = 0.0 if rng.random() < 0.25 else float(rng.uniform(1, 8))
         course = math.radians(heading + rng.normal(0, 25))
         return cls(
-            height=float(rng.uniform(30, 120)),
-            hfov=float(rng.uniform(50, 85)),
+            height=float(np.exp(rng.uniform(math.log(50.0), math.log(200.0)))),
+            hfov=float(rng.uniform(55, 90)),
             tilt=float(rng.uniform(0, 8) if rng.random() < 0.5 else rng.uniform(8, 35)),
             heading=heading,
             velocity=(speed * math.sin(course), speed * math.cos(course)),

@@ -212,8 +212,8 @@ def _swimmer(c: Canvas, look: dict, t: float, rng: np.random.Generator) -> None:
         body=False,
     )
     if look["pose"] == "float":
-        c.limb(-0.1, -0.35, -0.15, -1.0, 0.13 * b, under(look["bottom"], 0.2), 0.55, body=True)
-        c.limb(0.1, -0.35, 0.15, -1.0, 0.13 * b, under(look["bottom"], 0.2), 0.55, body=True)
+        c.limb(-0.1, -0.35, -0.15, -1.0, 0.13 * b, under(look["bottom"], 0.2), 0.55, body=False)
+        c.limb(0.1, -0.35, 0.15, -1.0, 0.13 * b, under(look["bottom"], 0.2), 0.55, body=False)
         c.ellipse(0, -0.1, 0.2 * b, 0.32 * b, 0, under(look["top"]), 0.75)
         for side in (-1, 1):
             c.limb(
@@ -228,8 +228,8 @@ def _swimmer(c: Canvas, look: dict, t: float, rng: np.random.Generator) -> None:
         c.ellipse(0, 0.27, 0.09 * b, 0.11 * b, 0, look["skin"], 1.0)
         c.ellipse(0, 0.33, 0.1 * b, 0.07 * b, 0, look["head"], 1.0)
     else:
-        c.limb(-0.08, -0.3, -0.1, -0.9, 0.12 * b, under(look["bottom"], 0.3), 0.35, body=True)
-        c.limb(0.08, -0.3, 0.1, -0.9, 0.12 * b, under(look["bottom"], 0.3), 0.35, body=True)
+        c.limb(-0.08, -0.3, -0.1, -0.9, 0.12 * b, under(look["bottom"], 0.3), 0.35, body=False)
+        c.limb(0.08, -0.3, 0.1, -0.9, 0.12 * b, under(look["bottom"], 0.3), 0.35, body=False)
         c.ellipse(0, -0.02, 0.23 * b, 0.14 * b, 0, under(look["top"]), 0.8)
         for i, side in enumerate((-1, 1)):
             if look["pose"] == "stroke":
@@ -243,12 +243,14 @@ def _swimmer(c: Canvas, look: dict, t: float, rng: np.random.Generator) -> None:
                     0.09,
                     under(look["skin"], -0.2 if swing > 0 else 0.2),
                     0.8,
+                    body=swing > 0,  # an arm in the air belongs to the box, one under water not
                 )
                 if swing > 0.6:
                     c.speckle(rng, hand[0], hand[1], 0.15, 7, 0.025, (245, 245, 245), 0.8)
             else:
                 a = look["arms"][i]
-                c.limb(0.2 * side, 0.0, 0.45 * side, 0.25 * a, 0.09, under(look["skin"]), 0.65)
+                skin = under(look["skin"])
+                c.limb(0.2 * side, 0.0, 0.45 * side, 0.25 * a, 0.09, skin, 0.65, body=False)
         c.ellipse(0, 0.12, 0.095 * b, 0.115 * b, 0, look["head"], 1.0)
         c.ellipse(
             0, 0.17, 0.07 * b, 0.05 * b, 0, look["skin"], 0.35 if look["head"] in CAP else 0.0
