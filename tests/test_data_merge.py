@@ -14,6 +14,10 @@ from sarmission.data.coco_video import read_coco_video, write_coco_video
 from sarmission.data.merge import merge_annotation_files
 from sarmission.data.sequence import iter_sequence
 
+#: An alternative-world land clip with people in view from its first frame (figures start
+#: anywhere in the box around the first view's footprint, so some clips open empty).
+LAND_SEED_WITH_PEOPLE = 9_320_003
+
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> dict[str, Path]:
@@ -76,8 +80,11 @@ def test_the_recipe_adds_the_alternative_world_with_land_people_as_swimmers(
 ) -> None:
     """``--altworld`` renders the alternative world's clips beside the training file and
     merges them: every frame is readable and land people count as ``swimmer``."""
+    from altworld.generate import FIRST_SEEDS
+
     tool = load_tool("train_default_model")
     monkeypatch.setattr(tool, "ALTWORLD_SPLITS", (("sea", 1, 3), ("land", 1, 3)))
+    monkeypatch.setitem(FIRST_SEEDS, "land", LAND_SEED_WITH_PEOPLE)
     merged = tool.add_altworld(tmp_path, Path(data["train"]))
     again = read_coco_video(merged)
     names = {c.id: c.name for c in again.categories}
@@ -90,3 +97,18 @@ def test_the_recipe_adds_the_alternative_world_with_land_people_as_swimmers(
     sea_video = next(v for v in again.videos if v.name == "altworld_sea_00")
     assert len(list(iter_sequence(again, sea_video.id))) == 3
     assert tool.add_altworld(tmp_path, Path(data["train"])) == merged  # reused, not redone
+
+
+def test_the_land_recipe_adds_only_the_alternative_land_with_people_as_person(
+    data, tmp_path, monkeypatch
+) -> None:
+    from altworld.generate import FIRST_SEEDS
+
+    tool = load_tool("train_default_model")
+    monkeypatch.setattr(tool, "ALTWORLD_SPLITS", (("sea", 1, 2), ("land", 1, 2)))
+    monkeypatch.setitem(FIRST_SEEDS, "land", LAND_SEED_WITH_PEOPLE)
+    merged = read_coco_video(tool.add_altworld(tmp_path, Path(data["train"]), ("land",), {}))
+    assert [v.name for v in merged.videos if v.name.startswith("altworld")] == ["altworld_land_00"]
+    assert not (tmp_path / "altworld" / "altworld_sea.json").exists()
+    names = {c.id: c.name for c in merged.categories}
+    assert any(names[a.category_id] == "person" for a in merged.annotations)

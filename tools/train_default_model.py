@@ -24,7 +24,8 @@ as ``swimmer``) from clip index :data:`HELDOUT_VAL_FIRST_CLIP` on, or ``sim``, t
 options go to ``sarmission train`` after :data:`TRAIN_ARGS`, so they override it.
 
 ``--altworld`` adds clips of the alternative training world (:mod:`altworld`, a renderer
-of its own, docs/altworld.md; :data:`ALTWORLD_SPLITS`) to the training set.
+of its own, docs/altworld.md; :data:`ALTWORLD_SPLITS`) to the training set (with ``--head
+land``, its land clips alone, people as ``person``).
 ``--presets broad`` leaves the wild land presets out; other options, e.g.
 ``--texture-negatives 0.25``, go to ``sarmission train``.
 ``--presets objects`` adds ``maritime_objects_train`` (:data:`OBJECT_SPLITS`); ``--classes
@@ -206,22 +207,28 @@ def render_broad_training_set(work: Path, presets: str = "broad") -> Path:
     return merged
 
 
-def add_altworld(work: Path, train: Path) -> Path:
-    """``train`` merged with the alternative world's clips (:data:`ALTWORLD_SPLITS`, rendered
-    into ``work/altworld`` unless there), people on land as ``swimmer``, into
-    ``work/<train stem>_altworld.json``."""
+def add_altworld(
+    work: Path,
+    train: Path,
+    worlds: tuple[str, ...] = ("sea", "land"),
+    rename: dict[str, str] | None = None,
+) -> Path:
+    """``train`` merged with the alternative world's clips of ``worlds``
+    (:data:`ALTWORLD_SPLITS`, rendered into ``work/altworld`` unless there), people on land as
+    ``swimmer`` unless ``rename`` says otherwise, into ``work/<train stem>_altworld.json``."""
+    rename = HELDOUT_RENAME if rename is None else rename
     merged = work / f"{train.stem}_altworld.json"
     if merged.is_file():
         return merged
     parts = [train]
-    for name, clips, frames in ALTWORLD_SPLITS:
+    for name, clips, frames in (s for s in ALTWORLD_SPLITS if s[0] in worlds):
         path = work / "altworld" / f"altworld_{name}.json"
         if not path.is_file():
             print(f"rendering altworld {name}: {clips} x {frames} frames", file=sys.stderr)
             render_altworld_world(name, clips, frames, path.parent)
         parts.append(path)
-    info = {"train": train.name, "altworld": [s[0] for s in ALTWORLD_SPLITS]}
-    write_coco_video(merge_annotation_files(parts, HELDOUT_RENAME, info=info), merged)
+    info = {"train": train.name, "altworld": list(worlds)}
+    write_coco_video(merge_annotation_files(parts, rename, info=info), merged)
     return merged
 
 
@@ -313,7 +320,8 @@ def main() -> int:
         "--altworld",
         action="store_true",
         help="add the alternative training world's clips (altworld/, its own renderer; "
-        "docs/altworld.md) to the maritime head's training set",
+        "docs/altworld.md) to the training set: sea and land for the maritime head, land for "
+        "the land head",
     )
     parser.add_argument(
         "--no-install", action="store_true", help="do not copy the result into sarmission/models"
@@ -361,7 +369,8 @@ def main() -> int:
         val = render_heldout_val(args.work)
     else:
         val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
-    out = args.work / ("mitenet_head.pt" if args.seed == 0 else f"mitenet_head_seed{args.seed}.pt")
+    stem = "mitenet_head" + ("_altworld" if args.altworld else "")
+    out = args.work / (f"{stem}.pt" if args.seed == 0 else f"{stem}_seed{args.seed}.pt")
     code = train_head(train, val, out, [], args.seed, extra)
     if code:
         return code
@@ -373,9 +382,12 @@ def main() -> int:
 def train_land(args: argparse.Namespace, extra: list[str]) -> int:
     """Render and train a land head into ``--work`` (module docstring)."""
     train = render_land_training_set(args.work, args.land_presets)
+    if args.altworld:  # its land only, people as the land head's ``person``
+        train = add_altworld(args.work, train, ("land",), {})
     val = render_heldout_val(args.work, LAND_VAL, rename={}, name="heldout_land_val")
     stem = "mitenet_land_head" + ("_scratch" if args.from_scratch else "")
     stem += "" if args.land_presets == "urban" else f"_{args.land_presets}"
+    stem += "_altworld" if args.altworld else ""
     stem += "" if args.seed == 0 else f"_seed{args.seed}"
     recipe = LAND_ARGS + ([] if args.from_scratch else LAND_INIT_ARGS)
     out = args.work / f"{stem}.pt"
