@@ -171,6 +171,23 @@ def test_intrinsics_from_hfov_and_validation():
         CameraIntrinsics(10, 10, 5.0, 5.0, 5.0, 5.0, (0.1, 0.2))
 
 
+def test_frames_of_another_shape_keep_the_horizontal_view_and_square_pixels():
+    """A 16:9 camera's frames at 4:3 (photo mode on the same sensor) see the same rays through
+    the same columns; rows move by half the added height, and pixels stay square."""
+    intr = CameraIntrinsics.from_hfov(3840, 2160, 70.0)
+    assert intr.for_frames(1920, 1080) == intr.scaled(1920, 1080)
+    assert intr.same_shape(1920, 1081) and not intr.same_shape(3840, 2880)
+    photo = intr.for_frames(3840, 2880)
+    assert photo.fx == pytest.approx(photo.fy) and photo.hfov_deg == pytest.approx(70.0)
+    assert (photo.cx, photo.cy) == pytest.approx((1919.5, 1439.5))
+    for u, v in [(0.0, 0.0), (3000.0, 2000.0), (1919.5, 1079.5)]:
+        ray = ((u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy)
+        moved = ((u - photo.cx) / photo.fx, (v + 360.0 - photo.cy) / photo.fy)
+        assert moved == pytest.approx(ray)
+    small = intr.for_frames(640, 480)  # another shape and size at once
+    assert small.fx == pytest.approx(intr.fx / 6) and small.cy == pytest.approx(239.5)
+
+
 def test_wgs84_round_trip_vectorised():
     n = np.array([0.0, 100.0, -250.0])
     e = np.array([0.0, 50.0, 30.0])

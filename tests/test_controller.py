@@ -276,6 +276,30 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
     assert "positions found after the alert: 1" in ctl.summary()
 
 
+def test_taller_frames_than_the_camera_are_placed_as_a_crop_of_its_view(tmp_path, mission, caplog):
+    """Frames of 4:3 from a camera configured 16:9 (the same width and horizontal view, 90 more
+    rows above and below): the target, 90 rows lower in the frame, is placed where it is, and
+    the shape mismatch is said once."""
+    confirm_at_lock(mission)
+    n = 8
+    u, v = target_pixel(mission)
+    box = (u - 5, v + 85, u + 5, v + 95)
+    script = [[(box, 0.8, 0)] for _ in range(n)]
+    tall = [np.full((H + 180, W, 3), 90, np.uint8) for _ in range(n)]
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission, ScriptedDetector(script), filled_buffer(mission, n / FPS), store,
+            console=lambda s: None,
+        )  # fmt: skip
+        with caplog.at_level("WARNING"):
+            alerts = run_frames(ctl, n, frames=tall)
+        stored = store.get(alerts[0].alert_id)
+    # exact telemetry: the crop puts it within centimetres; stretched rows put it 0.78 m off
+    assert distance_m(stored.position, truth_latlon(mission)) < 0.1
+    warnings = [r.getMessage() for r in caplog.records if "not the shape" in r.getMessage()]
+    assert len(warnings) == 1 and "960x720" in warnings[0] and "960x540" in warnings[0]
+
+
 def test_corrupt_frames_are_skipped_and_counted(tmp_path, mission):
     confirm_at_lock(mission)
     good = np.full((H, W, 3), 90, np.uint8)

@@ -1478,4 +1478,23 @@ MUTANTS: list[Mutant] = [
         "position",
         "--takeoff-alt is printed but home stays at 0, below the mission's ground",
     ),
+    Mutant(
+        "controller.frames_of_another_shape_stretched",
+        "sarmission/mission/controller.py",
+        "self._intrinsics = self._camera.for_frames(shape[1], shape[0])",
+        "self._intrinsics = self._camera.scaled(shape[1], shape[0])",
+        ("tests/test_controller.py",),
+        "position",
+        "frames of another aspect ratio than the camera's stretch its pixels: positions move "
+        "along the frame's height",
+    ),
+    Mutant(
+        "camera.crop_not_recentred",
+        "sarmission/geo/camera.py",
+        "(self.cy + 0.5) * s - 0.5 - extra / 2.0,",
+        "(self.cy + 0.5) * s - 0.5,",
+        ("tests/test_camera.py",),
+        "position",
+        "frames taller than the camera's keep its principal point's row: every row is off",
+    ),
 ]

@@ -97,6 +97,35 @@ class CameraIntrinsics:
         """The 3x3 camera matrix ``K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
+    def same_shape(self, width: int, height: int, tolerance: float = 0.01) -> bool:
+        """Whether frames of ``width`` x ``height`` have this camera's aspect ratio (within a
+        relative ``tolerance``)."""
+        return abs((width / height) / (self.width / self.height) - 1.0) <= tolerance
+
+    def for_frames(self, width: int, height: int) -> CameraIntrinsics:
+        """The camera as it records frames of ``width`` x ``height``.
+
+        Of this camera's aspect ratio: the same camera at that resolution (:meth:`scaled`).
+        Of another: the same horizontal field of view and pixel shape, the image cropped or
+        extended about its centre to the frames' height, as a video mode crops a photo
+        sensor's height. Scaling each axis apart instead would stretch the pixels and move
+        every position along the frame's height. Neither is known to be the footage's lens;
+        a caller warns (:meth:`same_shape`).
+        """
+        if self.same_shape(width, height):
+            return self.scaled(width, height)
+        s = width / self.width
+        extra = self.height * s - height  # rows of the scaled image beyond the frames'
+        return CameraIntrinsics(
+            int(width),
+            int(height),
+            self.fx * s,
+            self.fy * s,
+            (self.cx + 0.5) * s - 0.5,
+            (self.cy + 0.5) * s - 0.5 - extra / 2.0,
+            self.distortion,
+        )
+
     def scaled(self, width: int, height: int) -> CameraIntrinsics:
         """The same camera at another resolution (focal lengths and centre scaled per axis)."""
         sx, sy = width / self.width, height / self.height

@@ -352,13 +352,26 @@ class MissionController:
             if min(shape) < 16:
                 return f"image too small ({shape[1]}x{shape[0]})"
             self._shape = shape
-            self._intrinsics = self._camera.scaled(shape[1], shape[0])
+            self._intrinsics = self._camera.for_frames(shape[1], shape[0])
+            if not self._camera.same_shape(shape[1], shape[0]):
+                self._warn_frame_shape(shape)
         elif shape != self._shape:
             return (
                 f"size {shape[1]}x{shape[0]} differs from the stream's "
                 f"{self._shape[1]}x{self._shape[0]}"
             )
         return ""
+
+    def _warn_frame_shape(self, shape: tuple[int, int]) -> None:
+        camera = self._camera
+        line = (
+            f"frames are {shape[1]}x{shape[0]}, not the shape of the camera's "
+            f"{camera.width}x{camera.height}: positions assume its horizontal field of view "
+            "with the height cropped or extended; set [camera] to this footage's lens"
+        )
+        log.warning(line)
+        if self.recorder is not None:
+            self.recorder.text("camera", line, level="WARN")
 
     def _skip(self, frame_index: int, reason: str) -> None:
         key = reason.split(" (")[0]
