@@ -4,6 +4,7 @@ fringes and sensor noise, drawn once per clip (:class:`Optics`) and applied per 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -38,9 +39,7 @@ class Optics:
         height, width = frame.shape[:2]
         out = frame * (self.gain * np.asarray(self.balance, np.float32))[None, None, :]
         if self.vignette > 0:
-            y, x = np.ogrid[:height, :width]
-            r2 = ((x - width / 2) / (width / 2)) ** 2 + ((y - height / 2) / (width / 2)) ** 2
-            out *= (1.0 - self.vignette * r2).astype(np.float32)[..., None]
+            out *= (1.0 - self.vignette * _radius2(width, height)).astype(np.float32)[..., None]
         out = 255.0 * (np.clip(out, 0, 255) / 255.0) ** self.gamma
         if self.defocus > 0.2:
             out = cv2.GaussianBlur(out, (0, 0), self.defocus)
@@ -55,3 +54,11 @@ class Optics:
             )
         out += rng.standard_normal(out.shape, dtype=np.float32) * np.float32(self.noise)
         return np.clip(out, 0, 255).astype(np.uint8)
+
+
+@lru_cache(maxsize=4)
+def _radius2(width: int, height: int) -> np.ndarray:
+    """Squared distance of every pixel from the frame's centre, in half-widths (the same for
+    every frame of a clip, so computed once)."""
+    y, x = np.ogrid[:height, :width]
+    return ((x - width / 2) / (width / 2)) ** 2 + ((y - height / 2) / (width / 2)) ** 2

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -90,7 +91,7 @@ class Sea:
         caps = smoothstep(surface + 0.4 * layers[2], 3.3 - 1.4 * self.state, 3.8 - 1.4 * self.state)
         colour += caps[..., None] * (235.0 - colour) * 0.85
         if self.glint > 0.3:
-            v, u = np.mgrid[0 : view.height_px, 0 : view.width].astype(np.float32)
+            v, u = _pixel_grid(view.width, view.height_px)
             zone = np.exp(
                 -((2 * u - self.sun_pixel[0]) ** 2 + (2 * v - self.sun_pixel[1]) ** 2)
                 / (2 * self.sun_radius**2)
@@ -98,3 +99,9 @@ class Sea:
             sparkle = smoothstep(layers[2] + 0.5 * layers[0], 2.2, 3.0) * zone * self.glint
             colour += sparkle[..., None] * 255.0
         return cv2.resize(colour.astype(np.float32), full, interpolation=cv2.INTER_LINEAR)
+
+
+@lru_cache(maxsize=4)
+def _pixel_grid(width: int, height: int) -> np.ndarray:
+    """Row and column of every pixel (float32), the same for every frame of a clip."""
+    return np.mgrid[0:height, 0:width].astype(np.float32)

@@ -193,7 +193,7 @@ class MetaFlight:
         if gimbal_heading is None:
             gimbal_heading = compass
 
-        given_alt = None if home is None else home[2]
+        takeoff = "the mission's home_alt_m" if home is None else "given"
         if home is None:
             home = (float(lat[0]), float(lon[0]), base.area.home_alt_m)
         self.home = (float(home[0]), float(home[1]), float(home[2]))
@@ -223,7 +223,6 @@ class MetaFlight:
         #: Footage time of the last frame (the flight holds its state afterwards).
         self.survey_duration = float(t[-1])
         self.start_s = start_s
-        takeoff = "given" if given_alt is not None else "the mission's home_alt_m"
         self.note = (
             f"footage telemetry: {len(images)} frames over {t[-1]:.1f} s "
             f"(timed by {self.time_source}), home {self.home[0]:.6f}, "

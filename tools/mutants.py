@@ -1491,8 +1491,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "camera.crop_not_recentred",
         "sarmission/geo/camera.py",
-        "(self.cy + 0.5) * s - 0.5 - extra / 2.0,",
-        "(self.cy + 0.5) * s - 0.5,",
+        "cy=uniform.cy - extra / 2.0)",
+        "cy=uniform.cy)",
         ("tests/test_camera.py",),
         "position",
         "frames taller than the camera's keep its principal point's row: every row is off",

@@ -22,6 +22,7 @@ Back-projection inverts each step (undistortion by Newton iterations) and a ray
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -114,17 +115,10 @@ class CameraIntrinsics:
         """
         if self.same_shape(width, height):
             return self.scaled(width, height)
-        s = width / self.width
-        extra = self.height * s - height  # rows of the scaled image beyond the frames'
-        return CameraIntrinsics(
-            int(width),
-            int(height),
-            self.fx * s,
-            self.fy * s,
-            (self.cx + 0.5) * s - 0.5,
-            (self.cy + 0.5) * s - 0.5 - extra / 2.0,
-            self.distortion,
-        )
+        full_height = self.height * width / self.width  # both axes scaled alike
+        uniform = self.scaled(width, full_height)
+        extra = full_height - height  # rows of the scaled image beyond the frames'
+        return dataclasses.replace(uniform, height=int(height), cy=uniform.cy - extra / 2.0)
 
     def scaled(self, width: int, height: int) -> CameraIntrinsics:
         """The same camera at another resolution (focal lengths and centre scaled per axis)."""
