@@ -18,6 +18,8 @@ from sarmission.cli import build_parser, main
 from sarmission.perception.head import MiteHead
 from sarmission.perception.runtime import save_head_checkpoint
 
+REPO = Path(__file__).resolve().parents[1]
+
 
 @pytest.fixture(scope="module")
 def checkpoint(tmp_path_factory: pytest.TempPathFactory) -> Path:
@@ -267,6 +269,31 @@ def test_mission_commands_hand_the_crop_options_to_the_detector(tmp_path: Path) 
     )
     net, _ = build_detector(overridden, load_mission_from_args(overridden))
     assert net.crop_scales == (1.0, 3.0) and net.refine_threshold == 0.0
+
+
+def test_recentring_comes_from_the_mission_file_or_the_command_line(tmp_path: Path) -> None:
+    """[detector] recentre reaches the detector; --recentre / --no-recentre override the file;
+    the built-in default is off, as in the shipped missions; detect and eval take the flag."""
+    from sarmission.commands.detector_options import build_mitenet
+    from sarmission.commands.mission_options import build_detector, load_mission_from_args
+
+    parser = build_parser()
+    plain = parser.parse_args(["replay", "clip.mp4"])
+    assert build_detector(plain, load_mission_from_args(plain))[0].recentre is False
+    mission_file = tmp_path / "m.toml"
+    mission_file.write_text("[detector]\nrecentre = true\n")
+    from_file = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    assert build_detector(from_file, load_mission_from_args(from_file))[0].recentre is True
+    off = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file), "--no-recentre"])
+    assert build_detector(off, load_mission_from_args(off))[0].recentre is False
+    on = parser.parse_args(["run", "--connect", "udpin:127.0.0.1:1", "--sim", "--recentre"])
+    assert build_detector(on, load_mission_from_args(on))[0].recentre is True
+    for shipped in ("maritime_demo.toml", "urban_demo.toml"):
+        text = (REPO / "missions" / shipped).read_text()
+        assert "\nrecentre = false" in text, shipped
+    assert build_mitenet(parser.parse_args(["detect", "clip.mp4"])).recentre is False
+    assert build_mitenet(parser.parse_args(["detect", "clip.mp4", "--recentre"])).recentre is True
+    assert parser.parse_args(["eval", "--annotations", "a.json", "--recentre"]).recentre is True
 
 
 def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: Path) -> None:

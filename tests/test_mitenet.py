@@ -12,7 +12,14 @@ from motion_scenes import moving_target, to_bgr
 from sarmission.perception.crops import motion_enhanced_crops
 from sarmission.perception.export import head_onnx_bytes
 from sarmission.perception.head import MiteHead, head_flops_per_proposal, ltrb_to_boxes
-from sarmission.perception.mitenet import MiteNet, build_head_runtime, nms_xyxy, scaled_boxes
+from sarmission.perception.mitenet import (
+    RECENTRE_MIN_SCORE,
+    RECENTRE_MIN_SHIFT_PX,
+    MiteNet,
+    build_head_runtime,
+    nms_xyxy,
+    scaled_boxes,
+)
 from sarmission.perception.runtime import OnnxHeadRuntime, TorchHeadRuntime
 
 H, W = 120, 160
@@ -281,6 +288,55 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
             MiteNet(TorchHeadRuntime(head), **bad)
     with pytest.raises(ValueError, match="refine_threshold"):
         MiteNet(TorchHeadRuntime(head), refine_threshold=1.5)
+
+
+def _shifted_crop_scores(net: MiteNet, frame: np.ndarray, result, boxes: np.ndarray, rows):
+    """Best-class probability and decoded box of the crops of ``boxes`` (proposals ``rows``)."""
+    logits, ltrb = net.head.predict(
+        motion_enhanced_crops(frame, result.motion, boxes, result.proposals.polarity[rows])
+    )
+    probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
+    return probs.max(axis=1), ltrb_to_boxes(ltrb, boxes, 16)
+
+
+def test_recentring_classifies_again_where_the_head_put_the_target(sea_frames):
+    """recentre=True, shipped head, sea frames: a proposal whose first crop scores at least
+    RECENTRE_MIN_SCORE and whose decoded box centre lies RECENTRE_MIN_SHIFT_PX or more from the
+    crop's centre is cropped again (S x S) around that centre, and that crop's score and box
+    replace the first's; every other proposal keeps its first crop's."""
+    shipped = build_head_runtime(None, "onnx")
+    options = {"ds": 2, "topn": 25, "score_threshold": 0.0, "nms_iou": None}
+    single = MiteNet(shipped, **options)
+    expected = []
+    cases = set()
+    for i, frame in enumerate(sea_frames):
+        result = single.process(frame, i / 30.0)
+        if i < 3:
+            continue
+        scores, boxes = _crop_scores(single, frame, result, 1.0)
+        shift = (boxes[:, :2] + boxes[:, 2:]) / 2 - (
+            result.proposals.boxes[:, :2] + result.proposals.boxes[:, 2:]
+        ) / 2
+        far = np.hypot(shift[:, 0], shift[:, 1]) >= RECENTRE_MIN_SHIFT_PX
+        sure = scores >= RECENTRE_MIN_SCORE
+        moved = np.flatnonzero(far & sure)
+        again = result.proposals.boxes[moved] + np.tile(shift[moved], 2)
+        again_scores, again_boxes = _shifted_crop_scores(single, frame, result, again, moved)
+        scores[moved], boxes[moved] = again_scores, again_boxes
+        expected.append((scores, boxes))
+        cases |= set(zip(far.tolist(), sure.tolist(), strict=True))
+    net = MiteNet(shipped, recentre=True, **options)
+    for result, (scores, boxes) in zip(_run(net, sea_frames)[3:], expected, strict=True):
+        np.testing.assert_allclose(result.detections.scores, scores, atol=1e-5)
+        np.testing.assert_allclose(result.detections.boxes, boxes, atol=1e-3)
+    # (centre off by the shift or more, first score high enough): every case occurred.
+    assert cases == {(True, True), (True, False), (False, True), (False, False)}, cases
+    head = MiteHead()
+    plain, again = (
+        MiteNet(TorchHeadRuntime(head), recentre=flag).complexity(2160, 3840)["flops"]["head"]
+        for flag in (False, True)
+    )
+    assert again == 2 * plain  # the most it can cost: every proposal cropped again
 
 
 def test_scaled_boxes_keep_the_centre():

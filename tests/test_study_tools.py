@@ -6,6 +6,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from conftest import load_tool
 
 
@@ -93,3 +94,78 @@ def test_background_table_reports_every_world_and_head():
         "| `heldout_land_empty` | shipped default | 120 | 5.11 | 0.52 | 2 % | 0.80 / 0.90 / 0.95 |"
         in table
     )
+
+
+def _figures(locked: int, far: float, et: float) -> dict:
+    return {
+        "locked": locked,
+        "lockable": 19,
+        "far_detections": far,
+        "far_frame": 4 * far,
+        "head_r05": None if et is None else et / 2,
+        "et_recall": et,
+        "et_n": 118,
+        "tiny_recall": 0.1,
+        "ap_all": 0.05,
+        "ms": 10.0,
+    }
+
+
+def test_recentring_table_puts_each_figure_beside_its_recentred_one():
+    tool = load_tool("recentring_study")
+    results = {
+        "command": "python tools/recentring_study.py",
+        "frames": 40,
+        "clips": 3,
+        "own_sequences": 2,
+        "reused": ["a", "b", "a"],
+        "rows": [
+            {
+                "head": "maritime",
+                "split": "held-out sea, test",
+                "off": _figures(11, 70.1, 0.31),
+                "on": _figures(12, 66.7, None),
+            }
+        ],
+        "offsets_head": "maritime",
+        "offsets": [
+            {
+                "split": "held-out sea, test",
+                "bands": {
+                    "tiny": {
+                        "n": 5,
+                        "proposal_p50": 4.94,
+                        "proposal_p75": 7.8,
+                        "proposal_6px": 0.41,
+                        "head_p50": 3.1,
+                    }
+                },
+            }
+        ],
+    }
+    section = tool.render_section(results)
+    assert section.startswith(tool.BEGIN) and section.endswith(tool.END)
+    assert "renders reused: a, b." in section  # each once, in order
+    assert (
+        "| maritime | held-out sea, test | 11/19 → 12/19 | 70.1 → 66.7 | 280 → 267 "
+        "| 0.15 → - | 0.31 → - (118) | 0.10 → 0.10 | 0.050 → 0.050 |"
+    ) in section
+    assert "| held-out sea, test | tiny | 5 | 4.9 / 7.8 | 41 % | 3.1 |" in section
+
+
+def test_recentring_study_names_bands_and_nearest_centres():
+    tool = load_tool("recentring_study")
+    assert [tool.band_of(a) for a in (64.0, 64.5, 256.0, 1024.0, 1025.0)] == [
+        "extremely_tiny",
+        "tiny",
+        "tiny",
+        "small",
+        "larger",
+    ]
+    boxes = np.array([[0.0, 0.0, 16.0, 16.0], [20.0, 0.0, 36.0, 16.0]])
+    assert tool.nearest_centre(boxes, np.array([25.0, 8.0])) == 3.0
+    assert tool.nearest_centre(np.zeros((0, 4)), np.array([0.0, 0.0])) == float("inf")
+    assert tool.parse_models(None) == {"maritime": "maritime", "land": "land"}
+    assert tool.parse_models(["a=/x.onnx"]) == {"a": "/x.onnx"}
+    with pytest.raises(SystemExit, match="NAME=PATH"):
+        tool.parse_models(["/x.onnx"])

@@ -112,6 +112,7 @@ def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -
             "actions.policy": list(args.actions),
             "detector.crop_scales": list(args.crop_scales),
             "detector.refine_threshold": args.refine_threshold,
+            "detector.recentre": args.recentre,
             "detector.score_threshold": args.conf,
         }
     )

@@ -22,7 +22,7 @@ DEFAULT_SCORE_THRESHOLD = 0.3
 
 def add_detector_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--model --runtime --ds --topn --colour-share --crop-scales --refine-threshold
-    --ego-motion --conf`` to ``parser``."""
+    --recentre --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument(
         "--model",
@@ -60,9 +60,16 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
         help="crop sides as multiples of the proposal box: every proposal at the "
         "first, would-be detections again at the others, keeping the best-scored "
         "crop; 1,2 lets the head box swimmers of 25-40 px whole, 1 is the paper's "
-        "single crop (default: 1,2)",
+        "single crop (default: 1)",
     )
     add_refine_threshold_option(group)
+    group.add_argument(
+        "--recentre",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="crop each proposal once more where the head placed the target's centre, and "
+        "keep that crop's score and box (docs/recentring.md; default: off)",
+    )
     group.add_argument(
         "--ego-motion",
         choices=("estimate", "none"),
@@ -99,6 +106,7 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
         colour_share=args.colour_share,
         crop_scales=args.crop_scales,
         refine_threshold=args.refine_threshold,
+        recentre=args.recentre,
     )
 
 

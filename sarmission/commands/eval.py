@@ -223,6 +223,7 @@ def run(args: argparse.Namespace) -> int:
             colour_share=args.colour_share,
             crop_scales=args.crop_scales,
             refine_threshold=args.refine_threshold,
+            recentre=args.recentre,
             **metric_options,
         )
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
@@ -276,6 +277,7 @@ def _evaluate_model(
         colour_share=args.colour_share,
         crop_scales=args.crop_scales,
         refine_threshold=args.refine_threshold,
+        recentre=args.recentre,
     )
     person_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
@@ -300,6 +302,7 @@ def _evaluate_model(
             "colour_share": args.colour_share,
             "crop_scales": list(args.crop_scales),
             "refine_threshold": net.refine_threshold,
+            "recentre": net.recentre,
             "conf": args.conf,
             "frames": len(run.frame_ms),
             "skipped_frames": run.skipped,
@@ -320,6 +323,7 @@ def _format_detector(detector: dict[str, Any]) -> str:
             if len(detector["crop_scales"]) > 1
             else ""
         )
+        + (", recentred" if detector.get("recentre") else "")
         + f", conf={detector['conf']:g}; {detector['frames']} frames"
         + (f" ({skipped} unreadable, skipped)" if skipped else "")
         + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)"

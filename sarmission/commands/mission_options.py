@@ -50,13 +50,19 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
     add_detector_options(parser)
     # None = the mission file's [detector] value (the file overrides code, the CLI the file).
     parser.set_defaults(
-        ds=None, topn=None, colour_share=None, crop_scales=None, refine_threshold=None, conf=None
+        ds=None,
+        topn=None,
+        colour_share=None,
+        crop_scales=None,
+        refine_threshold=None,
+        recentre=None,
+        conf=None,
     )
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
     """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/
-    --crop-scales/--refine-threshold/--conf`` on top."""
+    --crop-scales/--refine-threshold/--recentre/--conf`` on top."""
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
@@ -66,10 +72,13 @@ def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
         ("colour_share", "detector.colour_share"),
         ("crop_scales", "detector.crop_scales"),
         ("refine_threshold", "detector.refine_threshold"),
+        ("recentre", "detector.recentre"),
         ("conf", "detector.score_threshold"),
     ):
         value = getattr(args, option)
-        if isinstance(value, tuple):
+        if isinstance(value, bool):
+            value = "true" if value else "false"
+        elif isinstance(value, tuple):
             value = "[" + ", ".join(repr(v) for v in value) + "]"
         if value is not None:
             overrides.append(f"{key}={value}")
@@ -118,6 +127,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
         colour_share=d.colour_share,
         crop_scales=tuple(d.crop_scales),
         refine_threshold=d.refine_threshold,
+        recentre=d.recentre,
     )
     return detector, note
 

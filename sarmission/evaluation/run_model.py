@@ -120,6 +120,7 @@ def run_sweep(
     colour_share: float = DEFAULT_COLOUR_SHARE,
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
     refine_threshold: float | None = None,
+    recentre: bool = False,
 ) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
@@ -140,6 +141,7 @@ def run_sweep(
                 colour_share=colour_share,
                 crop_scales=crop_scales,
                 refine_threshold=refine_threshold,
+                recentre=recentre,
             )
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:

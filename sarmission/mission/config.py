@@ -153,11 +153,12 @@ class DetectorConfig:
     """MITE-Net run-time settings: vSTMD down-sampling ``ds``, proposals ``topn`` (of which the
     share ``colour_share`` comes from colour anomalies), the head's ``crop_scales`` and the
     first-crop score from which a proposal gets the further ones, ``refine_threshold`` (None: the
-    detection threshold; see :class:`~sarmission.perception.mitenet.MiteNet`), detection
-    threshold; ``model`` the head: a shipped one by name (``"default"`` or ``"maritime"``,
-    ``"land"``: :mod:`sarmission.models`) or a ``.pt``/``.pth``/``.onnx`` file, relative to the
-    mission file's folder when written there (a head fine-tuned for the area's sea or land goes
-    with its mission)."""
+    detection threshold; see :class:`~sarmission.perception.mitenet.MiteNet`), whether a
+    proposal is cropped again where the head placed the target, ``recentre`` (off: measured in
+    docs/recentring.md), detection threshold; ``model`` the head: a shipped one by name
+    (``"default"`` or ``"maritime"``, ``"land"``: :mod:`sarmission.models`) or a
+    ``.pt``/``.pth``/``.onnx`` file, relative to the mission file's folder when written there (a
+    head fine-tuned for the area's sea or land goes with its mission)."""
 
     model: str = DEFAULT_MODEL
     ds: int = 2
@@ -165,6 +166,7 @@ class DetectorConfig:
     colour_share: float = DEFAULT_COLOUR_SHARE
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
     refine_threshold: float | None = None
+    recentre: bool = False
     score_threshold: float = 0.3
 
 

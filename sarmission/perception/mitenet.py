@@ -40,6 +40,10 @@ from sarmission.perception.vstmd import VSTMD
 from sarmission.yuv import YuvImage
 
 STAGES = ("vstmd", "colour", "rpn", "crops", "head")
+#: With ``recentre``: how far (full-resolution pixels) the head's box centre must lie from the
+#: crop's, and how high the first crop must score, for a proposal to be cropped again.
+RECENTRE_MIN_SHIFT_PX = 2.0
+RECENTRE_MIN_SCORE = 0.1
 
 
 def scaled_boxes(boxes: np.ndarray, scale: float) -> np.ndarray:
@@ -141,6 +145,12 @@ class MiteNet:
         refine_threshold: first-crop score from which a proposal is cropped at the further
             scales; None = ``score_threshold`` (only would-be detections are refined), 0 = every
             proposal. What each setting was measured to do: docs/experiments.md.
+        recentre: crop once more, at the first scale, where the head put the target's centre
+            (when that is at least :data:`RECENTRE_MIN_SHIFT_PX` off the proposal's and the first
+            crop scored at least :data:`RECENTRE_MIN_SCORE`); the second crop's score, class and
+            box replace the first's, and further scales are cut around the new centre. The
+            proposals miss small targets by several pixels (the response lags a moving target),
+            so a 16-px crop can hold a tiny target at its edge. Measured: docs/recentring.md.
     """
 
     def __init__(
@@ -157,6 +167,7 @@ class MiteNet:
         colour_share: float = DEFAULT_COLOUR_SHARE,
         crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
         refine_threshold: float | None = None,
+        recentre: bool = False,
     ) -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
             raise ValueError(
@@ -170,6 +181,7 @@ class MiteNet:
             raise ValueError(f"refine_threshold must be in [0, 1], got {refine_threshold}")
         self.crop_scales = tuple(float(s) for s in crop_scales)
         self.refine_threshold = score_threshold if refine_threshold is None else refine_threshold
+        self.recentre = bool(recentre)
         self.head = head_runtime
         self.ds = ds
         self.topn = topn
@@ -296,6 +308,36 @@ class MiteNet:
         class_ids = probs.argmax(axis=1)
         return probs[np.arange(len(probs)), class_ids], class_ids, ltrb
 
+    def _recentre(
+        self,
+        frame: np.ndarray | YuvImage,
+        motion: MotionMaps,
+        polarity: np.ndarray,
+        scores: np.ndarray,
+        class_ids: np.ndarray,
+        ltrb: np.ndarray,
+        boxes: np.ndarray,
+    ) -> None:
+        """Classify again the crops whose target the head placed off their centre, cut around
+        the head's box centre; the results replace the first crop's in place."""
+        seen = ltrb_to_boxes(ltrb, boxes, self.head.config.crop_size)
+        centre = (seen[:, :2] + seen[:, 2:]) / 2
+        shift = centre - (boxes[:, :2] + boxes[:, 2:]) / 2
+        moved = np.flatnonzero(
+            (scores >= RECENTRE_MIN_SCORE)
+            & (np.hypot(shift[:, 0], shift[:, 1]) >= RECENTRE_MIN_SHIFT_PX)
+        )
+        if moved.size == 0:
+            return
+        again = boxes[moved] + np.tile(shift[moved], 2)
+        again_scores, again_ids, again_ltrb = self._classify(
+            motion_enhanced_crops(
+                frame, motion, again, polarity[moved], motion_floor=self.motion_floor
+            )
+        )
+        scores[moved], class_ids[moved], ltrb[moved] = again_scores, again_ids, again_ltrb
+        boxes[moved] = again
+
     def _detect(
         self,
         frame: np.ndarray | YuvImage,
@@ -308,6 +350,8 @@ class MiteNet:
         if len(boxes) == 0:
             return Detections()
         scores, class_ids, ltrb = self._classify(crops)
+        if self.recentre:
+            self._recentre(frame, motion, proposals.polarity, scores, class_ids, ltrb, boxes)
         refine = np.flatnonzero(scores >= self.refine_threshold)
         if self.nms_iou is not None and refine.size > 1 and len(self.crop_scales) > 1:
             first = ltrb_to_boxes(ltrb[refine], boxes[refine], self.head.config.crop_size)
@@ -316,7 +360,7 @@ class MiteNet:
         for scale in self.crop_scales[1:]:
             if refine.size == 0:
                 break
-            wide = scaled_boxes(proposals.boxes[refine], scale)
+            wide = scaled_boxes(boxes[refine], scale / self.crop_scales[0])
             # One bilinear sample per bin, as for the first crop: averaging 2 x 2 samples per bin
             # (RoIAlign's adaptive ratio at 2 S) costs more and changed nothing measurable.
             wide_scores, wide_ids, wide_ltrb = self._classify(
@@ -352,8 +396,9 @@ class MiteNet:
 
         ``flops``: ``vstmd`` (``VSTMD.flops``), ``rpn_other`` (``TTMRPN.flops`` on the 1/ds maps,
         the chromatic anomaly map when colour proposals are on, and the N crops), ``head``
-        (2 x MACs of every conv/linear per proposal, times N), ``total``. N is ``topn``, the most
-        proposals a frame can have. ``parameters``: ``head`` (learned) and ``total`` (vSTMD and
+        (2 x MACs of every conv/linear per proposal, times N and the crops per proposal: one per
+        crop scale, one more when recentring), ``total``. N is ``topn``, the most proposals a
+        frame can have. ``parameters``: ``head`` (learned) and ``total`` (vSTMD and
         the RPN learn nothing).
         """
         from sarmission.perception.head import MiteHead, count_parameters, head_flops_per_proposal
@@ -362,16 +407,17 @@ class MiteNet:
         map_h, map_w = self.vstmd.map_shape(height, width)
         colour = self.rpn.colour_slots > 0 and chroma_applies(height, width)
         chroma_shape = (height // CHROMA_SCALE, width // CHROMA_SCALE) if colour else None
+        crops = self.topn * (len(self.crop_scales) + int(self.recentre))
         flops = {
             "vstmd": int(self.vstmd.flops(height, width)),
             "rpn_other": (
                 int(self.rpn.flops(map_h, map_w, chroma_shape))
-                + crop_flops(self.topn * len(self.crop_scales), CROP_SIZE)
+                + crop_flops(crops, CROP_SIZE)
                 + (chroma_flops(height, width) if colour else 0)
                 # the half-resolution frame is vSTMD's at ds >= 2, the map's own at 1
                 + (height * width * 3 if colour and self.ds == 1 else 0)
             ),
-            "head": head_flops_per_proposal(head) * self.topn * len(self.crop_scales),
+            "head": head_flops_per_proposal(head) * crops,
         }
         flops["total"] = sum(flops.values())
         params = count_parameters(head)
