@@ -66,15 +66,18 @@ def test_planes_are_the_frames_opencv_decodes(clip: Path) -> None:
 
 
 def test_full_range_and_other_formats(sea: Path, tmp_path: Path) -> None:
-    """A full-range (``yuvj420p``) file is read as full range; a 4:4:4 one comes as BGR."""
+    """A full-range (``yuvj420p``) file is read as full range; a 4:4:4 one and a 10-bit one
+    (as many drone cameras record) come as BGR, as OpenCV decodes them."""
     full = encode(sea, tmp_path / "full.mp4", pix_fmt="yuvj420p")
     for planar, packed in pairs(full)[:3]:
         assert planar.yuv is not None and planar.yuv.full_range
         assert np.abs(planar.image_bgr.astype(int) - packed.image_bgr).mean() < 1.0
-    other = encode(sea, tmp_path / "444.mp4", pix_fmt="yuv444p")
-    for planar, packed in pairs(other)[:3]:
-        assert planar.yuv is None and planar.image is planar.image_bgr
-        assert np.abs(planar.image_bgr.astype(int) - packed.image_bgr).mean() < 1.0
+    for pix_fmt in ("yuv444p", "yuv420p10le"):
+        other = encode(sea, tmp_path / f"{pix_fmt}.mp4", pix_fmt=pix_fmt)
+        for planar, packed in pairs(other)[:3]:
+            assert planar.yuv is None and planar.image is planar.image_bgr
+            assert planar.image_bgr.dtype == np.uint8 and planar.image_bgr.std() > 10
+            assert np.abs(planar.image_bgr.astype(int) - packed.image_bgr).mean() < 1.0
 
 
 def test_the_source_reads_again_and_closes(clip: Path) -> None:
