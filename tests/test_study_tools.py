@@ -148,7 +148,7 @@ def test_recentring_table_puts_each_figure_beside_its_recentred_one():
     assert "renders reused: a, b." in section  # each once, in order
     assert (
         "| maritime | held-out sea, test | 11/19 → 12/19 | 70.1 → 66.7 | 280 → 267 "
-        "| 0.15 → - | 0.31 → - (118) | 0.10 → 0.10 | 0.050 → 0.050 |"
+        "| 0.15 → — | 0.31 → — (118) | 0.10 → 0.10 | 0.050 → 0.050 |"
     ) in section
     assert "| held-out sea, test | tiny | 5 | 4.9 / 7.8 | 41 % | 3.1 |" in section
 
