@@ -211,13 +211,16 @@ def test_colour_proposals_find_a_target_that_does_not_move(head: MiteHead):
 
 
 def _crop_scores(net: MiteNet, frame: np.ndarray, result, scale: float):
-    """Best-class probability and decoded box of every proposal's crop at ``scale`` (one
-    bilinear sample per bin, as MiteNet cuts them)."""
+    """Best-class probability and decoded box of every proposal's crop at ``scale``."""
     boxes = scaled_boxes(result.proposals.boxes, scale)
+    return _box_scores(net, frame, result, boxes, result.proposals.polarity)
+
+
+def _box_scores(net: MiteNet, frame: np.ndarray, result, boxes: np.ndarray, polarity):
+    """Best-class probability and decoded box of the crops of ``boxes`` (one bilinear sample
+    per bin, as MiteNet cuts them)."""
     logits, ltrb = net.head.predict(
-        motion_enhanced_crops(
-            frame, result.motion, boxes, result.proposals.polarity, sampling_ratio=1
-        )
+        motion_enhanced_crops(frame, result.motion, boxes, polarity, sampling_ratio=1)
     )
     probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
     return probs.max(axis=1), ltrb_to_boxes(ltrb, boxes, 16)
@@ -290,15 +293,6 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
         MiteNet(TorchHeadRuntime(head), refine_threshold=1.5)
 
 
-def _shifted_crop_scores(net: MiteNet, frame: np.ndarray, result, boxes: np.ndarray, rows):
-    """Best-class probability and decoded box of the crops of ``boxes`` (proposals ``rows``)."""
-    logits, ltrb = net.head.predict(
-        motion_enhanced_crops(frame, result.motion, boxes, result.proposals.polarity[rows])
-    )
-    probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
-    return probs.max(axis=1), ltrb_to_boxes(ltrb, boxes, 16)
-
-
 def test_recentring_classifies_again_where_the_head_put_the_target(sea_frames):
     """recentre=True, shipped head, sea frames: a proposal whose first crop scores at least
     RECENTRE_MIN_SCORE and whose decoded box centre lies RECENTRE_MIN_SHIFT_PX or more from the
@@ -321,7 +315,8 @@ def test_recentring_classifies_again_where_the_head_put_the_target(sea_frames):
         sure = scores >= RECENTRE_MIN_SCORE
         moved = np.flatnonzero(far & sure)
         again = result.proposals.boxes[moved] + np.tile(shift[moved], 2)
-        again_scores, again_boxes = _shifted_crop_scores(single, frame, result, again, moved)
+        polarity = result.proposals.polarity[moved]
+        again_scores, again_boxes = _box_scores(single, frame, result, again, polarity)
         scores[moved], boxes[moved] = again_scores, again_boxes
         expected.append((scores, boxes))
         cases |= set(zip(far.tolist(), sure.tolist(), strict=True))

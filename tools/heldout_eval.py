@@ -25,7 +25,7 @@ import shlex
 import subprocess
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -60,12 +60,16 @@ def _rendered(path: Path, videos: int, frames: int) -> bool:
     return len(doc.get("videos", [])) == videos and len(doc.get("images", [])) == videos * frames
 
 
-def render_heldout(work: Path, name: str, clips: int, frames: int, reused: list[str]) -> Path:
+def render_heldout(
+    work: Path, name: str, clips: int, frames: int, reused: list[str], first_clip: int = 0
+) -> Path:
+    """Clips ``first_clip`` on of held-out world ``name`` in ``work/<name>`` (kept when there)."""
     path = work / name / f"{name}.json"
+    label = name if first_clip == 0 else f"{name} from clip {first_clip}"
     if _rendered(path, clips, frames):
-        reused.append(name)
+        reused.append(label)
     else:
-        print(f"rendering {name}: {clips} x {frames} frames", file=sys.stderr)
+        print(f"rendering {label}: {clips} x {frames} frames", file=sys.stderr)
         _run(
             [
                 sys.executable,
@@ -77,6 +81,8 @@ def render_heldout(work: Path, name: str, clips: int, frames: int, reused: list[
                 str(clips),
                 "--frames",
                 str(frames),
+                "--first-clip",
+                str(first_clip),
                 "--out",
                 str(path.parent),
             ]
@@ -124,7 +130,8 @@ def persons_as_swimmers(path: Path) -> Path:
     return out
 
 
-def evaluate(annotations: Path, model: str | None) -> dict[str, Any]:
+def evaluate(annotations: Path, model: str | None, extra: Sequence[str] = ()) -> dict[str, Any]:
+    """``sarmission eval --json`` of ``model`` on ``annotations`` (``extra``: more options)."""
     cmd = [
         sys.executable,
         "-m",
@@ -137,7 +144,8 @@ def evaluate(annotations: Path, model: str | None) -> dict[str, Any]:
     ]
     if model:
         cmd += ["--model", model]
-    print(f"evaluating {annotations.name}", file=sys.stderr)
+    cmd += list(extra)
+    print(f"evaluating {annotations.name} {' '.join(extra)}".rstrip(), file=sys.stderr)
     report = json.loads(_run(cmd))
     report.pop("definitions", None)
     report.pop("reliability", None)

@@ -22,6 +22,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import heldout_eval  # noqa: E402
 
@@ -44,49 +46,19 @@ SPLITS = (
 SHIPPED = {"maritime": "maritime", "land": "land"}
 
 
-def render_validation(work: Path, world: str, clips: int, frames: int, reused: list[str]) -> Path:
-    """Held-out clips from :data:`VALIDATION_FIRST_CLIP` on, in ``work/validation/<world>``."""
-    path = work / "validation" / world / f"{world}.json"
-    if heldout_eval._rendered(path, clips, frames):
-        reused.append(f"{world} (validation)")
-        return path
-    print(f"rendering {world} validation: {clips} x {frames} frames", file=sys.stderr)
-    heldout_eval._run(
-        [
-            sys.executable,
-            "-m",
-            "heldout.generate",
-            "--world",
-            world,
-            "--clips",
-            str(clips),
-            "--frames",
-            str(frames),
-            "--first-clip",
-            str(VALIDATION_FIRST_CLIP),
-            "--out",
-            str(path.parent),
-        ]
-    )
-    return path
-
-
 def split_file(args: argparse.Namespace, world: str, first: int | None, reused: list[str]) -> Path:
+    """A split's annotation file: the own split (``first`` None), or held-out clips ``first`` on
+    (validation ones under ``work/validation``)."""
     work = Path(args.work)
     if first is None:
         return heldout_eval.render_own(work, args.own_sequences, args.frames, reused)
-    if first == 0:
-        return heldout_eval.render_heldout(work, world, args.clips, args.frames, reused)
-    return render_validation(work, world, args.clips, args.frames, reused)
+    folder = work if first == 0 else work / "validation"
+    return heldout_eval.render_heldout(folder, world, args.clips, args.frames, reused, first)
 
 
 def evaluate(annotations: Path, model: str, recentre: bool) -> dict[str, Any]:
     """The figures of one ``sarmission eval`` run."""
-    cmd = [sys.executable, "-m", "sarmission.cli", "eval", "--annotations", str(annotations)]
-    cmd += ["--json", "--no-progress", "--model", model]
-    cmd += ["--recentre"] if recentre else []
-    print(f"evaluating {annotations.name} with {model}, recentre {recentre}", file=sys.stderr)
-    report = json.loads(heldout_eval._run(cmd))
+    report = heldout_eval.evaluate(annotations, model, ["--recentre"] if recentre else [])
     sar, bands = report["sar"], report["boxes"]["bands"]
     return {
         "locked": sar["n_locked"],
@@ -112,8 +84,6 @@ def band_of(area: float) -> str:
 
 def nearest_centre(boxes: Any, centre: Any) -> float:
     """Distance from ``centre`` to the nearest centre of ``boxes`` (xyxy; inf when none)."""
-    import numpy as np
-
     if not len(boxes):
         return float("inf")
     centres = (boxes[:, :2] + boxes[:, 2:]) / 2
@@ -123,8 +93,6 @@ def nearest_centre(boxes: Any, centre: Any) -> float:
 def centre_offsets(annotations: Path, model: str) -> dict[str, Any]:
     """Per size band of the people's boxes: how far (px) the nearest proposal's centre and the
     nearest detection's box centre (any score, conf 0.01) lie from the box's centre."""
-    import numpy as np
-
     from sarmission.data.coco_video import read_coco_video
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet, build_head_runtime

@@ -323,7 +323,7 @@ def _format_detector(detector: dict[str, Any]) -> str:
             if len(detector["crop_scales"]) > 1
             else ""
         )
-        + (", recentred" if detector.get("recentre") else "")
+        + (", recentred" if detector["recentre"] else "")
         + f", conf={detector['conf']:g}; {detector['frames']} frames"
         + (f" ({skipped} unreadable, skipped)" if skipped else "")
         + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)"
