@@ -68,8 +68,8 @@ def test_a_still_or_drifting_person_is_confirmed(velocity):
     [
         ({"velocity": (10.0, 0.0)}, "moves 10"),  # glint under a 10 m/s aircraft
         ({"velocity": (0.0, -6.0)}, "moves 5.9"),  # a bird
-        ({"size": 6.0}, "6.00 m on the ground is no person"),  # a boat
-        ({"size": 0.05}, "0.05 m on the ground is no person"),  # a speck
+        ({"size": 6.0}, "6.00 m across is no person"),  # a boat
+        ({"size": 0.05}, "0.05 m across is no person"),  # a speck
         ({"score": 0.45}, "score 0.45 below 0.6"),
     ],
 )
@@ -87,12 +87,12 @@ def test_short_evidence_waits_then_gives_up():
     assert late.reason == (
         "not confirmed within 20 s (16 sightings over 0.5 s; needs 6 over 1 s)"
     ), late
-    # enough evidence but no size on the ground (no ground extent): waits, then gives up
+    # enough evidence but no size (no ground fix at the box centre): waits, then gives up
     unsized = evidence_of(sightings(seconds=3.0, size=None))
-    assert assess(unsized, 103.0, RULE).reason == "size on the ground unknown"
+    assert assess(unsized, 103.0, RULE).reason == "size unknown"
     late = assess(unsized, 100.0 + RULE.give_up_s + 0.1, RULE)
     assert late.verdict == "discard", late
-    assert late.reason == "not confirmed within 20 s (size on the ground unknown)", late
+    assert late.reason == "not confirmed within 20 s (size unknown)", late
     unplaced = TargetEvidence()
     unplaced.note_unplaced(100.0)
     assert assess(unplaced, 110.0, RULE).reason == "no position yet"

@@ -154,7 +154,7 @@ def test_a_boat_is_too_large_to_be_a_person(tmp_path, mission):
         ctl = controller(mission, ScriptedDetector(script), flight(3.0), store)
         assert run(ctl, 20) == []
         (candidate,) = ctl.stats.candidates
-        assert "on the ground is no person" in store.get(candidate.alert_id).discarded
+        assert "m across is no person" in store.get(candidate.alert_id).discarded
 
 
 def test_the_operator_confirms_a_candidate_before_the_evidence_does(tmp_path, mission):

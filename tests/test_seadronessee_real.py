@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sarmission.data.coco_video import read_coco_video
@@ -18,7 +19,9 @@ from sarmission.data.meta_conventions import (
 )
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.geo.geolocate import PlatformPose, geolocate
+from sarmission.geo.ground_size import apparent_size_m
 from sarmission.mavlink.telemetry import TelemetryBuffer
+from sarmission.mission.config import ConfirmConfig
 from sarmission.mission.replay_telemetry import push_frame_telemetry
 
 REAL = (
@@ -155,3 +158,41 @@ def test_rays_below_the_horizon_meet_the_ground_where_the_altitude_says(dataset,
         checked += 1
     assert checked > 900  # 982 of the 1,030 placed frames look 3 degrees or more down
     assert horizon_in_view > 100  # most real footage is oblique: the sky is in many frames
+
+
+def test_the_person_size_gate_keeps_real_swimmers_and_drops_real_boats(dataset):
+    """Real boxes sized as the confirmation sizes them (across the line of sight, from the
+    replay's pose): in every band of view angle the default gate keeps at least 95 % of the
+    swimmers and life rings and drops at least 95 % of the boats. Sized on the ground plane
+    instead, the gate dropped 23 % of the swimmers seen 10-30 degrees below the horizon."""
+    rule = ConfirmConfig()
+    conventions = dataset_conventions(dataset)
+    names = {c.id: c.name for c in dataset.categories}
+    placed: dict[int, tuple[PlatformPose, CameraIntrinsics, float]] = {}
+    for image in dataset.images:
+        pose = meta_pose(image.telemetry, conventions)
+        if isinstance(pose, MetaPose) and -pose.gimbal_pitch_deg >= MIN_PITCH_DEG:
+            intr = CameraIntrinsics.from_hfov(image.width, image.height, HFOV_DEG)
+            placed[image.id] = (pose_of(pose), intr, -pose.gimbal_pitch_deg)
+    kept: dict[tuple[str, str], list[bool]] = {}
+    for ann in dataset.annotations:
+        if ann.image_id not in placed or names[ann.category_id] == "ignored":
+            continue
+        platform, intr, pitch = placed[ann.image_id]
+        x, y, w, h = ann.bbox
+        size = apparent_size_m((x, y, x + w, y + h), intr, platform)
+        if size is None:  # the box's centre above the horizon
+            continue
+        band = "10-30" if pitch < 30.0 else "30-60" if pitch < 60.0 else "60-90"
+        inside = rule.min_size_m <= size <= rule.max_size_m
+        kept.setdefault((names[ann.category_id], band), []).append(inside)
+    assert sum(len(v) for v in kept.values()) > 5000
+    for band in ("10-30", "30-60", "60-90"):
+        swimmers = kept[("swimmer", band)]
+        assert len(swimmers) > 500, band
+        assert np.mean(swimmers) >= 0.95, (band, np.mean(swimmers))
+        boats = kept[("boat", band)]
+        assert len(boats) > 100, band
+        assert np.mean(boats) <= 0.05, (band, np.mean(boats))
+    rings = [k for (name, _), v in kept.items() if name == "life_saving_appliances" for k in v]
+    assert len(rings) > 200 and np.mean(rings) >= 0.95

@@ -6,8 +6,8 @@ thresholds from.
 
 For each candidate: whether a person was under it at its lock, its sightings, the time they
 span, the share of frames it was seen in over that span, the head's scores (mean, better half,
-lowest), its size on the ground (median, quartiles) and its drift over the ground, and the
-verdict the current rule gave it. Printed: the quantiles of each feature for people, for
+lowest), its size across the line of sight (median, quartiles) and its drift over the ground,
+and the verdict the current rule gave it. Printed: the quantiles of each feature for people, for
 clutter and for the clutter confirmed (the false alerts), with what lay under the clutter.
 """
 

@@ -74,6 +74,8 @@ _CONFIRMATION = "sarmission/mission/confirmation.py"
 _CANDIDATES = "sarmission/mission/candidates.py"
 _ALERT_MODEL = "sarmission/alerts/model.py"
 _T_CONFIRM = ("tests/test_confirmation.py", "tests/test_confirmation_boundaries.py")
+_GROUND_SIZE = "sarmission/geo/ground_size.py"
+_T_SIZE = ("tests/test_ground_size.py", "tests/test_seadronessee_real.py")
 _T_ZONES = ("tests/test_confirmation_boundaries.py", "tests/test_alert_tiers.py")
 _SCORING = "sarmission/evaluation/alert_scoring.py"
 _T_SCORING = ("tests/test_alert_scoring.py", "tests/test_alert_scoring_boundaries.py")
@@ -806,6 +808,33 @@ MUTANTS: list[Mutant] = [
         _T_CONFIRM,
         "lock",
         "a size of exactly min_size_m discarded",
+    ),
+    Mutant(
+        "ground_size.smaller_side",
+        _GROUND_SIZE,
+        "angle = max(math.acos(across), math.acos(down))",
+        "angle = min(math.acos(across), math.acos(down))",
+        _T_SIZE,
+        "lock",
+        "a box is sized by its smaller side (a standing person by their width)",
+    ),
+    Mutant(
+        "ground_size.full_angle_tangent",
+        _GROUND_SIZE,
+        "return 2.0 * centre.range_m * math.tan(angle / 2.0)",
+        "return 2.0 * centre.range_m * math.tan(angle)",
+        _T_SIZE,
+        "lock",
+        "the size doubles: the tangent of the whole angle, not of its half",
+    ),
+    Mutant(
+        "ground_size.height_not_range",
+        _GROUND_SIZE,
+        "return 2.0 * centre.range_m * math.tan(angle / 2.0)",
+        "return 2.0 * pose.rel_alt_m * math.tan(angle / 2.0)",
+        _T_SIZE,
+        "lock",
+        "the size scales with the height, not the slant range (small in oblique views)",
     ),
     Mutant(
         "confirmation.size_mean_not_median",

@@ -82,6 +82,11 @@ def distributions(dataset: VideoDataset, rename: dict[str, str] | None = None) -
 def simulated(frames: int, seeds: int, width: int) -> dict:
     """The oblique presets' frames, pooled: ``frames`` per preset and world, 5 s apart, in
     ``seeds`` worlds per preset."""
+    return distributions(simulated_dataset(frames, seeds, width), SIM_AS_REAL)
+
+
+def simulated_dataset(frames: int, seeds: int, width: int) -> VideoDataset:
+    """The annotations and meta of :func:`simulated`'s frames (no images)."""
     from sim.generate import generate_sequence, merge_datasets
     from sim.scenarios import preset
 
@@ -105,7 +110,7 @@ def simulated(frames: int, seeds: int, width: int) -> dict:
                     start_s=5.0,
                 )
                 parts.append(read_coco_video(path))
-    return distributions(merge_datasets(parts), SIM_AS_REAL)
+    return merge_datasets(parts)
 
 
 def _quantiles(values: list[float], digits: int = 1) -> str:

@@ -227,7 +227,7 @@ class ConfirmConfig:
     """When a locked candidate becomes a confirmed alert (:mod:`sarmission.mission.confirmation`):
     seen for ``min_seen_s`` in ``min_sightings`` geolocated frames, at least ``min_seen_share``
     of the frames since its first sighting, drifting no faster than ``max_speed_m_s``,
-    ``min_size_m``-``max_size_m`` across on the ground, its scores' mean at least
+    ``min_size_m``-``max_size_m`` across the line of sight, its scores' mean at least
     ``min_score``; discarded if not confirmed within ``give_up_s``. ``score_window_s`` > 0 judges
     the score over the latest seconds only and lets a low one wait for a better view instead
     of discarding it (0: the mean of all sightings, decided once). The defaults were chosen on

@@ -8,8 +8,10 @@ the frames processed since its first sighting (a person stays in view; clutter f
 - its position persists, or drifts no faster than water and people do: a straight-line fit of
   its fixes over time gives a ground velocity whose speed, less twice its standard error, is at
   most ``max_speed_m_s`` (sun glint moves with the aircraft, birds fly, waves travel);
-- its size on the ground fits a person: the median over sightings of the box's larger ground
-  extent lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck centimetres);
+- its size fits a person: the median over sightings of the box's size across the line of
+  sight (:func:`sarmission.geo.ground_size.apparent_size_m`: a standing person's height even
+  in an oblique view) lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck
+  centimetres);
 - the head's scores of its sightings agree: their mean is at least ``min_score`` (a few lucky
   crops do not make a person). With ``score_window_s`` > 0 the mean is over the sightings of
   the latest ``score_window_s`` only, and a candidate below it waits (until ``give_up_s``)
@@ -196,7 +198,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     if enough and size is not None and not rule.min_size_m <= size <= rule.max_size_m:
         return Assessment(
             "discard",
-            f"{size:.2f} m on the ground is no person ({rule.min_size_m:g}-{rule.max_size_m:g} m)",
+            f"{size:.2f} m across is no person ({rule.min_size_m:g}-{rule.max_size_m:g} m)",
             **figures,
         )
     if (
@@ -225,7 +227,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         if score < rule.min_score:
             return Assessment("wait", low, **figures)
         if size is None:
-            unknown = "size on the ground unknown"
+            unknown = "size unknown"
             if age > rule.give_up_s:
                 return Assessment("discard", f"{late} ({unknown})", **figures)
             return Assessment("wait", unknown, **figures)

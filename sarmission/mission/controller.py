@@ -8,7 +8,7 @@ Per frame (:meth:`MissionController.process`)::
       -> for each locked track seen this frame:
            telemetry pose at the capture time -> geolocate the box centre -> target registry
            (box in scene pixels: the image shifts since the first frame taken out)
-      -> each sighting of a target: fix, size on the ground, head score -> its evidence
+      -> each sighting of a target: fix, size across the line of sight, head score -> its evidence
       -> for each new target: a *candidate* alert -> store.add (durable) -> console line
          (the operator sees it; nobody else), unless it lies in a zone the operator dismissed
       -> each candidate whose evidence over seconds confirms it (or that the operator
@@ -52,7 +52,7 @@ from sarmission.alerts.thumbnail import crop_thumbnail
 from sarmission.class_roles import class_name, role_of_id
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.geo.geolocate import FixLimits, GeoFix, PlatformPose, geolocate
-from sarmission.geo.ground_size import ground_extent_m
+from sarmission.geo.ground_size import apparent_size_m
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
@@ -484,7 +484,7 @@ class MissionController:
         pose: PlatformPose | StaleTelemetry,
         fix: GeoFix | None,
     ) -> None:
-        """This frame's evidence of ``target``: the track's fix, box size on the ground, the
+        """This frame's evidence of ``target``: the track's fix, its object's size, the
         head's score of the detection it took and the track's class."""
         if fix is None or not fix.ok or not isinstance(pose, PlatformPose):
             self.candidates.sighting(
@@ -493,7 +493,7 @@ class MissionController:
             return
         ground = self._ground_below_home()
         assert self._intrinsics is not None and ground is not None
-        size = ground_extent_m(track.raw_box, self._intrinsics, pose, ground)
+        size = apparent_size_m(track.raw_box, self._intrinsics, pose, ground)
         label = class_name(self.detector.classes, track.class_id)
         self.candidates.sighting(
             target.target_id,
