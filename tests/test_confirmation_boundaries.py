@@ -2,10 +2,11 @@
 dismissed zones just inside and outside their radius.
 
 Sightings are exact: binary-exact times 0.25 s apart, fixes on a straight line made with pymap3d.
-For five such fixes the times' spread about their mean is sum(dt^2) = 0.625 s^2, so a fit without
-residuals has a velocity standard error of (fix error / sqrt 2) / sqrt(0.625) per axis, and the
-speed's error sqrt 2 times that: a fix error of 0.25 * sqrt(0.625) m makes it 0.25 m/s, and the
-gate "speed - 2 standard errors > limit" moves the limit up by exactly 0.5 m/s.
+For five such fixes over 1 s the velocity's standard error per axis is the larger of the fit's,
+(fix error / sqrt 2) / sqrt(0.625) (sum(dt^2) = 0.625 s^2 about the mean), and the span's floor,
+sqrt 2 (fix error / sqrt 2) / 1 s: the floor, the fix error itself. The speed's error is sqrt 2
+times that: a fix error of 0.25 / sqrt 2 m makes it 0.25 m/s, and the gate "speed - 2 standard
+errors > limit" moves the limit up by 0.5 m/s.
 """
 
 import math
@@ -28,8 +29,8 @@ RULE = ConfirmConfig(
     min_score=0.5,
     give_up_s=20.0,
 )
-#: A fix error that makes the drift speed's standard error exactly 0.25 m/s (module docstring).
-ERROR_FOR_QUARTER = 0.25 * math.sqrt(0.625)
+#: A fix error that makes the drift speed's standard error 0.25 m/s (module docstring).
+ERROR_FOR_QUARTER = 0.25 / math.sqrt(2)
 
 
 def evidence(
@@ -92,20 +93,58 @@ def test_give_up_after_not_at_give_up_s():
 
 
 @pytest.mark.parametrize(
-    ("speed", "expected"), [(0.0, "confirm"), (0.6, "confirm"), (1.4, "confirm"), (1.6, "discard")]
+    ("speed", "expected"),
+    [
+        (0.0, "confirm"),
+        (0.6, "confirm"),
+        (1.0, "confirm"),
+        (1.1, "wait"),
+        (1.4, "wait"),
+        (1.6, "discard"),
+    ],
 )
-def test_speed_gate_allows_two_standard_errors(speed, expected):
-    # standard error 0.25 m/s: discarded only above 1.0 + 2 x 0.25 = 1.5 m/s
+def test_speed_gate_discards_beyond_two_standard_errors_and_waits_within(speed, expected):
+    # standard error 0.25 m/s: discarded only above 1.0 + 2 x 0.25 = 1.5 m/s; above the 1 m/s
+    # limit but within its error the drift is unsure: wait for a longer span
     found = assess(evidence(north_m_s=speed, error=ERROR_FOR_QUARTER), 101.0, RULE)
     assert found.speed_m_s == pytest.approx(speed, abs=1e-6)
     assert found.verdict == expected, found
+    if expected == "wait":
+        assert found.reason.startswith(f"drift {speed:.1f} +- 0.5 m/s unsure"), found
+        late = assess(evidence(north_m_s=speed, error=ERROR_FOR_QUARTER), 120.5, RULE)
+        assert late.verdict == "discard" and "unsure" in late.reason, late
 
 
 def test_a_straight_line_of_few_fixes_keeps_the_fix_error():
-    # the fit has no residuals; the fixes' own error (1 m) still bounds the velocity's error:
-    # 1 / sqrt(0.625) = 1.26 m/s, so 3 m/s - 2.53 m/s is within the 1 m/s limit
+    # the fit has no residuals; the fixes' own error (1 m) over a 1 s span still bounds the
+    # velocity's error: 1 m/s per axis, 1.41 m/s in speed, so 3 m/s - 2.83 m/s is within the
+    # 1 m/s limit: not discarded, and not confirmed either while it looks too fast
     found = assess(evidence(north_m_s=3.0, error=1.0), 101.0, RULE)
-    assert found.verdict == "confirm", found
+    assert found.verdict == "wait", found
+    assert found.reason.startswith("drift 3.0 +- 2.8 m/s unsure"), found
+
+
+def test_a_fix_that_wanders_with_the_pose_waits_and_then_confirms():
+    # an oblique view: the fixes of a person who stays put swing 3 m in 1 s with the pose
+    # (altitude, attitude) and back: too fast for a drifting person at first, unsure, so it
+    # waits; over 4 s the wander is small beside the span, and the person is confirmed
+    swing = (0.0, 1.0, 2.0, 2.5, 3.0)
+    ev = TargetEvidence()
+    times = [0.25 * k for k in range(17)]  # 4 s of sightings
+    for t in times:
+        north = swing[int(t / 0.25)] if t <= 1.0 else max(0.0, 3.0 - 1.5 * (t - 1.0))
+        lat, lon, _ = pymap3d.ned2geodetic(north, 0.0, 0.0, *ORIGIN, 0.0)
+        ev.add(Sighting(100.0 + t, float(lat), float(lon), 2.0, 0.6, 0.8))
+        if t == 1.0:
+            early = assess(ev, 101.0, RULE)
+            assert early.verdict == "wait" and "unsure" in early.reason, early
+    assert assess(ev, 104.0, RULE).verdict == "confirm"
+
+
+def test_a_glint_moving_with_the_aircraft_is_discarded_within_seconds():
+    # 7 m/s, fixes good to 1 m: 7 - 2.83 m/s is beyond the limit after 1 s
+    found = assess(evidence(north_m_s=7.0, error=1.0), 101.0, RULE)
+    assert found.verdict == "discard" and found.reason.startswith("moves 7.0 m/s"), found
 
 
 class _Store:

@@ -792,6 +792,25 @@ MUTANTS: list[Mutant] = [
         "the speed gate adds the standard error instead of subtracting it",
     ),
     Mutant(
+        "confirmation.span_floor_dropped",
+        _CONFIRMATION,
+        "    sigma_v = max(sigma_v, math.sqrt(2) * sigma_fix / float(t.max() - t.min()))\n",
+        "",
+        _T_CONFIRM,
+        "lock",
+        "the speed's error takes frame-to-frame fixes as independent (an oblique view's "
+        "wandering fixes look like a fast drift)",
+    ),
+    Mutant(
+        "confirmation.unsure_drift_confirmed",
+        _CONFIRMATION,
+        'pending = "size unknown" if size is None else unsure',
+        'pending = "size unknown" if size is None else ""',
+        _T_CONFIRM,
+        "lock",
+        "a drift above the limit but within its error is confirmed instead of waiting",
+    ),
+    Mutant(
         "confirmation.size_max_exclusive",
         _CONFIRMATION,
         "not rule.min_size_m <= size <= rule.max_size_m",

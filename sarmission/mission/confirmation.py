@@ -7,7 +7,9 @@ the frames processed since its first sighting (a person stays in view; clutter f
 
 - its position persists, or drifts no faster than water and people do: a straight-line fit of
   its fixes over time gives a ground velocity whose speed, less twice its standard error, is at
-  most ``max_speed_m_s`` (sun glint moves with the aircraft, birds fly, waves travel);
+  most ``max_speed_m_s`` (sun glint moves with the aircraft, birds fly, waves travel); a speed
+  above it by less than twice its error waits for a longer span (an oblique view's fixes
+  wander by metres with the pose over seconds, as a drifting person does not);
 - its size fits a person: the median over sightings of the box's size across the line of
   sight (:func:`sarmission.geo.ground_size.apparent_size_m`: a standing person's height even
   in an oblique view) lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck
@@ -27,7 +29,9 @@ discarded too. Without a position nothing can be checked in the world frame: the
 waits (the operator still sees it).
 
 Positions are local metres around the first fix; the velocity's standard error comes from the
-fit's residuals (at least each fix's own error), so a few noisy fixes cannot fake a drift.
+fit's residuals, at least each fix's own error, and at least what two independent fixes at the
+ends of the span would give (the pose's errors wander over seconds: frame-to-frame fixes are not
+independent), so a few noisy fixes cannot fake a drift.
 """
 
 from __future__ import annotations
@@ -48,8 +52,8 @@ Verdict = Literal["confirm", "wait", "discard"]
 
 @dataclass(frozen=True)
 class Sighting:
-    """One frame's evidence of a target: capture time, fix, its 1-sigma error, the box's larger
-    extent on the ground (metres; None when it could not be measured), the head's score and
+    """One frame's evidence of a target: capture time, fix, its 1-sigma error, the object's size
+    across the line of sight (metres; None when it could not be measured), the head's score and
     its class name (empty: unknown, taken for a person), and the track that saw it (None:
     not known)."""
 
@@ -148,6 +152,10 @@ def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
     sigma_fit = math.sqrt(float(np.sum(residual**2)) / (2 * dof))  # per axis
     sigma_fix = float(np.median([s.error_m for s in sightings])) / math.sqrt(2)
     sigma_v = max(sigma_fit, sigma_fix) / math.sqrt(spread)
+    # The fixes' errors are not independent frame to frame: they share the pose's (GNSS,
+    # altitude, attitude), which wanders over seconds. The fit cannot know the speed better than
+    # two independent fixes at the ends of the span would tell it.
+    sigma_v = max(sigma_v, math.sqrt(2) * sigma_fix / float(t.max() - t.min()))
     speed = float(np.hypot(*velocity))
     return speed, sigma_v * math.sqrt(2)
 
@@ -212,6 +220,11 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
             f"moves {speed:.1f} m/s over the ground (people drift <= {rule.max_speed_m_s:g})",
             **figures,
         )
+    unsure = (
+        f"drift {speed:.1f} +- {2 * spread:.1f} m/s unsure (people drift <= {rule.max_speed_m_s:g})"
+        if speed is not None and spread is not None and speed > rule.max_speed_m_s
+        else ""
+    )
     if enough and seen >= rule.min_seen_s:
         low = f"score {score:.2f} below {rule.min_score:g}"
         may_wait = rule.score_window_s > 0 and age <= rule.give_up_s
@@ -226,11 +239,11 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
             )
         if score < rule.min_score:
             return Assessment("wait", low, **figures)
-        if size is None:
-            unknown = "size unknown"
+        pending = "size unknown" if size is None else unsure
+        if pending:
             if age > rule.give_up_s:
-                return Assessment("discard", f"{late} ({unknown})", **figures)
-            return Assessment("wait", unknown, **figures)
+                return Assessment("discard", f"{late} ({pending})", **figures)
+            return Assessment("wait", pending, **figures)
         return Assessment("confirm", "", **figures)
     have = (
         f"{len(sightings)} sightings over {seen:.1f} s; "
