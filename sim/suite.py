@@ -121,12 +121,50 @@ DEVELOPMENT: tuple[SuiteScenario, ...] = (
 )
 
 
-def suite(names: list[str] | None = None) -> list[SuiteScenario]:
-    """The suite's scenarios, or those named, from the suite or the development set
-    (ValueError for an unknown name)."""
+@dataclass(frozen=True)
+class ObliqueScenario:
+    """A flight the way real footage of swimmers is taken: one of the ``maritime_oblique_*``
+    presets' scenes (:mod:`sim.scenarios`: SeaDronesSee's heights and view angles, figures
+    standing up out of the water, boats, jetskis, buoys and life rings beside swimmers) in a
+    world of its own seed, flown with the preset's area, flight and gimbal pitch at 960x540."""
+
+    name: str
+    preset: str
+    seed: int
+    duration_s: float = 120.0
+
+    def mission(self, base: MissionConfig) -> MissionConfig:
+        """``base`` flown over the preset's area, at its height, speed and view angle."""
+        from sim.scenarios import preset
+
+        flown = preset(self.preset).mission
+        camera = dataclasses.replace(flown.camera, width=SIZE[0], height=SIZE[1])
+        return dataclasses.replace(
+            base, area=flown.area, flight=flown.flight, camera=camera, name=f"suite_{self.name}"
+        )
+
+    def scenario(self, mission: MissionConfig) -> Scenario:
+        """The preset's world with this flight's seed."""
+        from sim.scenarios import preset
+
+        return dataclasses.replace(preset(self.preset).scenario, seed=self.seed)
+
+
+#: Oblique flights (seeds 7301-7303, worlds no head trained on), flown on demand
+#: (``sarmission sim score --scenarios oblique_mid``), not part of :data:`SUITE`'s figures.
+OBLIQUE: tuple[ObliqueScenario, ...] = (
+    ObliqueScenario("oblique_low", "maritime_oblique_low", 7301),
+    ObliqueScenario("oblique_mid", "maritime_oblique_mid", 7302),
+    ObliqueScenario("oblique_high", "maritime_oblique_high", 7303),
+)
+
+
+def suite(names: list[str] | None = None) -> list[SuiteScenario | ObliqueScenario]:
+    """The suite's scenarios, or those named, from the suite, the development set or the
+    oblique flights (ValueError for an unknown name)."""
     if not names:
         return list(SUITE)
-    known = {s.name: s for s in (*SUITE, *DEVELOPMENT)}
+    known = {s.name: s for s in (*SUITE, *DEVELOPMENT, *OBLIQUE)}
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ValueError(

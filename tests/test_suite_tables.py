@@ -38,3 +38,39 @@ def test_alert_suite_page_shows_each_runs_duplicates(tmp_path) -> None:
     scenario_header = next(line for line in lines if line.startswith("| scenario |"))
     calm = next(line for line in lines if line.startswith("| calm |"))
     assert dict(zip(_cells(scenario_header), _cells(calm), strict=True))["duplicate alerts"] == "3"
+
+
+def test_oblique_flights_fly_the_presets_views_in_worlds_of_their_own() -> None:
+    from sarmission.mission.config import MissionConfig
+    from sim.scenarios import preset
+    from sim.suite import OBLIQUE, SIZE, SUITE, suite
+
+    base = MissionConfig()
+    seeds = {s.seed for s in SUITE}
+    for flight in suite([s.name for s in OBLIQUE]):
+        chosen = preset(flight.preset)
+        mission = flight.mission(base)
+        assert mission.camera.mount_pitch_deg == chosen.mission.camera.mount_pitch_deg
+        assert (mission.camera.width, mission.camera.height) == SIZE
+        assert mission.flight.altitude_m == chosen.mission.flight.altitude_m
+        assert mission.confirm == base.confirm  # the defaults judge the alerts
+        world = flight.scenario(mission)
+        assert world.figures == "upright"
+        assert world.seed == flight.seed != chosen.scenario.seed
+        assert flight.seed not in seeds
+    pitches = sorted(-preset(s.preset).mission.camera.mount_pitch_deg for s in OBLIQUE)
+    assert pitches == [11.0, 36.0, 71.0]
+
+
+def test_the_oblique_page_names_its_rows_flights(tmp_path) -> None:
+    tool = load_tool("alert_suite")
+    figures = FlightScore(flight_s=120.0, people_in_view=7, found=5).as_dict()
+    run = {"label": "after", "note": "n", "command": "x", "commit": "abc"}
+    (tmp_path / "after.json").write_text(
+        json.dumps({"run": run, "scenarios": {"oblique_low": figures}, "suite": figures})
+    )
+    lines = tool.render(tmp_path, tool.OBLIQUE_INTRO, "flight").splitlines()
+    assert lines[0] == "# Alerts in oblique views"
+    assert any(line.startswith("| flight | flight min |") for line in lines)
+    assert any(line.startswith("| oblique_low | 2.0 | 7 | 5 (71 %)") for line in lines)
+    assert any(line.startswith("| **all** |") for line in lines)

@@ -27,7 +27,7 @@ from sarmission.commands.mission_options import add_mission_options
 if TYPE_CHECKING:
     from sarmission.evaluation.alert_scoring import FlightScore
     from sarmission.mission.config import MissionConfig
-    from sim.suite import SuiteScenario
+    from sim.suite import ObliqueScenario, SuiteScenario
 
 
 def add_score_parser(sim_sub: argparse._SubParsersAction) -> None:
@@ -71,7 +71,11 @@ class Flown:
 
 
 def fly(
-    scenario: SuiteScenario, base: MissionConfig, detector: Any, seconds: float, workdir: Path
+    scenario: SuiteScenario | ObliqueScenario,
+    base: MissionConfig,
+    detector: Any,
+    seconds: float,
+    workdir: Path,
 ) -> Flown:
     """One scenario through the live pipeline (see :class:`Flown`)."""
     from sarmission.commands.cli_helpers import free_udp_port
