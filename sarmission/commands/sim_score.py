@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
 def add_score_parser(sim_sub: argparse._SubParsersAction) -> None:
     """Register ``sim score``."""
-    from sim.suite import SUITE
+    from sim.suite import DEVELOPMENT, OBLIQUE, SUITE
 
     score = sim_sub.add_parser(
         "score",
@@ -46,7 +46,13 @@ def add_score_parser(sim_sub: argparse._SubParsersAction) -> None:
         "--scenarios",
         default=None,
         metavar="NAME[,NAME...]",
-        help="run only these (default: all: " + ", ".join(s.name for s in SUITE) + ")",
+        help="run only these (default: the suite, "
+        + ", ".join(s.name for s in SUITE)
+        + "; also the development flights, "
+        + ", ".join(s.name for s in DEVELOPMENT)
+        + ", and the oblique flights, "
+        + ", ".join(s.name for s in OBLIQUE)
+        + ")",
     )
     score.add_argument(
         "--seconds",
