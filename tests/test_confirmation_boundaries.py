@@ -2,11 +2,10 @@
 dismissed zones just inside and outside their radius.
 
 Sightings are exact: binary-exact times 0.25 s apart, fixes on a straight line made with pymap3d.
-For five such fixes over 1 s the velocity's standard error per axis is the larger of the fit's,
-(fix error / sqrt 2) / sqrt(0.625) (sum(dt^2) = 0.625 s^2 about the mean), and the span's floor,
-sqrt 2 (fix error / sqrt 2) / 1 s: the floor, the fix error itself. The speed's error is sqrt 2
-times that: a fix error of 0.25 / sqrt 2 m makes it 0.25 m/s, and the gate "speed - 2 standard
-errors > limit" moves the limit up by 0.5 m/s.
+Fixes on a line leave the fit no residuals, so the velocity's standard error per axis is the
+span's floor, sqrt 2 (fix error / sqrt 2) / 1 s for five fixes over 1 s: the fix error itself.
+The speed's error is sqrt 2 times that: a fix error of 0.25 / sqrt 2 m makes it 0.25 m/s, and
+the gate "speed - 2 standard errors > limit" moves the limit up by 0.5 m/s.
 """
 
 import math

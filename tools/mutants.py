@@ -794,12 +794,12 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "confirmation.span_floor_dropped",
         _CONFIRMATION,
-        "    sigma_v = max(sigma_v, math.sqrt(2) * sigma_fix / float(t.max() - t.min()))\n",
-        "",
+        "sigma_v = max(sigma_fit / math.sqrt(spread), span_floor)",
+        "sigma_v = sigma_fit / math.sqrt(spread)",
         _T_CONFIRM,
         "lock",
-        "the speed's error takes frame-to-frame fixes as independent (an oblique view's "
-        "wandering fixes look like a fast drift)",
+        "the speed's error from the fit alone: a few fixes on a line, or an oblique view's "
+        "fixes wandering together, fake a precise drift",
     ),
     Mutant(
         "confirmation.unsure_drift_confirmed",
@@ -935,15 +935,6 @@ MUTANTS: list[Mutant] = [
         _T_CONFIRM,
         "lock",
         "a faint candidate never given up (waits past give_up_s)",
-    ),
-    Mutant(
-        "confirmation.fix_error_ignored_in_drift",
-        _CONFIRMATION,
-        "sigma_v = max(sigma_fit, sigma_fix) / math.sqrt(spread)",
-        "sigma_v = sigma_fit / math.sqrt(spread)",
-        _T_CONFIRM,
-        "lock",
-        "a few fixes on a line fake a precise drift (fix errors ignored)",
     ),
     Mutant(
         "candidates.zone_radius_halved",

@@ -29,9 +29,9 @@ discarded too. Without a position nothing can be checked in the world frame: the
 waits (the operator still sees it).
 
 Positions are local metres around the first fix; the velocity's standard error comes from the
-fit's residuals, at least each fix's own error, and at least what two independent fixes at the
-ends of the span would give (the pose's errors wander over seconds: frame-to-frame fixes are not
-independent), so a few noisy fixes cannot fake a drift.
+fit's residuals, and is at least what two independent fixes of the fixes' own error at the
+ends of the span would give (the pose's errors wander over seconds: frame-to-frame fixes are
+not independent), so a few fixes on a line cannot fake a precise drift.
 """
 
 from __future__ import annotations
@@ -150,12 +150,13 @@ def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
     residual = pos - pos.mean(axis=0) - dt[:, None] * velocity
     dof = max(1, len(t) - 2)
     sigma_fit = math.sqrt(float(np.sum(residual**2)) / (2 * dof))  # per axis
-    sigma_fix = float(np.median([s.error_m for s in sightings])) / math.sqrt(2)
-    sigma_v = max(sigma_fit, sigma_fix) / math.sqrt(spread)
+    sigma_fix = float(np.median([s.error_m for s in sightings])) / math.sqrt(2)  # per axis
     # The fixes' errors are not independent frame to frame: they share the pose's (GNSS,
     # altitude, attitude), which wanders over seconds. The fit cannot know the speed better than
-    # two independent fixes at the ends of the span would tell it.
-    sigma_v = max(sigma_v, math.sqrt(2) * sigma_fix / float(t.max() - t.min()))
+    # two independent fixes at the ends of the span would tell it (for independent fixes, a
+    # fit's sigma_fix / sqrt(spread) is never larger).
+    span_floor = math.sqrt(2) * sigma_fix / float(t.max() - t.min())
+    sigma_v = max(sigma_fit / math.sqrt(spread), span_floor)
     speed = float(np.hypot(*velocity))
     return speed, sigma_v * math.sqrt(2)
 
