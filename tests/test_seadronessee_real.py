@@ -164,7 +164,7 @@ def test_the_person_size_gate_keeps_real_swimmers_and_drops_real_boats(dataset):
     """Real boxes sized as the confirmation sizes them (across the line of sight, from the
     replay's pose): in every band of view angle the default gate keeps at least 95 % of the
     swimmers and life rings and drops at least 95 % of the boats. Sized on the ground plane
-    instead, the gate dropped 23 % of the swimmers seen 10-30 degrees below the horizon."""
+    instead, the gate dropped 23 % of the swimmers seen 3-30 degrees below the horizon."""
     rule = ConfirmConfig()
     conventions = dataset_conventions(dataset)
     names = {c.id: c.name for c in dataset.categories}

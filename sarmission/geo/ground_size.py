@@ -10,8 +10,8 @@ height, a flat one's width (its near-far side shrinks obliquely, its width does 
 for flat things seen from above and wrong for anything with height seen obliquely: the
 along-ray side grows as 1 / tan(depression), so at 20 degrees below the horizon a person 1.8 m
 tall spans 4.9 m of ground. On the real SeaDronesSee validation file a size gate of 0.15-2.5 m
-on the ground extent drops 23 % of the swimmers seen at 10-30 degrees; across the line of sight
-it drops 4 % (docs/size_gate.md).
+on the ground extent drops 23 % of the swimmers seen 3-30 degrees below the horizon; across
+the line of sight it drops 2 % (docs/size_gate.md).
 """
 
 from __future__ import annotations
