@@ -20,9 +20,8 @@ from sarmission.data.meta_conventions import (
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.geo.geolocate import PlatformPose, geolocate
 from sarmission.geo.ground_size import apparent_size_m
-from sarmission.mavlink.telemetry import TelemetryBuffer
 from sarmission.mission.config import ConfirmConfig
-from sarmission.mission.replay_telemetry import push_frame_telemetry
+from sarmission.mission.replay_telemetry import frame_pose
 
 REAL = (
     Path(__file__).resolve().parents[1].parent
@@ -67,15 +66,6 @@ def angle_diff(a: float, b: float) -> float:
     return abs((a - b + 180.0) % 360.0 - 180.0)
 
 
-def pose_of(pose: MetaPose) -> PlatformPose:
-    """The frame's pose as `sarmission replay` gets it: pushed into a buffer, looked up."""
-    buffer = TelemetryBuffer()
-    push_frame_telemetry(buffer, 0.0, pose)
-    found = buffer.lookup(0.0)
-    assert isinstance(found, PlatformPose), found
-    return found
-
-
 def test_the_file_reads_as_seadronessee_positive_below_the_horizon(dataset):
     conventions = dataset_conventions(dataset)
     assert conventions.pitch == DEPRESSION
@@ -115,7 +105,7 @@ def test_rays_below_the_horizon_meet_the_ground_where_the_altitude_says(dataset,
         heading = float(meta.get("gimbal_heading(degrees)", meta.get("compass_heading(degrees)")))
         if pitch < MIN_PITCH_DEG:
             continue
-        platform = pose_of(pose)
+        platform = frame_pose(pose)
         intr = CameraIntrinsics.from_hfov(image.width, image.height, HFOV_DEG)
         half_vfov = math.degrees(math.atan(intr.cy / intr.fy))
         where = f"image {image.id}: pitch {pitch}, height {height:.1f} m"
@@ -173,7 +163,7 @@ def test_the_person_size_gate_keeps_real_swimmers_and_drops_real_boats(dataset):
         pose = meta_pose(image.telemetry, conventions)
         if isinstance(pose, MetaPose) and -pose.gimbal_pitch_deg >= MIN_PITCH_DEG:
             intr = CameraIntrinsics.from_hfov(image.width, image.height, HFOV_DEG)
-            placed[image.id] = (pose_of(pose), intr, -pose.gimbal_pitch_deg)
+            placed[image.id] = (frame_pose(pose), intr, -pose.gimbal_pitch_deg)
     kept: dict[tuple[str, str], list[bool]] = {}
     for ann in dataset.annotations:
         if ann.image_id not in placed or names[ann.category_id] == "ignored":

@@ -31,9 +31,8 @@ from sarmission.data.meta_conventions import MetaPose, dataset_conventions, meta
 from sarmission.geo.camera import CameraIntrinsics  # noqa: E402
 from sarmission.geo.geolocate import PlatformPose  # noqa: E402
 from sarmission.geo.ground_size import apparent_size_m, ground_extent_m  # noqa: E402
-from sarmission.mavlink.telemetry import TelemetryBuffer  # noqa: E402
 from sarmission.mission.config import ConfirmConfig  # noqa: E402
-from sarmission.mission.replay_telemetry import push_frame_telemetry  # noqa: E402
+from sarmission.mission.replay_telemetry import frame_pose  # noqa: E402
 
 OUT = ROOT / "docs" / "size_gate.md"
 HFOV_DEG = 70.0
@@ -50,14 +49,6 @@ MEASURES: dict[str, Callable[..., float | None]] = {
 Sizes = dict[tuple[str, int], dict[str, list[float]]]
 
 
-def platform_pose(pose: MetaPose) -> PlatformPose | None:
-    """A frame's pose as ``sarmission replay`` gets it: pushed into a buffer, looked up."""
-    buffer = TelemetryBuffer()
-    push_frame_telemetry(buffer, 0.0, pose)
-    found = buffer.lookup(0.0)
-    return found if isinstance(found, PlatformPose) else None
-
-
 def box_sizes(dataset: VideoDataset) -> Sizes:
     """Per (class, band index): each measure's sizes of the boxes it could size."""
     conventions = dataset_conventions(dataset)
@@ -67,9 +58,7 @@ def box_sizes(dataset: VideoDataset) -> Sizes:
         pose = meta_pose(image.telemetry, conventions)
         if not isinstance(pose, MetaPose) or -pose.gimbal_pitch_deg < MIN_PITCH_DEG:
             continue
-        platform = platform_pose(pose)
-        if platform is None:
-            continue
+        platform = frame_pose(pose)
         band = next(i for i, (lo, hi) in enumerate(BANDS) if lo <= -pose.gimbal_pitch_deg < hi)
         intr = CameraIntrinsics.from_hfov(image.width, image.height, HFOV_DEG)
         frames[image.id] = (platform, intr, band)

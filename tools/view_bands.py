@@ -37,9 +37,8 @@ from sarmission.evaluation.matching import FrameBoxes, match_frame  # noqa: E402
 from sarmission.geo.camera import CameraIntrinsics  # noqa: E402
 from sarmission.geo.geolocate import FixLimits, geolocate  # noqa: E402
 from sarmission.geo.wgs84 import geodetic_to_ned  # noqa: E402
-from sarmission.mavlink.telemetry import TelemetryBuffer  # noqa: E402
 from sarmission.mission.config import GeolocationConfig  # noqa: E402
-from sarmission.mission.replay_telemetry import push_frame_telemetry  # noqa: E402
+from sarmission.mission.replay_telemetry import frame_pose  # noqa: E402
 
 OUT = ROOT / "docs" / "view_bands.md"
 #: (label, low, high, value flown) of each band: gimbal pitch below the horizon, height.
@@ -180,9 +179,7 @@ def geolocate_clip(
             pose = exact if rng is None else with_noise(exact, rng)
             if not truth_points:
                 continue
-            buffer = TelemetryBuffer(require_gps_fix=False)
-            push_frame_telemetry(buffer, 0.0, pose)
-            platform = buffer.lookup(0.0)
+            platform = frame_pose(pose)
             for errors, points in ((truth_errors, truth_points), (det_errors, det_points)):
                 for centre, truth in points:
                     errors.add(geolocate(centre, intr, platform, limits=limits), truth)

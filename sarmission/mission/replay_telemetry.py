@@ -66,6 +66,17 @@ def push_frame_telemetry(
     )
 
 
+def frame_pose(pose: MetaPose) -> PlatformPose:
+    """One frame's placement as a replay looks it up, alone: pushed into a fresh buffer (home
+    at the frame's own position) and read back at its own time. For tools and checks that
+    geolocate single frames of a dataset the way ``sarmission replay`` does."""
+    buffer = TelemetryBuffer()
+    push_frame_telemetry(buffer, 0.0, pose)
+    found = buffer.lookup(0.0)
+    assert isinstance(found, PlatformPose), found  # a fresh buffer, read at its only sample
+    return found
+
+
 class MetaReplayTelemetry:
     """The telemetry of a replay from dataset meta: ``buffer`` holds the placed frames; a frame
     whose meta placed nothing answers its own reason instead of an interpolated neighbour.
