@@ -206,3 +206,29 @@ def test_the_roi_pauses_the_search_only_with_a_gimbal(rig_factory, gimbal):
     rig.settle()
     assert len(rig.commands(M.MAV_CMD_DO_SET_ROI_LOCATION)) == 1
     assert rig.policy.search_paused() is gimbal
+
+
+def test_a_refined_position_moves_a_queued_visit_or_withdraws_it(rig_factory):
+    """Target 1's visit leaves at once; target 2 waits for the interval. Its position, refined
+    20 m east, is where the vehicle is sent; target 3's, refined to a 40 m error, is withdrawn
+    from the plan; a visit already flown is not sent again."""
+    rig = rig_factory(["loiter"], aircraft=at(40.0, 0.0))
+    first = rig.alert(1, 60.0, 0.0)
+    rig.policy.tick()
+    second = rig.alert(2, 150.0, -50.0)
+    third = rig.alert(3, 150.0, 60.0)
+    rig.settle()
+    second.position = at(150.0, -30.0)
+    assert rig.policy.refine(second)
+    third.error_m = 40.0
+    assert rig.policy.refine(third)
+    first.position = at(70.0, 0.0)
+    assert not rig.policy.refine(first)  # visited already: nothing goes out again
+    assert sorted(rig.policy.planner.pending) == [2]
+    assert any("target 3" in line and "visit withdrawn: position error 40 m" in line
+               for line in rig.lines)  # fmt: skip
+    rig.clock.t += 61.0
+    rig.settle()
+    flown = rig.commands(M.MAV_CMD_DO_REPOSITION)
+    assert len(flown) == 2
+    assert flown[1].params[4:6] == pytest.approx([round(v * 1e7) for v in at(150.0, -30.0)], abs=1)

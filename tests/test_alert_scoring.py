@@ -85,3 +85,20 @@ def test_a_life_ring_alert_over_a_life_ring_is_counted_apart():
     assert (s.appliances_found, s.false_alerts) == (1, 1)
     assert s.false_on == {"life_saving_appliances": 1}
     assert s.as_dict()["appliances_found"] == 1
+
+
+def test_the_position_is_scored_as_it_went_out_and_as_refined_against_its_own_error():
+    """Alerted 12 m north of a person 10 m north with a 1.5 m error (2 m off: within twice it),
+    refined by the flight's end to 10.5 m north with 0.2 m (0.5 m off: not within twice it)."""
+    sent = Alert(40, [(40, 100.0, 100.0)], at(12.0, 0.0), error_m=1.5)
+    refined = Alert(40, [(40, 100.0, 100.0)], at(10.5, 0.0), error_m=0.2)
+    s = score_flight(frames(), [(sent, 45, 4.5)], final={"a": refined})
+    assert s.geo_error_m == [pytest.approx(2.0, abs=0.01)]
+    assert s.geo_error_final_m == [pytest.approx(0.5, abs=0.01)]
+    assert (s.geo_within_2x, s.geo_within_2x_final) == ([True], [False])
+    d = s.as_dict()
+    assert d["geo_error_final_m"]["p50"] == pytest.approx(0.5, abs=0.01)
+    assert d["geo_within_2x"] == {"at_alert": 1.0, "final": 0.0}
+    # without a stored alert at the end, the one that went out is the final one
+    s = score_flight(frames(), [(sent, 45, 4.5)])
+    assert s.geo_error_final_m == s.geo_error_m and s.geo_within_2x_final == [True]

@@ -215,10 +215,15 @@ class AnnouncedActions:
 
     def __init__(self) -> None:
         self.announced: list = []
+        self.refined: list = []
 
     def announce(self, alert) -> int:
         self.announced.append((alert.alert_id, alert.position))
         return 1
+
+    def refine(self, alert) -> bool:
+        self.refined.append((alert.alert_id, alert.position))
+        return False
 
     def pending(self) -> int:
         return 0

@@ -74,3 +74,43 @@ def test_the_oblique_page_names_its_rows_flights(tmp_path) -> None:
     assert any(line.startswith("| flight | flight min |") for line in lines)
     assert any(line.startswith("| oblique_low | 2.0 | 7 | 5 (71 %)") for line in lines)
     assert any(line.startswith("| **all** |") for line in lines)
+
+
+def test_tables_show_the_position_at_the_end_and_its_honesty_and_read_older_files(
+    tmp_path,
+) -> None:
+    """Both tables give the geolocation error as the alert went out and at the flight's end,
+    and how often the truth lay within twice the alert's error; a run file written before
+    those figures existed reads "-" there (and still has as many cells as the header)."""
+    score = FlightScore(
+        flight_s=120.0,
+        people_in_view=2,
+        found=2,
+        geo_error_m=[20.0, 4.0],
+        geo_error_final_m=[6.0, 2.0],
+        geo_within_2x=[False, True],
+        geo_within_2x_final=[True, True],
+    )
+    header, rule, row = table([("low", score)]).splitlines()
+    cells = dict(zip(_cells(header), _cells(row), strict=True))
+    assert rule.count("---") == len(_cells(header))
+    assert cells["geolocation error p50 / p95 m"] == "12.0 / 19.2"
+    assert cells["at the end p50 / p95 m"] == "4.0 / 5.8"
+    assert cells["within 2x its error (alert / end)"] == "50 % / 100 %"
+    tool = load_tool("alert_suite")
+    old = score.as_dict()
+    for key in ("geo_error_final_m", "geo_within_2x"):
+        del old[key]
+    run = {"label": "old", "note": "before", "command": "x", "commit": "abc"}
+    (tmp_path / "old.json").write_text(
+        json.dumps({"run": run, "scenarios": {"low": old}, "suite": old})
+    )
+    lines = tool.render(tmp_path).splitlines()
+    header = next(line for line in lines if line.startswith("| run |"))
+    rule = lines[lines.index(header) + 1]
+    row = next(line for line in lines if line.startswith("| old |"))
+    cells = dict(zip(_cells(header), _cells(row), strict=True))
+    assert rule.count("---") == len(_cells(header))
+    assert cells["at the end p50 / p95 m"] == "- / -"
+    assert cells["within 2x its error (alert / end)"] == "- / -"
+    assert cells["geolocation error p50 / p95 m"] == "12.0 / 19.2"

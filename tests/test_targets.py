@@ -41,7 +41,11 @@ def test_error_weighted_mean_favours_the_better_fix():
     reg.observe(2, 0, 0.8, 1.0, fix_at(6, 0, error=3.0))
     # weights 1 and 1/9: north = 6 * (1/9) / (1 + 1/9) = 0.6
     assert distance_m(t.position, ll(0.6, 0.0)) < 0.05
-    assert t.error_m == pytest.approx(1.0)
+    # fully correlated errors: (1 * 1 + 3 / 9) / (1 + 1 / 9) = 1.2, not the better fix's 1.0
+    assert t.error_m == pytest.approx(1.2)
+    # the fixes lie 6 m apart: their weighted RMS spread, sqrt(0.6^2 * 0.9 + 5.4^2 * 0.1) =
+    # 1.8 m, is more than the fixes' errors say, and the alert reports it
+    assert t.reported_error_m == pytest.approx(1.8)
 
 
 def test_targets_beyond_radius_stay_separate():
@@ -368,7 +372,7 @@ def test_a_known_targets_stored_position_is_averaged_with_new_fixes_not_replaced
     assert joined.error_m == pytest.approx(2.0)
     reg.observe(1, 0, 0.8, 0.1, fix_at(4, 0, error=1.0))  # weights 1/4, 1/4, 1
     assert distance_m(joined.position, ll(20 / 6, 0)) < 0.05
-    assert joined.error_m == pytest.approx(1.0)
+    assert joined.error_m == pytest.approx((0.5 + 0.5 + 1.0) / 1.5)  # weighted mean error
     joined.detach(1)
     assert distance_m(joined.position, ll(0, 0)) < 0.05
     assert joined.error_m == pytest.approx(2.0)  # the stored error again, not the track's

@@ -23,6 +23,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from sarmission.commands.sim_score import COLUMNS, table_header, table_row
+
 ROOT = Path(__file__).resolve().parents[1]
 SUITE_DIR = ROOT / "docs" / "suite"
 PAGE = ROOT / "docs" / "alert_suite.md"
@@ -76,18 +78,6 @@ def _fmt(v: object, spec: str = ".1f") -> str:
     return "-" if v is None else format(v, spec) if isinstance(v, float) else str(v)
 
 
-def _row(name: str, d: dict) -> str:
-    share = d["found_share"]
-    return (
-        f"| {name} | {d['flight_s'] / 60:.1f} | {d['people_in_view']} | {d['found']}"
-        f" ({'-' if share is None else f'{100 * share:.0f} %'}) | {d['false_alerts']}"
-        f" | {_fmt(d['false_per_hour'])} | {_fmt(d.get('duplicates'))}"
-        f" | {_fmt(d['time_to_alert_s']['p50'])} / "
-        f"{_fmt(d['time_to_alert_s']['p90'])} | {_fmt(d['geo_error_m']['p50'])} / "
-        f"{_fmt(d['geo_error_m']['p95'])} |"
-    )
-
-
 INTRO = [
     "# Alerts on the scenario suite",
     "",
@@ -128,15 +118,11 @@ def render(runs_dir: Path = SUITE_DIR, intro: list[str] = INTRO, part: str = "sc
     reliability of the candidates' scores."""
     lines = list(intro)
     runs = [json.loads(path.read_text()) for path in sorted(runs_dir.glob("*.json"))]
-    lines += [
-        "| run | what | people in view | found | false alerts | false per hour | "
-        "duplicate alerts | time to alert p50 / p90 s | geolocation error p50 / p95 m |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
+    lines += table_header("run | what", COLUMNS[1:])
     for figures in runs:
         run = figures.get("run", {})
-        row = _row(f"{run.get('label', '?')} | {run.get('note', '')}", figures["suite"])
-        lines.append(row.replace(f" | {figures['suite']['flight_s'] / 60:.1f} | ", " | ", 1))
+        name = f"{run.get('label', '?')} | {run.get('note', '')}"
+        lines.append(table_row(name, figures["suite"], minutes=False))
     lines.append("")
     for figures in runs:
         run = figures.get("run", {})
@@ -146,14 +132,12 @@ def render(runs_dir: Path = SUITE_DIR, intro: list[str] = INTRO, part: str = "sc
             *([run["note"], ""] if run.get("note") else []),
             f"`{run.get('command', '?')}` at {run.get('commit', '?')}",
             "",
-            f"| {part} | flight min | people in view | found | false alerts | false per "
-            "hour | duplicate alerts | time to alert p50 / p90 s | geolocation error p50 / p95 m |",
-            "|---|---|---|---|---|---|---|---|---|",
+            *table_header(part),
         ]
         for name, d in figures["scenarios"].items():
-            lines.append(_row(name, d))
+            lines.append(table_row(name, d))
         suite = figures["suite"]
-        lines.append(_row("**all**" if part != "scenario" else "**suite**", suite))
+        lines.append(table_row("**all**" if part != "scenario" else "**suite**", suite))
         if suite.get("false_on"):
             lines += [
                 "",

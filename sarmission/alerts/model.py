@@ -8,9 +8,10 @@ any alert (:attr:`Alert.decision`, with who and when); an operator's confirmatio
 candidate, and a dismissed position suppresses new alerts around it (:func:`dismiss_radius_m`).
 
 An :class:`Alert` is created once per locked target and never changes afterwards except for its
-tier and decision, its acknowledgement, what is known of its way to the autopilot, and - for a
-target that could not be geolocated when it was locked - the position attached once it is; the
-store keeps these.
+tier and decision, its acknowledgement, what is known of its way to the autopilot, and its
+position: attached once found for a target that could not be geolocated when it was locked,
+and refined as its target's fixes come in (:mod:`sarmission.mission.refinement`); the store
+keeps these.
 
 What is known differs by channel. A command (DO_REPOSITION, ROI, mission upload) is answered by
 the autopilot: it is *delivered* when accepted, *refused* (with the autopilot's result and reason)

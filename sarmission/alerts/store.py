@@ -267,10 +267,11 @@ class AlertEvent:
     """One change in the store: ``kind`` is ``"new"``, ``"ack"`` (operator), ``"delivered"`` /
     ``"refused"`` (a command accepted / refused by the autopilot), ``"sent"`` (sent once more on
     a channel without acknowledgement), ``"position"`` (a position attached to an alert that
-    had none), ``"confirmed"`` / ``"discarded"`` (a candidate's tier settled) or ``"decided"``
-    (an operator's decision); ``seq`` is its position in the store's event log; ``alert`` is the
-    alert as it is now; ``by`` the operator who made the change (None: the system or unknown);
-    ``detail`` the evidence, reason or decision of that change."""
+    had none, or a placed alert's position refined), ``"confirmed"`` / ``"discarded"`` (a
+    candidate's tier settled) or ``"decided"`` (an operator's decision); ``seq`` is its position
+    in the store's event log; ``alert`` is the alert as it is now; ``by`` the operator who made
+    the change (None: the system or unknown); ``detail`` the evidence, reason or decision of
+    that change."""
 
     seq: int
     kind: EventKind
@@ -564,6 +565,35 @@ class AlertStore:
             )
             if cur.rowcount:
                 self._log(conn, "position", alert_id)
+        if cur.rowcount:
+            self._notify()
+        return bool(cur.rowcount)
+
+    def refine_position(
+        self,
+        alert_id: str,
+        position: tuple[float, float],
+        error_m: float | None,
+        note: str,
+        detail: str = "",
+    ) -> bool:
+        """Move a placed alert to a better ``(lat, lon)`` with its error and note, durably: the
+        target's position once more fixes came in. Logged as a ``position`` event with
+        ``detail`` (e.g. how far it moved). An alert without a position (see
+        :meth:`attach_position`), one an operator dismissed (its dismissed zone stays where
+        the operator saw it) or one the system discarded is left as it is: returns False.
+        Unknown id: KeyError; a position not finite or out of range: ValueError."""
+        lat, lon = check_position(position)
+        with self._transaction() as conn:
+            self._require(conn, alert_id)
+            cur = conn.execute(
+                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ? "
+                "WHERE alert_id = ? AND lat IS NOT NULL AND discarded IS NULL "
+                "AND decision IS NOT 'dismissed'",
+                (lat, lon, error_m, note, alert_id),
+            )
+            if cur.rowcount:
+                self._log(conn, "position", alert_id, detail=detail)
         if cur.rowcount:
             self._notify()
         return bool(cur.rowcount)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import tempfile
 import time
 from dataclasses import dataclass
@@ -130,35 +129,78 @@ def fly(
         if a.target_id in evidence and evidence[a.target_id].sightings
     }
     return Flown(
-        score_flight(truth, alerts, candidates=stored, track_scores=track_scores),
+        score_flight(
+            truth,
+            alerts,
+            candidates=stored,
+            track_scores=track_scores,
+            final={a.alert_id: a for a in stored},
+        ),
         summary,
         session.controller,
         truth,
     )
 
 
+#: The columns after the first of :func:`table_header`.
+COLUMNS = (
+    "flight min",
+    "people in view",
+    "found",
+    "false alerts",
+    "false per hour",
+    "duplicate alerts",
+    "time to alert p50 / p90 s",
+    "geolocation error p50 / p95 m",
+    "at the end p50 / p95 m",
+    "within 2x its error (alert / end)",
+)
+
+
+def table_header(first: str, columns: tuple[str, ...] = COLUMNS) -> list[str]:
+    """A markdown table's header lines: ``first`` (one column, or several joined by " | "),
+    then ``columns``."""
+    return [
+        "| " + " | ".join((first, *columns)) + " |",
+        "|" + "---|" * (first.count("|") + 1 + len(columns)),
+    ]
+
+
+def table_row(name: str, d: dict[str, Any], minutes: bool = True) -> str:
+    """One row of :data:`COLUMNS` (without "flight min" unless ``minutes``) from
+    :meth:`FlightScore.as_dict`'s figures; figures an older file lacks read "-"."""
+
+    def num(v: float | None, spec: str = ".1f") -> str:
+        return "-" if v is None else format(v, spec)
+
+    def pair(key: str, a: str, b: str) -> str:
+        got = d.get(key) or {}
+        return f"{num(got.get(a))} / {num(got.get(b))}"
+
+    def share(v: float | None) -> str:
+        return "-" if v is None else f"{100 * v:.0f} %"
+
+    within = d.get("geo_within_2x") or {}
+    found = d["found_share"]
+    cells = [
+        *([f"{d['flight_s'] / 60:.1f}"] if minutes else []),
+        str(d["people_in_view"]),
+        f"{d['found']} ({'-' if found is None else f'{100 * found:.0f} %'})",
+        str(d["false_alerts"]),
+        num(d["false_per_hour"]),
+        num(d.get("duplicates"), "d"),
+        pair("time_to_alert_s", "p50", "p90"),
+        pair("geo_error_m", "p50", "p95"),
+        pair("geo_error_final_m", "p50", "p95"),
+        f"{share(within.get('at_alert'))} / {share(within.get('final'))}",
+    ]
+    return "| " + " | ".join((name, *cells)) + " |"
+
+
 def table(rows: list[tuple[str, FlightScore]]) -> str:
     """The scores as a markdown table, one row per scenario and the suite's total."""
-
-    def pct(d: dict[str, Any], key: str) -> str:
-        v = d.get(key)
-        return "-" if v is None else f"{v:.1f}"
-
-    lines = [
-        "| scenario | flight min | people in view | found | false alerts | false per hour "
-        "| duplicate alerts | time to alert p50 / p90 s | geolocation error p50 / p95 m |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for name, s in rows:
-        d = s.as_dict()
-        fph = d["false_per_hour"]
-        lines.append(
-            f"| {name} | {s.flight_s / 60:.1f} | {s.people_in_view} | {s.found}"
-            f" ({'-' if math.isnan(s.found_share) else f'{100 * s.found_share:.0f} %'})"
-            f" | {s.false_alerts} | {'-' if fph is None else f'{fph:.1f}'} | {s.duplicates}"
-            f" | {pct(d['time_to_alert_s'], 'p50')} / {pct(d['time_to_alert_s'], 'p90')}"
-            f" | {pct(d['geo_error_m'], 'p50')} / {pct(d['geo_error_m'], 'p95')} |"
-        )
+    lines = table_header("scenario")
+    lines += [table_row(name, s.as_dict()) for name, s in rows]
     return "\n".join(lines)
 
 

@@ -18,6 +18,12 @@ when none), unless it is an appliance alert (its class a life-saving appliance,
 found, counted apart. A person is *in view*
 when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least ``min_view_s``;
 the time to alert runs from their first frame to the confirmation.
+
+The geolocation error of a found person's alert is measured twice: as the alert went out (its
+position at the confirmation) and as stored at the flight's end (``final``: alert id -> the
+stored alert; a placed alert's position is refined as its target's fixes come in). Each time
+the truth is also checked against the alert's own error: within twice its 1-sigma error is
+where an honest estimate puts it about 95 % of the time.
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -57,7 +63,11 @@ class FlightScore:
     appliances_found: int = 0  # appliance alerts over a life-saving appliance
     false_on: Counter[str] = field(default_factory=Counter)
     time_to_alert_s: list[float] = field(default_factory=list)
-    geo_error_m: list[float] = field(default_factory=list)
+    geo_error_m: list[float] = field(default_factory=list)  # as the alert went out
+    geo_error_final_m: list[float] = field(default_factory=list)  # as stored at the flight's end
+    # whether the truth lay within twice the alert's 1-sigma error, as it went out / at the end
+    geo_within_2x: list[bool] = field(default_factory=list)
+    geo_within_2x_final: list[bool] = field(default_factory=list)
     missed: list[str] = field(default_factory=list)
     # every candidate's track score and whether a person was under it (reliability)
     candidate_scores: list[float] = field(default_factory=list)
@@ -79,6 +89,9 @@ class FlightScore:
         self.false_on.update(other.false_on)
         self.time_to_alert_s += other.time_to_alert_s
         self.geo_error_m += other.geo_error_m
+        self.geo_error_final_m += other.geo_error_final_m
+        self.geo_within_2x += other.geo_within_2x
+        self.geo_within_2x_final += other.geo_within_2x_final
         self.missed += other.missed
         self.candidate_scores += other.candidate_scores
         self.candidate_right += other.candidate_right
@@ -110,6 +123,14 @@ class FlightScore:
                 "p90": _pct(self.time_to_alert_s, 90),
             },
             "geo_error_m": {"p50": _pct(self.geo_error_m, 50), "p95": _pct(self.geo_error_m, 95)},
+            "geo_error_final_m": {
+                "p50": _pct(self.geo_error_final_m, 50),
+                "p95": _pct(self.geo_error_final_m, 95),
+            },
+            "geo_within_2x": {
+                "at_alert": _share(self.geo_within_2x),
+                "final": _share(self.geo_within_2x_final),
+            },
             "missed": list(self.missed),
             "candidate_reliability": reliability_table(self.candidate_scores, self.candidate_right),
         }
@@ -117,6 +138,10 @@ class FlightScore:
 
 def _round(v: float, digits: int) -> float | None:
     return None if math.isnan(v) else round(v, digits)
+
+
+def _share(flags: Sequence[bool]) -> float | None:
+    return None if not flags else round(sum(flags) / len(flags), 4)
 
 
 def _pct(values: Sequence[float], q: float) -> float | None:
@@ -188,6 +213,13 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
     return first, longest
 
 
+def _geo(errors: list[float], within: list[bool], alert: Any, truth: tuple[float, float]) -> None:
+    """The alert's distance from the truth, and whether that is within twice its error."""
+    err = _metres(alert.position, truth)
+    errors.append(err)
+    within.append(alert.error_m is not None and err <= 2.0 * alert.error_m)
+
+
 def score_flight(
     frames: Sequence[Any],
     alerts: Sequence[tuple[Any, int, float]],
@@ -198,6 +230,7 @@ def score_flight(
     window_s: float = WINDOW_S,
     candidates: Sequence[Any] = (),
     track_scores: dict[str, float] | None = None,
+    final: Mapping[str, Any] | None = None,
 ) -> FlightScore:
     """The figures of one flight (see the module docstring). ``candidates`` (every stored
     alert, confirmed or not) explain the misses (what became of a missed person's candidate,
@@ -235,8 +268,14 @@ def score_flight(
             continue
         found.add(person.track_id)
         out.time_to_alert_s.append(confirm_t - first[person.track_id])
-        if alert.position is not None and person.lat is not None:
-            out.geo_error_m.append(_metres(alert.position, (person.lat, person.lon)))
+        if person.lat is None:
+            continue
+        truth = (person.lat, person.lon)
+        if alert.position is not None:
+            _geo(out.geo_error_m, out.geo_within_2x, alert, truth)
+        last = (final or {}).get(alert.alert_id, alert)
+        if last.position is not None:
+            _geo(out.geo_error_final_m, out.geo_within_2x_final, last, truth)
     out.found = len(found & in_view)
     out.found_briefly_seen = len(found - in_view)
     fate: dict[int, str] = {}

@@ -21,19 +21,21 @@ The mission file's ``[actions] policy`` lists, in order, what to do for each new
   whole, and the first visit made current; after the visits the survey resumes where it was.
   At most one insertion every ``visit_interval_s``.
 
-Positional actions are skipped for an alert without a position (there is nowhere to go); when
-its position is found later, the alert is announced again with it. They are withheld, with the
-reason on the console, for a position whose error exceeds ``max_error_m`` or that lies more
-than ``area_margin_m`` outside the mission area (:class:`~sarmission.mission.visits.MoveGate`).
-Everything goes through the :class:`~sarmission.mavlink.commands.Outbox`, which waits for each
-COMMAND_ACK with retries and keeps actions queued while the link is down. The store records what
-is known on each action's own channel (:data:`CHANNELS`): a command's answer (accepted, i.e.
-delivered, or refused with the autopilot's reason), and for the STATUSTEXT, which MAVLink never
-acknowledges, each of its ``statustext_repeats`` sends (it is never called delivered). A
-restarted controller re-submits what never got through (:meth:`ActionPolicy.resume`): commands
-nobody answered, and the sends a STATUSTEXT still lacks. Of the positional actions only the
-newest unanswered one per channel is re-submitted: flying to an older target first would only
-delay the newest order.
+Positional actions are skipped for an alert without a position (there is nowhere to go); when its
+position is found later, the alert is announced again with it. When a confirmed alert's position is
+refined (:mod:`~sarmission.mission.refinement`), a visit still queued for it goes to the new
+position (:meth:`ActionPolicy.refine`); nothing already sent is sent again. Positional actions are
+withheld, with the reason on the console, for a position whose error exceeds ``max_error_m`` or
+that lies more than ``area_margin_m`` outside the mission area
+(:class:`~sarmission.mission.visits.MoveGate`). Everything goes through the
+:class:`~sarmission.mavlink.commands.Outbox`, which waits for each COMMAND_ACK with retries and
+keeps actions queued while the link is down. The store records what is known on each action's own
+channel (:data:`CHANNELS`): a command's answer (accepted, i.e. delivered, or refused with the
+autopilot's reason), and for the STATUSTEXT, which MAVLink never acknowledges, each of its
+``statustext_repeats`` sends (it is never called delivered). A restarted controller re-submits what
+never got through (:meth:`ActionPolicy.resume`): commands nobody answered, and the sends a
+STATUSTEXT still lacks. Of the positional actions only the newest unanswered one per channel is
+re-submitted: flying to an older target first would only delay the newest order.
 """
 
 from __future__ import annotations
@@ -175,6 +177,29 @@ class ActionPolicy:
         was found after it was announced (the STATUSTEXT then carries the position, and the
         positional actions skipped the first time go out); returns how many were queued."""
         return sum(self._submit(entry, alert) for entry in self.policy)
+
+    def refine(self, alert: Alert) -> bool:
+        """A confirmed alert's position was refined: a visit still queued for its target goes
+        to the new position, or is withdrawn if the new position fails the move gate. What
+        went out already (STATUSTEXT, ROI, a visit flown) is not sent again: the feed and the
+        store carry the refined position. Returns whether a queued visit changed."""
+        target_id = alert.target_id
+        if target_id not in self.planner.pending or alert.position is None:
+            return False
+        refusal = (
+            "no mission area to check it against"
+            if self.move_gate is None
+            else self.move_gate.refusal(alert.position, alert.error_m)
+        )
+        if refusal:
+            del self.planner.pending[target_id]
+            self._visit_alerts.pop(target_id, None)
+            self.withheld += 1
+            self.console(f"  -> target {target_id} ({alert.short_id}): visit withdrawn: {refusal}")
+            return True
+        self.planner.add(target_id, alert.position)
+        self._visit_alerts[target_id] = alert
+        return True
 
     def resume(self) -> int:
         """Re-queue what earlier runs stored but never got through (commands not answered,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from sarmission.alerts.model import Alert
@@ -103,11 +104,19 @@ class CandidateBook:
         self.candidates[target_id] = alert
 
     # -- verdicts ----------------------------------------------------------------------------
-    def review(self, now: float, when: float | None = None) -> list[Promotion]:
+    def review(
+        self,
+        now: float,
+        when: float | None = None,
+        prepare: Callable[[Alert], None] | None = None,
+    ) -> list[Promotion]:
         """Count this processed frame for every candidate, assess each at time ``now``; returns
         those confirmed now (promoted in the store first). Discarded ones are recorded and
         forgotten. ``when``: ``now`` as POSIX seconds for the store (default: the wall clock;
-        a replay gives the footage's time, so that a confirmation and its lock share a clock)."""
+        a replay gives the footage's time, so that a confirmation and its lock share a clock).
+        ``prepare`` is called with each candidate the evidence confirms just before it is
+        promoted (the controller places it at its target's position then, so that the
+        confirmation is stored and streamed with it)."""
         promoted = []
         for target_id in self.candidates:
             if target_id in self.evidence:
@@ -118,6 +127,8 @@ class CandidateBook:
                 continue
             del self.candidates[target_id]
             if found.verdict == "confirm":
+                if prepare is not None:
+                    prepare(alert)
                 stored = self.store.promote(alert.alert_id, found.summary(), when)
                 if stored is None:  # dismissed by the operator meanwhile: stays silent
                     log.info(

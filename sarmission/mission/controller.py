@@ -17,6 +17,10 @@ Per frame (:meth:`MissionController.process`)::
       -> for a target alerted without a position that now has one (seen again, or its
          earlier sightings placed from buffered telemetry once the autopilot's state is known):
            store.attach_position (durable) -> console line -> action policy (now with a place)
+      -> for a placed alert whose target's mean of fixes has moved or whose error changed
+         (at its confirmation, then at most every few seconds; :mod:`~sarmission.mission.
+         refinement`): store.refine_position (durable) -> console line -> the action policy's
+         queued visit moves
       -> recorder (frame, proposals, detections, tracks, telemetry, map)
 
 A fix is computed only from the autopilot's own state (the telemetry buffer's pose, which needs
@@ -35,6 +39,7 @@ they show).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import re
@@ -58,6 +63,7 @@ from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.config import MissionConfig
+from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
@@ -102,11 +108,13 @@ class ControllerStats:
     locks: int = 0
     candidates: list[Alert] = field(default_factory=list)  # every lock of a new target
     alerts: list[Alert] = field(default_factory=list)  # confirmed: the team was told
-    # each confirmed alert with the frame and capture time it was confirmed at
+    # each confirmed alert as it was confirmed (a copy: later refinements change the alert,
+    # not it), with the frame and capture time it was confirmed at
     confirmed: list[tuple[Alert, int, float]] = field(default_factory=list)
     suppressed: int = 0  # new targets inside a zone the operator dismissed
     objects: int = 0  # locked targets the head calls an object (boat, buoy): never alerted
     located_later: int = 0
+    refined: int = 0  # placed alerts moved to their target's better position
     unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
     merged_tracks: int = 0
     paused: int = 0  # frames not searched: the camera was pointed at a target
@@ -193,6 +201,10 @@ class MissionController:
         self._t0: float | None = None
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
+        # target id -> its alert stored with a position (candidate, then confirmed), refined
+        # as the target's fixes come in
+        self._placed: dict[int, Alert] = {}
+        self.refiner = PositionRefiner()
         self._objects: set[int] = set()  # targets locked but called an object (not alerted)
         self._pending_locks: set[int] = set()  # tracks locked while the registry was unsure
         # target id -> (capture time, box centre) of its sightings, to place it from buffered
@@ -226,10 +238,15 @@ class MissionController:
         self._place_from_buffer(frame_index)
         self._record_drone(timestamp, pose)
         promotions = (
-            self.candidates.review(timestamp, self.to_posix(timestamp))
+            self.candidates.review(
+                timestamp,
+                self.to_posix(timestamp),
+                prepare=lambda alert: self._refine(alert, frame_index, timestamp, force=True),
+            )
             + self.candidates.operator_decisions()
         )
         alerts = [self._confirm(promotion, frame_index, timestamp) for promotion in promotions]
+        self._refine_changed(changed, frame_index, timestamp)
         self.stats.busy_s += time.perf_counter() - started
         if self.recorder is not None:
             if pose is None:
@@ -544,7 +561,10 @@ class MissionController:
         self.store.add(alert)  # durable before anyone is told
         self.candidates.add(target.target_id, alert)
         self.stats.candidates.append(alert)
-        if alert.position is None:
+        if alert.position is not None:
+            self._placed[target.target_id] = alert
+            self.refiner.done(alert.alert_id, track.history[-1][1])
+        else:
             self._unplaced[target.target_id] = alert
             self._remember_sighting(target.target_id, track)
             self.stats.unplaced[re.sub(r"\d+(\.\d+)?", "N", alert.position_note)] += 1
@@ -554,11 +574,17 @@ class MissionController:
             self.recorder.text("alerts", line, level="INFO")
 
     def _confirm(self, promotion: Promotion, frame_index: int, timestamp: float) -> Alert:
-        """A candidate confirmed (stored already): told to the console, the autopilot, the
-        team."""
+        """A candidate confirmed (stored already, placed at its target's position just before:
+        the mean of the fixes that confirmed it, not the lock's one fix; an operator's
+        confirmation is placed here), then told to the console, the autopilot, the team."""
         alert = promotion.alert
+        if alert.target_id in self._unplaced:  # its position, once found, goes to this one
+            self._unplaced[alert.target_id] = alert
+        elif alert.position is not None:
+            self._placed[alert.target_id] = alert
+            self._refine(alert, frame_index, timestamp, force=True)
         self.stats.alerts.append(alert)
-        self.stats.confirmed.append((alert, frame_index, timestamp))
+        self.stats.confirmed.append((dataclasses.replace(alert), frame_index, timestamp))
         line = format_alert(alert)
         self.console(line)
         if self.recorder is not None:
@@ -623,12 +649,51 @@ class MissionController:
             target.note,
         )
         self.stats.located_later += 1
+        self._placed[target.target_id] = alert
+        self.refiner.done(alert.alert_id, target.last_seen)
         line = format_located(alert, frame_index, track_id)
         self.console(line)
         if self.recorder is not None:
             self.recorder.text("alerts", line, level="WARN")
         if self.actions is not None and alert.tier == "confirmed":  # told before: tell again
             self.actions.announce(alert)
+
+    def _refine_changed(self, changed: list[Target], frame_index: int, timestamp: float) -> None:
+        """Refine the placed alerts of the targets seen this frame, where due."""
+        for target in changed:
+            alert = self._placed.get(target.target_id)
+            if alert is not None:
+                self._refine(alert, frame_index, timestamp)
+
+    def _refine(
+        self, alert: Alert, frame_index: int, timestamp: float, force: bool = False
+    ) -> None:
+        """Move ``alert`` to its target's position where :class:`PositionRefiner` says so:
+        durably first, then the console, the recording and (confirmed) the queued visit.
+        An alert the store no longer refines (dismissed, discarded) is forgotten."""
+        target = self.registry.targets.get(alert.target_id)
+        if target is None:
+            return
+        due = self.refiner.due(alert, target.position, target.reported_error_m, timestamp, force)
+        if due is None:
+            return
+        if not self.store.refine_position(
+            alert.alert_id, due.position, due.error_m, target.note, due.detail()
+        ):
+            self._placed.pop(alert.target_id, None)
+            self.refiner.forget(alert.alert_id)
+            return
+        alert.position, alert.error_m, alert.position_note = due.position, due.error_m, target.note
+        self.refiner.done(alert.alert_id, timestamp)
+        self.stats.refined += 1
+        if force:  # the confirmation's own line follows with the position
+            return
+        line = format_refined(alert, due, frame_index)
+        self.console(line)
+        if self.recorder is not None:
+            self.recorder.text("alerts", line, level="INFO")
+        if self.actions is not None and alert.tier == "confirmed":
+            self.actions.refine(alert)
 
     # -- recording -------------------------------------------------------------------------------
     def _record(
@@ -710,6 +775,7 @@ class MissionController:
             f"targets: {len(self.registry)} ({self.known_at_start} known at start), "
             f"candidates: {len(s.candidates)}, confirmed alerts: {len(s.alerts)}"
             + (f", positions found after the alert: {s.located_later}" if s.located_later else "")
+            + (f", positions refined: {s.refined}" if s.refined else "")
         )
         book = self.candidates
         if book.discarded or s.suppressed or book.candidates:
@@ -750,6 +816,15 @@ def format_alert(alert: Alert, track_id: int | None = None) -> str:
     return (
         f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
         f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence})"
+    )
+
+
+def format_refined(alert: Alert, refinement: Refinement, frame_index: int) -> str:
+    """One console line for a placed alert moved to its target's better position."""
+    where = f"{alert.format_position(6)} {alert.format_error()}".rstrip()
+    return (
+        f"REFINED target {alert.target_id}: {alert.class_name} at {where} "
+        f"(moved {refinement.moved_m:.1f} m; frame {frame_index})"
     )
 
 

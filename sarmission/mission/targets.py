@@ -53,8 +53,16 @@ at 4K is about 1.5-2 m on the water from 60-80 m: closer than the ground merge r
 
 A target's position is the inverse-variance weighted mean of its fixes (weights ``1 / e^2``,
 ``e`` each fix's 1-sigma error), computed in metres around the first fix. Successive fixes share
-most of their error (GNSS bias, altitude, mounting), so averaging does not shrink it: the
-target's error is the smallest error of any of its fixes.
+most of their error (GNSS bias, altitude and attitude errors that wander over seconds), so
+averaging does not shrink it: the target's error (:attr:`Target.error_m`) is that of a weighted
+mean of fully correlated errors, the same weighted mean of the fixes' errors. It is never
+below the best fix's error, and at an oblique view, where the fixes' errors vary with their
+depression, it is not that of the luckiest fix either. The error an alert reports
+(:attr:`Target.reported_error_m`) is at least the fixes' weighted RMS spread about their mean
+too: fixes that disagree more than their errors say (a person moving, a pose error the model
+does not know) do not place the target better than their spread. The merge gates use the
+model's error alone, so that one spread-out target does not widen its gate and swallow its
+neighbours.
 
 A restarted controller seeds the registry from the alert store's known targets
 (:meth:`TargetRegistry.seed`), each with the error of its stored position: they are already
@@ -103,17 +111,67 @@ class KnownTarget:
 
 
 @dataclass
+class WeightedFixes:
+    """Sums over fixes with weights ``w = 1 / error^2``: of ``w``, ``w * error``, and of ``w``
+    times the north and east offsets (metres around the target's first fix) and their squares.
+    Sums add and subtract, so a track's share can be taken out of its target again."""
+
+    w: float = 0.0
+    w_error: float = 0.0
+    w_n: float = 0.0
+    w_e: float = 0.0
+    w_nn: float = 0.0
+    w_ee: float = 0.0
+
+    def add(self, n: float, e: float, error_m: float, sign: float = 1.0) -> None:
+        """Fold in (``sign`` -1: take out) one fix at ``(n, e)`` with 1-sigma ``error_m``."""
+        w = sign / error_m**2
+        self.w += w
+        self.w_error += w * error_m
+        self.w_n += w * n
+        self.w_e += w * e
+        self.w_nn += w * n * n
+        self.w_ee += w * e * e
+
+    def minus(self, other: WeightedFixes) -> WeightedFixes:
+        """These sums without ``other``'s."""
+        return WeightedFixes(
+            self.w - other.w,
+            self.w_error - other.w_error,
+            self.w_n - other.w_n,
+            self.w_e - other.w_e,
+            self.w_nn - other.w_nn,
+            self.w_ee - other.w_ee,
+        )
+
+    def empty(self, scale: float = 1.0) -> bool:
+        """Whether no weight is left (relative to ``scale``, against rounding)."""
+        return self.w <= 1e-12 * max(scale, 1.0)
+
+    def mean(self) -> tuple[float, float]:
+        """The weighted mean ``(north, east)``."""
+        return self.w_n / self.w, self.w_e / self.w
+
+    def error_m(self) -> float:
+        """The error of the weighted mean when the fixes' errors are fully correlated: the
+        weighted mean of their errors."""
+        return self.w_error / self.w
+
+    def spread_m(self) -> float:
+        """The fixes' weighted RMS distance from their weighted mean."""
+        n, e = self.mean()
+        return math.sqrt(max(self.w_nn / self.w - n * n + self.w_ee / self.w - e * e, 0.0))
+
+
+@dataclass
 class TrackShare:
     """What one track added to a target, so that it can be taken out again: its fixes' weighted
-    sums (metres around the target's first fix), smallest error, latest fix, class votes and
-    best score, when it joined and whether it joined only by the re-find radius (``loose``)."""
+    sums (:class:`WeightedFixes`), latest fix, class votes and best score, when it joined and
+    whether it joined only by the re-find radius (``loose``)."""
 
     joined: float
     loose: bool = False
-    sum_w: float = 0.0
-    sum_wn: float = 0.0
-    sum_we: float = 0.0
-    min_error_m: float | None = None
+    sums: WeightedFixes = field(default_factory=lambda: WeightedFixes())
     last_fix: tuple[float, float, float | None, float] | None = None
     class_votes: Counter[int] = field(default_factory=Counter)
     best_score: float = 0.0
@@ -149,12 +207,8 @@ class Target:
     box_track: int | None = None
     #: track id -> what it added (:meth:`detach` takes it out)
     shares: dict[int, TrackShare] = field(default_factory=dict)
-    _sum_w: float = 0.0
-    _sum_wn: float = 0.0
-    _sum_we: float = 0.0
+    _sums: WeightedFixes = field(default_factory=WeightedFixes)
     _origin: tuple[float, float] | None = None
-    #: the stored error of a seeded target's position (None: not seeded)
-    _seed_error_m: float | None = None
 
     @property
     def position(self) -> tuple[float, float] | None:
@@ -162,6 +216,14 @@ class Target:
         if self.lat is None or self.lon is None:
             return None
         return self.lat, self.lon
+
+    @property
+    def reported_error_m(self) -> float | None:
+        """The error an alert reports: :attr:`error_m`, or the fixes' weighted RMS spread
+        about their mean where that is larger (see the module docstring)."""
+        if self.error_m is None or self._sums.empty():
+            return self.error_m
+        return max(self.error_m, self._sums.spread_m())
 
     @property
     def class_id(self) -> int:
@@ -175,16 +237,11 @@ class Target:
         of ``track_id``, when given)."""
         assert fix.lat is not None and fix.lon is not None
         error = fix.error_m if fix.error_m is not None and fix.error_m > 0 else DEFAULT_FIX_ERROR_M
-        w, n, e = self._fold((fix.lat, fix.lon), error)
+        n, e = self._fold((fix.lat, fix.lon), error)
         share = self.shares.get(track_id) if track_id is not None else None
         if share is not None:
-            share.sum_w += w
-            share.sum_wn += w * n
-            share.sum_we += w * e
-            low = share.min_error_m
-            share.min_error_m = error if low is None else min(low, error)
+            share.sums.add(n, e, error)
         self._place()
-        self.error_m = error if self.error_m is None else min(self.error_m, error)
         self.note = fix.note
 
     def seed_position(self, position: tuple[float, float], error_m: float) -> None:
@@ -193,31 +250,27 @@ class Target:
         mean of the fixes the earlier run had)."""
         self._fold(position, error_m)
         self._place()
-        self.error_m = self._seed_error_m = error_m
         self.note = "known from an earlier run"
 
-    def _fold(self, position: tuple[float, float], error_m: float) -> tuple[float, float, float]:
-        """Add ``position`` with weight ``1 / error_m^2`` to the weighted sums (metres around
-        the first position folded in); returns the weight and the north, east offsets."""
+    def _fold(self, position: tuple[float, float], error_m: float) -> tuple[float, float]:
+        """Add ``position`` with 1-sigma ``error_m`` to the weighted sums (metres around the
+        first position folded in); returns its north, east offsets."""
         if self._origin is None:
             self._origin = position
         n, e = offset_m(self._origin, position)
-        w = 1.0 / error_m**2
-        self._sum_w += w
-        self._sum_wn += w * n
-        self._sum_we += w * e
-        return w, n, e
+        self._sums.add(n, e, error_m)
+        return n, e
 
     def _place(self) -> None:
-        """``lat``/``lon`` from the weighted sums."""
-        self.lat, self.lon = self._mean(self._sum_w, self._sum_wn, self._sum_we)
+        """``lat``/``lon`` and ``error_m`` from the weighted sums."""
+        self.lat, self.lon = self._mean(self._sums)
+        self.error_m = self._sums.error_m()
 
-    def _mean(self, sum_w: float, sum_wn: float, sum_we: float) -> tuple[float, float]:
-        """``(lat, lon)`` of weighted sums of metres around the first fix."""
-        assert self._origin is not None and sum_w > 0
-        lat, lon, _ = ned_to_geodetic(
-            sum_wn / sum_w, sum_we / sum_w, 0.0, self._origin[0], self._origin[1], 0.0
-        )
+    def _mean(self, sums: WeightedFixes) -> tuple[float, float]:
+        """``(lat, lon)`` of the weighted mean of ``sums`` (metres around the first fix)."""
+        assert self._origin is not None and sums.w > 0
+        n, e = sums.mean()
+        lat, lon, _ = ned_to_geodetic(n, e, 0.0, self._origin[0], self._origin[1], 0.0)
         return float(lat), float(lon)
 
     def position_without(self, track_id: int) -> tuple[float, float] | None:
@@ -225,10 +278,10 @@ class Target:
         share = self.shares.get(track_id)
         if share is None:
             return self.position
-        sum_w = self._sum_w - share.sum_w
-        if self._origin is None or sum_w <= 1e-12 * max(self._sum_w, 1.0):
+        rest = self._sums.minus(share.sums)
+        if self._origin is None or rest.empty(self._sums.w):
             return None
-        return self._mean(sum_w, self._sum_wn - share.sum_wn, self._sum_we - share.sum_we)
+        return self._mean(rest)
 
     def detach(self, track_id: int) -> None:
         """Take ``track_id`` and what it added out of the target (its position, error, latest
@@ -237,20 +290,16 @@ class Target:
         self.track_ids.discard(track_id)
         if share is None:
             return
-        self._sum_w -= share.sum_w
-        self._sum_wn -= share.sum_wn
-        self._sum_we -= share.sum_we
+        rest = self._sums.minus(share.sums)
         self.class_votes.subtract(share.class_votes)
         self.class_votes = +self.class_votes
         others = list(self.shares.values())
         self.best_score = max((o.best_score for o in others), default=0.0)
-        errors = [o.min_error_m for o in others if o.min_error_m is not None]
-        if self._seed_error_m is not None:
-            errors.append(self._seed_error_m)
-        self.error_m = min(errors) if errors else self.error_m
         fixes = [o.last_fix for o in others if o.last_fix is not None]
         self.last_fix = max(fixes, key=lambda f: f[3]) if fixes else None
-        if self._sum_w > 1e-12:
+        emptied = rest.empty(self._sums.w)
+        self._sums = rest
+        if not emptied:
             self._place()
         if self.box_track == track_id:
             self.box, self.box_time, self.box_track = None, math.nan, None

@@ -1,0 +1,98 @@
+"""When a placed alert's position is refined: its target's mean has moved, or its error changed.
+
+An alert is stored with the position its target had at the lock: one frame's fix. Every later
+sighting adds a fix to the target's weighted mean (:mod:`sarmission.mission.targets`), and at an
+oblique view, where a metre of altitude error is ten metres along the ray, the first seconds'
+fixes can all lie short together while the mean over a minute is within its error. The operator,
+the team and a queued visit should have the better position, without a stream of updates:
+
+- at the confirmation, the confirmed alert takes its target's position (``force``), so what is
+  announced is the mean of the fixes that confirmed it, not the lock's single fix;
+- after that, at most once per ``period_s`` per alert, and only when the mean moved by at least
+  ``max(min_move_m, move_share x the alert's error)`` or the error changed by more than
+  ``error_share`` of the alert's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from sarmission.alerts.model import Alert
+from sarmission.mission.targets import distance_m
+
+#: Seconds between two refinements of one alert.
+REFINE_PERIOD_S = 5.0
+#: The smallest move (m) worth telling.
+REFINE_MIN_MOVE_M = 1.0
+#: A move of this share of the alert's error is worth telling.
+REFINE_MOVE_SHARE = 0.5
+#: An error that changed by more than this share of the alert's is worth telling.
+REFINE_ERROR_SHARE = 0.25
+#: At the confirmation (``force``) a move or an error change of more than this (m) is taken.
+FORCED_TOLERANCE_M = 0.1
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """A better position for an alert: where, its 1-sigma error, and how far it moved."""
+
+    position: tuple[float, float]
+    error_m: float | None
+    moved_m: float
+
+    def detail(self) -> str:
+        """The event log's line for it."""
+        error = "unknown" if self.error_m is None else f"+- {self.error_m:.1f} m"
+        return f"refined: moved {self.moved_m:.1f} m, {error}"
+
+
+@dataclass
+class PositionRefiner:
+    """Decides, per alert, when its target's position is worth an update (see the module
+    docstring). Not thread-safe: one controller owns it."""
+
+    period_s: float = REFINE_PERIOD_S
+    min_move_m: float = REFINE_MIN_MOVE_M
+    move_share: float = REFINE_MOVE_SHARE
+    error_share: float = REFINE_ERROR_SHARE
+    _last: dict[str, float] = field(default_factory=dict)
+
+    def due(
+        self,
+        alert: Alert,
+        position: tuple[float, float] | None,
+        error_m: float | None,
+        now: float,
+        force: bool = False,
+    ) -> Refinement | None:
+        """The refinement ``alert`` should get at time ``now`` from its target's ``position``
+        and ``error_m``, or None. ``force``: any change beyond :data:`FORCED_TOLERANCE_M`,
+        however soon (the confirmation). An alert without a position gets none here: it is
+        placed, not refined."""
+        if alert.position is None or position is None:
+            return None
+        if not force and now - self._last.get(alert.alert_id, -math.inf) < self.period_s:
+            return None
+        moved = distance_m(alert.position, position)
+        old = alert.error_m
+        if error_m is None or old is None:
+            error_changed = error_m != old
+        else:
+            error_changed = abs(error_m - old) > (
+                FORCED_TOLERANCE_M if force else self.error_share * old
+            )
+        threshold = (
+            FORCED_TOLERANCE_M if force else max(self.min_move_m, self.move_share * (old or 0.0))
+        )
+        if not error_changed and moved <= threshold:
+            return None
+        return Refinement(position, error_m, moved)
+
+    def done(self, alert_id: str, now: float) -> None:
+        """``alert_id`` was refined (or placed) at ``now``: the next waits ``period_s``."""
+        self._last[alert_id] = now
+
+    def forget(self, alert_id: str) -> None:
+        """Nothing more to refine for ``alert_id`` (discarded or dismissed)."""
+        self._last.pop(alert_id, None)

@@ -1,0 +1,194 @@
+"""A placed alert follows its target's better position: at its confirmation, then at most every
+few seconds, durably, told on the console and to a queued visit; never for a dismissed alert."""
+
+import math
+
+import numpy as np
+import pytest
+from scripted_detector import ScriptedDetector
+from test_controller import (
+    ALT,
+    DRONE_NED,
+    FPS,
+    YAW,
+    AnnouncedActions,
+    run_frames,
+    target_pixel,
+    truth_latlon,
+)
+
+from sarmission.alerts.model import Alert
+from sarmission.alerts.store import AlertStore
+from sarmission.geo.wgs84 import ned_to_geodetic
+from sarmission.mavlink.telemetry import TelemetryBuffer
+from sarmission.mission.config import ConfirmConfig, load_mission
+from sarmission.mission.controller import MissionController
+from sarmission.mission.refinement import REFINE_PERIOD_S, PositionRefiner
+from sarmission.mission.targets import distance_m
+
+W, H = 960, 540
+BIAS_E_M = 10.0
+BIAS_UNTIL_S = 2.0
+
+
+@pytest.fixture
+def mission():
+    m = load_mission(
+        overrides={
+            "camera.width": W,
+            "camera.height": H,
+            "camera.hfov_deg": 30.0,
+            "name": "refine_test",
+        }
+    )
+    m.confirm = ConfirmConfig(min_seen_s=1.0, min_sightings=6, min_score=0.6)
+    return m
+
+
+def biased_buffer(mission, t_end: float) -> TelemetryBuffer:
+    """The hovering drone of the controller tests, its GNSS position reported 10 m east of the
+    truth for the first 2 s (a bias that wanders off), exact after that."""
+    buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
+    home = mission.area.home
+    buf.set_home(*home)
+    for t in np.arange(0.0, t_end + 1e-9, 0.05):
+        east = DRONE_NED[1] + (BIAS_E_M if t < BIAS_UNTIL_S else 0.0)
+        lat, lon, _ = ned_to_geodetic(DRONE_NED[0], east, 0.0, *home)
+        buf.push_position(float(t), float(lat), float(lon), ALT)
+        buf.push_attitude(float(t), 0.0, 0.0, YAW)
+    return buf
+
+
+def fly(mission, store, seconds: float, actions=None, lines=None, first_s=None):
+    """The target in every frame for ``seconds``; only the first ``first_s`` are run (default
+    all): the caller runs the rest."""
+    n = int(seconds * FPS)
+    u, v = target_pixel(mission)
+    script = [[((u - 5, v - 5, u + 5, v + 5), 0.8, 0)] for _ in range(n)]
+    ctl = MissionController(
+        mission,
+        ScriptedDetector(script),
+        biased_buffer(mission, n / FPS),
+        store,
+        actions=actions,
+        console=(lines.append if lines is not None else lambda s: None),
+    )
+    return ctl, run_frames(ctl, n if first_s is None else int(first_s * FPS))
+
+
+def test_a_biased_start_is_refined_towards_the_truth_and_its_error_stays_honest(tmp_path, mission):
+    lines: list[str] = []
+    actions = AnnouncedActions()
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl, alerts = fly(mission, store, 25.0, actions, lines)
+        assert len(alerts) == 1
+        stored = store.get(alerts[0].alert_id)
+        events = store.events()
+    truth = truth_latlon(mission)
+    candidate = ctl.stats.candidates[0]
+    # the lock's one fix carried the bias; the confirmation (at 1.2 s) the mean of its fixes,
+    # every one of them still biased
+    first_error = distance_m(actions.announced[0][1], truth)
+    assert first_error == pytest.approx(BIAS_E_M, abs=1.0)
+    # 23 s of exact fixes later: a tenth of the weight is biased, so 1 m off
+    final_error = distance_m(stored.position, truth)
+    assert final_error == pytest.approx(BIAS_E_M * BIAS_UNTIL_S / 25.0, abs=0.5)
+    assert candidate.alert_id == stored.alert_id
+    # the fixes disagree by 10 m: the error reported is their spread (3 m), more than the
+    # fixes' own error and more than the position is off
+    assert stored.error_m == pytest.approx(3.0, abs=0.5)
+    assert stored.error_m > final_error
+    refined = [e for e in events if e.kind == "position"]
+    assert refined and all(e.detail.startswith("refined: moved ") for e in refined)
+    # at most one refinement every REFINE_PERIOD_S after the confirmation's
+    assert len(refined) <= 1 + math.ceil(25.0 / REFINE_PERIOD_S)
+    # every fix of the first 2 s was biased alike: the confirmation found the mean where the
+    # lock's fix was, so each refinement came later and was told on the console
+    told = [line for line in lines if line.startswith("REFINED target 1")]
+    assert len(told) == len(refined)
+    assert actions.refined and actions.refined[-1][1] == stored.position
+    assert ctl.stats.refined == len(refined)
+    assert f"positions refined: {len(refined)}" in ctl.summary()
+
+
+def test_a_dismissed_alert_keeps_the_position_the_operator_dismissed(tmp_path, mission):
+    """The operator dismisses the alert at 1.5 s: its zone stays where they saw it, and the
+    controller stops refining it."""
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl, alerts = fly(mission, store, 12.0, first_s=1.5)
+        assert len(alerts) == 1
+        alert_id = alerts[0].alert_id
+        seen = store.get(alert_id).position
+        store.record_decision(alert_id, "dismissed", "op")
+        run_frames(ctl, 105, start=15)
+        assert store.get(alert_id).position == seen
+        # it was due (the bias gone at 2 s), the store refused, and it is forgotten
+        assert alert_id not in ctl.refiner._last and ctl.stats.refined == 0
+
+
+def _alert(position=(0.0, 0.0), error_m=4.0, tier="confirmed") -> Alert:
+    return Alert(
+        tier=tier,
+        mission_id="m",
+        target_id=1,
+        class_name="swimmer",
+        score=0.9,
+        lock_time=1.7e9,
+        frame_index=0,
+        position=position,
+        error_m=error_m,
+    )
+
+
+def north_of(position, metres):
+    lat, lon, _ = ned_to_geodetic(metres, 0.0, 0.0, position[0], position[1], 0.0)
+    return float(lat), float(lon)
+
+
+def test_the_refiner_waits_its_period_and_ignores_small_changes():
+    r = PositionRefiner(period_s=5.0, min_move_m=1.0, move_share=0.5, error_share=0.25)
+    alert = _alert()
+    r.done(alert.alert_id, 10.0)
+    far = north_of(alert.position, 10.0)
+    assert r.due(alert, far, 4.0, 14.9) is None  # too soon
+    due = r.due(alert, far, 4.0, 15.0)
+    assert due is not None and due.moved_m == pytest.approx(10.0, abs=0.01)
+    assert "moved 10.0 m, +- 4.0 m" in due.detail()
+    # a move within half the error (2 m), the error within a quarter: not worth telling
+    assert r.due(alert, north_of(alert.position, 1.9), 4.9, 15.0) is None
+    assert r.due(alert, north_of(alert.position, 2.1), 4.0, 15.0) is not None
+    assert r.due(alert, alert.position, 5.1, 15.0) is not None  # the error grew by > 25 %
+    assert r.due(alert, alert.position, 2.9, 15.0) is not None  # or shrank
+    # the confirmation takes any change beyond a decimetre, however soon
+    assert r.due(alert, north_of(alert.position, 0.5), 4.0, 10.1, force=True) is not None
+    assert r.due(alert, north_of(alert.position, 0.05), 4.0, 10.1, force=True) is None
+    # nothing to refine without positions on both sides
+    assert r.due(_alert(position=None), far, 4.0, 99.0) is None
+    assert r.due(alert, None, None, 99.0) is None
+
+
+def test_the_store_refines_only_placed_alerts_nobody_dismissed_or_discarded(tmp_path):
+    with AlertStore(tmp_path / "alerts.db") as store:
+        placed, blind, dismissed, discarded = (
+            _alert(),
+            _alert(position=None, error_m=None),
+            _alert(),
+            _alert(tier="candidate"),
+        )
+        for a in (placed, blind, dismissed, discarded):
+            store.add(a)
+        store.record_decision(dismissed.alert_id, "dismissed", "op")
+        store.discard(discarded.alert_id, "score 0.4 below 0.7")
+        better = north_of((0.0, 0.0), 3.0)
+        assert store.refine_position(placed.alert_id, better, 2.0, "ground plane", "refined: x")
+        now = store.get(placed.alert_id)
+        assert now.position == pytest.approx(better) and now.error_m == 2.0
+        assert store.events()[-1].kind == "position"
+        assert store.events()[-1].detail == "refined: x"
+        for a in (blind, dismissed, discarded):
+            assert not store.refine_position(a.alert_id, better, 2.0, "ground plane")
+            assert store.get(a.alert_id).position == a.position
+        with pytest.raises(KeyError):
+            store.refine_position("nope", better, 2.0, "")
+        with pytest.raises(ValueError):
+            store.refine_position(placed.alert_id, (91.0, 0.0), 2.0, "")
