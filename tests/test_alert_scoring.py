@@ -102,3 +102,20 @@ def test_the_position_is_scored_as_it_went_out_and_as_refined_against_its_own_er
     # without a stored alert at the end, the one that went out is the final one
     s = score_flight(frames(), [(sent, 45, 4.5)])
     assert s.geo_error_final_m == s.geo_error_m and s.geo_within_2x_final == [True]
+
+
+def test_a_refined_position_is_scored_against_where_the_person_was_in_its_frame():
+    """A swimmer drifting north at 1 m/s: the alert went out at the lock (frame 10, 1 m north)
+    and was refined to 8 m north in frame 80; scored against the lock's truth it would look 7 m
+    off, against frame 80's it is 0."""
+    drifting = [
+        Frame(k, k / 10, [Ann(1, "swimmer", (95, 95, 106, 106), *at(k / 10, 0.0))], [])
+        for k in range(100)
+    ]
+    sent = Alert(10, [(10, 100.0, 100.0)], at(1.0, 0.0), error_m=1.0)
+    refined = Alert(10, [(10, 100.0, 100.0)], at(8.0, 0.0), error_m=1.0)
+    s = score_flight(drifting, [(sent, 20, 2.0)], final={"a": refined}, position_frames={"a": 80})
+    assert s.geo_error_m == [pytest.approx(0.0, abs=0.01)]
+    assert s.geo_error_final_m == [pytest.approx(0.0, abs=0.01)]
+    s = score_flight(drifting, [(sent, 20, 2.0)], final={"a": refined})
+    assert s.geo_error_final_m == [pytest.approx(7.0, abs=0.01)]

@@ -10,6 +10,7 @@ from test_controller import (
     ALT,
     DRONE_NED,
     FPS,
+    TARGET_NED,
     YAW,
     AnnouncedActions,
     run_frames,
@@ -19,6 +20,7 @@ from test_controller import (
 
 from sarmission.alerts.model import Alert
 from sarmission.alerts.store import AlertStore
+from sarmission.geo.camera import CameraPose, project_points
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import TelemetryBuffer
 from sarmission.mission.config import ConfirmConfig, load_mission
@@ -45,18 +47,30 @@ def mission():
     return m
 
 
-def biased_buffer(mission, t_end: float) -> TelemetryBuffer:
-    """The hovering drone of the controller tests, its GNSS position reported 10 m east of the
-    truth for the first 2 s (a bias that wanders off), exact after that."""
+def biased_buffer(mission, t_end: float, bias_m: float = BIAS_E_M) -> TelemetryBuffer:
+    """The hovering drone of the controller tests, its GNSS position reported ``bias_m`` east
+    of the truth for the first 2 s (a bias that wanders off), exact after that."""
     buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
     home = mission.area.home
     buf.set_home(*home)
     for t in np.arange(0.0, t_end + 1e-9, 0.05):
-        east = DRONE_NED[1] + (BIAS_E_M if t < BIAS_UNTIL_S else 0.0)
+        east = DRONE_NED[1] + (bias_m if t < BIAS_UNTIL_S else 0.0)
         lat, lon, _ = ned_to_geodetic(DRONE_NED[0], east, 0.0, *home)
         buf.push_position(float(t), float(lat), float(lon), ALT)
         buf.push_attitude(float(t), 0.0, 0.0, YAW)
     return buf
+
+
+class RefinedActions(AnnouncedActions):
+    """Also keeps each refined position with its error."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.refined_errors: list = []
+
+    def refine(self, alert) -> bool:
+        self.refined_errors.append((alert.position, alert.error_m))
+        return super().refine(alert)
 
 
 def fly(mission, store, seconds: float, actions=None, lines=None, first_s=None):
@@ -78,9 +92,9 @@ def fly(mission, store, seconds: float, actions=None, lines=None, first_s=None):
 
 def test_a_biased_start_is_refined_towards_the_truth_and_its_error_stays_honest(tmp_path, mission):
     lines: list[str] = []
-    actions = AnnouncedActions()
+    actions = RefinedActions()
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl, alerts = fly(mission, store, 25.0, actions, lines)
+        ctl, alerts = fly(mission, store, 30.0, actions, lines)
         assert len(alerts) == 1
         stored = store.get(alerts[0].alert_id)
         events = store.events()
@@ -90,18 +104,22 @@ def test_a_biased_start_is_refined_towards_the_truth_and_its_error_stays_honest(
     # every one of them still biased
     first_error = distance_m(actions.announced[0][1], truth)
     assert first_error == pytest.approx(BIAS_E_M, abs=1.0)
-    # 23 s of exact fixes later: a tenth of the weight is biased, so 1 m off
-    final_error = distance_m(stored.position, truth)
-    assert final_error == pytest.approx(BIAS_E_M * BIAS_UNTIL_S / 25.0, abs=0.5)
     assert candidate.alert_id == stored.alert_id
-    # the fixes disagree by 10 m: the error reported is their spread (3 m), more than the
-    # fixes' own error and more than the position is off
-    assert stored.error_m == pytest.approx(3.0, abs=0.5)
-    assert stored.error_m > final_error
+    # refined on the latest 20 s of fixes: the biased ones have left the window, the position
+    # is exact, and its error is the fixes' own again
+    final_error = distance_m(stored.position, truth)
+    assert final_error < 0.1
+    fix_error = ctl.candidates.evidence[1].sightings[-1].error_m
+    assert stored.error_m == pytest.approx(fix_error, rel=0.05)
+    # on the way, while the window held both, the error grew with the fixes' disagreement, and
+    # every position told was within twice its error of the truth
+    assert max(error for _, error in actions.refined_errors) > 1.5 * fix_error
+    for position, error in actions.refined_errors:
+        assert distance_m(position, truth) <= 2.0 * error
     refined = [e for e in events if e.kind == "position"]
     assert refined and all(e.detail.startswith("refined: moved ") for e in refined)
     # at most one refinement every REFINE_PERIOD_S after the confirmation's
-    assert len(refined) <= 1 + math.ceil(25.0 / REFINE_PERIOD_S)
+    assert len(refined) <= 1 + math.ceil(30.0 / REFINE_PERIOD_S)
     # every fix of the first 2 s was biased alike: the confirmation found the mean where the
     # lock's fix was, so each refinement came later and was told on the console
     told = [line for line in lines if line.startswith("REFINED target 1")]
@@ -109,6 +127,48 @@ def test_a_biased_start_is_refined_towards_the_truth_and_its_error_stays_honest(
     assert actions.refined and actions.refined[-1][1] == stored.position
     assert ctl.stats.refined == len(refined)
     assert f"positions refined: {len(refined)}" in ctl.summary()
+
+
+def pixel_of(mission, north: float, east: float) -> tuple[float, float]:
+    """Where the hovering drone's nadir camera sees ground point ``(north, east)``."""
+    cam = CameraPose.from_attitudes(
+        np.array([DRONE_NED[0], DRONE_NED[1], -ALT]), (0.0, 0.0, YAW), (0.0, -math.pi / 2, 0.0)
+    )
+    uv, _ = project_points(mission.camera.intrinsics(), cam, np.array([[north, east, 0.0]]))
+    return float(uv[0, 0]), float(uv[0, 1])
+
+
+def test_a_drifting_swimmer_is_placed_where_they_are_not_where_they_were(tmp_path, mission):
+    """A swimmer drifting south-east at 0.5 m/s for 28 s (staying in view; the buffer keeps
+    30 s of telemetry), exact telemetry: the alert follows to within a metre of where they are
+    at its last refinement; the mean of every fix (the registry's) lies about 7 m behind."""
+    n = int(28.0 * FPS)
+    drift = 0.5 * np.array([-math.sqrt(0.5), math.sqrt(0.5)])  # m/s north, east
+
+    def place(i: int) -> np.ndarray:
+        return np.array(TARGET_NED) + drift * i / FPS
+
+    script = []
+    for i in range(n):
+        u, v = pixel_of(mission, *place(i))
+        script.append([((u - 5, v - 5, u + 5, v + 5), 0.8, 0)])
+    lines: list[str] = []
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            biased_buffer(mission, n / FPS, bias_m=0.0),
+            store,
+            console=lines.append,
+        )
+        (alert,) = run_frames(ctl, n)
+        stored = store.get(alert.alert_id)
+    frame = ctl.stats.position_frames[alert.alert_id]
+    assert frame >= n - REFINE_PERIOD_S * FPS
+    lat, lon, _ = ned_to_geodetic(*place(frame), 0.0, *mission.area.home)
+    assert distance_m(stored.position, (lat, lon)) < 1.0
+    assert distance_m(ctl.registry.targets[1].position, (lat, lon)) > 5.0
+    assert sum(line.startswith("REFINED target 1") for line in lines) >= 4
 
 
 def test_a_dismissed_alert_keeps_the_position_the_operator_dismissed(tmp_path, mission):

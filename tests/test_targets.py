@@ -43,9 +43,6 @@ def test_error_weighted_mean_favours_the_better_fix():
     assert distance_m(t.position, ll(0.6, 0.0)) < 0.05
     # fully correlated errors: (1 * 1 + 3 / 9) / (1 + 1 / 9) = 1.2, not the better fix's 1.0
     assert t.error_m == pytest.approx(1.2)
-    # the fixes lie 6 m apart: their weighted RMS spread, sqrt(0.6^2 * 0.9 + 5.4^2 * 0.1) =
-    # 1.8 m, is more than the fixes' errors say, and the alert reports it
-    assert t.reported_error_m == pytest.approx(1.8)
 
 
 def test_targets_beyond_radius_stay_separate():

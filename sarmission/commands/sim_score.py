@@ -135,6 +135,7 @@ def fly(
             candidates=stored,
             track_scores=track_scores,
             final={a.alert_id: a for a in stored},
+            position_frames=session.controller.stats.position_frames,
         ),
         summary,
         session.controller,

@@ -20,8 +20,10 @@ when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least 
 the time to alert runs from their first frame to the confirmation.
 
 The geolocation error of a found person's alert is measured twice: as the alert went out (its
-position at the confirmation) and as stored at the flight's end (``final``: alert id -> the
-stored alert; a placed alert's position is refined as its target's fixes come in). Each time
+position at the confirmation, against the person's position at the lock) and as stored at the
+flight's end (``final``: alert id -> the stored alert; a placed alert's position is refined as
+its target's fixes come in), against where the person was in the frame that position is of
+(``position_frames``: alert id -> frame index; people drift). Each time
 the truth is also checked against the alert's own error: within twice its 1-sigma error is
 where an honest estimate puts it about 95 % of the time.
 """
@@ -213,6 +215,22 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
     return first, longest
 
 
+def _person_at(
+    frames: Sequence[Any], track_id: int, frame_index: int
+) -> tuple[float, float] | None:
+    """Person ``track_id``'s true position in the frame nearest ``frame_index`` that shows
+    them (a swimmer drifts: the position an alert was refined to is of its frame)."""
+    best, best_gap = None, math.inf
+    for frame in frames:
+        gap = abs(frame.index - frame_index)
+        if gap >= best_gap:
+            continue
+        for a in frame.targets:
+            if a.track_id == track_id and a.lat is not None:
+                best, best_gap = (a.lat, a.lon), gap
+    return best
+
+
 def _geo(errors: list[float], within: list[bool], alert: Any, truth: tuple[float, float]) -> None:
     """The alert's distance from the truth, and whether that is within twice its error."""
     err = _metres(alert.position, truth)
@@ -231,6 +249,7 @@ def score_flight(
     candidates: Sequence[Any] = (),
     track_scores: dict[str, float] | None = None,
     final: Mapping[str, Any] | None = None,
+    position_frames: Mapping[str, int] | None = None,
 ) -> FlightScore:
     """The figures of one flight (see the module docstring). ``candidates`` (every stored
     alert, confirmed or not) explain the misses (what became of a missed person's candidate,
@@ -275,7 +294,9 @@ def score_flight(
             _geo(out.geo_error_m, out.geo_within_2x, alert, truth)
         last = (final or {}).get(alert.alert_id, alert)
         if last.position is not None:
-            _geo(out.geo_error_final_m, out.geo_within_2x_final, last, truth)
+            frame_of = (position_frames or {}).get(alert.alert_id, alert.frame_index)
+            then = _person_at(frames, person.track_id, frame_of) or truth
+            _geo(out.geo_error_final_m, out.geo_within_2x_final, last, then)
     out.found = len(found & in_view)
     out.found_briefly_seen = len(found - in_view)
     fate: dict[int, str] = {}

@@ -44,8 +44,8 @@ from typing import Literal
 import numpy as np
 
 from sarmission.class_roles import role_of
-from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import ConfirmConfig
+from sarmission.mission.position_estimate import line_fit
 
 Verdict = Literal["confirm", "wait", "discard"]
 
@@ -131,34 +131,13 @@ def frames_seen(evidence: TargetEvidence) -> None:
 
 
 def drift_speed(sightings: list[Sighting]) -> tuple[float, float]:
-    """``(speed, its standard error)`` in m/s of a straight-line fit of the fixes over time."""
-    origin = (sightings[0].lat, sightings[0].lon)
-    t = np.array([s.t for s in sightings])
-    n, e, _ = geodetic_to_ned(
-        np.array([s.lat for s in sightings]),
-        np.array([s.lon for s in sightings]),
-        0.0,
-        *origin,
-        0.0,
-    )
-    pos = np.stack([np.asarray(n, float), np.asarray(e, float)], axis=1)
-    dt = t - t.mean()
-    spread = float(np.sum(dt**2))
-    if spread <= 0:
+    """``(speed, its standard error)`` in m/s of a straight-line fit of the fixes over time
+    (:func:`~sarmission.mission.position_estimate.line_fit`: the error is at least what two
+    independent fixes at the ends of the span would give)."""
+    fit = line_fit(sightings, (sightings[0].lat, sightings[0].lon))
+    if fit is None:
         return 0.0, math.inf
-    velocity = (dt[:, None] * (pos - pos.mean(axis=0))).sum(axis=0) / spread
-    residual = pos - pos.mean(axis=0) - dt[:, None] * velocity
-    dof = max(1, len(t) - 2)
-    sigma_fit = math.sqrt(float(np.sum(residual**2)) / (2 * dof))  # per axis
-    sigma_fix = float(np.median([s.error_m for s in sightings])) / math.sqrt(2)  # per axis
-    # The fixes' errors are not independent frame to frame: they share the pose's (GNSS,
-    # altitude, attitude), which wanders over seconds. The fit cannot know the speed better than
-    # two independent fixes at the ends of the span would tell it (for independent fixes, a
-    # fit's sigma_fix / sqrt(spread) is never larger).
-    span_floor = math.sqrt(2) * sigma_fix / float(t.max() - t.min())
-    sigma_v = max(sigma_fit / math.sqrt(spread), span_floor)
-    speed = float(np.hypot(*velocity))
-    return speed, sigma_v * math.sqrt(2)
+    return fit.speed_m_s, fit.speed_sigma_m_s
 
 
 def track_score(sightings: list[Sighting], window_s: float = 0.0) -> float:

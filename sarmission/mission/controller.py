@@ -17,7 +17,8 @@ Per frame (:meth:`MissionController.process`)::
       -> for a target alerted without a position that now has one (seen again, or its
          earlier sightings placed from buffered telemetry once the autopilot's state is known):
            store.attach_position (durable) -> console line -> action policy (now with a place)
-      -> for a placed alert whose target's mean of fixes has moved or whose error changed
+      -> for a placed alert whose target (a fit of its recent fixes) has moved or whose error
+         changed
          (at its confirmation, then at most every few seconds; :mod:`~sarmission.mission.
          refinement`): store.refine_position (durable) -> console line -> the action policy's
          queued visit moves
@@ -63,6 +64,7 @@ from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.config import MissionConfig
+from sarmission.mission.position_estimate import latest_position
 from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception.types import FrameResult
@@ -115,6 +117,8 @@ class ControllerStats:
     objects: int = 0  # locked targets the head calls an object (boat, buoy): never alerted
     located_later: int = 0
     refined: int = 0  # placed alerts moved to their target's better position
+    # alert id -> the frame its stored position is of (its lock, placement or refinement)
+    position_frames: dict[str, int] = field(default_factory=dict)
     unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
     merged_tracks: int = 0
     paused: int = 0  # frames not searched: the camera was pointed at a target
@@ -564,6 +568,7 @@ class MissionController:
         if alert.position is not None:
             self._placed[target.target_id] = alert
             self.refiner.done(alert.alert_id, track.history[-1][1])
+            self.stats.position_frames[alert.alert_id] = frame_index
         else:
             self._unplaced[target.target_id] = alert
             self._remember_sighting(target.target_id, track)
@@ -651,6 +656,7 @@ class MissionController:
         self.stats.located_later += 1
         self._placed[target.target_id] = alert
         self.refiner.done(alert.alert_id, target.last_seen)
+        self.stats.position_frames[alert.alert_id] = frame_index
         line = format_located(alert, frame_index, track_id)
         self.console(line)
         if self.recorder is not None:
@@ -668,13 +674,21 @@ class MissionController:
     def _refine(
         self, alert: Alert, frame_index: int, timestamp: float, force: bool = False
     ) -> None:
-        """Move ``alert`` to its target's position where :class:`PositionRefiner` says so:
-        durably first, then the console, the recording and (confirmed) the queued visit.
-        An alert the store no longer refines (dismissed, discarded) is forgotten."""
+        """Move ``alert`` to where its target is as of its latest fix (a fit of its recent
+        fixes, :func:`~sarmission.mission.position_estimate.latest_position`) when
+        :class:`PositionRefiner` says so: durably first, then the console, the recording and
+        (confirmed) the queued visit. An alert the store no longer refines (dismissed,
+        discarded) is forgotten."""
         target = self.registry.targets.get(alert.target_id)
-        if target is None:
+        evidence = self.candidates.evidence.get(alert.target_id)
+        if target is None or evidence is None:
             return
-        due = self.refiner.due(alert, target.position, target.reported_error_m, timestamp, force)
+        if not force and not self.refiner.ready(alert.alert_id, timestamp):
+            return  # before the fit: it costs a window of fixes
+        estimate = latest_position(evidence.sightings)
+        if estimate is None:
+            return
+        due = self.refiner.due(alert, estimate.position, estimate.error_m, timestamp, force)
         if due is None:
             return
         if not self.store.refine_position(
@@ -686,6 +700,7 @@ class MissionController:
         alert.position, alert.error_m, alert.position_note = due.position, due.error_m, target.note
         self.refiner.done(alert.alert_id, timestamp)
         self.stats.refined += 1
+        self.stats.position_frames[alert.alert_id] = frame_index
         if force:  # the confirmation's own line follows with the position
             return
         line = format_refined(alert, due, frame_index)

@@ -22,8 +22,10 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 
+from sarmission.alerts.cot import CotSender
+from sarmission.alerts.cot_relay import CotRelay
 from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.store import AlertStore
 from sarmission.data.frames import Frame
@@ -83,6 +85,8 @@ class LiveSession:
         recorder: rerun recorder or None.
         feed_address: ``(host, port)`` to serve the operator feed on, or None.
         feed_token: the feed's access token (None: none on loopback, else one generated).
+        cot_urls: TAK destinations (``udp://host:port``, ``tcp://host:port``) for the confirmed
+            alerts as Cursor-on-Target (:mod:`sarmission.alerts.cot_relay`).
         mission_id: alerts are stored under this id (default: the mission's name).
         transport_latency_s: known minimum telemetry delay (see ``BootClock``).
         connect_timeout_s: how long to wait for the autopilot's HEARTBEAT before going on.
@@ -103,6 +107,7 @@ class LiveSession:
         recorder: Recorder | None = None,
         feed_address: tuple[str, int] | None = None,
         feed_token: str | None = None,
+        cot_urls: Sequence[str] = (),
         mission_id: str | None = None,
         transport_latency_s: float = 0.0,
         connect_timeout_s: float = 30.0,
@@ -116,6 +121,10 @@ class LiveSession:
         self.recorder = recorder
         self.feed: FeedServer | None = None
         self._feed_token = feed_token
+        self.cot: CotRelay | None = None
+        # checked before anything opens: a mistyped destination is a clear error, not a
+        # mission that silently tells nobody
+        cot_senders = [CotSender(url) for url in cot_urls]
         self.link: MavlinkLink | None = None
         self.outbox: Outbox | None = None
         self.store = AlertStore(alerts_db)
@@ -130,6 +139,9 @@ class LiveSession:
                 connect_timeout_s,
                 (target_system, target_component),
             )
+            if cot_senders:
+                self.cot = CotRelay(self.store, cot_senders, self.controller.mission_id).start()
+                self.console("confirmed alerts go to TAK (CoT) at " + ", ".join(cot_urls))
         except BaseException:
             self._close_resources()
             raise
@@ -279,6 +291,9 @@ class LiveSession:
             )
         )
         lines.extend(self._trust_lines())
+        if self.cot is not None:
+            self.cot.stop()  # what the run confirmed until now has gone out
+            lines.append(self.cot.summary())
         if self.source.skipped:
             lines.append(f"frame source: {self.source.skipped} frame(s) could not be read")
         pending = self.actions.pending()
@@ -326,6 +341,8 @@ class LiveSession:
         return lines
 
     def _close_resources(self) -> None:
+        if self.cot is not None:
+            self.cot.stop()
         if self.outbox is not None:
             self.outbox.close()
         if self.feed is not None:

@@ -1,17 +1,17 @@
-"""When a placed alert's position is refined: its target's mean has moved, or its error changed.
+"""When a placed alert's position is refined: its target has moved, or its error changed.
 
-An alert is stored with the position its target had at the lock: one frame's fix. Every later
-sighting adds a fix to the target's weighted mean (:mod:`sarmission.mission.targets`), and at an
-oblique view, where a metre of altitude error is ten metres along the ray, the first seconds'
-fixes can all lie short together while the mean over a minute is within its error. The operator,
-the team and a queued visit should have the better position, without a stream of updates:
+An alert is stored with the position its target had at the lock: one frame's fix. Later fixes
+place it better (:mod:`sarmission.mission.position_estimate`: a fit of the recent fixes, as of
+the latest): at an oblique view, where a metre of altitude error is ten metres along the ray,
+the first seconds' fixes can all lie short together, and a swimmer drifting with the current is
+tens of metres from where they were locked a minute later. The operator, the team and a queued
+visit should have the better position, without a stream of updates:
 
-- at the confirmation, the confirmed alert takes its target's position (``force``), so what is
-  announced is the mean of the fixes that confirmed it, not the lock's single fix;
-- after that, at most once per ``period_s`` per alert, and only when the mean moved by at least
-  ``max(min_move_m, move_share x the alert's error)`` or the error changed by more than
-  ``error_share`` of the alert's.
-"""
+- at the confirmation, the confirmed alert takes its target's estimate (``force``), so what is
+  announced rests on the fixes that confirmed it, not on the lock's single fix;
+- after that, at most once per ``period_s`` per alert, and only when the estimate moved by at
+  least ``max(min_move_m, move_share x the alert's error)`` or the error changed by more than
+  ``error_share`` of the alert's."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ class PositionRefiner:
         placed, not refined."""
         if alert.position is None or position is None:
             return None
-        if not force and now - self._last.get(alert.alert_id, -math.inf) < self.period_s:
+        if not force and not self.ready(alert.alert_id, now):
             return None
         moved = distance_m(alert.position, position)
         old = alert.error_m
@@ -88,6 +88,10 @@ class PositionRefiner:
         if not error_changed and moved <= threshold:
             return None
         return Refinement(position, error_m, moved)
+
+    def ready(self, alert_id: str, now: float) -> bool:
+        """Whether ``period_s`` has passed since ``alert_id`` was last refined (or placed)."""
+        return now - self._last.get(alert_id, -math.inf) >= self.period_s
 
     def done(self, alert_id: str, now: float) -> None:
         """``alert_id`` was refined (or placed) at ``now``: the next waits ``period_s``."""

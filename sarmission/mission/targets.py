@@ -57,12 +57,10 @@ most of their error (GNSS bias, altitude and attitude errors that wander over se
 averaging does not shrink it: the target's error (:attr:`Target.error_m`) is that of a weighted
 mean of fully correlated errors, the same weighted mean of the fixes' errors. It is never
 below the best fix's error, and at an oblique view, where the fixes' errors vary with their
-depression, it is not that of the luckiest fix either. The error an alert reports
-(:attr:`Target.reported_error_m`) is at least the fixes' weighted RMS spread about their mean
-too: fixes that disagree more than their errors say (a person moving, a pose error the model
-does not know) do not place the target better than their spread. The merge gates use the
-model's error alone, so that one spread-out target does not widen its gate and swallow its
-neighbours.
+depression, it is not that of the luckiest fix either. This mean is what the merge gates compare;
+an alert reports where the target is as of its latest fix instead
+(:mod:`sarmission.mission.position_estimate`: a person drifting with a current is not where the
+mean of a minute's fixes lies).
 
 A restarted controller seeds the registry from the alert store's known targets
 (:meth:`TargetRegistry.seed`), each with the error of its stored position: they are already
@@ -113,25 +111,21 @@ class KnownTarget:
 @dataclass
 class WeightedFixes:
     """Sums over fixes with weights ``w = 1 / error^2``: of ``w``, ``w * error``, and of ``w``
-    times the north and east offsets (metres around the target's first fix) and their squares.
-    Sums add and subtract, so a track's share can be taken out of its target again."""
+    times the north and east offsets (metres around the target's first fix). Sums add and
+    subtract, so a track's share can be taken out of its target again."""
 
     w: float = 0.0
     w_error: float = 0.0
     w_n: float = 0.0
     w_e: float = 0.0
-    w_nn: float = 0.0
-    w_ee: float = 0.0
 
-    def add(self, n: float, e: float, error_m: float, sign: float = 1.0) -> None:
-        """Fold in (``sign`` -1: take out) one fix at ``(n, e)`` with 1-sigma ``error_m``."""
-        w = sign / error_m**2
+    def add(self, n: float, e: float, error_m: float) -> None:
+        """Fold in one fix at ``(n, e)`` with 1-sigma ``error_m``."""
+        w = 1.0 / error_m**2
         self.w += w
         self.w_error += w * error_m
         self.w_n += w * n
         self.w_e += w * e
-        self.w_nn += w * n * n
-        self.w_ee += w * e * e
 
     def minus(self, other: WeightedFixes) -> WeightedFixes:
         """These sums without ``other``'s."""
@@ -140,8 +134,6 @@ class WeightedFixes:
             self.w_error - other.w_error,
             self.w_n - other.w_n,
             self.w_e - other.w_e,
-            self.w_nn - other.w_nn,
-            self.w_ee - other.w_ee,
         )
 
     def empty(self, scale: float = 1.0) -> bool:
@@ -156,11 +148,6 @@ class WeightedFixes:
         """The error of the weighted mean when the fixes' errors are fully correlated: the
         weighted mean of their errors."""
         return self.w_error / self.w
-
-    def spread_m(self) -> float:
-        """The fixes' weighted RMS distance from their weighted mean."""
-        n, e = self.mean()
-        return math.sqrt(max(self.w_nn / self.w - n * n + self.w_ee / self.w - e * e, 0.0))
 
 
 @dataclass
@@ -216,14 +203,6 @@ class Target:
         if self.lat is None or self.lon is None:
             return None
         return self.lat, self.lon
-
-    @property
-    def reported_error_m(self) -> float | None:
-        """The error an alert reports: :attr:`error_m`, or the fixes' weighted RMS spread
-        about their mean where that is larger (see the module docstring)."""
-        if self.error_m is None or self._sums.empty():
-            return self.error_m
-        return max(self.error_m, self._sums.spread_m())
 
     @property
     def class_id(self) -> int:
