@@ -13,6 +13,7 @@ import sys
 import threading
 import time
 import urllib.request
+import xml.etree.ElementTree as ET
 from collections import Counter
 from pathlib import Path
 
@@ -272,10 +273,13 @@ def free_tcp_port() -> int:
 
 
 def test_run_serves_its_alerts_on_the_feed(tmp_path):
-    """``run --feed``: the alert confirmed by the run is on the JSON-lines stream as it is
-    stored, and on the JSON API, as it is in the store."""
+    """``run --feed --cot``: the alert confirmed by the run is on the JSON-lines stream as it
+    is stored, on the JSON API as it is in the store, and at the team's TAK (a UDP socket
+    standing in for it) as a CoT marker whose latest event is at the stored position."""
     port, feed_port = free_udp_port(), free_tcp_port()
     db = tmp_path / "alerts.db"
+    tak = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    tak.bind(("127.0.0.1", 0))
     argv = [
         json.dumps([[20.0, -25.0]]),
         "--connect",
@@ -289,6 +293,8 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
         "5",
         "--feed",
         f"127.0.0.1:{feed_port}",
+        "--cot",
+        f"udp://127.0.0.1:{tak.getsockname()[1]}",
         "--duration",
         "4",
         *SET_ARGS,
@@ -327,6 +333,19 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
             k: v for k, v in stored.to_json_dict().items() if k not in changing
         }
     assert distance_m(stored.position, truth(mission_with(), 20.0, -25.0)) < 5.0
+    tak.settimeout(0.5)
+    events = []
+    with tak:
+        while True:
+            try:
+                events.append(ET.fromstring(tak.recv(65536)))
+            except TimeoutError:
+                break
+    markers = [e for e in events if e.get("uid") == stored.cot_uid]
+    assert markers, [e.get("uid") for e in events]
+    latest = markers[-1].find("point")
+    assert (float(latest.get("lat")), float(latest.get("lon"))) == stored.position
+    assert stored.sent["cot"].count == len(markers)
 
 
 def test_cli_run_sim_with_mitenet(tmp_path, capsys):

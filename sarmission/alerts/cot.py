@@ -12,7 +12,9 @@ above the ellipsoid when known; unknown values are 9999999.0, per the CoT schema
 
 :class:`CotSender` sends events to ``udp://host:port`` (e.g. the SA multicast group
 ``udp://239.2.3.1:6969`` or a TAK client's unicast port 4242) or ``tcp://host:port``
-(a TAK Server's plain streaming input, usually 8087).
+(a TAK Server's plain streaming input, usually 8087). :func:`cot_delete` takes a marker off
+the map again (an alert an operator dismissed). :mod:`sarmission.alerts.cot_relay` sends a
+mission's alerts as they change.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ from sarmission.errors import SarmissionError
 COT_TYPE = "b-r-f-h-c"
 #: A life-saving appliance seen without a person: a plain spot marker, not a casualty.
 COT_TYPE_APPLIANCE = "b-m-p-s-m"
+#: TAK's "delete this map item" (the item named in the event's ``link``).
+COT_TYPE_DELETE = "t-x-d-d"
 COT_HOW = "m-g"
 #: CoT's value for "unknown" in ``hae``, ``ce`` and ``le``.
 COT_UNKNOWN = 9999999.0
@@ -83,6 +87,32 @@ def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 
         "precisionlocation",
         {"geopointsrc": "CALC", "altsrc": "???" if alert.target_hae_m is None else "CALC"},
     )
+    return ET.tostring(event, encoding="utf-8", xml_declaration=True)
+
+
+def cot_delete(uid: str, now: float | None = None) -> bytes:
+    """A delete event (type ``t-x-d-d``, TAK's "delete this map item") for the marker ``uid``:
+    what an operator dismissed comes off the team's maps. Its point is CoT's unknown one."""
+    now = time.time() if now is None else now
+    event = ET.Element(
+        "event",
+        {
+            "version": "2.0",
+            "uid": f"{uid}.delete",
+            "type": COT_TYPE_DELETE,
+            "how": COT_HOW,
+            "time": utc_iso(now),
+            "start": utc_iso(now),
+            "stale": utc_iso(now + 60.0),
+        },
+    )
+    unknown = plain_decimal(COT_UNKNOWN)
+    ET.SubElement(
+        event, "point", {"lat": "0", "lon": "0", "hae": unknown, "ce": unknown, "le": unknown}
+    )
+    detail = ET.SubElement(event, "detail")
+    ET.SubElement(detail, "link", {"uid": uid, "relation": "none", "type": "none"})
+    ET.SubElement(detail, "__forcedelete")
     return ET.tostring(event, encoding="utf-8", xml_declaration=True)
 
 

@@ -16,7 +16,8 @@ keeps these.
 What is known differs by channel. A command (DO_REPOSITION, ROI, mission upload) is answered by
 the autopilot: it is *delivered* when accepted, *refused* (with the autopilot's result and reason)
 otherwise. A STATUSTEXT has no acknowledgement in MAVLink: all that is known is that it was *sent*
-n times, so it is sent several times and never called delivered (:data:`UNACKNOWLEDGED_CHANNELS`).
+n times, so it is sent several times and never called delivered (:data:`UNACKNOWLEDGED_CHANNELS`);
+so is a Cursor-on-Target event to the team's TAK (:data:`CHANNEL_COT`).
 Positions are WGS84 degrees; times are UTC POSIX seconds.
 """
 
@@ -38,8 +39,11 @@ STATUSTEXT_MAX_BYTES = 50
 #: Delivery channel name for the MAVLink STATUSTEXT alert.
 CHANNEL_MAVLINK = "mavlink"
 
+#: Delivery channel name for the team's Cursor-on-Target events (TAK).
+CHANNEL_COT = "cot"
+
 #: Channels without an acknowledgement: only how often the alert was sent is known.
-UNACKNOWLEDGED_CHANNELS = frozenset({CHANNEL_MAVLINK})
+UNACKNOWLEDGED_CHANNELS = frozenset({CHANNEL_MAVLINK, CHANNEL_COT})
 
 #: Alphabet of the short id's suffix: lower-case letters and digits that are not mistaken for
 #: one another on a ground station's screen (no 0/o, 1/l/i).

@@ -161,7 +161,7 @@ function metaLine(a) {
       meta.appendChild(el("span", "chip refused", NAMES[ch] + " refused: " + r.reason));
     }
   }
-  if (a.delivered.cot !== undefined) meta.appendChild(el("span", "chip", "TAK sent"));
+  if (sent.cot) meta.appendChild(el("span", "chip", "TAK sent " + sent.cot.count + "\u00d7"));
   return meta;
 }
 function actions(a, k) {

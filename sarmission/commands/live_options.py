@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 
 def add_session_options(parser: argparse.ArgumentParser) -> None:
-    """``--alerts-db --feed --feed-token-file --signing-key-file --connect-timeout
+    """``--alerts-db --feed --feed-token-file --cot --signing-key-file --connect-timeout
     --target-system --target-component`` of a live session."""
     parser.add_argument(
         "--alerts-db", default="alerts.db", help="durable alert store (default: %(default)s)"
@@ -43,6 +43,15 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="the feed's access token (16-256 printable characters; chmod 600). "
         "Default: none on loopback, else one is generated and printed once",
+    )
+    parser.add_argument(
+        "--cot",
+        metavar="URL",
+        action="append",
+        default=[],
+        help="send confirmed alerts to TAK as Cursor-on-Target, kept current as positions "
+        "are refined: udp://239.2.3.1:6969 (SA multicast), udp://HOST:4242 (a TAK client) "
+        "or tcp://HOST:8087 (a TAK Server); repeat for several",
     )
     parser.add_argument(
         "--signing-key-file",
@@ -175,6 +184,7 @@ def run_live(
             recorder=recorder,
             feed_address=feed,
             feed_token=feed_token,
+            cot_urls=args.cot,
             mission_id=args.mission_id,
             transport_latency_s=(mission.telemetry.latency_s if vehicle is not None else 0),
             connect_timeout_s=args.connect_timeout,

@@ -1,0 +1,153 @@
+"""The team's TAK gets each confirmed alert as a CoT marker over real sockets: sent when
+confirmed, moved when refined, renewed every refresh, deleted when an operator dismisses it;
+candidates never; a TAK Server that is down costs warnings, not the mission."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import xml.etree.ElementTree as ET
+
+import pytest
+from alert_samples import make_alert
+from conftest import wait_until
+
+from sarmission.alerts.cot import COT_TYPE, COT_TYPE_DELETE, CotSender
+from sarmission.alerts.cot_relay import CotRelay
+from sarmission.alerts.store import AlertStore
+from sarmission.errors import SarmissionError
+
+
+class UdpTak:
+    """A TAK client's UDP input: every datagram, parsed."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.1)
+        self.url = f"udp://127.0.0.1:{self.sock.getsockname()[1]}"
+        self.events: list[ET.Element] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data = self.sock.recv(65536)
+            except TimeoutError:
+                continue
+            self.events.append(ET.fromstring(data))
+
+    def of(self, uid: str) -> list[ET.Element]:
+        return [e for e in self.events if e.get("uid") == uid]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(2)
+        self.sock.close()
+
+
+@pytest.fixture
+def tak():
+    receiver = UdpTak()
+    yield receiver
+    receiver.close()
+
+
+def point(event: ET.Element) -> tuple[float, float, float]:
+    p = event.find("point")
+    assert p is not None
+    return float(p.get("lat")), float(p.get("lon")), float(p.get("ce"))
+
+
+def test_confirmed_alerts_go_out_move_when_refined_and_leave_when_dismissed(tmp_path, tak):
+    with AlertStore(tmp_path / "alerts.db") as store:
+        earlier = make_alert(1)  # confirmed in an earlier run of the mission
+        store.add(earlier)
+        candidate = make_alert(2, tier="candidate")
+        store.add(candidate)
+        other_mission = make_alert(3, mission_id="elsewhere")
+        store.add(other_mission)
+        relay = CotRelay(store, [CotSender(tak.url)], "test-mission", refresh_s=0.5).start()
+        try:
+            assert wait_until(lambda: tak.of(earlier.cot_uid), 5.0)
+            assert point(tak.of(earlier.cot_uid)[0])[:2] == pytest.approx(earlier.position)
+            assert tak.of(earlier.cot_uid)[0].get("type") == COT_TYPE
+            # the candidate is confirmed: its marker appears
+            store.promote(candidate.alert_id, "2.0 s, 31 sightings")
+            assert wait_until(lambda: tak.of(candidate.cot_uid), 5.0)
+            # its position is refined: the same marker moves, with the new error
+            moved = (candidate.position[0] + 1e-4, candidate.position[1])
+            store.refine_position(candidate.alert_id, moved, 1.5, "ground plane", "refined")
+            assert wait_until(lambda: point(tak.of(candidate.cot_uid)[-1])[:2] == moved, 5.0)
+            assert point(tak.of(candidate.cot_uid)[-1])[2] == 1.5
+            # renewed every refresh without any change
+            n = len(tak.of(earlier.cot_uid))
+            assert wait_until(lambda: len(tak.of(earlier.cot_uid)) >= n + 2, 5.0)
+            # dismissed by an operator: one delete event for its marker, and no more refreshes
+            store.record_decision(earlier.alert_id, "dismissed", "op")
+            assert wait_until(lambda: tak.of(f"{earlier.cot_uid}.delete"), 5.0)
+            (delete,) = tak.of(f"{earlier.cot_uid}.delete")
+            assert delete.get("type") == COT_TYPE_DELETE
+            assert delete.find("detail/link").get("uid") == earlier.cot_uid
+            n = len(tak.of(earlier.cot_uid))
+            later = len(tak.of(candidate.cot_uid))
+            assert wait_until(lambda: len(tak.of(candidate.cot_uid)) >= later + 2, 5.0)
+            assert len(tak.of(earlier.cot_uid)) == n
+        finally:
+            relay.stop()
+        assert tak.of(other_mission.cot_uid) == []
+        sent = store.get(candidate.alert_id).sent["cot"]
+        assert sent.count >= 3 and relay.sent >= sent.count
+        assert relay.deleted == 1 and "1 markers deleted" in relay.summary()
+
+
+def test_what_is_confirmed_just_before_stop_still_goes_out(tmp_path, tak):
+    with AlertStore(tmp_path / "alerts.db") as store:
+        relay = CotRelay(store, [CotSender(tak.url)], "test-mission").start()
+        alert = make_alert(1)
+        store.add(alert)
+        relay.stop()
+        assert wait_until(lambda: tak.of(alert.cot_uid), 2.0)
+
+
+def test_a_tak_server_that_is_down_costs_warnings_then_gets_the_marker(tmp_path, caplog):
+    """TCP to a port nobody listens on: the sends fail and are warned about; once the server
+    is up, the next refresh delivers the marker."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with AlertStore(tmp_path / "alerts.db") as store:
+        alert = make_alert(1)
+        store.add(alert)
+        with caplog.at_level("WARNING"):
+            relay = CotRelay(
+                store, [CotSender(f"tcp://127.0.0.1:{port}", 0.5)], "test-mission", refresh_s=0.3
+            ).start()
+        try:
+            assert relay.failures.total >= 1 and relay.sent == 0
+            assert any("CoT to tcp://127.0.0.1:" in r.getMessage() for r in caplog.records)
+            # the relay only refreshes what went out once; a store change makes it try again
+            server = socket.socket()
+            server.bind(("127.0.0.1", port))
+            server.listen()
+            server.settimeout(5.0)
+            store.refine_position(alert.alert_id, alert.position, 3.0, "ground plane", "refined")
+            conn, _ = server.accept()
+            conn.settimeout(5.0)
+            data = b""
+            while b"</event>" not in data:
+                data += conn.recv(65536)
+            assert ET.fromstring(data[: data.index(b"</event>") + 8]).get("uid") == alert.cot_uid
+            conn.close()
+            server.close()
+        finally:
+            relay.stop()
+        assert "sends failed" in relay.summary()
+
+
+@pytest.mark.parametrize("url", ["http://tak:8087", "udp://:6969", "tcp://tak", "239.2.3.1:6969"])
+def test_a_mistyped_destination_is_a_clear_error(url):
+    with pytest.raises(SarmissionError, match="must be udp://host:port or tcp://host:port"):
+        CotSender(url)
