@@ -2,6 +2,7 @@
 few seconds, durably, told on the console and to a queued visit; never for a dismissed alert."""
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -252,3 +253,52 @@ def test_the_store_refines_only_placed_alerts_nobody_dismissed_or_discarded(tmp_
             store.refine_position("nope", better, 2.0, "")
         with pytest.raises(ValueError):
             store.refine_position(placed.alert_id, (91.0, 0.0), 2.0, "")
+
+
+def test_a_track_that_joined_only_by_the_re_find_radius_does_not_move_the_alert(tmp_path, mission):
+    """The swimmer's track confirms them and is lost at 3 s; at 6 s another track locks 6 m
+    away and is seen for 10 s. The registry joins it to the target by the re-find radius
+    (a person can swim 6 m in 3 s), unsure whether it is them: the alert stays where the
+    swimmer was seen."""
+    n = int(16.0 * FPS)
+    u, v = pixel_of(mission, *TARGET_NED)
+    b_u, b_v = pixel_of(mission, TARGET_NED[0] - 6.0, TARGET_NED[1])
+    script = []
+    for i in range(n):
+        if i < 3 * FPS:
+            script.append([((u - 5, v - 5, u + 5, v + 5), 0.8, 0)])
+        elif i >= 6 * FPS:
+            script.append([((b_u - 5, b_v - 5, b_u + 5, b_v + 5), 0.8, 0)])
+        else:
+            script.append([])
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            biased_buffer(mission, n / FPS, bias_m=0.0),
+            store,
+            console=lambda s: None,
+        )
+        (alert,) = run_frames(ctl, n)
+        stored = store.get(alert.alert_id)
+    (target,) = ctl.registry.targets.values()
+    assert [s.loose for s in target.shares.values()].count(True) == 1
+    assert distance_m(stored.position, truth_latlon(mission)) < 0.5
+
+
+def test_a_window_with_too_little_evidence_gives_no_estimate():
+    from sarmission.mission.position_estimate import latest_position
+
+    few = [_Fix(t / 10, 54.17, 7.89, 1.5) for t in range(10)]  # 10 fixes over 0.9 s
+    assert latest_position(few) is not None
+    assert latest_position(few, min_fixes=11) is None
+    assert latest_position(few, min_span_s=1.0) is None
+    assert latest_position(few, min_fixes=10, min_span_s=0.9) is not None
+
+
+@dataclass(frozen=True)
+class _Fix:
+    t: float
+    lat: float
+    lon: float
+    error_m: float

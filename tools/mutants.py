@@ -80,6 +80,11 @@ _T_ZONES = ("tests/test_confirmation_boundaries.py", "tests/test_alert_tiers.py"
 _SCORING = "sarmission/evaluation/alert_scoring.py"
 _T_SCORING = ("tests/test_alert_scoring.py", "tests/test_alert_scoring_boundaries.py")
 _T_GEO_LIVE = ("tests/test_geolocation_tool.py",)
+_ESTIMATE = "sarmission/mission/position_estimate.py"
+_REFINEMENT = "sarmission/mission/refinement.py"
+_T_REFINE = ("tests/test_position_estimate.py", "tests/test_position_refinement.py")
+_COT_RELAY = "sarmission/alerts/cot_relay.py"
+_T_COT = ("tests/test_cot_relay.py",)
 _T_GEO_ERROR = ("tests/test_geo_oracles.py", "tests/test_geolocate.py", "tests/test_geo_grazing.py")
 _T_GIMBAL = ("tests/test_telemetry_buffer.py", "tests/test_camera.py", "tests/test_geo_oracles.py")
 
@@ -793,9 +798,9 @@ MUTANTS: list[Mutant] = [
     ),
     Mutant(
         "confirmation.span_floor_dropped",
-        _CONFIRMATION,
-        "sigma_v = max(sigma_fit / math.sqrt(spread), span_floor)",
-        "sigma_v = sigma_fit / math.sqrt(spread)",
+        _ESTIMATE,
+        "max(sigma_fit / math.sqrt(spread), span_floor),",
+        "sigma_fit / math.sqrt(spread),",
         _T_CONFIRM,
         "lock",
         "the speed's error from the fit alone: a few fixes on a line, or an oblique view's "
@@ -1553,5 +1558,109 @@ MUTANTS: list[Mutant] = [
         ("tests/test_camera.py",),
         "position",
         "frames taller than the camera's keep its principal point's row: every row is off",
+    ),
+    Mutant(
+        "estimate.whole_history",
+        _ESTIMATE,
+        "start = bisect.bisect_left(fixes, last.t - window_s, key=lambda f: f.t)",
+        "start = 0",
+        _T_REFINE,
+        "position",
+        "the alert is fitted to every fix the target ever had: old fixes of a pose error long "
+        "gone, or of a drifting swimmer's past, pull it away",
+    ),
+    Mutant(
+        "estimate.drift_not_followed",
+        _ESTIMATE,
+        "if drift_sigmas * fit.speed_sigma_m_s < fit.speed_m_s <= max_drift_m_s:",
+        "if False:",
+        _T_REFINE,
+        "position",
+        "a drifting swimmer is placed at the mean of the window, metres behind where they are",
+    ),
+    Mutant(
+        "estimate.any_speed_followed",
+        _ESTIMATE,
+        "if drift_sigmas * fit.speed_sigma_m_s < fit.speed_m_s <= max_drift_m_s:",
+        "if drift_sigmas * fit.speed_sigma_m_s < fit.speed_m_s:",
+        _T_REFINE,
+        "position",
+        "fixes sliding faster than a person moves (a pose error) are followed as a drift",
+    ),
+    Mutant(
+        "estimate.error_below_fixes",
+        _ESTIMATE,
+        "error = math.hypot(max(fix_error, scatter), extrapolation)",
+        "error = math.hypot(scatter, extrapolation)",
+        _T_REFINE,
+        "position",
+        "a still target's error shrinks to the fixes' scatter: a tight bar on fixes that share "
+        "the pose's error",
+    ),
+    Mutant(
+        "refinement.no_period",
+        _REFINEMENT,
+        "return now - self._last.get(alert_id, -math.inf) >= self.period_s",
+        "return True",
+        _T_REFINE,
+        "delivery",
+        "an alert is refined on every frame its estimate moves: a stream of updates to the "
+        "operator, the team and the autopilot",
+    ),
+    Mutant(
+        "refinement.confirmation_not_refined",
+        _CONTROLLER,
+        "prepare=lambda alert: self._refine(alert, frame_index, timestamp, force=True),",
+        "prepare=None,",
+        ("tests/test_run_e2e.py",),
+        "position",
+        "the confirmation goes out at the lock's single fix and moves a moment later",
+    ),
+    Mutant(
+        "store.dismissed_refined",
+        _STORE,
+        "WHERE alert_id = ? AND lat IS NOT NULL AND discarded IS NULL "
+        '"\n                "AND decision IS NOT \'dismissed\'",',
+        'WHERE alert_id = ? AND lat IS NOT NULL AND discarded IS NULL",',
+        ("tests/test_position_refinement.py",),
+        "position",
+        "a dismissed alert is moved: its suppressed zone wanders from where the operator saw it",
+    ),
+    Mutant(
+        "cot_relay.dismissed_kept",
+        _COT_RELAY,
+        "elif alert.alert_id in self._live and alert.dismissed:",
+        "elif False:",
+        _T_COT,
+        "delivery",
+        "a dismissed alert stays on the team's maps",
+    ),
+    Mutant(
+        "cot_relay.candidates_sent",
+        _COT_RELAY,
+        'return alert.tier == "confirmed" and alert.position is not None and not alert.dismissed',
+        "return alert.position is not None and not alert.dismissed",
+        _T_COT,
+        "delivery",
+        "unconfirmed candidates (clutter the evidence has not judged) go to the team",
+    ),
+    Mutant(
+        "refinement.loose_tracks_used",
+        _CONTROLLER,
+        "if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose",
+        "if True",
+        _T_REFINE,
+        "position",
+        "a track joined only by the re-find radius (maybe something else where the person "
+        "was) moves the alert",
+    ),
+    Mutant(
+        "estimate.any_evidence",
+        _ESTIMATE,
+        "if len(recent) < min_fixes or last.t - recent[0].t < min_span_s:",
+        "if False:",
+        _T_REFINE,
+        "position",
+        "a few fixes of a track that barely locked move the alert",
     ),
 ]

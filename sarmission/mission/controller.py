@@ -675,17 +675,27 @@ class MissionController:
         self, alert: Alert, frame_index: int, timestamp: float, force: bool = False
     ) -> None:
         """Move ``alert`` to where its target is as of its latest fix (a fit of its recent
-        fixes, :func:`~sarmission.mission.position_estimate.latest_position`) when
-        :class:`PositionRefiner` says so: durably first, then the console, the recording and
-        (confirmed) the queued visit. An alert the store no longer refines (dismissed,
-        discarded) is forgotten."""
+        fixes, :func:`~sarmission.mission.position_estimate.latest_position`, from the tracks
+        that joined it within the registry's statistical gate, when they are as many and as
+        long as a confirmation needs) when :class:`PositionRefiner` says so: durably first,
+        then the console, the recording and (confirmed) the queued visit. An alert the store
+        no longer refines (dismissed, discarded) is forgotten."""
         target = self.registry.targets.get(alert.target_id)
         evidence = self.candidates.evidence.get(alert.target_id)
         if target is None or evidence is None:
             return
         if not force and not self.refiner.ready(alert.alert_id, timestamp):
             return  # before the fit: it costs a window of fixes
-        estimate = latest_position(evidence.sightings)
+        # only the tracks the registry was sure of: one that joined only by the re-find
+        # radius may be something else near where the person was
+        shares = target.shares
+        sure = [
+            x
+            for x in evidence.sightings
+            if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose
+        ]
+        rule = self.mission.confirm
+        estimate = latest_position(sure, min_fixes=rule.min_sightings, min_span_s=rule.min_seen_s)
         if estimate is None:
             return
         due = self.refiner.due(alert, estimate.position, estimate.error_m, timestamp, force)

@@ -129,14 +129,20 @@ def latest_position(
     window_s: float = WINDOW_S,
     drift_sigmas: float = DRIFT_SIGMAS,
     max_drift_m_s: float = MAX_DRIFT_M_S,
+    min_fixes: int = 1,
+    min_span_s: float = 0.0,
 ) -> PositionEstimate | None:
     """The position of the target seen in ``fixes`` (ordered by time) as of its latest fix
-    (see the module docstring); None without fixes."""
+    (see the module docstring); None without fixes, or when the window holds fewer than
+    ``min_fixes`` or spans less than ``min_span_s``: a new position needs as much evidence as
+    a confirmation (a few fixes of a track that barely locked may be of something else)."""
     if not fixes:
         return None
     last = fixes[-1]
     start = bisect.bisect_left(fixes, last.t - window_s, key=lambda f: f.t)
     recent = fixes[start:]
+    if len(recent) < min_fixes or last.t - recent[0].t < min_span_s:
+        return None
     origin = (last.lat, last.lon)
     fix_error = float(np.mean([f.error_m for f in recent]))
     fit = line_fit(recent, origin)
