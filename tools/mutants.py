@@ -1647,12 +1647,21 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "refinement.loose_tracks_used",
         _CONTROLLER,
-        "if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose",
+        "if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)",
         "if True",
         _T_REFINE,
         "position",
         "a track joined only by the re-find radius (maybe something else where the person "
         "was) moves the alert",
+    ),
+    Mutant(
+        "refinement.detached_tracks_used",
+        _CONTROLLER,
+        "if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)",
+        "if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose",
+        ("tests/test_controller.py",),
+        "position",
+        "a glint taken back out of a person's target still moves the person's alert to it",
     ),
     Mutant(
         "estimate.any_evidence",

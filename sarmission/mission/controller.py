@@ -686,13 +686,14 @@ class MissionController:
             return
         if not force and not self.refiner.ready(alert.alert_id, timestamp):
             return  # before the fit: it costs a window of fixes
-        # only the tracks the registry was sure of: one that joined only by the re-find
-        # radius may be something else near where the person was
+        # only the tracks the registry is sure of: one that joined only by the re-find radius
+        # may be something else near where the person was, and one taken back out of the
+        # target (its sightings leave the evidence at its next sighting) is something else
         shares = target.shares
         sure = [
             x
             for x in evidence.sightings
-            if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose
+            if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)
         ]
         rule = self.mission.confirm
         estimate = latest_position(sure, min_fixes=rule.min_sightings, min_span_s=rule.min_seen_s)
