@@ -228,6 +228,18 @@ def test_the_refiner_waits_its_period_and_ignores_small_changes():
     assert r.due(alert, None, None, 99.0) is None
 
 
+def test_an_alert_due_is_looked_at_once_a_second_not_every_frame():
+    """Due but not moved enough: the next fit of its window waits a second, not a frame."""
+    r = PositionRefiner(period_s=5.0, check_period_s=1.0)
+    r.done("a", 0.0)
+    assert not r.worth_a_look("a", 4.9)  # not due yet
+    assert r.worth_a_look("a", 5.0)
+    assert not r.worth_a_look("a", 5.5)
+    assert r.worth_a_look("a", 6.0)
+    r.done("a", 6.0)  # refined: the period starts again
+    assert not r.worth_a_look("a", 10.9) and r.worth_a_look("a", 11.0)
+
+
 def test_the_store_refines_only_placed_alerts_nobody_dismissed_or_discarded(tmp_path):
     with AlertStore(tmp_path / "alerts.db") as store:
         placed, blind, dismissed, discarded = (

@@ -1672,4 +1672,14 @@ MUTANTS: list[Mutant] = [
         "position",
         "a few fixes of a track that barely locked move the alert",
     ),
+    Mutant(
+        "refinement.looks_every_frame",
+        _REFINEMENT,
+        "if now - self._looked.get(alert_id, -math.inf) < self.check_period_s:",
+        "if False:",
+        _T_REFINE,
+        "metric",
+        "an alert due for refinement is fitted on every frame until it moves: a window of fixes "
+        "per alert per frame",
+    ),
 ]

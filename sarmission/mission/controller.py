@@ -40,6 +40,7 @@ they show).
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import logging
 import math
@@ -64,7 +65,7 @@ from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.config import MissionConfig
-from sarmission.mission.position_estimate import latest_position
+from sarmission.mission.position_estimate import WINDOW_S, latest_position
 from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception.types import FrameResult
@@ -684,15 +685,18 @@ class MissionController:
         evidence = self.candidates.evidence.get(alert.target_id)
         if target is None or evidence is None:
             return
-        if not force and not self.refiner.ready(alert.alert_id, timestamp):
+        if not evidence.sightings:
+            return
+        if not force and not self.refiner.worth_a_look(alert.alert_id, timestamp):
             return  # before the fit: it costs a window of fixes
         # only the tracks the registry is sure of: one that joined only by the re-find radius
         # may be something else near where the person was, and one taken back out of the
         # target (its sightings leave the evidence at its next sighting) is something else
         shares = target.shares
+        since = evidence.sightings[-1].t - WINDOW_S
         sure = [
             x
-            for x in evidence.sightings
+            for x in evidence.sightings[bisect.bisect_left(evidence.sightings, since, key=_time) :]
             if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)
         ]
         rule = self.mission.confirm
@@ -843,6 +847,10 @@ def format_alert(alert: Alert, track_id: int | None = None) -> str:
         f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
         f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence})"
     )
+
+
+def _time(sighting: Any) -> float:
+    return sighting.t
 
 
 def format_refined(alert: Alert, refinement: Refinement, frame_index: int) -> str:

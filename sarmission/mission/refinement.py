@@ -29,6 +29,9 @@ REFINE_MIN_MOVE_M = 1.0
 REFINE_MOVE_SHARE = 0.5
 #: An error that changed by more than this share of the alert's is worth telling.
 REFINE_ERROR_SHARE = 0.25
+#: Seconds between two looks at an alert whose refinement is due but whose estimate had not
+#: moved enough (each look fits a window of fixes).
+CHECK_PERIOD_S = 1.0
 #: At the confirmation (``force``) a move or an error change of more than this (m) is taken.
 FORCED_TOLERANCE_M = 0.1
 
@@ -56,7 +59,9 @@ class PositionRefiner:
     min_move_m: float = REFINE_MIN_MOVE_M
     move_share: float = REFINE_MOVE_SHARE
     error_share: float = REFINE_ERROR_SHARE
+    check_period_s: float = CHECK_PERIOD_S
     _last: dict[str, float] = field(default_factory=dict)
+    _looked: dict[str, float] = field(default_factory=dict)
 
     def due(
         self,
@@ -93,6 +98,17 @@ class PositionRefiner:
         """Whether ``period_s`` has passed since ``alert_id`` was last refined (or placed)."""
         return now - self._last.get(alert_id, -math.inf) >= self.period_s
 
+    def worth_a_look(self, alert_id: str, now: float) -> bool:
+        """Whether to fit ``alert_id``'s estimate now: it is :meth:`ready`, and
+        ``check_period_s`` has passed since the last look that found no refinement due.
+        Counts this call as a look."""
+        if not self.ready(alert_id, now):
+            return False
+        if now - self._looked.get(alert_id, -math.inf) < self.check_period_s:
+            return False
+        self._looked[alert_id] = now
+        return True
+
     def done(self, alert_id: str, now: float) -> None:
         """``alert_id`` was refined (or placed) at ``now``: the next waits ``period_s``."""
         self._last[alert_id] = now
@@ -100,3 +116,4 @@ class PositionRefiner:
     def forget(self, alert_id: str) -> None:
         """Nothing more to refine for ``alert_id`` (discarded or dismissed)."""
         self._last.pop(alert_id, None)
+        self._looked.pop(alert_id, None)
