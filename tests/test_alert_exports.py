@@ -234,3 +234,9 @@ def test_a_life_ring_alert_reads_as_one_and_is_no_casualty() -> None:
     assert event.find("detail/contact").get("callsign") == "SAR T2 life ring"
     swimmer = ET.fromstring(alert_to_cot(make_alert(3, position=(LAT, LON)), now=1.0))
     assert swimmer.get("type") == COT_TYPE
+
+
+def test_cot_remarks_say_how_old_the_position_is() -> None:
+    alert = make_alert(1, position_time=1_700_000_005.0)
+    event = ET.fromstring(alert_to_cot(alert, now=1_700_000_010.0))
+    assert "position as of 2023-11-14T22:13:25" in event.find("detail/remarks").text

@@ -282,7 +282,7 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
             )
     conn.close()
     with AlertStore(db) as store:
-        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 5
         assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
         assert store.attach_position("blind", (-35.36, 149.17), 3.5, "ground plane")
         assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
@@ -549,3 +549,23 @@ def test_known_fixes_carry_the_error_of_each_latest_position(tmp_path: Path) -> 
     assert known[1][2] == pytest.approx(6.5) and known[1][:2] == make_alert(1).position
     assert known[2] is None
     assert known[3][2] is None
+
+
+def test_schema_4_store_gains_the_time_a_position_rests_on(tmp_path: Path) -> None:
+    """A store written before positions had a time (schema 4: the current tables without
+    ``position_time``) opens with its alerts' times unknown, and refines with one."""
+    db = tmp_path / "old.db"
+    with AlertStore(db) as store:
+        store.add(make_alert(1, position_time=1.7e9))
+    conn = sqlite3.connect(db)
+    conn.execute("ALTER TABLE alerts DROP COLUMN position_time")
+    conn.execute("PRAGMA user_version = 4")
+    conn.commit()
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+        (old,) = store.list()
+        assert old.position_time is None and old.position is not None
+        assert store.refine_position(old.alert_id, old.position, 2.0, "ground plane", "", 1.8e9)
+        assert store.get(old.alert_id).position_time == 1.8e9
+        assert store.get(old.alert_id).to_json_dict()["position_time"] == 1.8e9

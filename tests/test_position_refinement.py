@@ -166,6 +166,9 @@ def test_a_drifting_swimmer_is_placed_where_they_are_not_where_they_were(tmp_pat
         stored = store.get(alert.alert_id)
     frame = ctl.stats.position_frames[alert.alert_id]
     assert frame >= n - REFINE_PERIOD_S * FPS
+    # the store says how old the position is: as of its frame's fix
+    ahead = stored.position_time - stored.lock_time
+    assert ahead == pytest.approx((frame - stored.frame_index) / FPS, abs=1e-6)
     lat, lon, _ = ned_to_geodetic(*place(frame), 0.0, *mission.area.home)
     assert distance_m(stored.position, (lat, lon)) < 1.0
     assert distance_m(ctl.registry.targets[1].position, (lat, lon)) > 5.0

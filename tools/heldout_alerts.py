@@ -158,11 +158,13 @@ def replay_command(
 def score_clip(dataset: VideoDataset, video: Video, db: Path) -> FlightScore:
     """The replay's alerts in ``db`` scored against the clip's annotations. A confirmation's
     time in the footage is its lock frame's plus the store's lock-to-confirmation interval
-    (both on the replay's clock)."""
+    (both on the replay's clock); a position's frame, the lock's plus the interval to the fix
+    it rests on. The store keeps an alert's latest position: it is scored both as sent and at
+    the end."""
     fps = float(video.extra.get("fps", FPS))
     with AlertStore(db) as store:
         stored = store.list()
-    alerts = []
+    alerts, frames_of = [], {}
     for alert in stored:
         if alert.tier != "confirmed":
             continue
@@ -170,7 +172,16 @@ def score_clip(dataset: VideoDataset, video: Video, db: Path) -> FlightScore:
             0.0, (alert.confirmed_at or alert.lock_time) - alert.lock_time
         )
         alerts.append((alert, round(t * fps), t))
-    return score_flight(dataset_truth(dataset, video.id, fps), alerts, candidates=stored)
+        if alert.position_time is not None:
+            ahead = max(0.0, alert.position_time - alert.lock_time)
+            frames_of[alert.alert_id] = alert.frame_index + round(ahead * fps)
+    return score_flight(
+        dataset_truth(dataset, video.id, fps),
+        alerts,
+        candidates=stored,
+        position_frames=frames_of,
+        sent_frames=frames_of,
+    )
 
 
 def fly(args: argparse.Namespace) -> Path:

@@ -81,6 +81,11 @@ def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 
         f"{label} score {alert.score:.2f}, target {alert.target_id}, "
         f"mission {alert.mission_id}, locked {utc_iso(alert.lock_time)}, "
         f"error {alert.format_error() or 'unknown'}, alert {alert.alert_id}"
+        + (
+            ""
+            if alert.position_time is None
+            else f", position as of {utc_iso(alert.position_time)}"
+        )
     )
     ET.SubElement(
         detail,

@@ -187,6 +187,9 @@ class Alert:
     decision: Decision | None = None
     decided_by: str | None = None
     decided_at: float | None = None
+    #: POSIX time of the latest fix the position rests on (None: the lock's, or no position);
+    #: a drifting swimmer's position is as old as this
+    position_time: float | None = None
 
     def __post_init__(self) -> None:
         if self.position is not None:
@@ -283,6 +286,7 @@ class Alert:
                 else {"lat": self.position[0], "lon": self.position[1]}
             ),
             "position_note": self.position_note,
+            "position_time": self.position_time,
             "error_m": self.error_m,
             "target_hae_m": self.target_hae_m,
             "drone_position": (

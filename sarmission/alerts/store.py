@@ -33,7 +33,8 @@ upgraded in place when opened (schema 2 added the ``position`` event; schema 3 r
 ``deliveries`` by ``acks`` and ``sends``: an old "delivered" STATUSTEXT became "sent 1 time",
 since that was all that was known; schema 4 added tiers, operator decisions, the ``confirmed``,
 ``discarded`` and ``decided`` events with who and why, the drone's track and mission areas: an
-older alert is a confirmed one without a decision, as it was).
+older alert is a confirmed one without a decision, as it was; schema 5 added the time of the
+latest fix a position rests on, unknown for older alerts).
 """
 
 from __future__ import annotations
@@ -63,7 +64,7 @@ from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 #: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
 DRONE_POINTS_KEPT = 20_000
@@ -95,6 +96,7 @@ _EVENT_KINDS = {
         "decided",
     ),
 }
+_EVENT_KINDS[5] = _EVENT_KINDS[4]
 
 
 def _events_table(name: str, schema: int = SCHEMA_VERSION) -> str:
@@ -182,7 +184,8 @@ CREATE TABLE alerts (
     discarded_at  REAL,
     decision      TEXT CHECK (decision IN ('confirmed', 'dismissed')),
     decided_by    TEXT,
-    decided_at    REAL
+    decided_at    REAL,
+    position_time REAL
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
 """
@@ -238,6 +241,8 @@ DROP TABLE events;
 ALTER TABLE events_4 RENAME TO events;
 """
     + _MAP_TABLES,
+    # Schema 4 kept no time for a position: the lock's it stays.
+    4: "ALTER TABLE alerts ADD COLUMN position_time REAL",
 }
 
 
@@ -254,7 +259,7 @@ SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time
        a.frame_index, a.lat, a.lon, a.position_note, a.error_m, a.target_hae_m,
        a.drone_lat, a.drone_lon, a.drone_alt_m, a.track, a.pixel_track, a.thumbnail,
        a.ack_time, a.ack_by, a.tier, a.evidence, a.confirmed_at, a.discarded, a.discarded_at,
-       a.decision, a.decided_by, a.decided_at
+       a.decision, a.decided_by, a.decided_at, a.position_time
 FROM alerts a
 """
 #: Alerts still to go to the autopilot: confirmed and not dismissed by an operator.
@@ -413,8 +418,8 @@ class AlertStore:
                 "score, lock_time, frame_index, lat, lon, position_note, error_m, target_hae_m, "
                 "drone_lat, drone_lon, drone_alt_m, track, pixel_track, thumbnail, ack_time, "
                 "ack_by, added_time, tier, evidence, confirmed_at, discarded, discarded_at, "
-                "decision, decided_by, decided_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "decision, decided_by, decided_at, position_time) VALUES (?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     alert.alert_id,
                     alert.mission_id,
@@ -442,6 +447,7 @@ class AlertStore:
                     alert.decision,
                     alert.decided_by,
                     alert.decided_at,
+                    alert.position_time,
                 ),
             )
             if cur.rowcount == 0:
@@ -549,7 +555,12 @@ class AlertStore:
         return Sends(count, first, last)
 
     def attach_position(
-        self, alert_id: str, position: tuple[float, float], error_m: float | None, note: str
+        self,
+        alert_id: str,
+        position: tuple[float, float],
+        error_m: float | None,
+        note: str,
+        position_time: float | None = None,
     ) -> bool:
         """Give an alert stored without a position its ``(lat, lon)``, error and note, durably.
 
@@ -560,9 +571,9 @@ class AlertStore:
         with self._transaction() as conn:
             self._require(conn, alert_id)
             cur = conn.execute(
-                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ? "
-                "WHERE alert_id = ? AND lat IS NULL",
-                (lat, lon, error_m, note, alert_id),
+                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ?, "
+                "position_time = ? WHERE alert_id = ? AND lat IS NULL",
+                (lat, lon, error_m, note, position_time, alert_id),
             )
             if cur.rowcount:
                 self._log(conn, "position", alert_id)
@@ -577,6 +588,7 @@ class AlertStore:
         error_m: float | None,
         note: str,
         detail: str = "",
+        position_time: float | None = None,
     ) -> bool:
         """Move a placed alert to a better ``(lat, lon)`` with its error and note, durably: the
         target's position once more fixes came in. Logged as a ``position`` event with
@@ -588,10 +600,10 @@ class AlertStore:
         with self._transaction() as conn:
             self._require(conn, alert_id)
             cur = conn.execute(
-                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ? "
-                "WHERE alert_id = ? AND lat IS NOT NULL AND discarded IS NULL "
+                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ?, "
+                "position_time = ? WHERE alert_id = ? AND lat IS NOT NULL AND discarded IS NULL "
                 "AND decision IS NOT 'dismissed'",
-                (lat, lon, error_m, note, alert_id),
+                (lat, lon, error_m, note, position_time, alert_id),
             )
             if cur.rowcount:
                 self._log(conn, "position", alert_id, detail=detail)
@@ -1080,7 +1092,7 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
     (alert_id, mission_id, target_id, class_name, score, lock_time, frame_index, lat, lon,
      position_note, error_m, target_hae_m, d_lat, d_lon, d_alt, track, pixel_track, thumbnail,
      ack_time, ack_by, tier, evidence, confirmed_at, discarded, discarded_at, decision,
-     decided_by, decided_at) = row  # fmt: skip
+     decided_by, decided_at, position_time) = row  # fmt: skip
     return Alert(
         alert_id=alert_id,
         mission_id=mission_id,
@@ -1110,4 +1122,5 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
         decision=decision,
         decided_by=decided_by,
         decided_at=decided_at,
+        position_time=position_time,
     )

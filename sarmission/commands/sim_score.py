@@ -136,6 +136,7 @@ def fly(
             track_scores=track_scores,
             final={a.alert_id: a for a in stored},
             position_frames=session.controller.stats.position_frames,
+            sent_frames=session.controller.stats.confirmed_position_frames,
         ),
         summary,
         session.controller,

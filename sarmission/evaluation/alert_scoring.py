@@ -20,10 +20,10 @@ when a stretch of frames showing them (gaps up to ``max_gap_s``) lasts at least 
 the time to alert runs from their first frame to the confirmation.
 
 The geolocation error of a found person's alert is measured twice: as the alert went out (its
-position at the confirmation, against the person's position at the lock) and as stored at the
-flight's end (``final``: alert id -> the stored alert; a placed alert's position is refined as
-its target's fixes come in), against where the person was in the frame that position is of
-(``position_frames``: alert id -> frame index; people drift). Each time
+position at the confirmation) and as stored at the flight's end (``final``: alert id -> the
+stored alert; a placed alert's position is refined as its target's fixes come in), each against
+where the person was in the frame that position is of (``sent_frames`` and ``position_frames``:
+alert id -> frame index, by default the lock's; people drift). Each time
 the truth is also checked against the alert's own error: within twice its 1-sigma error is
 where an honest estimate puts it about 95 % of the time.
 """
@@ -250,6 +250,7 @@ def score_flight(
     track_scores: dict[str, float] | None = None,
     final: Mapping[str, Any] | None = None,
     position_frames: Mapping[str, int] | None = None,
+    sent_frames: Mapping[str, int] | None = None,
 ) -> FlightScore:
     """The figures of one flight (see the module docstring). ``candidates`` (every stored
     alert, confirmed or not) explain the misses (what became of a missed person's candidate,
@@ -291,7 +292,9 @@ def score_flight(
             continue
         truth = (person.lat, person.lon)
         if alert.position is not None:
-            _geo(out.geo_error_m, out.geo_within_2x, alert, truth)
+            frame_of = (sent_frames or {}).get(alert.alert_id, alert.frame_index)
+            then = _person_at(frames, person.track_id, frame_of) or truth
+            _geo(out.geo_error_m, out.geo_within_2x, alert, then)
         last = (final or {}).get(alert.alert_id, alert)
         if last.position is not None:
             frame_of = (position_frames or {}).get(alert.alert_id, alert.frame_index)

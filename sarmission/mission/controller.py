@@ -118,8 +118,10 @@ class ControllerStats:
     objects: int = 0  # locked targets the head calls an object (boat, buoy): never alerted
     located_later: int = 0
     refined: int = 0  # placed alerts moved to their target's better position
-    # alert id -> the frame its stored position is of (its lock, placement or refinement)
+    # alert id -> the frame its stored position is of (its lock, placement or refinement),
+    # now and as the alert was confirmed
     position_frames: dict[str, int] = field(default_factory=dict)
+    confirmed_position_frames: dict[str, int] = field(default_factory=dict)
     unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
     merged_tracks: int = 0
     paused: int = 0  # frames not searched: the camera was pointed at a target
@@ -591,6 +593,9 @@ class MissionController:
             self._refine(alert, frame_index, timestamp, force=True)
         self.stats.alerts.append(alert)
         self.stats.confirmed.append((dataclasses.replace(alert), frame_index, timestamp))
+        self.stats.confirmed_position_frames[alert.alert_id] = self.stats.position_frames.get(
+            alert.alert_id, alert.frame_index
+        )
         line = format_alert(alert)
         self.console(line)
         if self.recorder is not None:
@@ -622,6 +627,7 @@ class MissionController:
             frame_index=frame_index,
             position=target.position if placed else None,
             position_note=target.note if placed else (target.note or "no position"),
+            position_time=self.to_posix(track.history[-1][1]) if placed else None,
             error_m=target.error_m if placed else None,
             target_hae_m=self._target_hae(),
             drone_position=(
@@ -645,14 +651,16 @@ class MissionController:
         alert = self._unplaced.pop(target.target_id)
         self._unplaced_sightings.pop(target.target_id, None)
         assert target.position is not None
+        fixed = None if target.last_fix is None else self.to_posix(target.last_fix[3])
         if not self.store.attach_position(
-            alert.alert_id, target.position, target.error_m, target.note
+            alert.alert_id, target.position, target.error_m, target.note, fixed
         ):  # durable before anyone is told
             return
-        alert.position, alert.error_m, alert.position_note = (
+        alert.position, alert.error_m, alert.position_note, alert.position_time = (
             target.position,
             target.error_m,
             target.note,
+            fixed,
         )
         self.stats.located_later += 1
         self._placed[target.target_id] = alert
@@ -706,13 +714,15 @@ class MissionController:
         due = self.refiner.due(alert, estimate.position, estimate.error_m, timestamp, force)
         if due is None:
             return
+        fixed = self.to_posix(estimate.t)
         if not self.store.refine_position(
-            alert.alert_id, due.position, due.error_m, target.note, due.detail()
+            alert.alert_id, due.position, due.error_m, target.note, due.detail(), fixed
         ):
             self._placed.pop(alert.target_id, None)
             self.refiner.forget(alert.alert_id)
             return
         alert.position, alert.error_m, alert.position_note = due.position, due.error_m, target.note
+        alert.position_time = fixed
         self.refiner.done(alert.alert_id, timestamp)
         self.stats.refined += 1
         self.stats.position_frames[alert.alert_id] = frame_index
