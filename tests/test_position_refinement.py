@@ -130,6 +130,17 @@ def test_a_biased_start_is_refined_towards_the_truth_and_its_error_stays_honest(
     assert f"positions refined: {len(refined)}" in ctl.summary()
 
 
+def exact_controller(mission, script: list, store, console) -> MissionController:
+    """A controller on ``script`` with the hovering drone's exact telemetry."""
+    return MissionController(
+        mission,
+        ScriptedDetector(script),
+        biased_buffer(mission, len(script) / FPS, bias_m=0.0),
+        store,
+        console=console,
+    )
+
+
 def pixel_of(mission, north: float, east: float) -> tuple[float, float]:
     """Where the hovering drone's nadir camera sees ground point ``(north, east)``."""
     cam = CameraPose.from_attitudes(
@@ -155,13 +166,7 @@ def test_a_drifting_swimmer_is_placed_where_they_are_not_where_they_were(tmp_pat
         script.append([((u - 5, v - 5, u + 5, v + 5), 0.8, 0)])
     lines: list[str] = []
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            biased_buffer(mission, n / FPS, bias_m=0.0),
-            store,
-            console=lines.append,
-        )
+        ctl = exact_controller(mission, script, store, lines.append)
         (alert,) = run_frames(ctl, n)
         stored = store.get(alert.alert_id)
     frame = ctl.stats.position_frames[alert.alert_id]
@@ -287,13 +292,7 @@ def test_a_track_that_joined_only_by_the_re_find_radius_does_not_move_the_alert(
         else:
             script.append([])
     with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = MissionController(
-            mission,
-            ScriptedDetector(script),
-            biased_buffer(mission, n / FPS, bias_m=0.0),
-            store,
-            console=lambda s: None,
-        )
+        ctl = exact_controller(mission, script, store, lambda s: None)
         (alert,) = run_frames(ctl, n)
         stored = store.get(alert.alert_id)
     (target,) = ctl.registry.targets.values()

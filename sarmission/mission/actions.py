@@ -186,11 +186,7 @@ class ActionPolicy:
         target_id = alert.target_id
         if target_id not in self.planner.pending or alert.position is None:
             return False
-        refusal = (
-            "no mission area to check it against"
-            if self.move_gate is None
-            else self.move_gate.refusal(alert.position, alert.error_m)
-        )
+        refusal = self._move_refusal(alert)
         if refusal:
             del self.planner.pending[target_id]
             self._visit_alerts.pop(target_id, None)
@@ -239,6 +235,12 @@ class ActionPolicy:
         self.outbox.submit(ClearRoi(), key=_Key("", ROI_RELEASE, 0))
         return True
 
+    def _move_refusal(self, alert: Alert) -> str:
+        """Why the vehicle may not be sent to ``alert``'s position ("" when it may)."""
+        if self.move_gate is None:
+            return "no mission area to check it against"
+        return self.move_gate.refusal(alert.position, alert.error_m)
+
     def _roi_on_its_way(self) -> bool:
         return any(isinstance(a.command, SetRoi) for a in self.outbox.pending())
 
@@ -255,11 +257,7 @@ class ActionPolicy:
         if alert.position is None:
             log.info("target %d has no position: %s skipped", alert.target_id, entry)
             return False
-        refusal = (
-            "no mission area to check it against"
-            if self.move_gate is None
-            else self.move_gate.refusal(alert.position, alert.error_m)
-        )
+        refusal = self._move_refusal(alert)
         if refusal:
             self.withheld += 1
             self.console(
