@@ -117,6 +117,9 @@ function render(a) {
     if (a.error_m !== null) {
       where.appendChild(el("span", "err", "\u00b1" + Math.max(1, Math.round(a.error_m)) + " m"));
     }
+    if (a.position_time && a.position_time > a.lock_time + 0.5) {  // refined since the lock
+      where.appendChild(el("span", "asof", "as of " + utc(a.position_time)));
+    }
   } else {
     const note = a.position_note ? ": " + a.position_note : "";
     where.appendChild(el("span", "nopos", "Position unknown" + note));
