@@ -316,3 +316,43 @@ class _Fix:
     lat: float
     lon: float
     error_m: float
+
+
+def test_a_glint_taken_back_out_of_the_target_never_moves_its_alert(tmp_path, mission):
+    """A person alerted, then out of sight; a glint 7 m off locks and joins their target by the
+    re-find radius and is seen for 2 s; the person's own track takes the target back over and
+    the glint is gone for good. Its sightings stay in the target's evidence (a track's are
+    dropped at its next sighting, and it has none), yet the alert never moves towards it."""
+    from test_controller import confirm_at_lock, run_script
+
+    confirm_at_lock(mission)
+    u, v = pixel_of(mission, *TARGET_NED)
+    person, moved, glint = (
+        (u - 5, v - 5, u + 5, v + 5),
+        (u + 21, v - 5, u + 31, v + 5),
+        (u + 174, v - 5, u + 184, v + 5),
+    )
+    script = []
+    for i in range(130):
+        boxes = [(person, 0.9, 0)] if i < 10 else []
+        boxes += [(glint, 0.8, 0)] if 50 <= i <= 70 else []
+        boxes += [(moved, 0.9, 0)] if i >= 68 else []
+        script.append(boxes)
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = run_script(mission, script, store)
+        first = min(store.list(), key=lambda a: a.target_id)
+        moves = [
+            float(e.detail.split("moved ")[1].split(" m")[0])
+            for e in store.events()
+            if e.kind == "position" and e.alert.alert_id == first.alert_id
+        ]
+    evidence = ctl.candidates.evidence[first.target_id].sightings
+    glint_fixes = [s for s in evidence if distance_m((s.lat, s.lon), truth_latlon(mission)) > 5]
+    assert len(glint_fixes) >= 10  # the glint's sightings are still there
+    assert all(m < 2.0 for m in moves), moves
+    assert distance_m(store_position(tmp_path, first.alert_id), truth_latlon(mission)) < 1.5
+
+
+def store_position(tmp_path, alert_id):
+    with AlertStore(tmp_path / "alerts.db") as store:
+        return store.get(alert_id).position

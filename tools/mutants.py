@@ -1659,7 +1659,7 @@ MUTANTS: list[Mutant] = [
         _CONTROLLER,
         "if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)",
         "if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose",
-        ("tests/test_controller.py",),
+        ("tests/test_position_refinement.py", "tests/test_controller.py"),
         "position",
         "a glint taken back out of a person's target still moves the person's alert to it",
     ),
