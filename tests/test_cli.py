@@ -354,3 +354,17 @@ def test_a_mission_names_a_shipped_head_by_name(tmp_path: Path) -> None:
     args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
     with pytest.raises(MissionConfigError, match='model: expected "default", "maritime", "land"'):
         load_mission_from_args(args)
+
+
+@pytest.mark.parametrize("url", ["http://tak:8087", "udp://tak"])
+def test_run_refuses_a_mistyped_cot_destination_before_starting(
+    url: str, capsys: pytest.CaptureFixture
+) -> None:
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["run", "--connect", "udp:127.0.0.1:1", "--sim", "--cot", url])
+    assert stop.value.code == 2
+    assert "must be udp://host:port or tcp://host:port" in capsys.readouterr().err
+    args = build_parser().parse_args(
+        ["run", "--connect", "udp:127.0.0.1:1", "--sim", "--cot", "udp://239.2.3.1:6969"]
+    )
+    assert args.cot == ["udp://239.2.3.1:6969"]

@@ -47,6 +47,7 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--cot",
         metavar="URL",
+        type=_cot_url,
         action="append",
         default=[],
         help="send confirmed alerts to TAK as Cursor-on-Target, kept current as positions "
@@ -82,6 +83,18 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
         help="only adopt this component of it (default: any; ArduPilot and "
         "PX4 flight controllers are 1)",
     )
+
+
+def _cot_url(text: str) -> str:
+    """A CoT destination, checked before anything starts."""
+    from sarmission.alerts.cot import CotSender
+    from sarmission.errors import SarmissionError
+
+    try:
+        CotSender(text)
+    except SarmissionError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def _mavlink_id(text: str) -> int:
