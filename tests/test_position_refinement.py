@@ -48,14 +48,16 @@ def mission():
     return m
 
 
-def biased_buffer(mission, t_end: float, bias_m: float = BIAS_E_M) -> TelemetryBuffer:
+def biased_buffer(
+    mission, t_end: float, bias_m: float = BIAS_E_M, until_s: float = BIAS_UNTIL_S
+) -> TelemetryBuffer:
     """The hovering drone of the controller tests, its GNSS position reported ``bias_m`` east
-    of the truth for the first 2 s (a bias that wanders off), exact after that."""
+    of the truth for the first ``until_s`` (a bias that wanders off), exact after that."""
     buf = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
     home = mission.area.home
     buf.set_home(*home)
     for t in np.arange(0.0, t_end + 1e-9, 0.05):
-        east = DRONE_NED[1] + (bias_m if t < BIAS_UNTIL_S else 0.0)
+        east = DRONE_NED[1] + (bias_m if t < until_s else 0.0)
         lat, lon, _ = ned_to_geodetic(DRONE_NED[0], east, 0.0, *home)
         buf.push_position(float(t), float(lat), float(lon), ALT)
         buf.push_attitude(float(t), 0.0, 0.0, YAW)
@@ -356,3 +358,31 @@ def test_a_glint_taken_back_out_of_the_target_never_moves_its_alert(tmp_path, mi
 def store_position(tmp_path, alert_id):
     with AlertStore(tmp_path / "alerts.db") as store:
         return store.get(alert_id).position
+
+
+def test_the_confirmation_goes_out_at_its_fixes_not_at_the_locks_one(tmp_path, mission):
+    """The lock's fix (0.2 s) is 10 m off, every later one exact: the alert confirmed at 1.2 s
+    is announced where the fixes that confirmed it put it, not at the lock's."""
+    n = int(3.0 * FPS)
+    u, v = target_pixel(mission)
+    script = [[((u - 5, v - 5, u + 5, v + 5), 0.8, 0)] for _ in range(n)]
+    actions = AnnouncedActions()
+    lines: list[str] = []
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission,
+            ScriptedDetector(script),
+            biased_buffer(mission, n / FPS, until_s=0.25),
+            store,
+            actions=actions,
+            console=lines.append,
+        )
+        run_frames(ctl, n)
+    # the candidate's line says where the lock put it
+    (said,) = [line for line in lines if line.startswith("CANDIDATE target 1")]
+    lat, lon = said.split(" at ")[1].split(" ")[0].split(",")
+    lock = (float(lat), float(lon))
+    truth = truth_latlon(mission)
+    assert distance_m(lock, truth) > 9.0
+    ((_, announced),) = actions.announced
+    assert distance_m(announced, truth) < 2.0

@@ -121,9 +121,9 @@ class CotRelay:
                 stopping = self._stop.is_set() or self.store.closed
                 wait = 0.0 if stopping else max(0.0, min(0.5, next_refresh - time.monotonic()))
                 events = subscription.get(timeout=wait)  # stopping: what is left, at once
-                changed = {e.alert.alert_id for e in events if e.kind in _RESEND}
-                current = [self.store.get(alert_id) for alert_id in changed]
-                self.publish([a for a in current if a is not None])
+                # each event carries its alert as it is now: one per alert is enough
+                changed = {e.alert.alert_id: e.alert for e in events if e.kind in _RESEND}
+                self.publish(list(changed.values()))
                 if stopping:
                     return
                 if time.monotonic() >= next_refresh:

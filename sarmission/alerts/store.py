@@ -567,19 +567,9 @@ class AlertStore:
         For a target first alerted while it could not be geolocated and located later. Only the
         first position is attached: True when it was attached now, False when the alert already
         had one. Unknown id: KeyError; a position not finite or out of range: ValueError."""
-        lat, lon = check_position(position)
-        with self._transaction() as conn:
-            self._require(conn, alert_id)
-            cur = conn.execute(
-                "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ?, "
-                "position_time = ? WHERE alert_id = ? AND lat IS NULL",
-                (lat, lon, error_m, note, position_time, alert_id),
-            )
-            if cur.rowcount:
-                self._log(conn, "position", alert_id)
-        if cur.rowcount:
-            self._notify()
-        return bool(cur.rowcount)
+        return self._set_position(
+            alert_id, position, error_m, note, position_time, "lat IS NULL", ""
+        )
 
     def refine_position(
         self,
@@ -596,13 +586,34 @@ class AlertStore:
         :meth:`attach_position`), one an operator dismissed (its dismissed zone stays where
         the operator saw it) or one the system discarded is left as it is: returns False.
         Unknown id: KeyError; a position not finite or out of range: ValueError."""
+        return self._set_position(
+            alert_id,
+            position,
+            error_m,
+            note,
+            position_time,
+            "lat IS NOT NULL AND discarded IS NULL AND decision IS NOT 'dismissed'",
+            detail,
+        )
+
+    def _set_position(
+        self,
+        alert_id: str,
+        position: tuple[float, float],
+        error_m: float | None,
+        note: str,
+        position_time: float | None,
+        condition: str,
+        detail: str,
+    ) -> bool:
+        """The position update of :meth:`attach_position` and :meth:`refine_position`, made
+        only where the alert meets ``condition`` (SQL); logged as a ``position`` event."""
         lat, lon = check_position(position)
         with self._transaction() as conn:
             self._require(conn, alert_id)
             cur = conn.execute(
                 "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ?, "
-                "position_time = ? WHERE alert_id = ? AND lat IS NOT NULL AND discarded IS NULL "
-                "AND decision IS NOT 'dismissed'",
+                f"position_time = ? WHERE alert_id = ? AND {condition}",
                 (lat, lon, error_m, note, position_time, alert_id),
             )
             if cur.rowcount:

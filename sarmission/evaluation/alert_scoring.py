@@ -216,19 +216,19 @@ def _views(frames: Sequence[Any], max_gap_s: float) -> tuple[dict[int, float], d
 
 
 def _person_at(
-    frames: Sequence[Any], track_id: int, frame_index: int
+    by_index: Mapping[int, Any], track_id: int, frame_index: int
 ) -> tuple[float, float] | None:
     """Person ``track_id``'s true position in the frame nearest ``frame_index`` that shows
-    them (a swimmer drifts: the position an alert was refined to is of its frame)."""
-    best, best_gap = None, math.inf
-    for frame in frames:
-        gap = abs(frame.index - frame_index)
-        if gap >= best_gap:
-            continue
-        for a in frame.targets:
-            if a.track_id == track_id and a.lat is not None:
-                best, best_gap = (a.lat, a.lon), gap
-    return best
+    them (a swimmer drifts: the position an alert was refined to is of its frame); searched
+    outwards from that frame, the earlier one first at equal distance."""
+    reach = max((abs(i - frame_index) for i in by_index), default=-1)
+    for gap in range(reach + 1):
+        for index in (frame_index - gap, frame_index + gap):
+            frame = by_index.get(index)
+            for a in frame.targets if frame is not None else ():
+                if a.track_id == track_id and a.lat is not None:
+                    return a.lat, a.lon
+    return None
 
 
 def _geo(errors: list[float], within: list[bool], alert: Any, truth: tuple[float, float]) -> None:
@@ -293,12 +293,12 @@ def score_flight(
         truth = (person.lat, person.lon)
         if alert.position is not None:
             frame_of = (sent_frames or {}).get(alert.alert_id, alert.frame_index)
-            then = _person_at(frames, person.track_id, frame_of) or truth
+            then = _person_at(by_index, person.track_id, frame_of) or truth
             _geo(out.geo_error_m, out.geo_within_2x, alert, then)
         last = (final or {}).get(alert.alert_id, alert)
         if last.position is not None:
             frame_of = (position_frames or {}).get(alert.alert_id, alert.frame_index)
-            then = _person_at(frames, person.track_id, frame_of) or truth
+            then = _person_at(by_index, person.track_id, frame_of) or truth
             _geo(out.geo_error_final_m, out.geo_within_2x_final, last, then)
     out.found = len(found & in_view)
     out.found_briefly_seen = len(found - in_view)

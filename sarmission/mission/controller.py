@@ -590,7 +590,8 @@ class MissionController:
             self._unplaced[alert.target_id] = alert
         elif alert.position is not None:
             self._placed[alert.target_id] = alert
-            self._refine(alert, frame_index, timestamp, force=True)
+            if promotion.assessment is None:  # the evidence's were placed in review's prepare
+                self._refine(alert, frame_index, timestamp, force=True)
         self.stats.alerts.append(alert)
         self.stats.confirmed.append((dataclasses.replace(alert), frame_index, timestamp))
         self.stats.confirmed_position_frames[alert.alert_id] = self.stats.position_frames.get(

@@ -50,14 +50,15 @@ class Fix(Protocol):
 @dataclass(frozen=True)
 class LineFit:
     """A straight-line fit of fixes over time, in metres north/east of ``origin``: the mean
-    time and position, the velocity, the residuals' RMS per axis and the velocity's standard
-    error per axis."""
+    time and position, the velocity, the fixes' RMS distance from the line and from their
+    mean, and the velocity's standard error per axis."""
 
     origin: tuple[float, float]
     t_mean: float
     mean_ne: np.ndarray
     velocity_ne: np.ndarray
     residual_rms_m: float
+    spread_rms_m: float
     sigma_v_axis: float
 
     @property
@@ -100,6 +101,7 @@ def line_fit(fixes: Sequence[Fix], origin: tuple[float, float]) -> LineFit | Non
         mean,
         velocity,
         math.sqrt(float(np.mean(np.sum(residual**2, axis=1)))),
+        math.sqrt(float(np.mean(np.sum((pos - mean) ** 2, axis=1)))),
         max(sigma_fit / math.sqrt(spread), span_floor),
     )
 
@@ -158,12 +160,7 @@ def latest_position(
         ne = fit.mean_ne
         extrapolation = 0.0
         velocity = (0.0, 0.0)
-        # the fixes' RMS distance from their mean: taken as still, that is their scatter
-        n, e, _ = geodetic_to_ned(
-            np.array([f.lat for f in recent]), np.array([f.lon for f in recent]), 0.0, *origin, 0.0
-        )
-        off = np.stack([np.asarray(n, float), np.asarray(e, float)], axis=1) - ne
-        scatter = math.sqrt(float(np.mean(np.sum(off**2, axis=1))))
+        scatter = fit.spread_rms_m  # taken as still: the fixes' distance from their mean
     error = math.hypot(max(fix_error, scatter), extrapolation)
     lat, lon, _ = ned_to_geodetic(float(ne[0]), float(ne[1]), 0.0, *origin, 0.0)
     return PositionEstimate(float(lat), float(lon), error, last.t, velocity)

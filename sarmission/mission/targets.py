@@ -158,7 +158,7 @@ class TrackShare:
 
     joined: float
     loose: bool = False
-    sums: WeightedFixes = field(default_factory=lambda: WeightedFixes())
+    sums: WeightedFixes = field(default_factory=WeightedFixes)
     last_fix: tuple[float, float, float | None, float] | None = None
     class_votes: Counter[int] = field(default_factory=Counter)
     best_score: float = 0.0
