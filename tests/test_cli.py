@@ -363,7 +363,7 @@ def test_run_refuses_a_mistyped_cot_destination_before_starting(
     with pytest.raises(SystemExit) as stop:
         build_parser().parse_args(["run", "--connect", "udp:127.0.0.1:1", "--sim", "--cot", url])
     assert stop.value.code == 2
-    assert "must be udp://host:port or tcp://host:port" in capsys.readouterr().err
+    assert "must be udp://host:port, tcp://host:port or tls://" in capsys.readouterr().err
     args = build_parser().parse_args(
         ["run", "--connect", "udp:127.0.0.1:1", "--sim", "--cot", "udp://239.2.3.1:6969"]
     )

@@ -5,8 +5,10 @@ candidates never; a TAK Server that is down costs warnings, not the mission."""
 from __future__ import annotations
 
 import socket
+import ssl
 import threading
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 from alert_samples import make_alert
@@ -16,6 +18,9 @@ from sarmission.alerts.cot import COT_TYPE, COT_TYPE_DELETE, CotSender
 from sarmission.alerts.cot_relay import CotRelay
 from sarmission.alerts.store import AlertStore
 from sarmission.errors import SarmissionError
+
+#: Test-only TLS material (tests/fixtures/tak_tls/README.md).
+TLS = Path(__file__).parent / "fixtures" / "tak_tls"
 
 
 class UdpTak:
@@ -147,7 +152,118 @@ def test_a_tak_server_that_is_down_costs_warnings_then_gets_the_marker(tmp_path,
         assert "sends failed" in relay.summary()
 
 
-@pytest.mark.parametrize("url", ["http://tak:8087", "udp://:6969", "tcp://tak", "239.2.3.1:6969"])
+@pytest.mark.parametrize(
+    "url", ["http://tak:8087", "udp://:6969", "tcp://tak", "239.2.3.1:6969", "tls://tak:x"]
+)
 def test_a_mistyped_destination_is_a_clear_error(url):
-    with pytest.raises(SarmissionError, match="must be udp://host:port or tcp://host:port"):
+    with pytest.raises(SarmissionError, match="must be udp://host:port, tcp://host:port or tls"):
         CotSender(url)
+
+
+@pytest.mark.parametrize(
+    "query, expected",
+    [
+        ("?cert=nope.pem", r"client certificate 'nope.pem'"),
+        ("?ca=nope.pem", r"CA file 'nope.pem'"),
+        ("?cert={d}/ca.pem", r"client certificate"),  # a certificate without its key
+        ("?key={d}/client.key", "key= needs its cert="),
+        ("?cert={d}/client.pem&key={d}/client.key&pin=1", "unknown pin"),
+        ("?cert=", "cert needs one file name"),
+    ],
+)
+def test_a_tls_destination_with_unusable_files_is_a_clear_error(query, expected):
+    """The files are read when the sender is made (at argument parsing), not at the first send."""
+    with pytest.raises(SarmissionError, match=expected):
+        CotSender("tls://127.0.0.1:8089" + query.format(d=TLS))
+    with pytest.raises(SarmissionError, match="only tls:// takes"):
+        CotSender(f"tcp://127.0.0.1:8087?ca={TLS}/ca.pem")
+
+
+class TlsTak:
+    """A TAK Server's TLS input: server certificate of :data:`TLS`'s CA, client certificates
+    required; every event of every connection, parsed; handshakes that failed counted."""
+
+    def __init__(self) -> None:
+        self.context = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH, cafile=TLS / "ca.pem")
+        self.context.load_cert_chain(TLS / "server.pem", TLS / "server.key")
+        self.context.verify_mode = ssl.CERT_REQUIRED
+        self.server = socket.socket()
+        self.server.bind(("127.0.0.1", 0))
+        self.server.listen()
+        self.server.settimeout(0.1)
+        self.port = self.server.getsockname()[1]
+        self.events: list[ET.Element] = []
+        self.clients: list[str] = []
+        self.refused = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            try:
+                conn, _ = self.server.accept()
+            except TimeoutError:
+                continue
+            conn.settimeout(5.0)
+            try:
+                tls = self.context.wrap_socket(conn, server_side=True)
+            except (ssl.SSLError, OSError):
+                self.refused += 1
+                conn.close()
+                continue
+            subject = dict(x[0] for x in tls.getpeercert()["subject"])
+            self.clients.append(subject["commonName"])
+            data = b""
+            with tls:
+                while not self._stop.is_set():
+                    try:
+                        chunk = tls.recv(65536)
+                    except (TimeoutError, ssl.SSLError, OSError):
+                        break
+                    if not chunk:
+                        break
+                    data += chunk
+                    while b"</event>" in data:
+                        end = data.index(b"</event>") + len(b"</event>")
+                        self.events.append(ET.fromstring(data[:end]))
+                        data = data[end:]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(6)
+        self.server.close()
+
+
+def test_a_tak_server_over_tls_gets_the_marker_from_a_known_drone_only(tmp_path, caplog):
+    """Mutual TLS to a TAK Server's 8089-style input: with the team's CA and the drone's client
+    certificate the marker arrives (the server saw the drone's certificate); a sender that
+    trusts another CA refuses the server, and one without a certificate is refused by it:
+    warnings, never a marker sent in the clear."""
+    tak = TlsTak()
+    base = f"tls://127.0.0.1:{tak.port}"
+    good = CotSender(f"{base}?cert={TLS}/client.pem&key={TLS}/client.key&ca={TLS}/ca.pem")
+    wrong_ca = CotSender(f"ssl://127.0.0.1:{tak.port}?ca={TLS}/other_ca.pem", 2.0)
+    no_cert = CotSender(f"{base}?ca={TLS}/ca.pem", 2.0)
+    try:
+        with AlertStore(tmp_path / "alerts.db") as store:
+            alert = make_alert(1)
+            store.add(alert)
+            with caplog.at_level("WARNING"):
+                relay = CotRelay(store, [wrong_ca, no_cert, good], "test-mission").start()
+                try:
+                    assert wait_until(lambda: tak.events, 5.0)
+                finally:
+                    relay.stop()
+            (event,) = [e for e in tak.events if e.get("uid") == alert.cot_uid][:1]
+            assert point(event)[:2] == pytest.approx(alert.position)
+            assert tak.clients[0] == "sarmission test drone"
+            assert store.get(alert.alert_id).sent["cot"].count >= 1
+            # the server's certificate was refused by the sender that trusts another CA
+            assert any("certificate verify failed" in r.getMessage() for r in caplog.records)
+            # under TLS 1.3 the sender without a certificate may learn of its refusal only
+            # after its send; the server never let it through
+            assert wait_until(lambda: tak.refused >= 1, 5.0)
+            assert len(tak.clients) == 1  # nobody else got through
+    finally:
+        tak.close()

@@ -94,6 +94,9 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[area]\nrectangle_m = [10, 0, 0, 10]", "rectangle_m"),
         ("[area]\nrectangle_m = [0, 0, 10, 10]\npolygon_m = [[0,0],[1,0],[1,1]]", "only one"),
         ("flight = 3", "[flight] must be a table"),
+        ('[alerts]\ncot = "udp://tak:6969"', "[alerts] cot: expected array of string"),
+        ('[alerts]\ncot = ["udp://tak:6969", "tak:8087"]', "[alerts] cot[1]: CoT destination"),
+        ('[alerts]\ncot = ["tcp://tak:8087?ca=ca.pem"]', "only tls:// takes"),
     ],
 )
 def test_bad_files_give_clear_errors(tmp_path, text, expected):

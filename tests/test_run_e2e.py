@@ -275,11 +275,15 @@ def free_tcp_port() -> int:
 def test_run_serves_its_alerts_on_the_feed(tmp_path):
     """``run --feed --cot``: the alert confirmed by the run is on the JSON-lines stream as it
     is stored, on the JSON API as it is in the store, and at the team's TAK (a UDP socket
-    standing in for it) as a CoT marker whose latest event is at the stored position."""
+    standing in for it) as a CoT marker whose latest event is at the stored position; the
+    mission's own ``[alerts] cot`` destination gets it as well."""
     port, feed_port = free_udp_port(), free_tcp_port()
     db = tmp_path / "alerts.db"
     tak = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     tak.bind(("127.0.0.1", 0))
+    mission_tak = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    mission_tak.bind(("127.0.0.1", 0))
+    mission_url = f"udp://127.0.0.1:{mission_tak.getsockname()[1]}"
     argv = [
         json.dumps([[20.0, -25.0]]),
         "--connect",
@@ -298,6 +302,8 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
         "--duration",
         "4",
         *SET_ARGS,
+        "--set",
+        f"alerts.cot={json.dumps([mission_url])}",
     ]
     outcome: list[int] = []
     runner = threading.Thread(target=lambda: outcome.append(run_scripted.main(argv)))
@@ -333,19 +339,22 @@ def test_run_serves_its_alerts_on_the_feed(tmp_path):
             k: v for k, v in stored.to_json_dict().items() if k not in changing
         }
     assert distance_m(stored.position, truth(mission_with(), 20.0, -25.0)) < 5.0
-    tak.settimeout(0.5)
-    events = []
-    with tak:
-        while True:
-            try:
-                events.append(ET.fromstring(tak.recv(65536)))
-            except TimeoutError:
-                break
-    markers = [e for e in events if e.get("uid") == stored.cot_uid]
-    assert markers, [e.get("uid") for e in events]
-    latest = markers[-1].find("point")
-    assert (float(latest.get("lat")), float(latest.get("lon"))) == stored.position
-    assert stored.sent["cot"].count == len(markers)
+    markers = {}
+    for name, receiver in (("cli", tak), ("mission", mission_tak)):
+        receiver.settimeout(0.5)
+        events = []
+        with receiver:
+            while True:
+                try:
+                    events.append(ET.fromstring(receiver.recv(65536)))
+                except TimeoutError:
+                    break
+        markers[name] = [e for e in events if e.get("uid") == stored.cot_uid]
+        assert markers[name], (name, [e.get("uid") for e in events])
+        latest = markers[name][-1].find("point")
+        assert (float(latest.get("lat")), float(latest.get("lon"))) == stored.position
+    # one record per event, however many destinations took it
+    assert stored.sent["cot"].count == len(markers["cli"]) == len(markers["mission"])
 
 
 def test_cli_run_sim_with_mitenet(tmp_path, capsys):

@@ -84,6 +84,7 @@ _ESTIMATE = "sarmission/mission/position_estimate.py"
 _REFINEMENT = "sarmission/mission/refinement.py"
 _T_REFINE = ("tests/test_position_estimate.py", "tests/test_position_refinement.py")
 _COT_RELAY = "sarmission/alerts/cot_relay.py"
+_COT = "sarmission/alerts/cot.py"
 _T_COT = ("tests/test_cot_relay.py",)
 _T_GEO_ERROR = ("tests/test_geo_oracles.py", "tests/test_geolocate.py", "tests/test_geo_grazing.py")
 _T_GIMBAL = ("tests/test_telemetry_buffer.py", "tests/test_camera.py", "tests/test_geo_oracles.py")
@@ -1642,6 +1643,24 @@ MUTANTS: list[Mutant] = [
         _T_COT,
         "delivery",
         "unconfirmed candidates (clutter the evidence has not judged) go to the team",
+    ),
+    Mutant(
+        "cot.tls_server_unverified",
+        _COT,
+        "context = ssl.create_default_context(cafile=dest.ca)",
+        "context = ssl._create_unverified_context(cafile=dest.ca)",
+        _T_COT,
+        "delivery",
+        "casualty positions go to whoever answers on the TAK Server's address",
+    ),
+    Mutant(
+        "cot.tls_client_certificate_dropped",
+        _COT,
+        "context.load_cert_chain(dest.cert, dest.key)",
+        "pass",
+        _T_COT,
+        "delivery",
+        "the drone never presents its certificate: the team's TAK Server refuses every marker",
     ),
     Mutant(
         "refinement.loose_tracks_used",

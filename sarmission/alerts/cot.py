@@ -11,18 +11,22 @@ position at full precision, ``ce`` the horizontal error radius in metres, ``hae`
 above the ellipsoid when known; unknown values are 9999999.0, per the CoT schema.
 
 :class:`CotSender` sends events to ``udp://host:port`` (e.g. the SA multicast group
-``udp://239.2.3.1:6969`` or a TAK client's unicast port 4242) or ``tcp://host:port``
-(a TAK Server's plain streaming input, usually 8087). :func:`cot_delete` takes a marker off
-the map again (an alert an operator dismissed). :mod:`sarmission.alerts.cot_relay` sends a
-mission's alerts as they change.
+``udp://239.2.3.1:6969`` or a TAK client's unicast port 4242), ``tcp://host:port`` (a TAK Server's
+plain streaming input, usually 8087) or ``tls://host:port`` (its TLS input, usually 8089, which
+asks for a client certificate: ``?cert=client.pem&key=client.key&ca=ca.pem``, PEM files as
+``openssl pkcs12`` writes them from the server's ``.p12``; ``ssl://`` is the same).
+:func:`cot_delete` takes a marker off the map again (an alert an operator dismissed).
+:mod:`sarmission.alerts.cot_relay` sends a mission's alerts as they change.
 """
 
 from __future__ import annotations
 
 import socket
+import ssl
 import time
 import xml.etree.ElementTree as ET
-from urllib.parse import urlsplit
+from dataclasses import dataclass
+from urllib.parse import parse_qs, urlsplit
 
 from sarmission.alerts.model import Alert, plain_decimal, utc_iso
 from sarmission.class_roles import role_of, short_label
@@ -121,20 +125,97 @@ def cot_delete(uid: str, now: float | None = None) -> bytes:
     return ET.tostring(event, encoding="utf-8", xml_declaration=True)
 
 
+#: The query keys of a TLS destination: its CA bundle, client certificate and client key.
+TLS_KEYS = ("ca", "cert", "key")
+
+
+@dataclass(frozen=True)
+class CotDestination:
+    """A parsed CoT destination: ``scheme`` (udp, tcp or tls), ``host``, ``port`` and, for TLS,
+    the PEM files (None: the system's trusted CAs; no client certificate)."""
+
+    url: str
+    scheme: str
+    host: str
+    port: int
+    ca: str | None = None
+    cert: str | None = None
+    key: str | None = None
+
+
+def parse_cot_url(url: str) -> CotDestination:
+    """``udp://host:port``, ``tcp://host:port`` or ``tls://host:port?cert=F&key=F&ca=F``
+    (``ssl://`` as ``tls://``) as a :class:`CotDestination`; opens no file. Raises
+    :class:`SarmissionError` with one line saying what is wrong."""
+    usage = (
+        f"CoT destination {url!r} must be udp://host:port, tcp://host:port or "
+        "tls://host:port[?cert=FILE&key=FILE&ca=FILE]"
+    )
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError:
+        raise SarmissionError(usage) from None
+    scheme = "tls" if parts.scheme == "ssl" else parts.scheme
+    if scheme not in ("udp", "tcp", "tls") or not parts.hostname or port is None:
+        raise SarmissionError(usage)
+    if parts.path not in ("", "/") or parts.fragment:
+        raise SarmissionError(usage)
+    query = parse_qs(parts.query, keep_blank_values=True, strict_parsing=False)
+    if query and scheme != "tls":
+        raise SarmissionError(f"CoT destination {url!r}: only tls:// takes ?{'&'.join(query)}")
+    unknown = sorted(set(query) - set(TLS_KEYS))
+    if unknown:
+        raise SarmissionError(
+            f"CoT destination {url!r}: unknown {', '.join(unknown)} (known: {', '.join(TLS_KEYS)})"
+        )
+    files: dict[str, str] = {}
+    for name, values in query.items():
+        if len(values) != 1 or not values[0]:
+            raise SarmissionError(f"CoT destination {url!r}: {name} needs one file name")
+        files[name] = values[0]
+    if "key" in files and "cert" not in files:
+        raise SarmissionError(f"CoT destination {url!r}: key= needs its cert=")
+    return CotDestination(url, scheme, parts.hostname, port, **files)
+
+
+def tls_context(dest: CotDestination) -> ssl.SSLContext:
+    """The client TLS context of ``dest``: the server verified against ``ca`` (or the system's
+    CAs) and its host name; the client certificate presented when given. Raises
+    :class:`SarmissionError` naming the file that cannot be read or used."""
+    try:
+        context = ssl.create_default_context(cafile=dest.ca)
+    except (OSError, ssl.SSLError) as exc:
+        raise SarmissionError(f"CoT {dest.url}: CA file {dest.ca!r}: {_reason(exc)}") from None
+    if dest.cert is not None:
+        try:
+            context.load_cert_chain(dest.cert, dest.key)
+        except (OSError, ssl.SSLError) as exc:
+            what = f"{dest.cert!r}" + ("" if dest.key is None else f" / {dest.key!r}")
+            raise SarmissionError(
+                f"CoT {dest.url}: client certificate {what}: {_reason(exc)}"
+            ) from None
+    return context
+
+
+def _reason(exc: BaseException) -> str:
+    """An OS or TLS error in a few words."""
+    return getattr(exc, "strerror", None) or getattr(exc, "reason", None) or str(exc)
+
+
 class CotSender:
-    """Sends CoT events to ``udp://host:port`` or ``tcp://host:port``. TCP connects on the
-    first send and reconnects once if the connection has dropped."""
+    """Sends CoT events to ``udp://host:port``, ``tcp://host:port`` or ``tls://host:port``
+    (:func:`parse_cot_url`). TCP and TLS connect on the first send and reconnect once if the
+    connection has dropped; a TLS destination's files are read when the sender is made, so a
+    wrong one is an error before anything starts."""
 
     def __init__(self, url: str, timeout_s: float = 3.0) -> None:
-        parts = urlsplit(url)
-        if parts.scheme not in ("udp", "tcp") or not parts.hostname or parts.port is None:
-            raise SarmissionError(
-                f"CoT destination {url!r} must be udp://host:port or tcp://host:port"
-            )
+        self.destination = parse_cot_url(url)
         self.url = url
-        self.scheme = parts.scheme
-        self.address = (parts.hostname, parts.port)
+        self.scheme = self.destination.scheme
+        self.address = (self.destination.host, self.destination.port)
         self.timeout_s = timeout_s
+        self._tls = tls_context(self.destination) if self.scheme == "tls" else None
         self._sock: socket.socket | None = None
 
     def send(self, event: bytes) -> None:
@@ -148,13 +229,24 @@ class CotSender:
         for attempt in range(2):
             try:
                 if self._sock is None:
-                    self._sock = socket.create_connection(self.address, timeout=self.timeout_s)
+                    self._sock = self._connect()
                 self._sock.sendall(event)
                 return
             except OSError:
                 self.close()
                 if attempt:
                     raise
+
+    def _connect(self) -> socket.socket:
+        """A connected TCP socket, wrapped in TLS (handshake done) for a TLS destination."""
+        sock = socket.create_connection(self.address, timeout=self.timeout_s)
+        if self._tls is None:
+            return sock
+        try:
+            return self._tls.wrap_socket(sock, server_hostname=self.destination.host)
+        except BaseException:
+            sock.close()
+            raise
 
     def send_alert(self, alert: Alert) -> None:
         """Build the alert's CoT event and send it."""

@@ -51,8 +51,9 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         help="send confirmed alerts to TAK as Cursor-on-Target, kept current as positions "
-        "are refined: udp://239.2.3.1:6969 (SA multicast), udp://HOST:4242 (a TAK client) "
-        "or tcp://HOST:8087 (a TAK Server); repeat for several",
+        "are refined: udp://239.2.3.1:6969 (SA multicast), udp://HOST:4242 (a TAK client), "
+        "tcp://HOST:8087 (a TAK Server) or tls://HOST:8089?cert=F&key=F&ca=F (its TLS "
+        "input, PEM files); repeat for several; added to the mission's [alerts] cot",
     )
     parser.add_argument(
         "--signing-key-file",
@@ -197,7 +198,7 @@ def run_live(
             recorder=recorder,
             feed_address=feed,
             feed_token=feed_token,
-            cot_urls=args.cot,
+            cot_urls=list(dict.fromkeys([*mission.alerts.cot, *args.cot])),
             mission_id=args.mission_id,
             transport_latency_s=(mission.telemetry.latency_s if vehicle is not None else 0),
             connect_timeout_s=args.connect_timeout,

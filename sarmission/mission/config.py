@@ -1,9 +1,10 @@
 """Mission file (TOML) -> typed configuration, with precedence code defaults < file < overrides.
 
 A mission file has the sections ``[area]``, ``[flight]``, ``[camera]``, ``[detector]``, ``[lock]``,
-``[actions]``, ``[telemetry]`` and ``[sim]``; every key is optional and falls back to the default
-of the dataclass below. Unknown sections or keys, and values of the wrong type, raise
-:class:`MissionConfigError` naming the file, the key and what was expected.
+``[actions]``, ``[telemetry]``, ``[geolocation]``, ``[confirm]``, ``[alerts]`` and ``[sim]``; every
+key is optional and falls back to the default of the dataclass below. Unknown sections or keys, and
+values of the wrong type, raise :class:`MissionConfigError` naming the file, the key and what was
+expected.
 
 Overrides (from the command line) are dotted keys: ``{"flight.altitude_m": 80}`` or the strings
 ``"flight.altitude_m=80"`` parsed by :func:`parse_override` (the value is TOML: ``80``,
@@ -259,6 +260,15 @@ class GeolocationConfig:
 
 
 @dataclass
+class AlertsConfig:
+    """Where confirmed alerts go besides the autopilot and the feed: ``cot``, the team's TAK
+    destinations (``udp://``, ``tcp://`` or ``tls://`` URLs, as ``run --cot`` takes them; the
+    command line's are added to these)."""
+
+    cot: list[str] = field(default_factory=list)
+
+
+@dataclass
 class SimConfig:
     """Simulator weather: mean wind (``wind_from_deg`` is where it blows from) and gusts."""
 
@@ -281,6 +291,7 @@ class MissionConfig:
     telemetry: TelemetryConfig = field(default_factory=TelemetryConfig)
     geolocation: GeolocationConfig = field(default_factory=GeolocationConfig)
     confirm: ConfirmConfig = field(default_factory=ConfirmConfig)
+    alerts: AlertsConfig = field(default_factory=AlertsConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     name: str = "mission"
     source: str | None = None

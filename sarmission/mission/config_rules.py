@@ -12,12 +12,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from sarmission.alerts.cot import parse_cot_url
+from sarmission.errors import SarmissionError
 from sarmission.models import DEFAULT_NAME, SHIPPED_HEADS, is_head_name
 from sarmission.perception.types import MAX_CROP_SCALE, VALID_DS
 
 if TYPE_CHECKING:
     from sarmission.mission.config import (
         ActionsConfig,
+        AlertsConfig,
         AreaConfig,
         CameraConfig,
         ConfirmConfig,
@@ -185,6 +188,15 @@ def geolocation_problem(g: GeolocationConfig) -> Problem:
     return None
 
 
+def alerts_problem(a: AlertsConfig) -> Problem:
+    for i, url in enumerate(a.cot):
+        try:
+            parse_cot_url(url)
+        except SarmissionError as exc:
+            return f"cot[{i}]", str(exc)
+    return None
+
+
 #: Section name -> its rule, in the order they are checked. Sections without rules ([sim])
 #: only need values of the right type.
 SECTION_RULES: dict[str, Callable[[Any], Problem]] = {
@@ -197,4 +209,5 @@ SECTION_RULES: dict[str, Callable[[Any], Problem]] = {
     "telemetry": telemetry_problem,
     "confirm": confirm_problem,
     "geolocation": geolocation_problem,
+    "alerts": alerts_problem,
 }

@@ -85,7 +85,7 @@ class LiveSession:
         recorder: rerun recorder or None.
         feed_address: ``(host, port)`` to serve the operator feed on, or None.
         feed_token: the feed's access token (None: none on loopback, else one generated).
-        cot_urls: TAK destinations (``udp://host:port``, ``tcp://host:port``) for the confirmed
+        cot_urls: TAK destinations (``udp://``, ``tcp://``, ``tls://``) for the confirmed
             alerts as Cursor-on-Target (:mod:`sarmission.alerts.cot_relay`).
         mission_id: alerts are stored under this id (default: the mission's name).
         transport_latency_s: known minimum telemetry delay (see ``BootClock``).
