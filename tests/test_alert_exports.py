@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import socket
 import xml.etree.ElementTree as ET
 
@@ -240,3 +241,17 @@ def test_cot_remarks_say_how_old_the_position_is() -> None:
     alert = make_alert(1, position_time=1_700_000_005.0)
     event = ET.fromstring(alert_to_cot(alert, now=1_700_000_010.0))
     assert "position as of 2023-11-14T22:13:25" in event.find("detail/remarks").text
+
+
+def test_cot_carries_a_drifting_swimmer_s_course_and_speed() -> None:
+    """TAK draws a marker's motion from ``track``: a drift to the south-west at 0.5 m/s goes
+    out as course 225, speed 0.5; a still target as speed 0; none when not estimated."""
+    s = math.sqrt(0.125)
+    drifting = ET.fromstring(alert_to_cot(make_alert(1, drift_ne=(-s, -s)), now=1.0))
+    track = drifting.find("detail/track")
+    assert float(track.get("course")) == pytest.approx(225.0, abs=0.05)
+    assert float(track.get("speed")) == pytest.approx(0.5, abs=0.005)
+    assert "drifting 0.5 m/s to 225°" in drifting.find("detail/remarks").text
+    still = ET.fromstring(alert_to_cot(make_alert(1, drift_ne=(0.0, 0.0)), now=1.0))
+    assert float(still.find("detail/track").get("speed")) == 0.0
+    assert ET.fromstring(alert_to_cot(make_alert(1), now=1.0)).find("detail/track") is None

@@ -282,7 +282,7 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
             )
     conn.close()
     with AlertStore(db) as store:
-        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 5
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 6
         assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
         assert store.attach_position("blind", (-35.36, 149.17), 3.5, "ground plane")
         assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
@@ -558,7 +558,8 @@ def test_schema_4_store_gains_the_time_a_position_rests_on(tmp_path: Path) -> No
     with AlertStore(db) as store:
         store.add(make_alert(1, position_time=1.7e9))
     conn = sqlite3.connect(db)
-    conn.execute("ALTER TABLE alerts DROP COLUMN position_time")
+    for column in ("position_time", "drift_north", "drift_east"):
+        conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
     conn.execute("PRAGMA user_version = 4")
     conn.commit()
     conn.close()
@@ -569,3 +570,37 @@ def test_schema_4_store_gains_the_time_a_position_rests_on(tmp_path: Path) -> No
         assert store.refine_position(old.alert_id, old.position, 2.0, "ground plane", "", 1.8e9)
         assert store.get(old.alert_id).position_time == 1.8e9
         assert store.get(old.alert_id).to_json_dict()["position_time"] == 1.8e9
+
+
+def test_schema_5_store_gains_the_drift(tmp_path: Path) -> None:
+    """A store written before alerts had a drift (schema 5) opens with it unknown; a refinement
+    stores one, read back with its course and speed; an impossible one is refused."""
+    db = tmp_path / "old.db"
+    with AlertStore(db) as store:
+        store.add(make_alert(1, drift_ne=(0.3, -0.4)))
+        assert store.list()[0].drift_ne == (0.3, -0.4)
+    conn = sqlite3.connect(db)
+    for column in ("drift_north", "drift_east"):
+        conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
+    conn.execute("PRAGMA user_version = 5")
+    conn.commit()
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+        (old,) = store.list()
+        assert old.drift_ne is None and old.to_json_dict()["drift"] is None
+        assert old.format_drift() == ""
+        assert store.refine_position(
+            old.alert_id, old.position, 2.0, "ground plane", "", 1.8e9, (-0.3, 0.0)
+        )
+        drift = store.get(old.alert_id).to_json_dict()["drift"]
+        assert drift == {"north_m_s": -0.3, "east_m_s": 0.0, "speed_m_s": 0.3, "course_deg": 180.0}
+        assert store.get(old.alert_id).format_drift() == "drifting 0.3 m/s to 180°"
+        for bad in ((float("nan"), 0.0), (30.0, 0.0)):
+            with pytest.raises(ValueError, match="drift"):
+                store.refine_position(
+                    old.alert_id, old.position, 2.0, "ground plane", "", 1.9e9, bad
+                )
+        assert store.get(old.alert_id).drift_ne == (-0.3, 0.0)
+        assert store.refine_position(old.alert_id, old.position, 2.0, "ground plane", "", 2e9)
+        assert store.get(old.alert_id).drift_ne is None  # an estimate without one

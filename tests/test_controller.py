@@ -266,7 +266,10 @@ def test_position_found_after_a_blind_alert_goes_to_that_alert(tmp_path, mission
         alerts = run_frames(ctl, n)
         assert len(alerts) == 1 and store.count() == 1
         stored = store.get(alerts[0].alert_id)
-        assert [e.kind for e in store.events()] == ["new", "position", "confirmed"]
+        # placed once its telemetry came; at the confirmation given the fit of the fixes that
+        # confirmed it, with the drift they show
+        assert [e.kind for e in store.events()] == ["new", "position", "position", "confirmed"]
+        assert stored.drift_ne is not None
     assert alerts[0].frame_index == 2
     assert distance_m(stored.position, truth_latlon(mission)) < 1.0
     assert 0 < stored.error_m < 10 and "stale" not in stored.position_note

@@ -84,10 +84,13 @@ def test_new_alert_shows_live_and_ack_button_works(
         browser.wait_for(f"{card}.innerText.includes('TAK sent 1\u00d7')", timeout=5.0)
         moved = (lat + 1e-4, lon)
         fixed = alert.lock_time + 30.0
-        store.refine_position(alert.alert_id, moved, 2.0, "ground plane", "refined", fixed)
+        store.refine_position(
+            alert.alert_id, moved, 2.0, "ground plane", "refined", fixed, (0.0, 0.4)
+        )
         browser.wait_for(f"{card}.innerText.includes('{moved[0]:.6f}')", timeout=5.0)
         as_of = time.strftime("%H:%M:%S", time.gmtime(fixed))
         assert f"as of {as_of} UTC" in browser.js(f"{card}.innerText")
+        assert "drifting 0.4 m/s to 090\u00b0" in browser.js(f"{card}.innerText")
         assert "±2 m" in browser.js(f"{card}.innerText")
         assert browser.js("document.getElementById('unacked').textContent") == "2"
         browser.screenshot(tmp_path / "feed.png")

@@ -8,7 +8,9 @@ marker (``b-m-p-s-m``) named "life ring".
 ``how="m-g"`` says it is machine generated. The uid is stable per target
 (:attr:`Alert.cot_uid`), so a re-sent event updates the same marker. ``point`` carries the
 position at full precision, ``ce`` the horizontal error radius in metres, ``hae`` the height
-above the ellipsoid when known; unknown values are 9999999.0, per the CoT schema.
+above the ellipsoid when known; unknown values are 9999999.0, per the CoT schema. A target whose
+drift was estimated carries it as ``track`` (course in degrees true, speed in m/s), which TAK
+draws as the marker's motion: where a drifting swimmer will be.
 
 :class:`CotSender` sends events to ``udp://host:port`` (e.g. the SA multicast group
 ``udp://239.2.3.1:6969`` or a TAK client's unicast port 4242), ``tcp://host:port`` (a TAK Server's
@@ -28,7 +30,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from urllib.parse import parse_qs, urlsplit
 
-from sarmission.alerts.model import Alert, plain_decimal, utc_iso
+from sarmission.alerts.model import Alert, drift_course_speed, plain_decimal, utc_iso
 from sarmission.class_roles import role_of, short_label
 from sarmission.errors import SarmissionError
 
@@ -90,7 +92,11 @@ def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 
             if alert.position_time is None
             else f", position as of {utc_iso(alert.position_time)}"
         )
+        + ("" if alert.drift_ne is None else f", {alert.format_drift()}")
     )
+    if alert.drift_ne is not None:  # TAK draws the marker's motion from course and speed
+        course, speed = drift_course_speed(alert.drift_ne)
+        ET.SubElement(detail, "track", {"course": f"{course:.1f}", "speed": f"{speed:.2f}"})
     ET.SubElement(
         detail,
         "precisionlocation",

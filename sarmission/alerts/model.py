@@ -91,6 +91,27 @@ def check_position(position: tuple[float, float]) -> tuple[float, float]:
     return lat, lon
 
 
+#: Fastest drift an alert may carry (m/s): beyond what any person or current moves.
+MAX_DRIFT_M_S = 10.0
+
+
+def check_drift(drift_ne: tuple[float, float]) -> tuple[float, float]:
+    """``(north, east)`` m/s as floats; ValueError unless both are finite and no faster than
+    :data:`MAX_DRIFT_M_S`."""
+    north, east = (float(v) for v in drift_ne)
+    if not (math.isfinite(north) and math.isfinite(east)):
+        raise ValueError(f"alert drift must be finite, got {drift_ne}")
+    if math.hypot(north, east) > MAX_DRIFT_M_S:
+        raise ValueError(f"alert drift faster than {MAX_DRIFT_M_S} m/s: {drift_ne}")
+    return north, east
+
+
+def drift_course_speed(drift_ne: tuple[float, float]) -> tuple[float, float]:
+    """A drift (m/s north, east) as (course in degrees from true north, 0-360; speed m/s)."""
+    north, east = drift_ne
+    return math.degrees(math.atan2(east, north)) % 360.0, math.hypot(north, east)
+
+
 def dismiss_radius_m(error_m: float | None) -> float:
     """Radius (m) around a dismissed alert's position in which new alerts are suppressed:
     twice its error radius (about 2 sigma: the same thing seen again lands inside), at least
@@ -190,10 +211,15 @@ class Alert:
     #: POSIX time of the latest fix the position rests on (None: the lock's, or no position);
     #: a drifting swimmer's position is as old as this
     position_time: float | None = None
+    #: The target's drift as of ``position_time``, m/s (north, east): (0, 0) when its fixes
+    #: showed it still, None when not estimated (a single fix, or an older store)
+    drift_ne: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.position is not None:
             self.position = check_position(self.position)
+        if self.drift_ne is not None:
+            self.drift_ne = check_drift(self.drift_ne)
         if self.tier not in TIERS:
             raise ValueError(f"alert tier must be one of {TIERS}, got {self.tier!r}")
         if self.decision is not None and self.decision not in DECISIONS:
@@ -249,6 +275,28 @@ class Alert:
             return ""
         return f"±{max(1, round(self.error_m))}m"
 
+    def drift_json(self) -> dict[str, float] | None:
+        """The drift for JSON: m/s north and east, speed and course (degrees from true north;
+        0 for a target taken as still), or None when not estimated."""
+        if self.drift_ne is None:
+            return None
+        course, speed = drift_course_speed(self.drift_ne)
+        return {
+            "north_m_s": self.drift_ne[0],
+            "east_m_s": self.drift_ne[1],
+            "speed_m_s": speed,
+            "course_deg": course,
+        }
+
+    def format_drift(self) -> str:
+        """``"drifting 0.4 m/s to 045°"``, ``"still"``, or ``""`` when not estimated."""
+        if self.drift_ne is None:
+            return ""
+        course, speed = drift_course_speed(self.drift_ne)
+        if speed == 0.0:
+            return "still"
+        return f"drifting {speed:.1f} m/s to {round(course) % 360:03d}°"
+
     def statustext(self) -> str:
         """One-line alert for MAVLink STATUSTEXT, at most 50 bytes in UTF-8, starting with the
         short id, e.g. ``T1-k3 SAR swimmer 0.91 -35.36291,149.16523 ±4m``. The class name is
@@ -287,6 +335,7 @@ class Alert:
             ),
             "position_note": self.position_note,
             "position_time": self.position_time,
+            "drift": self.drift_json(),
             "error_m": self.error_m,
             "target_hae_m": self.target_hae_m,
             "drone_position": (

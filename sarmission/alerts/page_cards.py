@@ -120,6 +120,11 @@ function render(a) {
     if (a.position_time && a.position_time > a.lock_time + 0.5) {  // refined since the lock
       where.appendChild(el("span", "asof", "as of " + utc(a.position_time)));
     }
+    if (a.drift && a.drift.speed_m_s > 0) {  // where a drifting swimmer is heading
+      const course = String(Math.round(a.drift.course_deg) % 360).padStart(3, "0");
+      where.appendChild(el("span", "drift",
+        "drifting " + a.drift.speed_m_s.toFixed(1) + " m/s to " + course + "\u00b0"));
+    }
   } else {
     const note = a.position_note ? ": " + a.position_note : "";
     where.appendChild(el("span", "nopos", "Position unknown" + note));

@@ -78,7 +78,7 @@ PAGE_CSS = """
   .coords:hover { background: #dde8f8; }
   .coords.copied { background: #dff3e0; border-color: #8bc34a; }
   .err { font-weight: 600; }
-  .asof { color: var(--muted); margin-left: 6px; }
+  .asof, .drift { color: var(--muted); margin-left: 6px; }
   .nopos { color: var(--amber); font-weight: 700; }
   .meta, .state { color: var(--muted); font-size: 14px; }
   .state { font-weight: 600; }

@@ -34,7 +34,7 @@ upgraded in place when opened (schema 2 added the ``position`` event; schema 3 r
 since that was all that was known; schema 4 added tiers, operator decisions, the ``confirmed``,
 ``discarded`` and ``decided`` events with who and why, the drone's track and mission areas: an
 older alert is a confirmed one without a decision, as it was; schema 5 added the time of the
-latest fix a position rests on, unknown for older alerts).
+latest fix a position rests on, unknown for older alerts; schema 6 the target's drift, likewise).
 """
 
 from __future__ import annotations
@@ -57,6 +57,7 @@ from sarmission.alerts.model import (
     Decision,
     Refusal,
     Sends,
+    check_drift,
     check_position,
     dismiss_radius_m,
 )
@@ -64,7 +65,7 @@ from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 #: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
 DRONE_POINTS_KEPT = 20_000
@@ -96,7 +97,7 @@ _EVENT_KINDS = {
         "decided",
     ),
 }
-_EVENT_KINDS[5] = _EVENT_KINDS[4]
+_EVENT_KINDS[5] = _EVENT_KINDS[6] = _EVENT_KINDS[4]
 
 
 def _events_table(name: str, schema: int = SCHEMA_VERSION) -> str:
@@ -185,7 +186,9 @@ CREATE TABLE alerts (
     decision      TEXT CHECK (decision IN ('confirmed', 'dismissed')),
     decided_by    TEXT,
     decided_at    REAL,
-    position_time REAL
+    position_time REAL,
+    drift_north   REAL,
+    drift_east    REAL
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
 """
@@ -243,6 +246,11 @@ ALTER TABLE events_4 RENAME TO events;
     + _MAP_TABLES,
     # Schema 4 kept no time for a position: the lock's it stays.
     4: "ALTER TABLE alerts ADD COLUMN position_time REAL",
+    # Schema 5 kept no drift: unknown it stays.
+    5: """
+ALTER TABLE alerts ADD COLUMN drift_north REAL;
+ALTER TABLE alerts ADD COLUMN drift_east REAL
+""",
 }
 
 
@@ -259,7 +267,7 @@ SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time
        a.frame_index, a.lat, a.lon, a.position_note, a.error_m, a.target_hae_m,
        a.drone_lat, a.drone_lon, a.drone_alt_m, a.track, a.pixel_track, a.thumbnail,
        a.ack_time, a.ack_by, a.tier, a.evidence, a.confirmed_at, a.discarded, a.discarded_at,
-       a.decision, a.decided_by, a.decided_at, a.position_time
+       a.decision, a.decided_by, a.decided_at, a.position_time, a.drift_north, a.drift_east
 FROM alerts a
 """
 #: Alerts still to go to the autopilot: confirmed and not dismissed by an operator.
@@ -418,8 +426,9 @@ class AlertStore:
                 "score, lock_time, frame_index, lat, lon, position_note, error_m, target_hae_m, "
                 "drone_lat, drone_lon, drone_alt_m, track, pixel_track, thumbnail, ack_time, "
                 "ack_by, added_time, tier, evidence, confirmed_at, discarded, discarded_at, "
-                "decision, decided_by, decided_at, position_time) VALUES (?, ?, ?, ?, ?, ?, ?, "
-                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "decision, decided_by, decided_at, position_time, drift_north, drift_east) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     alert.alert_id,
                     alert.mission_id,
@@ -448,6 +457,7 @@ class AlertStore:
                     alert.decided_by,
                     alert.decided_at,
                     alert.position_time,
+                    *(alert.drift_ne if alert.drift_ne is not None else (None, None)),
                 ),
             )
             if cur.rowcount == 0:
@@ -561,6 +571,7 @@ class AlertStore:
         error_m: float | None,
         note: str,
         position_time: float | None = None,
+        drift_ne: tuple[float, float] | None = None,
     ) -> bool:
         """Give an alert stored without a position its ``(lat, lon)``, error and note, durably.
 
@@ -568,7 +579,7 @@ class AlertStore:
         first position is attached: True when it was attached now, False when the alert already
         had one. Unknown id: KeyError; a position not finite or out of range: ValueError."""
         return self._set_position(
-            alert_id, position, error_m, note, position_time, "lat IS NULL", ""
+            alert_id, position, error_m, note, position_time, drift_ne, "lat IS NULL", ""
         )
 
     def refine_position(
@@ -579,19 +590,21 @@ class AlertStore:
         note: str,
         detail: str = "",
         position_time: float | None = None,
+        drift_ne: tuple[float, float] | None = None,
     ) -> bool:
-        """Move a placed alert to a better ``(lat, lon)`` with its error and note, durably: the
-        target's position once more fixes came in. Logged as a ``position`` event with
-        ``detail`` (e.g. how far it moved). An alert without a position (see
-        :meth:`attach_position`), one an operator dismissed (its dismissed zone stays where
-        the operator saw it) or one the system discarded is left as it is: returns False.
-        Unknown id: KeyError; a position not finite or out of range: ValueError."""
+        """Move a placed alert to a better ``(lat, lon)`` with its error, note and drift (m/s north,
+        east; None: unknown), durably: the target's position once more fixes came in. Logged as a
+        ``position`` event with ``detail`` (e.g. how far it moved). An alert without a position (see
+        :meth:`attach_position`), one an operator dismissed (its dismissed zone stays where the
+        operator saw it) or one the system discarded is left as it is: returns False. Unknown id:
+        KeyError; a position not finite or out of range: ValueError."""
         return self._set_position(
             alert_id,
             position,
             error_m,
             note,
             position_time,
+            drift_ne,
             "lat IS NOT NULL AND discarded IS NULL AND decision IS NOT 'dismissed'",
             detail,
         )
@@ -603,18 +616,21 @@ class AlertStore:
         error_m: float | None,
         note: str,
         position_time: float | None,
+        drift_ne: tuple[float, float] | None,
         condition: str,
         detail: str,
     ) -> bool:
         """The position update of :meth:`attach_position` and :meth:`refine_position`, made
         only where the alert meets ``condition`` (SQL); logged as a ``position`` event."""
         lat, lon = check_position(position)
+        drift = (None, None) if drift_ne is None else check_drift(drift_ne)
         with self._transaction() as conn:
             self._require(conn, alert_id)
             cur = conn.execute(
                 "UPDATE alerts SET lat = ?, lon = ?, error_m = ?, position_note = ?, "
-                f"position_time = ? WHERE alert_id = ? AND {condition}",
-                (lat, lon, error_m, note, position_time, alert_id),
+                "position_time = ?, drift_north = ?, drift_east = ? "
+                f"WHERE alert_id = ? AND {condition}",
+                (lat, lon, error_m, note, position_time, *drift, alert_id),
             )
             if cur.rowcount:
                 self._log(conn, "position", alert_id, detail=detail)
@@ -1103,7 +1119,7 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
     (alert_id, mission_id, target_id, class_name, score, lock_time, frame_index, lat, lon,
      position_note, error_m, target_hae_m, d_lat, d_lon, d_alt, track, pixel_track, thumbnail,
      ack_time, ack_by, tier, evidence, confirmed_at, discarded, discarded_at, decision,
-     decided_by, decided_at, position_time) = row  # fmt: skip
+     decided_by, decided_at, position_time, drift_n, drift_e) = row  # fmt: skip
     return Alert(
         alert_id=alert_id,
         mission_id=mission_id,
@@ -1134,4 +1150,5 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
         decided_by=decided_by,
         decided_at=decided_at,
         position_time=position_time,
+        drift_ne=None if drift_n is None else (drift_n, drift_e),
     )

@@ -712,18 +712,26 @@ class MissionController:
         estimate = latest_position(sure, min_fixes=rule.min_sightings, min_span_s=rule.min_seen_s)
         if estimate is None:
             return
-        due = self.refiner.due(alert, estimate.position, estimate.error_m, timestamp, force)
+        due = self.refiner.due(
+            alert, estimate.position, estimate.error_m, timestamp, force, estimate.velocity_ne
+        )
         if due is None:
             return
         fixed = self.to_posix(estimate.t)
         if not self.store.refine_position(
-            alert.alert_id, due.position, due.error_m, target.note, due.detail(), fixed
+            alert.alert_id,
+            due.position,
+            due.error_m,
+            target.note,
+            due.detail(),
+            fixed,
+            due.drift_ne,
         ):
             self._placed.pop(alert.target_id, None)
             self.refiner.forget(alert.alert_id)
             return
         alert.position, alert.error_m, alert.position_note = due.position, due.error_m, target.note
-        alert.position_time = fixed
+        alert.position_time, alert.drift_ne = fixed, due.drift_ne
         self.refiner.done(alert.alert_id, timestamp)
         self.stats.refined += 1
         self.stats.position_frames[alert.alert_id] = frame_index
@@ -854,9 +862,10 @@ def format_alert(alert: Alert, track_id: int | None = None) -> str:
             f"{where} (frame {alert.frame_index}{track}; unconfirmed)"
         )
     evidence = f"; {alert.evidence}" if alert.evidence else ""
+    drift = f"; {alert.format_drift()}" if alert.drift_ne is not None else ""
     return (
         f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
-        f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence})"
+        f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence}{drift})"
     )
 
 
@@ -867,9 +876,10 @@ def _time(sighting: Any) -> float:
 def format_refined(alert: Alert, refinement: Refinement, frame_index: int) -> str:
     """One console line for a placed alert moved to its target's better position."""
     where = f"{alert.format_position(6)} {alert.format_error()}".rstrip()
+    drift = f"{alert.format_drift()}; " if alert.drift_ne is not None else ""
     return (
         f"REFINED target {alert.target_id}: {alert.class_name} at {where} "
-        f"(moved {refinement.moved_m:.1f} m; frame {frame_index})"
+        f"(moved {refinement.moved_m:.1f} m; {drift}frame {frame_index})"
     )
 
 

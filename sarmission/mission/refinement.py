@@ -10,8 +10,9 @@ visit should have the better position, without a stream of updates:
 - at the confirmation, the confirmed alert takes its target's estimate (``force``), so what is
   announced rests on the fixes that confirmed it, not on the lock's single fix;
 - after that, at most once per ``period_s`` per alert, and only when the estimate moved by at
-  least ``max(min_move_m, move_share x the alert's error)`` or the error changed by more than
-  ``error_share`` of the alert's."""
+  least ``max(min_move_m, move_share x the alert's error)``, the error changed by more than
+  ``error_share`` of the alert's, or the drift by more than ``drift_tolerance_m_s`` (a team
+  intercepting a drifting swimmer steers by it)."""
 
 from __future__ import annotations
 
@@ -34,15 +35,20 @@ REFINE_ERROR_SHARE = 0.25
 CHECK_PERIOD_S = 1.0
 #: At the confirmation (``force``) a move or an error change of more than this (m) is taken.
 FORCED_TOLERANCE_M = 0.1
+#: A drift that changed by more than this (m/s, as a vector) is worth telling; at the
+#: confirmation any change is.
+REFINE_DRIFT_TOLERANCE_M_S = 0.1
 
 
 @dataclass(frozen=True)
 class Refinement:
-    """A better position for an alert: where, its 1-sigma error, and how far it moved."""
+    """A better position for an alert: where, its 1-sigma error, how far it moved, and the
+    target's drift (m/s north, east; None: not estimated)."""
 
     position: tuple[float, float]
     error_m: float | None
     moved_m: float
+    drift_ne: tuple[float, float] | None = None
 
     def detail(self) -> str:
         """The event log's line for it."""
@@ -60,6 +66,7 @@ class PositionRefiner:
     move_share: float = REFINE_MOVE_SHARE
     error_share: float = REFINE_ERROR_SHARE
     check_period_s: float = CHECK_PERIOD_S
+    drift_tolerance_m_s: float = REFINE_DRIFT_TOLERANCE_M_S
     _last: dict[str, float] = field(default_factory=dict)
     _looked: dict[str, float] = field(default_factory=dict)
 
@@ -70,11 +77,12 @@ class PositionRefiner:
         error_m: float | None,
         now: float,
         force: bool = False,
+        drift_ne: tuple[float, float] | None = None,
     ) -> Refinement | None:
-        """The refinement ``alert`` should get at time ``now`` from its target's ``position``
-        and ``error_m``, or None. ``force``: any change beyond :data:`FORCED_TOLERANCE_M`,
-        however soon (the confirmation). An alert without a position gets none here: it is
-        placed, not refined."""
+        """The refinement ``alert`` should get at time ``now`` from its target's ``position``,
+        ``error_m`` and ``drift_ne``, or None. ``force``: any change beyond
+        :data:`FORCED_TOLERANCE_M`, or of the drift, however soon (the confirmation). An alert
+        without a position gets none here: it is placed, not refined."""
         if alert.position is None or position is None:
             return None
         if not force and not self.ready(alert.alert_id, now):
@@ -90,9 +98,23 @@ class PositionRefiner:
         threshold = (
             FORCED_TOLERANCE_M if force else max(self.min_move_m, self.move_share * (old or 0.0))
         )
-        if not error_changed and moved <= threshold:
+        if (
+            not error_changed
+            and moved <= threshold
+            and not self._drift_changed(alert.drift_ne, drift_ne, force)
+        ):
             return None
-        return Refinement(position, error_m, moved)
+        return Refinement(position, error_m, moved, drift_ne)
+
+    def _drift_changed(
+        self, old: tuple[float, float] | None, new: tuple[float, float] | None, force: bool
+    ) -> bool:
+        """Whether the drift changed enough to tell: known or unknown now, any change at the
+        confirmation, else more than ``drift_tolerance_m_s``."""
+        if old is None or new is None:
+            return old != new
+        change = math.hypot(new[0] - old[0], new[1] - old[1])
+        return change > (0.0 if force else self.drift_tolerance_m_s)
 
     def ready(self, alert_id: str, now: float) -> bool:
         """Whether ``period_s`` has passed since ``alert_id`` was last refined (or placed)."""
