@@ -158,3 +158,22 @@ def model_files_default() -> Path:
     from sarmission.models import DEFAULT_ONNX_MODEL
 
     return DEFAULT_ONNX_MODEL
+
+
+def test_crop_norm_travels_with_the_head(tmp_path):
+    """A crop-normalised head normalises inside its graph: checkpoint and ONNX metadata say so,
+    and onnxruntime gives torch's scores for the same raw crops."""
+    torch.manual_seed(0)
+    head = MiteHead(HeadConfig(crop_norm=0.05)).eval()
+    pt = save_head_checkpoint(head, tmp_path / "norm.pt")
+    report = export_head_onnx(pt, tmp_path / "norm.onnx")
+    assert report.max_abs_diff < 1e-4
+    crops = np.random.default_rng(1).random((9, 4, 16, 16), dtype=np.float32)
+    crops[:3, :3] = 0.5  # flat crops: divided by the floor, not by zero
+    t_logits, _ = load_head_runtime(pt).predict(crops)
+    o_logits, _ = load_head_runtime(report.path).predict(crops)
+    np.testing.assert_allclose(o_logits, t_logits, atol=1e-4)
+    assert np.isfinite(o_logits).all()
+    for path in (pt, report.path):
+        assert load_head_runtime(path).config.crop_norm == 0.05
+    assert load_head_runtime(model_files_default()).config.crop_norm == 0.0

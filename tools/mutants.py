@@ -1442,6 +1442,15 @@ MUTANTS: list[Mutant] = [
         "a wide background negative may hold a person: the head learns people as background",
     ),
     Mutant(
+        "head.crop_norm_ignored",
+        "sarmission/perception/head.py",
+        "if self.config.crop_norm > 0:",
+        "if False:",
+        ("tests/test_head.py", "tests/test_runtime.py"),
+        "detection",
+        "a head trained on crops seen relative to themselves is fed raw colour at inference",
+    ),
+    Mutant(
         "training.validation_keeps_object_negatives",
         "sarmission/training/train.py",
         "        object_negatives=0,\n",

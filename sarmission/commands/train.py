@@ -140,6 +140,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="weight of a loss term that keeps the class scores of a crop and of its copy as "
         "another decoder would round it together, e.g. 1 (default: none)",
     )
+    parser.add_argument(
+        "--crop-norm",
+        type=float,
+        default=0.0,
+        metavar="FLOOR",
+        help="the head sees each crop's colour relative to the crop: its mean colour taken "
+        "away, divided by its spread or FLOOR if more (RGB in [0, 1], e.g. 0.05; 1 centres "
+        "only; default: 0, raw colour)",
+    )
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
     parser.add_argument(
         "--colour-share",
@@ -251,6 +260,7 @@ def config_from_args(args: argparse.Namespace):
         texture_negatives=args.texture_negatives,
         texture_positives=args.texture_positives,
         rounding_consistency=args.rounding_consistency,
+        crop_norm=args.crop_norm,
         cache_dir=args.cache_dir,
         init=args.init,
         init_classes=parse_pairs(args.init_class, "--init-class"),

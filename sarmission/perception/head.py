@@ -99,6 +99,15 @@ def dfl_decode(bin_logits: Tensor) -> Tensor:
     return (torch.softmax(bin_logits, dim=-1) * bins).sum(dim=-1)
 
 
+def normalise_crop_colour(crops: Tensor, floor: float) -> Tensor:
+    """``crops [N, 4, S, S]`` with RGB relative to each crop: its mean colour taken away, then
+    divided by its RGB spread, at least ``floor``; the motion channel as it is."""
+    rgb, motion = crops[:, :3], crops[:, 3:]
+    centred = rgb - rgb.mean(dim=(2, 3), keepdim=True)
+    spread = centred.pow(2).mean(dim=(1, 2, 3), keepdim=True).sqrt()
+    return torch.cat([centred / spread.clamp(min=floor), motion], dim=1)
+
+
 def coord_channels(size: int) -> Tensor:
     """CoordConv channels ``[1, 2, size, size]``: x then y, pixel centres spanning [-1, 1]."""
     t = torch.linspace(-1.0, 1.0, size)
@@ -129,6 +138,8 @@ class MiteHead(nn.Module):
 
     def forward_with_bins(self, crops: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """``crops [N, 4, S, S]`` → ``(cls_logits [N, C], bin_logits [N, 4, R+1], ltrb [N, 4])``."""
+        if self.config.crop_norm > 0:
+            crops = normalise_crop_colour(crops, self.config.crop_norm)
         coords = self.coords.expand(crops.shape[0], -1, -1, -1)
         f = self.backbone(self.stem(torch.cat([crops, coords], dim=1)))
         bins = self.reg_branch(f)
@@ -188,4 +199,5 @@ __all__ = [
     "dfl_decode",
     "head_flops_per_proposal",
     "ltrb_to_boxes",
+    "normalise_crop_colour",
 ]

@@ -23,6 +23,11 @@ class HeadConfig:
     ``motion_floor`` is part of the input's definition, not of the network: the temporal change
     below which the motion channel is not stretched to full scale
     (:func:`~sarmission.perception.crops.enhanced_response`; 0 for heads trained without one).
+    ``crop_norm`` > 0 makes the head see each crop's colour relative to the crop itself: the
+    crop's mean colour is taken away and what is left divided by the crop's spread, at least
+    ``crop_norm`` (RGB in [0, 1]; a floor, so the noise of an empty crop is not stretched into
+    structure; 1 centres only), so a sea or field of another tone or contrast than training's
+    looks the same to it (0: raw colour, heads trained without).
     """
 
     classes: tuple[str, ...] = DEFAULT_CLASSES
@@ -34,6 +39,7 @@ class HeadConfig:
     attention_reduction: int = 4
     cls_hidden: int = 32
     motion_floor: float = 0.0
+    crop_norm: float = 0.0
 
     @property
     def num_classes(self) -> int:
@@ -69,6 +75,8 @@ class HeadConfig:
             raise ValueError(f"HeadConfig.widths must be two positive ints, got {self.widths}")
         if not 0.0 <= self.motion_floor < 1.0:
             raise ValueError(f"HeadConfig.motion_floor must be in [0, 1), got {self.motion_floor}")
+        if not 0.0 <= self.crop_norm <= 1.0:
+            raise ValueError(f"HeadConfig.crop_norm must be in [0, 1], got {self.crop_norm}")
 
 
 def ltrb_to_boxes(ltrb: np.ndarray, proposal_boxes: np.ndarray, crop_size: int = 16) -> np.ndarray:

@@ -125,6 +125,9 @@ class TrainConfig:
     texture_positives: float = 0.0
     #: Weight of the rounding-consistency term (0: none; :mod:`sarmission.training.consistency`).
     rounding_consistency: float = 0.0
+    #: The head sees each crop's colour relative to the crop, its spread floored at this
+    #: (:class:`HeadConfig` ``crop_norm``; 0: raw colour).
+    crop_norm: float = 0.0
     crops: CropSettings = field(default_factory=CropSettings)
     loss: LossWeights = field(default_factory=LossWeights)
     score_threshold: float = 0.5
@@ -163,6 +166,8 @@ class TrainConfig:
             raise ValueError(
                 f"rounding_consistency must be in [0, 100], got {self.rounding_consistency}"
             )
+        if not 0.0 <= self.crop_norm <= 1.0:
+            raise ValueError(f"crop_norm must be in [0, 1], got {self.crop_norm}")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         self.randomise.validate()
@@ -173,7 +178,7 @@ class TrainConfig:
         d = asdict(self)
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
-        for key in ("texture_negatives", "texture_positives", "rounding_consistency"):
+        for key in ("texture_negatives", "texture_positives", "rounding_consistency", "crop_norm"):
             if not d[key]:
                 d.pop(key)  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
@@ -518,7 +523,11 @@ def train(config: TrainConfig) -> TrainResult:
 
     torch.manual_seed(config.seed)
     model = MiteHead(
-        HeadConfig(classes=tuple(config.crops.classes), motion_floor=config.crops.motion_floor)
+        HeadConfig(
+            classes=tuple(config.crops.classes),
+            motion_floor=config.crops.motion_floor,
+            crop_norm=config.crop_norm,
+        )
     )
     optimizer = _optimizer(model, config)
     average = WeightAverage(model, config.ema_decay) if config.ema_decay > 0 else None
