@@ -233,6 +233,42 @@ def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
     assert not (tmp_path / "alerts.db").exists()  # nothing was started
 
 
+def test_run_with_an_unreadable_tak_certificate_in_the_mission_fails_in_one_line(
+    tmp_path: Path,
+) -> None:
+    """The mission file's TAK destination names a client certificate that is not there: one
+    line, exit 2, before the simulated vehicle or the alert store is started."""
+    mission = tmp_path / "mission.toml"
+    missing = tmp_path / "drone.pem"
+    mission.write_text(f'[alerts]\ncot = ["tls://127.0.0.1:8089?cert={missing}"]\n')
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sarmission.cli",
+            "run",
+            "--connect",
+            f"udp:127.0.0.1:{free_udp_port()}",
+            "--sim",
+            "--mission",
+            str(mission),
+            "--alerts-db",
+            str(tmp_path / "alerts.db"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    (line,) = [x for x in done.stderr.splitlines() if "error" in x]
+    assert line == (
+        f"sarmission run: error: CoT tls://127.0.0.1:8089?cert={missing}: client certificate "
+        f"'{missing}': No such file or directory"
+    )
+    assert "vehicle on" not in done.stderr  # the simulated vehicle never started
+    assert not (tmp_path / "alerts.db").exists()
+
+
 def test_bad_crop_scales_exit_with_a_message(capsys: pytest.CaptureFixture) -> None:
     with pytest.raises(SystemExit) as stop:
         main(["detect", "clip.mp4", "--crop-scales", "1,0"])

@@ -185,6 +185,11 @@ def run_live(
     if detector is None:
         detector, note = build_detector(args, mission)
         say(note)
+    from sarmission.alerts.cot import CotSender
+
+    cot_urls = list(dict.fromkeys([*mission.alerts.cot, *args.cot]))
+    for url in cot_urls:  # the mission file's TLS files too, before the video or vehicle opens
+        CotSender(url)
     recorder = build_recorder(args)
     source, vehicle = open_source(mission)
     try:
@@ -198,7 +203,7 @@ def run_live(
             recorder=recorder,
             feed_address=feed,
             feed_token=feed_token,
-            cot_urls=list(dict.fromkeys([*mission.alerts.cot, *args.cot])),
+            cot_urls=cot_urls,
             mission_id=args.mission_id,
             transport_latency_s=(mission.telemetry.latency_s if vehicle is not None else 0),
             connect_timeout_s=args.connect_timeout,
