@@ -55,6 +55,21 @@ def test_kml_parses_with_placemarks_at_full_precision() -> None:
     assert lost.alert_id in description and "telemetry stale" in description
 
 
+def test_kml_and_geojson_say_how_old_a_position_is_and_where_it_drifts() -> None:
+    alert = make_alert(1, position_time=1_700_000_005.0, drift_ne=(0.0, -0.4))
+    ns = {"k": KML_NS}
+    text = ET.fromstring(alerts_kml([alert])).find("k:Document/k:Placemark/k:description", ns)
+    assert "position as of 2023-11-14T22:13:25" in text.text
+    assert "drifting 0.4 m/s to 270°" in text.text
+    (feature,) = alerts_geojson([alert])["features"]
+    assert feature["properties"]["drift"]["course_deg"] == 270.0
+    assert feature["properties"]["position_time"] == 1_700_000_005.0
+    plain = ET.fromstring(alerts_kml([make_alert(2)])).find(
+        "k:Document/k:Placemark/k:description", ns
+    )
+    assert "drifting" not in plain.text and "as of" not in plain.text
+
+
 def test_cot_event_has_full_precision_point_and_required_attributes() -> None:
     alert = make_alert(5, position=(LAT, LON), error_m=3.7, lock_time=1_700_000_000.25)
     event = ET.fromstring(alert_to_cot(alert, now=1_700_000_010.0, stale_after_s=600))

@@ -60,6 +60,10 @@ def _describe(alert: Alert) -> str:
         lat, lon = alert.position
         err = f", error {alert.format_error()}" if alert.format_error() else ""
         lines.append(f"position {plain_decimal(lat)}, {plain_decimal(lon)}{err}")
+        if alert.position_time is not None:
+            lines.append(f"position as of {utc_iso(alert.position_time)}")
+        if alert.drift_ne is not None:
+            lines.append(alert.format_drift())
     else:
         lines.append(f"position unknown: {alert.position_note or 'no geolocation'}")
     if alert.tier == "candidate":
