@@ -176,6 +176,18 @@ def test_gimbal_flags_pick_the_frame(flags, delta_yaw, frame):
         )
 
 
+def test_a_precise_fix_keeps_the_height_error_of_a_barometer():
+    """h_acc 0.3 m (RTK): the GNSS sigma follows it, the height's stays at the buffer's floor
+    (a barometer drifts whatever the satellites say); 4 m: the height's grows to 6 m."""
+    buf = home_buffer(alt_sigma_m=1.0)
+    for h_acc_mm, gnss, alt in ((300, 0.3, 1.0), (4000, 4.0, 6.0), (0, 4.0, 6.0)):
+        gps = M.MAVLink_gps_raw_int_message(
+            0, 3, 0, 0, 0, 120, 200, 0, 0, 10, 0, h_acc_mm, 2500, 0, 0, 0
+        )
+        buf.handle_message(gps, 10.0)
+        assert (buf.gnss_sigma_m, buf.alt_sigma_m) == pytest.approx((gnss, alt)), h_acc_mm
+
+
 def test_messages_home_gps_accuracy_mount_orientation_and_no_origin():
     buf = TelemetryBuffer(stale_after_s=1.0)
     buf.handle_message(
@@ -197,6 +209,8 @@ def test_messages_home_gps_accuracy_mount_orientation_and_no_origin():
     buf.handle_message(M.MAVLink_mount_orientation_message(1000, 0.0, -60.0, 10.0, 70.0), 10.0)
     pose = buf.pose_at(10.0)
     assert pose.gnss_sigma_m == pytest.approx(1.5)
+    # the height is no better than 1.5 times the horizontal error (satellites are above)
+    assert pose.alt_sigma_m == pytest.approx(2.25)
     assert pose.gimbal_frame == "earth"
     assert np.degrees(pose.gimbal_rpy) == pytest.approx((0.0, -60.0, 70.0), abs=1e-9)
     buf.handle_message(M.MAVLink_mount_orientation_message(1100, 0.0, -60.0, 10.0, NAN), 10.1)

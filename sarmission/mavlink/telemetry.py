@@ -96,6 +96,9 @@ JUMP_CHECK_S = 2.0
 JUMP_SLACK_M = 10.0
 #: Least seconds between two warnings of the same rejection reason.
 WARN_INTERVAL_S = 5.0
+#: A satellite fix's vertical error is about this many times its horizontal one (the
+#: satellites are all above): the height a fix rests on is taken as no better than that.
+VERTICAL_PER_HORIZONTAL = 1.5
 _NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
 
@@ -270,7 +273,9 @@ class TelemetryBuffer:
     subscriber) or the ``push_*`` methods (replay; times in the caller's clock). ``mount_rpy``
     (radians) in ``mount_frame`` is the camera mount used while no gimbal has reported.
     ``gnss_sigma_m``, ``alt_sigma_m`` and ``attitude_sigma_rad`` are the default 1-sigma
-    accuracies copied into each pose (GPS_RAW_INT ``h_acc`` overrides the GNSS one).
+    accuracies copied into each pose. GPS_RAW_INT ``h_acc`` overrides the GNSS one and sets
+    the height's to at least :data:`VERTICAL_PER_HORIZONTAL` times it (``alt_sigma_m`` stays
+    its floor: a barometer drifts too).
     ``require_home``: no pose until a home is known (HOME_POSITION or :meth:`set_home`);
     ``require_gps_fix``: GLOBAL_POSITION_INT only while GPS_RAW_INT reports a 3D fix.
     """
@@ -298,6 +303,7 @@ class TelemetryBuffer:
         self.mount_frame = mount_frame
         self.gnss_sigma_m = gnss_sigma_m
         self.alt_sigma_m = alt_sigma_m
+        self._alt_sigma_floor_m = alt_sigma_m
         self.attitude_sigma_rad = attitude_sigma_rad
         self.clock = clock or BootClock()
         self.require_home = require_home
@@ -348,6 +354,9 @@ class TelemetryBuffer:
         h_acc = getattr(msg, "h_acc", 0)
         if 0 < h_acc < 0xFFFFFFFF:
             self.gnss_sigma_m = h_acc / 1000.0
+            self.alt_sigma_m = max(
+                self._alt_sigma_floor_m, VERTICAL_PER_HORIZONTAL * self.gnss_sigma_m
+            )
 
     def _sender_time(
         self, source: tuple[int, int], mtype: str, msg: Any, now: float

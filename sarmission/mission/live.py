@@ -31,7 +31,12 @@ from sarmission.alerts.store import AlertStore
 from sarmission.data.frames import Frame
 from sarmission.mavlink.commands import CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
-from sarmission.mavlink.telemetry import MESSAGE_TYPES, BootClock, TelemetryBuffer
+from sarmission.mavlink.telemetry import (
+    MESSAGE_TYPES,
+    VERTICAL_PER_HORIZONTAL,
+    BootClock,
+    TelemetryBuffer,
+)
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.controller import Detector, MissionController
@@ -61,10 +66,13 @@ def stream_rates(mission: MissionConfig) -> dict[int, float]:
 def telemetry_buffer(mission: MissionConfig, transport_latency_s: float = 0.0) -> TelemetryBuffer:
     """A telemetry buffer for the mission: staleness limit, the camera's fixed mount, and the
     telemetry quality of the ``[telemetry]`` section as the sigmas of each fix's error estimate
-    (floored at 0.1 m and 0.1 degree: pixel quantisation and calibration are never exact)."""
+    (floored at 0.1 m and 0.1 degree: pixel quantisation and calibration are never exact; the
+    height's at 1 m, a barometer's drift, and at 1.5 times the horizontal GNSS error)."""
+    gnss_sigma_m = max(mission.telemetry.gnss_noise_m, 0.1)
     return TelemetryBuffer(
         stale_after_s=mission.telemetry.stale_after_s,
-        gnss_sigma_m=max(mission.telemetry.gnss_noise_m, 0.1),
+        gnss_sigma_m=gnss_sigma_m,
+        alt_sigma_m=max(1.0, VERTICAL_PER_HORIZONTAL * gnss_sigma_m),
         attitude_sigma_rad=math.radians(max(mission.telemetry.attitude_noise_deg, 0.1)),
         mount_rpy=(0.0, math.radians(mission.camera.mount_pitch_deg), 0.0),
         mount_frame="vehicle" if mission.camera.gimbal else "body",
