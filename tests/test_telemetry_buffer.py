@@ -177,10 +177,12 @@ def test_gimbal_flags_pick_the_frame(flags, delta_yaw, frame):
 
 
 def test_a_precise_fix_keeps_the_height_error_of_a_barometer():
-    """h_acc 0.3 m (RTK): the GNSS sigma follows it, the height's stays at the buffer's floor
-    (a barometer drifts whatever the satellites say); 4 m: the height's grows to 6 m."""
+    """h_acc 0.3 m: the GNSS sigma follows it, the height's stays at the buffer's floor (a
+    barometer drifts whatever the satellites say); 4 m: the height's grows to 6 m; an RTK
+    fix's 1 cm (or a sender's 1 mm) is taken as 0.1 m; h_acc 0 (unknown) changes nothing."""
     buf = home_buffer(alt_sigma_m=1.0)
-    for h_acc_mm, gnss, alt in ((300, 0.3, 1.0), (4000, 4.0, 6.0), (0, 4.0, 6.0)):
+    cases = ((300, 0.3, 1.0), (4000, 4.0, 6.0), (0, 4.0, 6.0), (10, 0.1, 1.0), (1, 0.1, 1.0))
+    for h_acc_mm, gnss, alt in cases:
         gps = M.MAVLink_gps_raw_int_message(
             0, 3, 0, 0, 0, 120, 200, 0, 0, 10, 0, h_acc_mm, 2500, 0, 0, 0
         )

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 from sarmission.flightlog.model import FlightLog
-from sarmission.mavlink.telemetry import TelemetryBuffer
+from sarmission.mavlink.telemetry import MIN_GNSS_SIGMA_M, TelemetryBuffer
 
 #: Seconds of log pushed ahead of the frame being replayed.
 LOOKAHEAD_S = 2.0
@@ -45,7 +45,8 @@ class LogFeeder:
         log, buf, nxt = self.log, self.buffer, self._next
         while nxt["position"] < len(log.positions) and log.positions[nxt["position"]].t <= until:
             p = log.positions[nxt["position"]]
-            buf.gnss_sigma_m = p.gnss_sigma_m or log.accuracy.gnss_sigma_m
+            # a logged accuracy of centimetres (RTK) is floored as the live link's is
+            buf.gnss_sigma_m = max(p.gnss_sigma_m or log.accuracy.gnss_sigma_m, MIN_GNSS_SIGMA_M)
             buf.push_position(p.t, p.lat, p.lon, p.rel_alt_m, alt_m=p.alt_m)
             nxt["position"] += 1
             self.pushed += 1

@@ -99,6 +99,10 @@ WARN_INTERVAL_S = 5.0
 #: A satellite fix's vertical error is about this many times its horizontal one (the
 #: satellites are all above): the height a fix rests on is taken as no better than that.
 VERTICAL_PER_HORIZONTAL = 1.5
+#: The smallest horizontal GNSS sigma a fix takes, whatever GPS_RAW_INT claims (metres): the
+#: pixel, the lens calibration and the timing are never exact, so centimetres of RTK (or a
+#: sender's 1 mm) must not make a fix's error bar that tight.
+MIN_GNSS_SIGMA_M = 0.1
 _NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 
 
@@ -273,7 +277,8 @@ class TelemetryBuffer:
     subscriber) or the ``push_*`` methods (replay; times in the caller's clock). ``mount_rpy``
     (radians) in ``mount_frame`` is the camera mount used while no gimbal has reported.
     ``gnss_sigma_m``, ``alt_sigma_m`` and ``attitude_sigma_rad`` are the default 1-sigma
-    accuracies copied into each pose. GPS_RAW_INT ``h_acc`` overrides the GNSS one and sets
+    accuracies copied into each pose. GPS_RAW_INT ``h_acc`` overrides the GNSS one (at least
+    :data:`MIN_GNSS_SIGMA_M`) and sets
     the height's to at least :data:`VERTICAL_PER_HORIZONTAL` times it (``alt_sigma_m`` stays
     its floor: a barometer drifts too).
     ``require_home``: no pose until a home is known (HOME_POSITION or :meth:`set_home`);
@@ -353,7 +358,7 @@ class TelemetryBuffer:
         self._gps = (now, int(msg.fix_type))
         h_acc = getattr(msg, "h_acc", 0)
         if 0 < h_acc < 0xFFFFFFFF:
-            self.gnss_sigma_m = h_acc / 1000.0
+            self.gnss_sigma_m = max(h_acc / 1000.0, MIN_GNSS_SIGMA_M)
             self.alt_sigma_m = max(
                 self._alt_sigma_floor_m, VERTICAL_PER_HORIZONTAL * self.gnss_sigma_m
             )
