@@ -1672,6 +1672,26 @@ MUTANTS: list[Mutant] = [
         "a drift's course measured from east: the team heads 90 degrees off",
     ),
     Mutant(
+        "telemetry.h_acc_unfloored",
+        _TELEMETRY,
+        "self.gnss_sigma_m = max(h_acc / 1000.0, MIN_GNSS_SIGMA_M)",
+        "self.gnss_sigma_m = h_acc / 1000.0",
+        ("tests/test_telemetry_buffer.py",),
+        "position",
+        "an autopilot claiming 1 mm of GNSS accuracy makes every fix's error bar that tight",
+    ),
+    Mutant(
+        "telemetry.height_error_not_from_gnss",
+        _TELEMETRY,
+        "self.alt_sigma_m = max(\n"
+        "                self._alt_sigma_floor_m, VERTICAL_PER_HORIZONTAL * self.gnss_sigma_m\n"
+        "            )",
+        "pass",
+        ("tests/test_telemetry_buffer.py",),
+        "position",
+        "a 4 m GNSS fix keeps a 1 m height error: oblique error bars too tight",
+    ),
+    Mutant(
         "cot.tls_server_unverified",
         _COT,
         "context = ssl.create_default_context(cafile=dest.ca)",
