@@ -205,10 +205,10 @@ def test_detect_rejects_a_colour_share_outside_0_1(
     assert not out.exists()
 
 
-def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
-    index = 99  # no such /dev/video99 on a test machine
-    assert not Path(f"/dev/video{index}").exists()
-    done = subprocess.run(
+def run_that_fails(tmp_path: Path, *source: str) -> subprocess.CompletedProcess:
+    """``sarmission run`` in a process of its own with ``source`` (and its alert store in
+    ``tmp_path``), expected to stop before it starts anything."""
+    return subprocess.run(
         [
             sys.executable,
             "-m",
@@ -216,8 +216,7 @@ def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
             "run",
             "--connect",
             f"udp:127.0.0.1:{free_udp_port()}",
-            "--camera",
-            str(index),
+            *source,
             "--alerts-db",
             str(tmp_path / "alerts.db"),
         ],
@@ -225,6 +224,12 @@ def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
         text=True,
         timeout=120,
     )
+
+
+def test_run_with_a_missing_camera_fails_in_one_line(tmp_path: Path) -> None:
+    index = 99  # no such /dev/video99 on a test machine
+    assert not Path(f"/dev/video{index}").exists()
+    done = run_that_fails(tmp_path, "--camera", str(index))
     assert done.returncode == 2, done.stderr
     assert done.stderr.splitlines() == [
         f"sarmission run: error: cannot open camera {index}: no such device "
@@ -241,24 +246,7 @@ def test_run_with_an_unreadable_tak_certificate_in_the_mission_fails_in_one_line
     mission = tmp_path / "mission.toml"
     missing = tmp_path / "drone.pem"
     mission.write_text(f'[alerts]\ncot = ["tls://127.0.0.1:8089?cert={missing}"]\n')
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sarmission.cli",
-            "run",
-            "--connect",
-            f"udp:127.0.0.1:{free_udp_port()}",
-            "--sim",
-            "--mission",
-            str(mission),
-            "--alerts-db",
-            str(tmp_path / "alerts.db"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+    done = run_that_fails(tmp_path, "--sim", "--mission", str(mission))
     assert done.returncode == 2, done.stderr
     (line,) = [x for x in done.stderr.splitlines() if "error" in x]
     assert line == (
