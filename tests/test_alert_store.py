@@ -551,18 +551,24 @@ def test_known_fixes_carry_the_error_of_each_latest_position(tmp_path: Path) -> 
     assert known[3][2] is None
 
 
+def as_older_schema(db: Path, version: int, columns: tuple[str, ...]) -> None:
+    """Turn the store ``db`` into one of schema ``version``: the alert ``columns`` it did not
+    have yet dropped."""
+    conn = sqlite3.connect(db)
+    for column in columns:
+        conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
+    conn.execute(f"PRAGMA user_version = {version}")
+    conn.commit()
+    conn.close()
+
+
 def test_schema_4_store_gains_the_time_a_position_rests_on(tmp_path: Path) -> None:
     """A store written before positions had a time (schema 4: the current tables without
     ``position_time``) opens with its alerts' times unknown, and refines with one."""
     db = tmp_path / "old.db"
     with AlertStore(db) as store:
         store.add(make_alert(1, position_time=1.7e9))
-    conn = sqlite3.connect(db)
-    for column in ("position_time", "drift_north", "drift_east"):
-        conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
-    conn.execute("PRAGMA user_version = 4")
-    conn.commit()
-    conn.close()
+    as_older_schema(db, 4, ("position_time", "drift_north", "drift_east"))
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         (old,) = store.list()
@@ -579,12 +585,7 @@ def test_schema_5_store_gains_the_drift(tmp_path: Path) -> None:
     with AlertStore(db) as store:
         store.add(make_alert(1, drift_ne=(0.3, -0.4)))
         assert store.list()[0].drift_ne == (0.3, -0.4)
-    conn = sqlite3.connect(db)
-    for column in ("drift_north", "drift_east"):
-        conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
-    conn.execute("PRAGMA user_version = 5")
-    conn.commit()
-    conn.close()
+    as_older_schema(db, 5, ("drift_north", "drift_east"))
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         (old,) = store.list()

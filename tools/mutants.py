@@ -1683,9 +1683,7 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "telemetry.height_error_not_from_gnss",
         _TELEMETRY,
-        "self.alt_sigma_m = max(\n"
-        "                self._alt_sigma_floor_m, VERTICAL_PER_HORIZONTAL * self.gnss_sigma_m\n"
-        "            )",
+        "self.alt_sigma_m = height_sigma_m(self.gnss_sigma_m, self._alt_sigma_floor_m)",
         "pass",
         ("tests/test_telemetry_buffer.py",),
         "position",

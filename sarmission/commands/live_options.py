@@ -87,12 +87,13 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _cot_url(text: str) -> str:
-    """A CoT destination, checked before anything starts."""
-    from sarmission.alerts.cot import CotSender
+    """A CoT destination's form, checked while parsing (its TLS files are read once, by
+    :func:`run_live`, before anything starts)."""
+    from sarmission.alerts.cot import parse_cot_url
     from sarmission.errors import SarmissionError
 
     try:
-        CotSender(text)
+        parse_cot_url(text)
     except SarmissionError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
@@ -187,9 +188,8 @@ def run_live(
         say(note)
     from sarmission.alerts.cot import CotSender
 
-    cot_urls = list(dict.fromkeys([*mission.alerts.cot, *args.cot]))
-    for url in cot_urls:  # the mission file's TLS files too, before the video or vehicle opens
-        CotSender(url)
+    # the TAK destinations are made (TLS files read) before the video or the vehicle opens
+    cot_senders = [CotSender(url) for url in dict.fromkeys([*mission.alerts.cot, *args.cot])]
     recorder = build_recorder(args)
     source, vehicle = open_source(mission)
     try:
@@ -203,7 +203,7 @@ def run_live(
             recorder=recorder,
             feed_address=feed,
             feed_token=feed_token,
-            cot_urls=cot_urls,
+            cot_senders=cot_senders,
             mission_id=args.mission_id,
             transport_latency_s=(mission.telemetry.latency_s if vehicle is not None else 0),
             connect_timeout_s=args.connect_timeout,

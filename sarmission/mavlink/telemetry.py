@@ -99,6 +99,9 @@ WARN_INTERVAL_S = 5.0
 #: A satellite fix's vertical error is about this many times its horizontal one (the
 #: satellites are all above): the height a fix rests on is taken as no better than that.
 VERTICAL_PER_HORIZONTAL = 1.5
+#: The smallest height sigma of the mission's buffer (metres): a barometer drifts about this
+#: much, whatever the satellites say.
+MIN_HEIGHT_SIGMA_M = 1.0
 #: The smallest horizontal GNSS sigma a fix takes, whatever GPS_RAW_INT claims (metres): the
 #: pixel, the lens calibration and the timing are never exact, so centimetres of RTK (or a
 #: sender's 1 mm) must not make a fix's error bar that tight.
@@ -270,6 +273,12 @@ def _as_quaternion(q_or_rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     raise ValueError(f"expected a quaternion (w, x, y, z) or (roll, pitch, yaw), got {v.size}")
 
 
+def height_sigma_m(gnss_sigma_m: float, floor_m: float = MIN_HEIGHT_SIGMA_M) -> float:
+    """The 1-sigma error of the height a fix rests on: at least :data:`VERTICAL_PER_HORIZONTAL`
+    times the horizontal GNSS error, and at least ``floor_m``."""
+    return max(floor_m, VERTICAL_PER_HORIZONTAL * gnss_sigma_m)
+
+
 class TelemetryBuffer:
     """Thread-safe telemetry store with interpolation; produces :class:`PlatformPose`.
 
@@ -359,9 +368,7 @@ class TelemetryBuffer:
         h_acc = getattr(msg, "h_acc", 0)
         if 0 < h_acc < 0xFFFFFFFF:
             self.gnss_sigma_m = max(h_acc / 1000.0, MIN_GNSS_SIGMA_M)
-            self.alt_sigma_m = max(
-                self._alt_sigma_floor_m, VERTICAL_PER_HORIZONTAL * self.gnss_sigma_m
-            )
+            self.alt_sigma_m = height_sigma_m(self.gnss_sigma_m, self._alt_sigma_floor_m)
 
     def _sender_time(
         self, source: tuple[int, int], mtype: str, msg: Any, now: float

@@ -33,9 +33,9 @@ from sarmission.mavlink.commands import CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
 from sarmission.mavlink.telemetry import (
     MESSAGE_TYPES,
-    VERTICAL_PER_HORIZONTAL,
     BootClock,
     TelemetryBuffer,
+    height_sigma_m,
 )
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.config import MissionConfig
@@ -72,7 +72,7 @@ def telemetry_buffer(mission: MissionConfig, transport_latency_s: float = 0.0) -
     return TelemetryBuffer(
         stale_after_s=mission.telemetry.stale_after_s,
         gnss_sigma_m=gnss_sigma_m,
-        alt_sigma_m=max(1.0, VERTICAL_PER_HORIZONTAL * gnss_sigma_m),
+        alt_sigma_m=height_sigma_m(gnss_sigma_m),
         attitude_sigma_rad=math.radians(max(mission.telemetry.attitude_noise_deg, 0.1)),
         mount_rpy=(0.0, math.radians(mission.camera.mount_pitch_deg), 0.0),
         mount_frame="vehicle" if mission.camera.gimbal else "body",
@@ -93,8 +93,9 @@ class LiveSession:
         recorder: rerun recorder or None.
         feed_address: ``(host, port)`` to serve the operator feed on, or None.
         feed_token: the feed's access token (None: none on loopback, else one generated).
-        cot_urls: TAK destinations (``udp://``, ``tcp://``, ``tls://``) for the confirmed
-            alerts as Cursor-on-Target (:mod:`sarmission.alerts.cot_relay`).
+        cot_senders: the team's TAK destinations (made, and their TLS files read, before the
+            session: a wrong one is an error before anything opens) for the confirmed alerts
+            as Cursor-on-Target (:mod:`sarmission.alerts.cot_relay`).
         mission_id: alerts are stored under this id (default: the mission's name).
         transport_latency_s: known minimum telemetry delay (see ``BootClock``).
         connect_timeout_s: how long to wait for the autopilot's HEARTBEAT before going on.
@@ -115,7 +116,7 @@ class LiveSession:
         recorder: Recorder | None = None,
         feed_address: tuple[str, int] | None = None,
         feed_token: str | None = None,
-        cot_urls: Sequence[str] = (),
+        cot_senders: Sequence[CotSender] = (),
         mission_id: str | None = None,
         transport_latency_s: float = 0.0,
         connect_timeout_s: float = 30.0,
@@ -130,9 +131,6 @@ class LiveSession:
         self.feed: FeedServer | None = None
         self._feed_token = feed_token
         self.cot: CotRelay | None = None
-        # checked before anything opens: a mistyped destination is a clear error, not a
-        # mission that silently tells nobody
-        cot_senders = [CotSender(url) for url in cot_urls]
         self.link: MavlinkLink | None = None
         self.outbox: Outbox | None = None
         self.store = AlertStore(alerts_db)
@@ -149,7 +147,9 @@ class LiveSession:
             )
             if cot_senders:
                 self.cot = CotRelay(self.store, cot_senders, self.controller.mission_id).start()
-                self.console("confirmed alerts go to TAK (CoT) at " + ", ".join(cot_urls))
+                self.console(
+                    "confirmed alerts go to TAK (CoT) at " + ", ".join(s.url for s in cot_senders)
+                )
         except BaseException:
             self._close_resources()
             raise
