@@ -68,6 +68,18 @@ def test_kml_and_geojson_say_how_old_a_position_is_and_where_it_drifts() -> None
         "k:Document/k:Placemark/k:description", ns
     )
     assert "drifting" not in plain.text and "as of" not in plain.text
+    assert "likely" not in plain.text
+
+
+def test_kml_and_cot_say_how_likely_a_person_is() -> None:
+    alert = make_alert(1, score=0.86, confidence=0.07)
+    ns = {"k": KML_NS}
+    text = ET.fromstring(alerts_kml([alert])).find("k:Document/k:Placemark/k:description", ns)
+    assert "swimmer score 0.86 (7 % likely a person)" in text.text
+    (feature,) = alerts_geojson([alert])["features"]
+    assert feature["properties"]["confidence"] == 0.07
+    remarks = ET.fromstring(alert_to_cot(alert, now=1.0)).find("detail/remarks").text
+    assert remarks.startswith("swimmer score 0.86 (7 % likely a person), target 1")
 
 
 def test_cot_event_has_full_precision_point_and_required_attributes() -> None:

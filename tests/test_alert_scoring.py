@@ -24,6 +24,7 @@ class Alert:
     alert_id: str = "a"
     score: float = 0.9
     class_name: str = "swimmer"
+    confidence: float | None = None
 
 
 def at(north: float, east: float) -> tuple[float, float]:
@@ -119,3 +120,29 @@ def test_a_refined_position_is_scored_against_where_the_person_was_in_its_frame(
     assert s.geo_error_final_m == [pytest.approx(0.0, abs=0.01)]
     s = score_flight(drifting, [(sent, 20, 2.0)], final={"a": refined})
     assert s.geo_error_final_m == [pytest.approx(7.0, abs=0.01)]
+
+
+def test_each_confirmed_alert_s_confidence_is_scored_against_what_lay_under_it():
+    """A duplicate on a person counts as right, the boat and open water as wrong; an alert
+    without a confidence is left out of the table."""
+    alerts = [
+        (Alert(40, [(40, 100.0, 100.0)], at(10.0, 0.0), confidence=0.8), 45, 4.5),
+        (Alert(41, [(41, 100.0, 100.0)], at(10.0, 0.0), confidence=0.6), 46, 4.6),
+        (Alert(50, [(50, 400.0, 300.0)], at(50.0, 50.0), confidence=0.2), 55, 5.5),
+        (Alert(60, [(60, 700.0, 100.0)], at(80.0, 0.0), confidence=0.05), 65, 6.5),
+        (Alert(61, [(61, 700.0, 100.0)], at(80.0, 0.0)), 66, 6.6),
+    ]
+    s = score_flight(frames(), alerts)
+    assert list(zip(s.alert_confidences, s.alert_right, strict=True)) == [
+        (0.8, True),
+        (0.6, True),
+        (0.2, False),
+        (0.05, False),
+    ]
+    bins = s.as_dict()["alert_confidence_reliability"]["bins"]
+    assert [(b["low"], b["n"], b["share_correct"]) for b in bins] == [
+        (0.0, 1, 0.0),
+        (0.1, 1, 0.0),
+        (0.5, 1, 1.0),
+        (0.7, 1, 1.0),
+    ]

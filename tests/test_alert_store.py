@@ -282,7 +282,7 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
             )
     conn.close()
     with AlertStore(db) as store:
-        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 6
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 7
         assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
         assert store.attach_position("blind", (-35.36, 149.17), 3.5, "ground plane")
         assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
@@ -568,7 +568,7 @@ def test_schema_4_store_gains_the_time_a_position_rests_on(tmp_path: Path) -> No
     db = tmp_path / "old.db"
     with AlertStore(db) as store:
         store.add(make_alert(1, position_time=1.7e9))
-    as_older_schema(db, 4, ("position_time", "drift_north", "drift_east"))
+    as_older_schema(db, 4, ("position_time", "drift_north", "drift_east", "confidence"))
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         (old,) = store.list()
@@ -585,7 +585,7 @@ def test_schema_5_store_gains_the_drift(tmp_path: Path) -> None:
     with AlertStore(db) as store:
         store.add(make_alert(1, drift_ne=(0.3, -0.4)))
         assert store.list()[0].drift_ne == (0.3, -0.4)
-    as_older_schema(db, 5, ("drift_north", "drift_east"))
+    as_older_schema(db, 5, ("drift_north", "drift_east", "confidence"))
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         (old,) = store.list()
@@ -605,3 +605,28 @@ def test_schema_5_store_gains_the_drift(tmp_path: Path) -> None:
         assert store.get(old.alert_id).drift_ne == (-0.3, 0.0)
         assert store.refine_position(old.alert_id, old.position, 2.0, "ground plane", "", 2e9)
         assert store.get(old.alert_id).drift_ne is None  # an estimate without one
+
+
+def test_schema_6_store_gains_the_confidence(tmp_path: Path) -> None:
+    """A store written before confirmations had a calibrated confidence (schema 6) opens with it
+    unknown; a promotion stores one, read back as written; one outside [0, 1] or NaN is
+    refused and leaves the candidate as it was."""
+    db = tmp_path / "old.db"
+    with AlertStore(db) as store:
+        store.add(make_alert(1, confidence=0.25))
+        assert store.list()[0].confidence == 0.25
+        store.add(make_alert(2, tier="candidate"))
+        store.add(make_alert(3, tier="candidate"))
+    as_older_schema(db, 6, ("confidence",))
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+        old = {a.target_id: a for a in store.list()}
+        assert old[1].confidence is None and old[1].to_json_dict()["confidence"] is None
+        for bad in (1.5, -0.1, float("nan")):
+            with pytest.raises(ValueError, match="confidence"):
+                store.promote(old[2].alert_id, "evidence", 1.7e9, bad)
+        assert store.get(old[2].alert_id).tier == "candidate"
+        promoted = store.promote(old[2].alert_id, "evidence", 1.7e9, 0.35)
+        assert promoted is not None and promoted.confidence == 0.35
+        assert store.get(old[2].alert_id).format_score() == "0.91 (35 % likely a person)"
+        assert store.promote(old[3].alert_id, "evidence", 1.7e9).confidence is None

@@ -337,14 +337,17 @@ def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: P
     parser = build_parser()
     args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
     _, note = build_detector(args, load_mission_from_args(args))
-    assert note == f"model: {area_head} (the mission's [detector] model)"
+    assert note == (
+        f"model: {area_head} (the mission's [detector] model); "
+        "alert confidence: none fitted for area.onnx (its score only)"
+    )
     other = tmp_path / "other.onnx"
     shutil.copyfile(DEFAULT_ONNX_MODEL, other)
     args = parser.parse_args(
         ["replay", "clip.mp4", "--mission", str(mission_file), "--model", str(other)]
     )
     _, note = build_detector(args, load_mission_from_args(args))
-    assert note == f"model: {other}"
+    assert note.startswith(f"model: {other}; alert confidence: none fitted")
     area_head.unlink()
     args = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
     with pytest.raises(ModelLoadError, match=f"'{area_head}': file not found"):
@@ -352,6 +355,7 @@ def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: P
     args = parser.parse_args(["replay", "clip.mp4"])
     _, note = build_detector(args, load_mission_from_args(args))
     assert note.startswith("model: the shipped default")
+    assert note.endswith("; alert confidence: mitenet_head.confidence.json")
 
 
 def test_a_mission_names_a_shipped_head_by_name(tmp_path: Path) -> None:
@@ -367,7 +371,7 @@ def test_a_mission_names_a_shipped_head_by_name(tmp_path: Path) -> None:
     mission = load_mission_from_args(args)
     assert mission.detector.model == "land"
     detector, note = build_detector(args, mission)
-    assert note == "model: land (the mission's [detector] model)"
+    assert note.startswith("model: land (the mission's [detector] model); alert confidence")
     assert detector.classes == ("person",)
     args = parser.parse_args(
         ["replay", "clip.mp4", "--mission", str(mission_file), "--model", "maritime"]

@@ -55,7 +55,7 @@ def test_new_alert_shows_live_and_ack_button_works(
         assert browser.js("document.querySelectorAll('article.alert').length") == 2
         browser.js("document.getElementById('operator').value = 'sam'")
 
-        alert = make_alert(3, score=0.87)
+        alert = make_alert(3, score=0.87, confidence=0.12)
         card = f"document.querySelector('[data-alert-id=\"{alert.alert_id}\"]')"
         store.add(alert)
         browser.wait_for(f"!!{card}", timeout=15.0)
@@ -92,6 +92,12 @@ def test_new_alert_shows_live_and_ack_button_works(
         assert f"as of {as_of} UTC" in browser.js(f"{card}.innerText")
         assert "drifting 0.4 m/s to 090\u00b0" in browser.js(f"{card}.innerText")
         assert "±2 m" in browser.js(f"{card}.innerText")
+        # the head's score and what it means: a low confidence is set apart
+        assert "12 % likely a person" in browser.js(f"{card}.innerText")
+        assert browser.js(f"{card}.querySelector('.likely.low') !== null") is True
+        assert "likely" not in browser.js(
+            f"document.querySelector('[data-alert-id=\"{earlier.alert_id}\"]').innerText"
+        )
         assert browser.js("document.getElementById('unacked').textContent") == "2"
         browser.screenshot(tmp_path / "feed.png")
 

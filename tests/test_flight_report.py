@@ -19,7 +19,11 @@ SCREENSHOT = Path("/tmp/sarmission_report.png")
 
 
 def sample_report() -> ReportInput:
-    alerts = [make_alert(1), make_alert(2, frame_index=240), make_alert(3, positioned=False)]
+    alerts = [
+        make_alert(1, confidence=0.4),
+        make_alert(2, frame_index=240),
+        make_alert(3, positioned=False),
+    ]
     alerts[2].position_note = "no telemetry"
     track = [(float(k), -35.3635 + k * 2e-5, 149.1648 + (k % 20) * 3e-5) for k in range(60)]
     return ReportInput(
@@ -44,6 +48,7 @@ def test_report_files_hold_every_alert_and_say_why_one_has_no_position(tmp_path:
     assert rows[0]["footage_time_s"] == "3.370" and rows[0]["lat"] and rows[0]["error_m"]
     assert rows[2]["lat"] == "" and rows[2]["position_note"] == "position unknown: no telemetry"
     assert rows[2]["pixel_x"] != ""
+    assert [r["confidence"] for r in rows] == ["0.400", "", ""]
     geo = json.loads((tmp_path / "alerts.geojson").read_text())
     assert [f["geometry"] and f["geometry"]["type"] for f in geo["features"]] == [
         "Point",

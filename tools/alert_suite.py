@@ -162,6 +162,21 @@ def render(runs_dir: Path = SUITE_DIR, intro: list[str] = INTRO, part: str = "sc
                 for b in rel["bins"]
             ]
             lines.append(f"\nExpected calibration error: {_fmt(rel['ece'], '.3f')}.")
+        rel = suite.get("alert_confidence_reliability")
+        if rel and rel["bins"]:
+            lines += [
+                "",
+                "What a confirmed alert's confidence means (share with a person under it):",
+                "",
+                "| confidence | alerts | mean confidence | person |",
+                "|---|---|---|---|",
+            ]
+            lines += [
+                f"| {b['low']:.1f}-{b['high']:.1f} | {b['n']} | {b['mean_score']:.2f} | "
+                f"{b['share_correct']:.2f} |"
+                for b in rel["bins"]
+            ]
+            lines.append(f"\nExpected calibration error: {_fmt(rel['ece'], '.3f')}.")
         lines.append("")
     return "\n".join(lines)
 

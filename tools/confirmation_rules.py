@@ -66,12 +66,12 @@ def recording() -> Iterator[dict]:
     pending: list[tuple[int, int]] = []
     review, add = CandidateBook.review, CandidateBook.add
 
-    def recording_review(book, now, when=None):
+    def recording_review(book, now, when=None, **options):
         seen["frames"].append(now)
         for key in pending:
             seen["first_review"].setdefault(key, now)
         pending.clear()
-        return review(book, now, when)
+        return review(book, now, when, **options)
 
     def recording_add(book, target_id, alert):
         pending.append((id(book), target_id))

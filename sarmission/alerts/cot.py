@@ -84,7 +84,7 @@ def alert_to_cot(alert: Alert, now: float | None = None, stale_after_s: float = 
     ET.SubElement(detail, "contact", {"callsign": f"SAR T{alert.target_id} {label}"})
     remarks = ET.SubElement(detail, "remarks")
     remarks.text = (
-        f"{label} score {alert.score:.2f}, target {alert.target_id}, "
+        f"{label} score {alert.format_score()}, target {alert.target_id}, "
         f"mission {alert.mission_id}, locked {utc_iso(alert.lock_time)}, "
         f"error {alert.format_error() or 'unknown'}, alert {alert.alert_id}"
         + (

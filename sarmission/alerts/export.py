@@ -53,7 +53,7 @@ def alerts_geojson_bytes(alerts: Iterable[Alert]) -> bytes:
 
 def _describe(alert: Alert) -> str:
     lines = [
-        f"{alert.class_name} score {alert.score:.2f}, target {alert.target_id}",
+        f"{alert.class_name} score {alert.format_score()}, target {alert.target_id}",
         f"locked {utc_iso(alert.lock_time)} (frame {alert.frame_index})",
     ]
     if alert.position is not None:

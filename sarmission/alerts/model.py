@@ -106,6 +106,28 @@ def check_drift(drift_ne: tuple[float, float]) -> tuple[float, float]:
     return north, east
 
 
+def check_confidence(confidence: float | None) -> float | None:
+    """A probability as a float (None stays None); ValueError unless it lies in [0, 1]."""
+    if confidence is None:
+        return None
+    value = float(confidence)
+    if not 0.0 <= value <= 1.0:  # also refuses NaN
+        raise ValueError(f"alert confidence must lie in [0, 1], got {confidence}")
+    return value
+
+
+def confidence_percent(confidence: float) -> int:
+    """A probability in whole percent, at least 1 and at most 99: the model is never sure."""
+    return min(99, max(1, round(100 * confidence)))
+
+
+def format_confidence(confidence: float | None) -> str:
+    """``"35 % likely a person"``, or ``""`` when unknown."""
+    if confidence is None:
+        return ""
+    return f"{confidence_percent(confidence)} % likely a person"
+
+
 def drift_course_speed(drift_ne: tuple[float, float]) -> tuple[float, float]:
     """A drift (m/s north, east) as (course in degrees from true north, 0-360; speed m/s)."""
     north, east = drift_ne
@@ -214,12 +236,17 @@ class Alert:
     #: The target's drift as of ``position_time``, m/s (north, east): (0, 0) when its fixes
     #: showed it still, None when not estimated (a single fix, or an older store)
     drift_ne: tuple[float, float] | None = None
+    #: The calibrated probability, when it was confirmed, that a person is there
+    #: (:mod:`sarmission.mission.confidence`); None: unknown (no model for the head, an
+    #: operator's confirmation, a candidate, an older store). ``score`` is the head's raw score.
+    confidence: float | None = None
 
     def __post_init__(self) -> None:
         if self.position is not None:
             self.position = check_position(self.position)
         if self.drift_ne is not None:
             self.drift_ne = check_drift(self.drift_ne)
+        self.confidence = check_confidence(self.confidence)
         if self.tier not in TIERS:
             raise ValueError(f"alert tier must be one of {TIERS}, got {self.tier!r}")
         if self.decision is not None and self.decision not in DECISIONS:
@@ -297,12 +324,30 @@ class Alert:
             return "still"
         return f"drifting {speed:.1f} m/s to {round(course) % 360:03d}°"
 
+    def format_confidence(self) -> str:
+        """``"35 % likely a person"``, or ``""`` when unknown (:func:`format_confidence`)."""
+        return format_confidence(self.confidence)
+
+    def format_score(self) -> str:
+        """The head's score with the calibrated confidence when known:
+        ``"0.86 (35 % likely a person)"``, else ``"0.86"``."""
+        if self.confidence is None:
+            return f"{self.score:.2f}"
+        return f"{self.score:.2f} ({self.format_confidence()})"
+
     def statustext(self) -> str:
         """One-line alert for MAVLink STATUSTEXT, at most 50 bytes in UTF-8, starting with the
-        short id, e.g. ``T1-k3 SAR swimmer 0.91 -35.36291,149.16523 ±4m``. The class name is
-        shortened if needed, and left out, then the error radius, if even that does not fit."""
+        short id, e.g. ``T1-k3 SAR swimmer 0.91 -35.36291,149.16523 ±4m``: the head's score, or
+        with a calibrated confidence that instead as a percentage (``swimmer 35%``). The class
+        name is shortened if needed, and left out, then the error radius, if even that does not
+        fit."""
         head = f"{self.short_id} SAR"
-        tail = f" {self.score:.2f} {self.format_position()}"
+        likely = (
+            f"{self.score:.2f}"
+            if self.confidence is None
+            else f"{confidence_percent(self.confidence)}%"
+        )
+        tail = f" {likely} {self.format_position()}"
         error = f" {self.format_error()}" if self.position is not None else ""
         if not error.strip():
             error = ""
@@ -325,6 +370,7 @@ class Alert:
             "target_id": self.target_id,
             "class_name": self.class_name,
             "score": self.score,
+            "confidence": self.confidence,
             "lock_time": self.lock_time,
             "lock_time_iso": utc_iso(self.lock_time),
             "frame_index": self.frame_index,

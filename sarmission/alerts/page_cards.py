@@ -97,6 +97,12 @@ function render(a) {
   }
   const title = el("div", "title", a.class_name);
   title.appendChild(el("span", "score", a.score.toFixed(2)));
+  if (a.confidence !== null && a.confidence !== undefined) {  // calibrated: what the score means
+    const pct = Math.min(99, Math.max(1, Math.round(100 * a.confidence)));
+    const likely = el("span", "likely" + (pct < 20 ? " low" : ""), pct + " % likely a person");
+    likely.title = "calibrated on simulated flights whose truth is known";
+    title.appendChild(likely);
+  }
   title.appendChild(el("span", "target", "target " + a.target_id
     + (a.short_id ? " \u00b7 " + a.short_id : "")));
   const badges = {candidate: "Unconfirmed", discarded: "Discarded", dismissed: "Dismissed"};

@@ -64,6 +64,8 @@ PAGE_CSS = """
              font-size: 13px; }
   .title { font-size: 22px; font-weight: 700; }
   .title .score { font-weight: 600; color: var(--muted); margin-left: 6px; }
+  .title .likely { margin-left: 6px; }
+  .title .likely.low { color: var(--muted); font-style: italic; }
   .title .target { font-size: 15px; font-weight: 600; color: var(--muted); margin-left: 10px; }
   .badge { display: inline-block; vertical-align: middle; font-size: 13px; font-weight: 700;
            letter-spacing: .04em; text-transform: uppercase; padding: 2px 8px;

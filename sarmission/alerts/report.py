@@ -32,6 +32,7 @@ CSV_COLUMNS = (
     "tier",
     "class_name",
     "score",
+    "confidence",
     "frame_index",
     "footage_time_s",
     "pixel_x",
@@ -102,6 +103,7 @@ def _rows(report: ReportInput) -> list[dict[str, object]]:
                 "tier": getattr(a, "tier", "confirmed"),
                 "class_name": a.class_name,
                 "score": f"{a.score:.3f}",
+                "confidence": "" if a.confidence is None else f"{a.confidence:.3f}",
                 "frame_index": a.frame_index,
                 "footage_time_s": "" if ft is None else f"{ft:.3f}",
                 "pixel_x": "" if px is None else f"{px[0]:.1f}",
@@ -168,7 +170,7 @@ def _card(alert: Alert, frame_times: dict[int, float]) -> str:
     return (
         f'<div class="card" data-alert-id="{html.escape(alert.alert_id)}">{img}'
         f"<b>{html.escape(alert.short_id)}</b> {html.escape(alert.class_name)} "
-        f"{alert.score:.2f}<br>"
+        f"{html.escape(alert.format_score())}<br>"
         f"{'' if ft is None else f't = {ft:.2f} s, '}frame {alert.frame_index}"
         f"{'' if px is None else f', pixel {px[0]:.0f},{px[1]:.0f}'}<br>"
         f'<span class="{cls}">{where}</span></div>'
@@ -181,6 +183,7 @@ def _table(rows: Sequence[dict[str, object]]) -> str:
         "tier",
         "class_name",
         "score",
+        "confidence",
         "footage_time_s",
         "frame_index",
         "pixel_x",

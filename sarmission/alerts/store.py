@@ -34,7 +34,8 @@ upgraded in place when opened (schema 2 added the ``position`` event; schema 3 r
 since that was all that was known; schema 4 added tiers, operator decisions, the ``confirmed``,
 ``discarded`` and ``decided`` events with who and why, the drone's track and mission areas: an
 older alert is a confirmed one without a decision, as it was; schema 5 added the time of the
-latest fix a position rests on, unknown for older alerts; schema 6 the target's drift, likewise).
+latest fix a position rests on, unknown for older alerts; schema 6 the target's drift, likewise;
+schema 7 the calibrated confidence of a confirmation, unknown for older alerts).
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from sarmission.alerts.model import (
     Decision,
     Refusal,
     Sends,
+    check_confidence,
     check_drift,
     check_position,
     dismiss_radius_m,
@@ -65,7 +67,7 @@ from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 
 #: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
 DRONE_POINTS_KEPT = 20_000
@@ -97,7 +99,7 @@ _EVENT_KINDS = {
         "decided",
     ),
 }
-_EVENT_KINDS[5] = _EVENT_KINDS[6] = _EVENT_KINDS[4]
+_EVENT_KINDS[5] = _EVENT_KINDS[6] = _EVENT_KINDS[7] = _EVENT_KINDS[4]
 
 
 def _events_table(name: str, schema: int = SCHEMA_VERSION) -> str:
@@ -188,7 +190,8 @@ CREATE TABLE alerts (
     decided_at    REAL,
     position_time REAL,
     drift_north   REAL,
-    drift_east    REAL
+    drift_east    REAL,
+    confidence    REAL CHECK (confidence BETWEEN 0 AND 1)
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
 """
@@ -251,6 +254,8 @@ ALTER TABLE events_4 RENAME TO events;
 ALTER TABLE alerts ADD COLUMN drift_north REAL;
 ALTER TABLE alerts ADD COLUMN drift_east REAL
 """,
+    # Schema 6 kept no confidence: unknown it stays.
+    6: "ALTER TABLE alerts ADD COLUMN confidence REAL CHECK (confidence BETWEEN 0 AND 1)",
 }
 
 
@@ -267,7 +272,8 @@ SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time
        a.frame_index, a.lat, a.lon, a.position_note, a.error_m, a.target_hae_m,
        a.drone_lat, a.drone_lon, a.drone_alt_m, a.track, a.pixel_track, a.thumbnail,
        a.ack_time, a.ack_by, a.tier, a.evidence, a.confirmed_at, a.discarded, a.discarded_at,
-       a.decision, a.decided_by, a.decided_at, a.position_time, a.drift_north, a.drift_east
+       a.decision, a.decided_by, a.decided_at, a.position_time, a.drift_north, a.drift_east,
+       a.confidence
 FROM alerts a
 """
 #: Alerts still to go to the autopilot: confirmed and not dismissed by an operator.
@@ -426,9 +432,9 @@ class AlertStore:
                 "score, lock_time, frame_index, lat, lon, position_note, error_m, target_hae_m, "
                 "drone_lat, drone_lon, drone_alt_m, track, pixel_track, thumbnail, ack_time, "
                 "ack_by, added_time, tier, evidence, confirmed_at, discarded, discarded_at, "
-                "decision, decided_by, decided_at, position_time, drift_north, drift_east) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                "?, ?, ?, ?, ?, ?, ?, ?)",
+                "decision, decided_by, decided_at, position_time, drift_north, drift_east, "
+                "confidence) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     alert.alert_id,
                     alert.mission_id,
@@ -458,6 +464,7 @@ class AlertStore:
                     alert.decided_at,
                     alert.position_time,
                     *(alert.drift_ne if alert.drift_ne is not None else (None, None)),
+                    alert.confidence,
                 ),
             )
             if cur.rowcount == 0:
@@ -640,14 +647,22 @@ class AlertStore:
 
     # ------------------------------------------------------------------ tiers and decisions
 
-    def promote(self, alert_id: str, evidence: str, when: float | None = None) -> Alert | None:
+    def promote(
+        self,
+        alert_id: str,
+        evidence: str,
+        when: float | None = None,
+        confidence: float | None = None,
+    ) -> Alert | None:
         """The system confirms a candidate: tier ``confirmed``, ``evidence`` (why), confirmed at
-        ``when`` (the controller's time, default now); event ``confirmed``. Returns the alert,
+        ``when`` (the controller's time, default now) with the calibrated ``confidence`` that a
+        person is there (None: unknown); event ``confirmed``. Returns the alert,
         or None, changing nothing, when an operator has dismissed it: a dismissal always wins
         over a later promotion. Already confirmed (by the system or an operator): returns it
         unchanged. A candidate the system had discarded is confirmed (its discard reason stays
         in the log). Unknown id: KeyError."""
         t = _finite_time(when)
+        confidence = check_confidence(confidence)
         with self._transaction() as conn:
             state = self._state(conn, alert_id)
             if state.decision == "dismissed":
@@ -656,8 +671,8 @@ class AlertStore:
             if changed:
                 conn.execute(
                     "UPDATE alerts SET tier = 'confirmed', evidence = ?, confirmed_at = ?, "
-                    "discarded = NULL, discarded_at = NULL WHERE alert_id = ?",
-                    (evidence, t, alert_id),
+                    "confidence = ?, discarded = NULL, discarded_at = NULL WHERE alert_id = ?",
+                    (evidence, t, confidence, alert_id),
                 )
                 self._log(conn, "confirmed", alert_id, detail=evidence)
         if changed:
@@ -1119,7 +1134,7 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
     (alert_id, mission_id, target_id, class_name, score, lock_time, frame_index, lat, lon,
      position_note, error_m, target_hae_m, d_lat, d_lon, d_alt, track, pixel_track, thumbnail,
      ack_time, ack_by, tier, evidence, confirmed_at, discarded, discarded_at, decision,
-     decided_by, decided_at, position_time, drift_n, drift_e) = row  # fmt: skip
+     decided_by, decided_at, position_time, drift_n, drift_e, confidence) = row  # fmt: skip
     return Alert(
         alert_id=alert_id,
         mission_id=mission_id,
@@ -1151,4 +1166,5 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
         decided_at=decided_at,
         position_time=position_time,
         drift_ne=None if drift_n is None else (drift_n, drift_e),
+        confidence=confidence,
     )

@@ -91,7 +91,8 @@ def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
 
 def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[MiteNet, str]:
     """MITE-Net with the mission's detector settings; returns it and a line naming the model
-    (saying so plainly when the package has no trained model and the head is untrained).
+    (saying so plainly when the package has no trained model and the head is untrained) and
+    the alert confidence fitted for it, if any (:mod:`sarmission.mission.confidence`).
     ``--model`` wins over the mission's ``[detector] model``, which wins over the shipped head."""
     from sarmission.mission.config_rules import DEFAULT_MODEL
     from sarmission.models import DEFAULT_ONNX_MODEL, DEFAULT_TORCH_MODEL
@@ -117,6 +118,9 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
             "head with fixed random weights, so its alerts mean nothing (expect none or "
             "many false ones). Pass --model PATH."
         )
+    from sarmission.mission.confidence import confidence_of_head
+
+    note += f"; {confidence_of_head(head).note}"
     d = mission.detector
     detector = MiteNet(
         head,

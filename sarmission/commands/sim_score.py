@@ -250,9 +250,13 @@ def run(args: argparse.Namespace) -> int:
                 + ", ".join(f"{what} {n}" for what, n in total.false_on.most_common())
             )
         print("What a candidate's track score means (share with a person under it):")
-        print(
-            "\n".join(format_reliability(total.as_dict()["candidate_reliability"], "track score"))
-        )
+        figures = total.as_dict()
+        print("\n".join(format_reliability(figures["candidate_reliability"], "track score")))
+        if figures["alert_confidence_reliability"]["bins"]:
+            print("What an alert's confidence means (share with a person under it):")
+            print(
+                "\n".join(format_reliability(figures["alert_confidence_reliability"], "confidence"))
+            )
         if total.missed:
             print(f"missed ({len(total.missed)}):")
             for line in total.missed:

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from sarmission.class_roles import role_of
-from sarmission.evaluation.reliability import reliability_table
+from sarmission.evaluation.reliability import PROBABILITY_EDGES, reliability_table
 from sarmission.geo.wgs84 import geodetic_to_ned
 
 #: A detection is the person whose box centre is within this many pixels.
@@ -74,6 +74,10 @@ class FlightScore:
     # every candidate's track score and whether a person was under it (reliability)
     candidate_scores: list[float] = field(default_factory=list)
     candidate_right: list[bool] = field(default_factory=list)
+    # every confirmed alert's calibrated confidence (when it had one) and whether a person was
+    # under it
+    alert_confidences: list[float] = field(default_factory=list)
+    alert_right: list[bool] = field(default_factory=list)
 
     def add(self, other: FlightScore) -> None:
         """Fold another flight's figures into this one."""
@@ -97,6 +101,8 @@ class FlightScore:
         self.missed += other.missed
         self.candidate_scores += other.candidate_scores
         self.candidate_right += other.candidate_right
+        self.alert_confidences += other.alert_confidences
+        self.alert_right += other.alert_right
 
     @property
     def false_per_hour(self) -> float:
@@ -135,6 +141,9 @@ class FlightScore:
             },
             "missed": list(self.missed),
             "candidate_reliability": reliability_table(self.candidate_scores, self.candidate_right),
+            "alert_confidence_reliability": reliability_table(
+                self.alert_confidences, self.alert_right, PROBABILITY_EDGES
+            ),
         }
 
 
@@ -271,6 +280,9 @@ def score_flight(
         person = None if frame is None else nearest(frame.targets, cx, cy, match_px)
         if person is None:
             person = _by_position(frames, alert.frame_index, alert, window_s, match_m)
+        if getattr(alert, "confidence", None) is not None:
+            out.alert_confidences.append(alert.confidence)
+            out.alert_right.append(person is not None)
         if person is None:
             other = None if frame is None else nearest(frame.others, cx, cy, match_px)
             if (

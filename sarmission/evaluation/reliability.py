@@ -16,6 +16,8 @@ import numpy as np
 
 #: Bin edges of the table (the first bin starts at the lowest score reported).
 DEFAULT_EDGES = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)
+#: Bin edges for a calibrated probability, which spans the whole range.
+PROBABILITY_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 1.0)
 
 
 def reliability_table(

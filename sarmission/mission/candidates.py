@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from sarmission.alerts.model import Alert
 from sarmission.alerts.store import AlertStore
 from sarmission.geo.wgs84 import geodetic_to_ned
+from sarmission.mission.confidence import ConfidenceModel
 from sarmission.mission.config import ConfirmConfig
 from sarmission.mission.confirmation import (
     Assessment,
@@ -45,10 +46,17 @@ class CandidateBook:
     """The mission's candidates, their evidence and the dismissed zones (one controller owns
     it; the store is shared with the feed)."""
 
-    def __init__(self, store: AlertStore, mission_id: str, rule: ConfirmConfig) -> None:
+    def __init__(
+        self,
+        store: AlertStore,
+        mission_id: str,
+        rule: ConfirmConfig,
+        confidence: ConfidenceModel | None = None,
+    ) -> None:
         self.store = store
         self.mission_id = mission_id
         self.rule = rule
+        self.confidence = confidence  # None: confirmations carry no calibrated confidence
         self.evidence: dict[int, TargetEvidence] = {}
         self.discarded: Counter[str] = Counter()
         self.suppressed = 0
@@ -129,7 +137,12 @@ class CandidateBook:
             if found.verdict == "confirm":
                 if prepare is not None:
                     prepare(alert)
-                stored = self.store.promote(alert.alert_id, found.summary(), when)
+                likely = (
+                    None
+                    if self.confidence is None
+                    else self.confidence.probability(self.evidence[target_id].sightings)
+                )
+                stored = self.store.promote(alert.alert_id, found.summary(), when, likely)
                 if stored is None:  # dismissed by the operator meanwhile: stays silent
                     log.info(
                         "target %d confirmed by evidence but dismissed by the operator", target_id

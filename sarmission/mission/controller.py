@@ -64,6 +64,7 @@ from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
+from sarmission.mission.confidence import ConfidenceModel, confidence_of_head
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.position_estimate import WINDOW_S, latest_position
 from sarmission.mission.refinement import PositionRefiner, Refinement
@@ -153,6 +154,9 @@ class MissionController:
         to_posix: maps a frame timestamp to POSIX seconds for the alert's lock time.
         merge_radius_m: target registry merge radius.
         console: receives one line per new alert.
+        confidence: turns a confirmed target's evidence into the probability that a person is
+            there (:mod:`sarmission.mission.confidence`); default: the model kept beside the
+            detector's head file, if any (none: alerts carry the head's score only).
         ground_model: places pixels instead of the flat plane at home altitude (anything with
             :meth:`~sarmission.geo.terrain.TerrainGround.locate`, e.g. a DEM).
     """
@@ -170,6 +174,7 @@ class MissionController:
         merge_radius_m: float = 8.0,
         console: Callable[[str], None] = print,
         ground_model: Any = None,
+        confidence: ConfidenceModel | None = None,
     ) -> None:
         self.mission = mission
         self.ground_model = ground_model
@@ -193,7 +198,11 @@ class MissionController:
             }
         )
         self.known_at_start = len(self.registry)
-        self.candidates = CandidateBook(store, self.mission_id, mission.confirm)
+        if confidence is None:
+            found = confidence_of_head(getattr(detector, "head", None))
+            (log.warning if found.refused else log.info)("%s", found.note)
+            confidence = found.model
+        self.candidates = CandidateBook(store, self.mission_id, mission.confirm, confidence)
         self.console = console
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m
@@ -865,7 +874,7 @@ def format_alert(alert: Alert, track_id: int | None = None) -> str:
     drift = f"; {alert.format_drift()}" if alert.drift_ne is not None else ""
     return (
         f"ALERT target {alert.target_id} ({alert.short_id}): {alert.class_name} "
-        f"{alert.score:.2f} {where} (frame {alert.frame_index}{track}{evidence}{drift})"
+        f"{alert.format_score()} {where} (frame {alert.frame_index}{track}{evidence}{drift})"
     )
 
 

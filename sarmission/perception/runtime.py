@@ -148,6 +148,9 @@ class HeadRuntime(ABC):
 
     def __init__(self, config: HeadConfig) -> None:
         self.config = config
+        #: The model file it was loaded from (None: built in memory); files fitted for this
+        #: head sit beside it (e.g. its alert confidence, :mod:`sarmission.mission.confidence`)
+        self.source: Path | None = None
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -359,11 +362,16 @@ def load_head_runtime(
     is_onnx = suffix in ONNX_SUFFIXES
     if runtime == "torch" and is_onnx:
         raise _fail(path, "the torch runtime needs a .pt checkpoint, not an ONNX file")
+    loaded: HeadRuntime
     if is_onnx:
-        return OnnxHeadRuntime(path, intra_op_threads)
-    model = load_head_checkpoint(path)
-    if runtime == "onnx":
-        from sarmission.perception.export import head_onnx_bytes
+        loaded = OnnxHeadRuntime(path, intra_op_threads)
+    else:
+        model = load_head_checkpoint(path)
+        if runtime == "onnx":
+            from sarmission.perception.export import head_onnx_bytes
 
-        return OnnxHeadRuntime(head_onnx_bytes(model), intra_op_threads, name=str(path))
-    return TorchHeadRuntime(model)
+            loaded = OnnxHeadRuntime(head_onnx_bytes(model), intra_op_threads, name=str(path))
+        else:
+            loaded = TorchHeadRuntime(model)
+    loaded.source = path
+    return loaded
