@@ -66,8 +66,17 @@ class Rig:
             gimbal_present=lambda: gimbal,
         )
 
-    def alert(self, target_id: int, north: float, east: float, error_m: float = 3.0):
-        alert = make_alert(target_id, position=at(north, east), error_m=error_m)
+    def alert(
+        self,
+        target_id: int,
+        north: float,
+        east: float,
+        error_m: float = 3.0,
+        confidence: float | None = None,
+    ):
+        alert = make_alert(
+            target_id, position=at(north, east), error_m=error_m, confidence=confidence
+        )
         self.store.add(alert)
         self.policy.announce(alert)
         return alert
@@ -197,6 +206,25 @@ def test_moving_commands_only_to_bounded_positions_in_the_area(
         in rig.lines
     )
     assert rig.policy.withheld == 2  # loiter and roi
+
+
+def test_the_aircraft_goes_only_to_targets_likely_enough(rig_factory):
+    """``min_confidence`` 0.5: an alert 5 % likely a person is told but not flown to; the next,
+    80 % likely, is visited."""
+    rig = rig_factory(["alert", "loiter"], aircraft=at(40.0, 0.0), min_confidence=0.5)
+    rig.alert(1, 100.0, 0.0, confidence=0.05)
+    rig.clock.t += 1.0
+    rig.alert(2, 150.0, 0.0, confidence=0.8)
+    rig.clock.t += 120.0
+    rig.settle()
+    (visit,) = rig.commands(M.MAV_CMD_DO_REPOSITION)
+    assert visit.params[4:6] == pytest.approx([round(v * 1e7) for v in at(150.0, 0.0)], abs=1)
+    short = {a.target_id: a.short_id for a in rig.store.list()}
+    assert (
+        f"  -> target 1 ({short[1]}): loiter withheld: 5 % likely a person, below the 50 % "
+        "that moves the aircraft" in rig.lines
+    )
+    assert rig.policy.withheld == 1
 
 
 @pytest.mark.parametrize("gimbal", [False, True])

@@ -48,3 +48,36 @@ def test_margin_around_the_area(gate, north, east, allowed):
 def test_error_bound(gate):
     assert gate.refusal(at(100.0, 0.0), 25.0) == ""
     assert gate.refusal(at(100.0, 0.0), 25.5) == "position error 26 m exceeds 25 m"
+
+
+@pytest.mark.parametrize(
+    ("confidence", "allowed"), [(None, True), (0.29, False), (0.3, True), (0.9, True)]
+)
+def test_a_target_must_be_likely_enough_when_its_likelihood_is_known(confidence, allowed):
+    """With ``min_confidence`` 0.3 an alert 29 % likely a person is not flown to; one without a
+    confidence (an operator's confirmation) is; at the default 0 every target is."""
+    mission = load_mission(
+        overrides={
+            "area.home_lat": HOME[0],
+            "area.home_lon": HOME[1],
+            "actions.min_confidence": 0.3,
+        }
+    )
+    refusal = MoveGate.from_mission(mission).refusal(at(100.0, 0.0), 3.0, confidence)
+    assert (refusal == "") is allowed, refusal
+    if not allowed:
+        assert refusal == "29 % likely a person, below the 30 % that moves the aircraft"
+    assert gate_default().refusal(at(100.0, 0.0), 3.0, 0.01) == ""
+
+
+def gate_default() -> MoveGate:
+    home = {"area.home_lat": HOME[0], "area.home_lon": HOME[1]}
+    return MoveGate.from_mission(load_mission(overrides=home))
+
+
+@pytest.mark.parametrize("bad", [-0.1, 1.0, 1.5])
+def test_min_confidence_must_be_a_probability_below_one(bad):
+    from sarmission.mission.config import MissionConfigError
+
+    with pytest.raises(MissionConfigError, match="min_confidence"):
+        load_mission(overrides={"actions.min_confidence": bad})

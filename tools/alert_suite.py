@@ -147,38 +147,39 @@ def render(runs_dir: Path = SUITE_DIR, intro: list[str] = INTRO, part: str = "sc
             ]
         if suite.get("missed"):
             lines += ["", "Missed:", ""] + [f"- {m}" for m in suite["missed"]]
-        rel = suite.get("candidate_reliability")
-        if rel and rel["bins"]:
-            lines += [
-                "",
+        for key, title, columns, digits in (
+            (
+                "candidate_reliability",
                 "What a candidate's track score means (share with a person under it):",
-                "",
-                "| track score | candidates | mean score | person |",
-                "|---|---|---|---|",
-            ]
-            lines += [
-                f"| {b['low']:.2f}-{b['high']:.2f} | {b['n']} | {b['mean_score']:.2f} | "
-                f"{b['share_correct']:.2f} |"
-                for b in rel["bins"]
-            ]
-            lines.append(f"\nExpected calibration error: {_fmt(rel['ece'], '.3f')}.")
-        rel = suite.get("alert_confidence_reliability")
-        if rel and rel["bins"]:
-            lines += [
-                "",
+                ("track score", "candidates", "mean score"),
+                2,
+            ),
+            (
+                "alert_confidence_reliability",
                 "What a confirmed alert's confidence means (share with a person under it):",
-                "",
-                "| confidence | alerts | mean confidence | person |",
-                "|---|---|---|---|",
-            ]
-            lines += [
-                f"| {b['low']:.1f}-{b['high']:.1f} | {b['n']} | {b['mean_score']:.2f} | "
-                f"{b['share_correct']:.2f} |"
-                for b in rel["bins"]
-            ]
-            lines.append(f"\nExpected calibration error: {_fmt(rel['ece'], '.3f')}.")
+                ("confidence", "alerts", "mean confidence"),
+                1,
+            ),
+        ):
+            rel = suite.get(key)
+            if rel and rel["bins"]:
+                lines += ["", title, "", *reliability_markdown(rel, columns, digits)]
         lines.append("")
     return "\n".join(lines)
+
+
+def reliability_markdown(table: dict, columns: tuple[str, str, str], digits: int) -> list[str]:
+    """A reliability table (:func:`~sarmission.evaluation.reliability.reliability_table`) as
+    Markdown: ``columns`` name the binned value, what is counted and its mean; bin edges with
+    ``digits`` decimals; the share with a person under it; then the calibration error."""
+    lines = [f"| {' | '.join(columns)} | person |", "|---|---|---|---|"]
+    lines += [
+        f"| {b['low']:.{digits}f}-{b['high']:.{digits}f} | {b['n']} | {b['mean_score']:.2f} | "
+        f"{b['share_correct']:.2f} |"
+        for b in table["bins"]
+    ]
+    lines.append(f"\nExpected calibration error: {_fmt(table['ece'], '.3f')}.")
+    return lines
 
 
 def fly_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:

@@ -33,7 +33,7 @@ for folder in (ROOT, ROOT / "tools"):  # runnable from a checkout that is not in
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))
 
-from alert_suite import head_commit  # noqa: E402
+from alert_suite import head_commit, reliability_markdown  # noqa: E402
 from confirmation_rules import fly_development, recorded, replay  # noqa: E402
 
 from sarmission.class_roles import role_of  # noqa: E402
@@ -98,17 +98,7 @@ def log_loss(p: np.ndarray, y: np.ndarray) -> float:
 
 
 def reliability_rows(table: dict) -> list[str]:
-    rows = [
-        "| confidence | targets | mean confidence | person |",
-        "|---|---|---|---|",
-    ]
-    rows += [
-        f"| {b['low']:.1f}-{b['high']:.1f} | {b['n']} | {b['mean_score']:.2f} | "
-        f"{b['share_correct']:.2f} |"
-        for b in table["bins"]
-    ]
-    rows.append(f"\nExpected calibration error: {table['ece']:.3f}.")
-    return rows
+    return reliability_markdown(table, ("confidence", "targets", "mean confidence"), 1)
 
 
 def page(results: list[dict], model: ConfidenceModel, data: list, out: Path, command: str) -> str:

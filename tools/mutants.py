@@ -1781,4 +1781,13 @@ MUTANTS: list[Mutant] = [
         "metric",
         "a confirmation's confidence is lost: the feed and the team see the raw score only",
     ),
+    Mutant(
+        "visits.confidence_ignored",
+        "sarmission/mission/visits.py",
+        "if confidence is not None and confidence < self.min_confidence:",
+        "if False:",
+        ("tests/test_move_gate.py",),
+        "delivery",
+        "the aircraft is sent to debris an alert calls 5 % likely a person",
+    ),
 ]

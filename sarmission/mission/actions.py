@@ -239,7 +239,7 @@ class ActionPolicy:
         """Why the vehicle may not be sent to ``alert``'s position ("" when it may)."""
         if self.move_gate is None:
             return "no mission area to check it against"
-        return self.move_gate.refusal(alert.position, alert.error_m)
+        return self.move_gate.refusal(alert.position, alert.error_m, alert.confidence)
 
     def _roi_on_its_way(self) -> bool:
         return any(isinstance(a.command, SetRoi) for a in self.outbox.pending())

@@ -196,7 +196,11 @@ class ActionsConfig:
     whose position error is at most ``max_error_m`` and that lie inside the area or within
     ``area_margin_m`` of it; ``loiter`` and ``mission`` follow one visit plan, at most one move
     every ``visit_interval_s``, nearest target first, targets within ``visit_group_radius_m``
-    of it covered by the same visit; ``mission`` loiters ``visit_loiter_s`` at each."""
+    of it covered by the same visit; ``mission`` loiters ``visit_loiter_s`` at each. With
+    ``min_confidence`` above 0 they also go only to targets at least that likely to be a person
+    (:mod:`sarmission.mission.confidence`; an alert without a confidence, e.g. one an operator
+    confirmed, is not held back): the aircraft is not sent to debris the head called a
+    swimmer."""
 
     policy: list[str] = field(default_factory=lambda: ["alert"])
     retries: int = 3
@@ -210,6 +214,7 @@ class ActionsConfig:
     visit_interval_s: float = 60.0
     visit_group_radius_m: float = 30.0
     visit_loiter_s: float = 30.0
+    min_confidence: float = 0.0
 
 
 @dataclass

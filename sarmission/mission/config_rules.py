@@ -145,6 +145,8 @@ def _action_limits_problem(a: ActionsConfig) -> Problem:
     for key in ("area_margin_m", "visit_interval_s", "visit_group_radius_m"):
         if getattr(a, key) < 0:
             return key, "expected a number >= 0"
+    if not 0 <= a.min_confidence < 1:
+        return "min_confidence", "expected a probability from 0 (every target) up to below 1"
     return None
 
 

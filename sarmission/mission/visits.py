@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from sarmission.alerts.model import format_confidence
 from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mission.config import MissionConfig
 
@@ -34,7 +35,8 @@ def _distance_m(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 
 class MoveGate:
-    """Whether a target may be flown to: bounded error, inside the area plus a margin.
+    """Whether a target may be flown to: bounded error, inside the area plus a margin, and at
+    least ``min_confidence`` likely to be a person when its likelihood is known.
 
     ``area_ne``: the mission area as (north, east) metres around ``area_origin`` (lat, lon).
     """
@@ -45,6 +47,7 @@ class MoveGate:
         area_origin: tuple[float, float],
         max_error_m: float,
         margin_m: float,
+        min_confidence: float = 0.0,
     ) -> None:
         if len(area_ne) < 3:
             raise ValueError("the mission area needs at least 3 corners")
@@ -52,20 +55,33 @@ class MoveGate:
         self.origin = area_origin
         self.max_error_m = max_error_m
         self.margin_m = margin_m
+        self.min_confidence = min_confidence
 
     @classmethod
     def from_mission(cls, mission: MissionConfig) -> MoveGate:
         """The gate of a mission: its area (around the mission's planned home, where the area
-        is defined) and its ``[actions] max_error_m`` / ``area_margin_m``."""
+        is defined) and its ``[actions] max_error_m`` / ``area_margin_m`` / ``min_confidence``."""
         return cls(
             mission.area.polygon_ne(),
             mission.area.home[:2],
             mission.actions.max_error_m,
             mission.actions.area_margin_m,
+            mission.actions.min_confidence,
         )
 
-    def refusal(self, position: tuple[float, float] | None, error_m: float | None) -> str:
-        """ "" when ``position`` (with 1-sigma ``error_m``) may be flown to, else why not."""
+    def refusal(
+        self,
+        position: tuple[float, float] | None,
+        error_m: float | None,
+        confidence: float | None = None,
+    ) -> str:
+        """ "" when ``position`` (with 1-sigma ``error_m``; a person there with probability
+        ``confidence``, None: unknown) may be flown to, else why not."""
+        if confidence is not None and confidence < self.min_confidence:
+            return (
+                f"{format_confidence(confidence)}, below the {100 * self.min_confidence:g} % "
+                "that moves the aircraft"
+            )
         if position is None:
             return "no position"
         if error_m is None or not math.isfinite(error_m):
