@@ -157,18 +157,6 @@ def test_a_model_for_other_classes_or_a_bad_file_is_not_used(tmp_path: Path):
     assert broken.model is None and broken.refused and "not JSON" in broken.note
 
 
-def test_the_shipped_head_has_a_usable_model():
-    """The default head's file has a model beside it, fitted for its classes, which rates a
-    life-jacket swimmer above a dark blob the head called a swimmer with the same scores."""
-    from sarmission.perception.mitenet import build_head_runtime
-
-    found = confidence_of_head(build_head_runtime(None, "torch"))
-    assert found.model is not None, found.note
-    blob = found.model.probability(seen([0.85] * 30))
-    jacket = found.model.probability(seen([0.85] * 30, "swimmer_with_life_jacket"))
-    assert 0.0 < blob < jacket < 1.0
-
-
 RULE = ConfirmConfig(min_seen_s=1.0, min_sightings=5, min_seen_share=0.3, min_score=0.5)
 
 
