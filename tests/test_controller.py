@@ -170,6 +170,45 @@ def test_restart_on_the_same_store_does_not_re_announce(tmp_path, mission):
         assert store.count() == 1 and ctl.stats.merged_tracks == 1
 
 
+def test_a_restart_goes_on_following_an_earlier_run_s_alert(tmp_path, mission):
+    """An alert stored by an earlier run 3 m off its target (an older fix) is moved back onto
+    it once the restarted controller sees the target again; a dismissed one stays put."""
+    confirm_at_lock(mission)
+    n = 12
+    path = tmp_path / "alerts.db"
+    lines: list[str] = []
+
+    def controller(store: AlertStore) -> MissionController:
+        return MissionController(
+            mission,
+            ScriptedDetector(script_3_of_5(mission, n)),
+            filled_buffer(mission, n / FPS),
+            store,
+            console=lines.append,
+        )
+
+    truth = truth_latlon(mission)
+    older = ned_to_geodetic(TARGET_NED[0] + 3.0, TARGET_NED[1], 0.0, *mission.area.home)[:2]
+    for dismissed in (False, True):
+        path.unlink(missing_ok=True)
+        with AlertStore(path) as store:
+            assert len(run_frames(controller(store), n)) == 1
+            (alert,) = store.list()
+            store.refine_position(alert.alert_id, older, 4.0, "ground plane", "older", 1.0)
+            if dismissed:
+                store.decide(alert.alert_id, "dismissed", "sam")
+        lines.clear()
+        with AlertStore(path) as store:
+            assert run_frames(controller(store), n) == []
+            (after,) = store.list()
+        if dismissed:
+            assert after.position == pytest.approx(older)
+            assert not any(line.startswith("REFINED") for line in lines)
+        else:
+            assert distance_m(after.position, truth) < 1.0
+            assert any(line.startswith(f"REFINED target {alert.target_id}") for line in lines)
+
+
 @pytest.mark.parametrize(("other_person", "candidates"), [(False, 1), (True, 2)])
 def test_a_track_re_born_far_off_in_the_image_joins_only_once_alone(
     tmp_path, mission, other_person, candidates

@@ -10,6 +10,7 @@ from the rendered ground truth: the test is about telemetry, alignment and geolo
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import math
 import struct
@@ -153,12 +154,11 @@ def test_replay_of_a_sitl_flight_with_its_logs(
         out = capsys.readouterr().out
         assert code == 0, out
         assert "alignment: camera trigger 1 of 1" in out, out
-        rows = (report / "alerts.csv").read_text().splitlines()[1:]
+        rows = list(csv.DictReader((report / "alerts.csv").open()))
         assert rows, out
         errs = []
         for row in rows:
-            cols = row.split(",")
-            lat, lon, err = float(cols[10]), float(cols[11]), float(cols[12])
+            lat, lon, err = float(row["lat"]), float(row["lon"]), float(row["error_m"])
             best = min(
                 math.hypot(*geodetic_to_ned(lat, lon, 0, t[0], t[1], 0)[:2]) for t in truth.values()
             )

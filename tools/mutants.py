@@ -1790,4 +1790,14 @@ MUTANTS: list[Mutant] = [
         "delivery",
         "the aircraft is sent to debris an alert calls 5 % likely a person",
     ),
+    Mutant(
+        "refinement.earlier_runs_forgotten",
+        _CONTROLLER,
+        "a.target_id: a for a in store.followed_alerts(self.mission_id)",
+        "a.target_id: a for a in store.followed_alerts(self.mission_id) if False",
+        ("tests/test_controller.py",),
+        "position",
+        "after a restart an earlier run's alert stays where its target was, however far it "
+        "drifts while seen again",
+    ),
 ]

@@ -892,6 +892,16 @@ class AlertStore:
             (mission_id,),
         )
 
+    def followed_alerts(self, mission_id: str) -> list[Alert]:
+        """The mission's placed alerts a position refinement may still move: neither
+        discarded nor dismissed by an operator, oldest first (a restarted controller goes on
+        following their targets)."""
+        return self._query(
+            _SELECT + "WHERE a.mission_id = ? AND a.lat IS NOT NULL AND a.discarded IS NULL "
+            "AND a.decision IS NOT 'dismissed' ORDER BY a.seq",
+            (mission_id,),
+        )
+
     def dismissed_zones(self, mission_id: str) -> list[tuple[float, float, float]]:
         """``(lat, lon, radius_m)`` of every alert of the mission an operator dismissed (and
         has not confirmed since) that has a position, oldest first. The radius is twice the

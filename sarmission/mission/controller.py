@@ -218,8 +218,11 @@ class MissionController:
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
         # target id -> its alert stored with a position (candidate, then confirmed), refined
-        # as the target's fixes come in
-        self._placed: dict[int, Alert] = {}
+        # as the target's fixes come in; an earlier run's go on being followed (the latest
+        # per target)
+        self._placed: dict[int, Alert] = {
+            a.target_id: a for a in store.followed_alerts(self.mission_id)
+        }
         self.refiner = PositionRefiner()
         self._objects: set[int] = set()  # targets locked but called an object (not alerted)
         self._pending_locks: set[int] = set()  # tracks locked while the registry was unsure
