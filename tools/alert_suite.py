@@ -90,7 +90,9 @@ INTRO = [
     "under it; a *duplicate* alert is a second one for a person already alerted; time "
     "to alert runs from a person's first frame to the confirmation. "
     "The flights run in real time, so a busy machine films fewer frames: a person near "
-    "the 3 s line can be in view in one run and not in another.",
+    "the 3 s line can be in view in one run and not in another. A run flown with a "
+    "confidence model beside the head (docs/confidence.md) adds what its confirmed alerts' "
+    "confidence meant.",
     "",
 ]
 

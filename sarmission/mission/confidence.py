@@ -14,7 +14,9 @@ certainty. The class shares let a head's classes weigh differently (a life jacke
 telling than a dark blob called a swimmer). A model is fitted for one head: it names that
 head's classes and is kept beside its files as ``<stem>.confidence.json``
 (:func:`confidence_beside`). Every figure the model reads comes from the evidence the
-confirmation already gathers (:mod:`sarmission.mission.confirmation`).
+confirmation already gathers (:mod:`sarmission.mission.confirmation`). None ships with the
+package: the share of people among confirmed alerts is a property of the scene's clutter, and
+a model fitted on the simulator was badly wrong on held-out footage (docs/confidence.md).
 
 The file is input like any other: a malformed one is refused with a one-line reason, and a
 model fitted for other classes than the head's is not used (its numbers would mean nothing).
