@@ -102,21 +102,15 @@ def development_missions(record: dict) -> list[Mission]:
     """Each development flight's confirmed candidates, ``z`` from a model fitted without it."""
     data = fit_confidence.samples(record)
     classes = fit_confidence.head_classes()
-    missions = []
-    for flight in sorted({d[0] for d in data}):
-        model = fit_confidence.fit_confidence(
-            [(s, y) for f, s, y, _ in data if f != flight],
-            classes,
-            ["swimmer_with_life_jacket"],
-            fit_confidence.L2,
-        )
-        mission = []
-        for f, sightings, person, confirmed in data:
-            if f == flight and confirmed:
-                p = model.probability(sightings)
-                mission.append(((0, sightings[-1].t), math.log(p / (1 - p)), person))
-        missions.append(mission)
-    return missions
+    predicted = fit_confidence.leave_one_flight_out(
+        data, classes, fit_confidence.weighted_classes(classes)
+    )
+    missions: dict[int, Mission] = {}
+    for (flight, sightings, person, confirmed), p in zip(data, predicted, strict=True):
+        if confirmed:
+            order = (0, sightings[-1].t)
+            missions.setdefault(flight, []).append((order, math.log(p / (1 - p)), person))
+    return list(missions.values())
 
 
 def shown(z: float, decided: list[tuple[float, bool]], prior_sd: float) -> float:

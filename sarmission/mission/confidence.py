@@ -1,10 +1,10 @@
 """How likely a confirmed alert is a person: the head's scores of a target turned into a
 calibrated probability.
 
-The head's score is no probability. On the scenario suite a track scored 0.8-0.9 had a person
-under it in 3 % of candidates (docs/alert_suite.md): an operator reading "swimmer 0.86" is
-misled. A :class:`ConfidenceModel` is a logistic regression over the target's evidence, fitted
-on flights whose truth is known (``tools/fit_confidence.py``, never the scored suite)::
+The head's score is no probability (the reliability tables of docs/alert_suite.md): an operator
+reading "swimmer 0.86" over debris is misled. A :class:`ConfidenceModel` is a logistic
+regression over the target's evidence, fitted on flights whose truth is known
+(``tools/fit_confidence.py``, never the scored suite)::
 
     p = 1 / (1 + exp(-(bias + score_weight * logit(mean score)
                        + sum_c class_weights[c] * share of sightings called c)))
