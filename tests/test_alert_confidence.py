@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from alert_samples import make_alert
 
+from sarmission.alerts.model import confidence_percent
 from sarmission.alerts.store import AlertStore
 from sarmission.mission.candidates import CandidateBook
 from sarmission.mission.confidence import (
@@ -172,14 +173,25 @@ def confirm_one(store: AlertStore, model: ConfidenceModel | None, labels: str) -
 
 
 def test_a_confirmation_stores_its_confidence(tmp_path: Path):
+    """The model's log-odds are stored; the confidence is what the mission's decisions (none
+    yet) make of them: a wide range, shown as such in the console and the STATUSTEXT."""
     with AlertStore(tmp_path / "a.db") as store:
         (promotion,) = confirm_one(store, MODEL, "swimmer_with_life_jacket")
-        expected = MODEL.probability(seen([0.8] * 11, "swimmer_with_life_jacket"))
-        assert promotion.alert.confidence == pytest.approx(expected)
-        assert store.get(promotion.alert.alert_id).confidence == pytest.approx(expected)
+        z = MODEL.logit(seen([0.8] * 11, "swimmer_with_life_jacket"))
+        assert promotion.alert.evidence_logit == pytest.approx(z)
+        expected = store.rating("test-mission", z)
+        assert promotion.alert.confidence == pytest.approx(expected.confidence)
+        assert promotion.alert.confidence_range == pytest.approx((expected.low, expected.high))
+        stored = store.get(promotion.alert.alert_id)
+        assert (stored.confidence, stored.confidence_range) == (
+            promotion.alert.confidence,
+            promotion.alert.confidence_range,
+        )
+        low, mean, high = (confidence_percent(v) for v in (expected[1], expected[0], expected[2]))
+        assert low < mean < high and high - low >= 20  # no decisions yet: a wide range
         line = format_alert(promotion.alert)
-        assert f"({round(100 * expected)} % likely a person)" in line
-        assert promotion.alert.statustext().split()[3] == f"{round(100 * expected)}%"
+        assert f"({mean} % likely a person ({low}-{high} %))" in line
+        assert promotion.alert.statustext().split()[3] == f"{low}-{high}%"
 
 
 def test_without_a_model_a_confirmation_shows_the_score(tmp_path: Path):

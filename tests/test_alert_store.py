@@ -16,7 +16,7 @@ import pytest
 from alert_samples import make_alert
 
 from sarmission.alerts.model import CHANNEL_MAVLINK, Refusal, Sends
-from sarmission.alerts.store import SCHEMA_VERSION, AlertStore
+from sarmission.alerts.store import SCHEMA_VERSION, AlertStore, _events_table
 from sarmission.errors import SarmissionError
 
 _WRITER = textwrap.dedent(
@@ -282,7 +282,7 @@ def test_schema_1_store_is_upgraded_in_place(tmp_path: Path) -> None:
             )
     conn.close()
     with AlertStore(db) as store:
-        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 7
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 8
         assert [(e.seq, e.kind) for e in store.events()] == [(1, "new"), (2, "ack")]
         assert store.attach_position("blind", (-35.36, 149.17), 3.5, "ground plane")
         assert [(e.seq, e.kind) for e in store.events(after=2)] == [(3, "position")]
@@ -551,12 +551,22 @@ def test_known_fixes_carry_the_error_of_each_latest_position(tmp_path: Path) -> 
     assert known[3][2] is None
 
 
-def as_older_schema(db: Path, version: int, columns: tuple[str, ...]) -> None:
-    """Turn the store ``db`` into one of schema ``version``: the alert ``columns`` it did not
-    have yet dropped."""
+#: The alert columns each schema added.
+_COLUMNS_ADDED = {
+    5: ("position_time",),
+    6: ("drift_north", "drift_east"),
+    7: ("confidence",),
+    8: ("confidence_low", "confidence_high", "evidence_logit"),
+}
+
+
+def as_older_schema(db: Path, version: int) -> None:
+    """Turn the store ``db`` into one of schema ``version``: the alert columns it did not have
+    yet dropped."""
     conn = sqlite3.connect(db)
-    for column in columns:
-        conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
+    for added, columns in _COLUMNS_ADDED.items():
+        for column in columns if added > version else ():
+            conn.execute(f"ALTER TABLE alerts DROP COLUMN {column}")
     conn.execute(f"PRAGMA user_version = {version}")
     conn.commit()
     conn.close()
@@ -568,7 +578,7 @@ def test_schema_4_store_gains_the_time_a_position_rests_on(tmp_path: Path) -> No
     db = tmp_path / "old.db"
     with AlertStore(db) as store:
         store.add(make_alert(1, position_time=1.7e9))
-    as_older_schema(db, 4, ("position_time", "drift_north", "drift_east", "confidence"))
+    as_older_schema(db, 4)
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         (old,) = store.list()
@@ -585,7 +595,7 @@ def test_schema_5_store_gains_the_drift(tmp_path: Path) -> None:
     with AlertStore(db) as store:
         store.add(make_alert(1, drift_ne=(0.3, -0.4)))
         assert store.list()[0].drift_ne == (0.3, -0.4)
-    as_older_schema(db, 5, ("drift_north", "drift_east", "confidence"))
+    as_older_schema(db, 5)
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         (old,) = store.list()
@@ -609,24 +619,52 @@ def test_schema_5_store_gains_the_drift(tmp_path: Path) -> None:
 
 def test_schema_6_store_gains_the_confidence(tmp_path: Path) -> None:
     """A store written before confirmations had a calibrated confidence (schema 6) opens with it
-    unknown; a promotion stores one, read back as written; one outside [0, 1] or NaN is
-    refused and leaves the candidate as it was."""
+    unknown; a promotion with the evidence's log-odds stores a rated confidence; log-odds not
+    finite or absurd are refused and leave the candidate as it was."""
     db = tmp_path / "old.db"
     with AlertStore(db) as store:
         store.add(make_alert(1, confidence=0.25))
         assert store.list()[0].confidence == 0.25
         store.add(make_alert(2, tier="candidate"))
         store.add(make_alert(3, tier="candidate"))
-    as_older_schema(db, 6, ("confidence",))
+    as_older_schema(db, 6)
     with AlertStore(db) as store:
         assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
         old = {a.target_id: a for a in store.list()}
         assert old[1].confidence is None and old[1].to_json_dict()["confidence"] is None
-        for bad in (1.5, -0.1, float("nan")):
-            with pytest.raises(ValueError, match="confidence"):
+        for bad in (float("inf"), 1e6, float("nan")):
+            with pytest.raises(ValueError, match="log-odds"):
                 store.promote(old[2].alert_id, "evidence", 1.7e9, bad)
         assert store.get(old[2].alert_id).tier == "candidate"
-        promoted = store.promote(old[2].alert_id, "evidence", 1.7e9, 0.35)
-        assert promoted is not None and promoted.confidence == 0.35
-        assert store.get(old[2].alert_id).format_score() == "0.91 (35 % likely a person)"
+        promoted = store.promote(old[2].alert_id, "evidence", 1.7e9, 0.0)
+        assert promoted is not None and promoted.evidence_logit == 0.0
+        assert promoted.confidence == pytest.approx(0.5)
         assert store.promote(old[3].alert_id, "evidence", 1.7e9).confidence is None
+
+
+def test_schema_7_store_gains_the_range_and_the_rated_event(tmp_path: Path) -> None:
+    """A store of schema 7 (a confidence without its range, no ``rated`` event) opens with its
+    alerts' confidence kept and the range unknown, and its log can then hold ``rated``."""
+    db = tmp_path / "old.db"
+    with AlertStore(db) as store:
+        store.add(make_alert(1, confidence=0.25))
+        store.add(make_alert(2, tier="candidate"))
+        store.add(make_alert(3, tier="candidate"))
+    as_older_schema(db, 7)
+    conn = sqlite3.connect(db)
+    conn.execute(_events_table("events_old", 7))
+    conn.execute("INSERT INTO events_old SELECT * FROM events")
+    conn.execute("DROP TABLE events")
+    conn.execute("ALTER TABLE events_old RENAME TO events")
+    conn.commit()
+    conn.close()
+    with AlertStore(db) as store:
+        assert store._conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+        old = {a.target_id: a for a in store.list()}
+        assert old[1].confidence == 0.25 and old[1].confidence_range is None
+        assert old[1].evidence_logit is None
+        assert [e.kind for e in store.events()] == ["new"] * 3
+        store.promote(old[2].alert_id, "evidence", 1.7e9, -1.0)
+        store.promote(old[3].alert_id, "evidence", 1.7e9, -1.0)
+        store.decide(old[2].alert_id, "confirmed", "ops")
+        assert "rated" in [e.kind for e in store.events()]

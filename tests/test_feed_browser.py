@@ -110,6 +110,21 @@ def test_new_alert_shows_live_and_ack_button_works(
         browser.wait_for(f"{card}.dataset.acknowledged === '1'", timeout=2.0)
         assert "Acknowledged\nby sam" in browser.js(f"{card}.innerText")
         assert browser.js("document.getElementById('unacked').textContent") == "1"
+        # rated by the mission's calibration: shown with its range while that is wide, and
+        # rated again, live, when the operator decides on another alert
+        rated = [make_alert(k, tier="candidate") for k in (4, 5)]
+        for a in rated:
+            store.add(a)
+            store.promote(a.alert_id, "held 3 s", None, -2.0)
+        waiting = f"document.querySelector('[data-alert-id=\"{rated[1].alert_id}\"]')"
+        shown = store.get(rated[1].alert_id).format_confidence()
+        assert shown.endswith(" %)")  # e.g. "20 % likely a person (1-75 %)"
+        browser.wait_for(f"!!{waiting} && {waiting}.innerText.includes({shown!r})", timeout=5.0)
+        assert browser.js(f"{waiting}.querySelector('.likely.wide') !== null") is True
+        store.decide(rated[0].alert_id, "confirmed", "sam")
+        again = store.get(rated[1].alert_id).format_confidence()
+        assert again != shown
+        browser.wait_for(f"{waiting}.innerText.includes({again!r})", timeout=5.0)
 
 
 def test_page_without_the_token_is_refused_and_a_refused_stream_is_retried(

@@ -8,7 +8,8 @@ scene's, not the simulator's. This study asks whether a mission could learn that
 its operator. The model's linear predictor ``z`` of each confirmed alert is kept and only an
 offset ``d`` is learnt per mission, ``p = sigmoid(z + d)``, with a normal prior of standard
 deviation ``s`` on ``d`` and the operator's decisions on the mission's earlier alerts as
-evidence; the confidence shown is the posterior mean of ``p`` (on a grid of ``d``). The
+evidence; the confidence shown is the posterior mean of ``p`` with its 10-90 % range, as the
+alert store rates it (:mod:`sarmission.alerts.operator_calibration`, the shipped code). The
 operator is simulated as deciding each alert rightly, before the next one is confirmed, or
 ``lag`` alerts later.
 
@@ -17,7 +18,9 @@ with the model beside a copy of the shipped head; a split's sea clips, empty sea
 one mission, its land clips another) and the simulator's development flights (each flight a
 mission; each confirmed candidate's ``z`` from a model fitted without its flight, as in
 ``tools/fit_confidence.py``). Printed and written: per source, the mean confidence and the
-calibration error, fixed and adaptive.
+calibration error, fixed and adaptive; and for the shipped prior, how many alerts are shown with
+a wide range (:data:`~sarmission.alerts.model.WIDE_RANGE`) and the calibration error of those
+shown as one number.
 """
 
 from __future__ import annotations
@@ -43,6 +46,12 @@ import fit_confidence  # noqa: E402
 import heldout_alerts  # noqa: E402
 from alert_suite import head_commit  # noqa: E402
 
+from sarmission.alerts.model import WIDE_RANGE, is_wide  # noqa: E402
+from sarmission.alerts.operator_calibration import (  # noqa: E402
+    PRIOR_SD,
+    OffsetBelief,
+    Rating,
+)
 from sarmission.alerts.store import AlertStore  # noqa: E402
 from sarmission.data.coco_video import read_coco_video  # noqa: E402
 from sarmission.evaluation.alert_scoring import score_flight  # noqa: E402
@@ -52,7 +61,6 @@ from sarmission.mission.confidence import confidence_beside, load_confidence  # 
 from sarmission.models import DEFAULT_ONNX_MODEL  # noqa: E402
 
 DOC = ROOT / "docs" / "confidence_adaptation.md"
-GRID = np.linspace(-12.0, 12.0, 2401)
 #: (prior standard deviation of the offset, operator's lag in alerts); s = 0: the fixed model.
 VARIANTS = ((0.0, 0), (2.0, 0), (3.0, 0), (3.0, 3))
 
@@ -87,13 +95,12 @@ def held_out_missions(split: str, work: Path, model: Path, tmp: Path) -> list[Mi
             with AlertStore(db) as store:
                 alerts = [a for a in store.list() if a.tier == "confirmed"]
             for alert in alerts:
-                if alert.confidence is None:
+                if alert.evidence_logit is None:
                     continue
                 right = score_flight(frames, [(alert, alert.frame_index, 0.0)]).false_alerts == 0
-                p = min(max(alert.confidence, 1e-9), 1 - 1e-9)
                 kind = "sea" if "maritime" in world else "land"
                 missions.setdefault(kind, []).append(
-                    ((index, alert.confirmed_at or alert.lock_time), math.log(p / (1 - p)), right)
+                    ((index, alert.confirmed_at or alert.lock_time), alert.evidence_logit, right)
                 )
     return list(missions.values())
 
@@ -113,32 +120,39 @@ def development_missions(record: dict) -> list[Mission]:
     return list(missions.values())
 
 
-def shown(z: float, decided: list[tuple[float, bool]], prior_sd: float) -> float:
-    """The confidence shown for ``z`` after the operator's ``decided`` (z, person) pairs."""
+def rate(z: float, decided: list[tuple[float, bool]], prior_sd: float) -> Rating:
+    """The confidence shown for ``z`` after the operator's ``decided`` (z, person) pairs;
+    ``prior_sd`` 0: the fixed model."""
     if prior_sd == 0:
-        return float(sigmoid(z))
-    log_post = -(GRID**2) / (2 * prior_sd**2)
-    for zi, person in decided:
-        q = sigmoid(zi + GRID)
-        log_post += np.log(q if person else 1 - q)
-    w = np.exp(log_post - log_post.max())
-    return float(np.sum(w * sigmoid(z + GRID)) / w.sum())
+        p = float(sigmoid(z))
+        return Rating(p, p, p)
+    return OffsetBelief(decided, prior_sd).rate(z)
 
 
 def judge(missions: list[Mission], prior_sd: float, lag: int) -> dict:
-    shown_p, truth = [], []
+    ratings, truth = [], []
     for mission in missions:
         ordered = sorted(mission)
         for k, (_, z, person) in enumerate(ordered):
             decided = [(zi, yi) for _, zi, yi in ordered[: max(0, k - lag)]]
-            shown_p.append(shown(z, decided, prior_sd))
+            ratings.append(rate(z, decided, prior_sd))
             truth.append(person)
-    table = reliability_table(shown_p, truth, PROBABILITY_EDGES)
+    shown_p = [r.confidence for r in ratings]
+    wide = [is_wide((r.low, r.high)) for r in ratings]
+    narrow = [(p, y) for p, y, w in zip(shown_p, truth, wide, strict=True) if not w]
     return {
         "alerts": len(truth),
         "people": float(np.mean(truth)),
         "mean": float(np.mean(shown_p)),
-        "ece": table["ece"],
+        "ece": reliability_table(shown_p, truth, PROBABILITY_EDGES)["ece"],
+        "wide": float(np.mean(wide)),
+        "narrow_ece": (
+            reliability_table([p for p, _ in narrow], [y for _, y in narrow], PROBABILITY_EDGES)[
+                "ece"
+            ]
+            if narrow
+            else None
+        ),
     }
 
 
@@ -185,7 +199,20 @@ def main() -> int:
             + " | ".join(f"{100 * r['mean']:.0f} % / {r['ece']:.3f}" for r in results)
             + " |"
         )
-    print("\n".join(lines))
+    shipped = [(PRIOR_SD, 0), (PRIOR_SD, 3)]
+    ranges = [
+        "| alerts from | decided at once: shown as a range | calibration error of the rest | "
+        "3 alerts late: shown as a range | calibration error of the rest |",
+        "|---|---|---|---|---|",
+    ]
+    for name, missions in sources.items():
+        cells = []
+        for s, lag in shipped:
+            r = judge(missions, s, lag)
+            ece = "-" if r["narrow_ece"] is None else f"{r['narrow_ece']:.3f}"
+            cells += [f"{100 * r['wide']:.0f} %", ece]
+        ranges.append(f"| {name} | " + " | ".join(cells) + " |")
+    print("\n".join(lines + [""] + ranges))
     command = "python tools/confidence_adaptation.py " + shlex.join(sys.argv[1:])
     page = [
         "# Would the operator's decisions make the alert confidence transfer?",
@@ -197,6 +224,14 @@ def main() -> int:
         "one kind of world, so it holds few alerts to learn from.",
         "",
         *lines,
+        "",
+        f"With the shipped prior (standard deviation {PRIOR_SD:g}), an alert whose 10-90 % "
+        f"range is {100 * WIDE_RANGE:.0f} points or wider is shown with its range "
+        '("20 % likely a person (1-75 %)"), so that a number that is not yet known is not '
+        "read as one. How many were, and the calibration error of the alerts shown as one "
+        "number:",
+        "",
+        *ranges,
         "",
     ]
     args.doc.write_text("\n".join(page))

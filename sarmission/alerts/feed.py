@@ -671,14 +671,15 @@ class _Handler(BaseHTTPRequestHandler):
 
 def _is_line(event: AlertEvent, sent: set[str], since: float | None) -> bool:
     """Whether a followed JSON-lines stream writes ``event``: a new alert not yet written, an
-    alert's position found after it was stored, its tier settled or an operator's decision."""
+    alert's position found after it was stored, its tier settled, an operator's decision or
+    its confidence rated again."""
     return (
         event.kind in _RELINED or event.kind == "new" and event.alert.alert_id not in sent
     ) and (since is None or event.alert.lock_time >= since)
 
 
 #: Changes after which a followed JSON-lines stream writes the alert again.
-_RELINED = frozenset(("position", "confirmed", "discarded", "decided"))
+_RELINED = frozenset(("position", "confirmed", "discarded", "decided", "rated"))
 
 
 def _redact(text: str) -> str:

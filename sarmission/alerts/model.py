@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any, Literal
 
+from sarmission.alerts.operator_calibration import check_logit
 from sarmission.class_roles import short_label
 
 #: STATUSTEXT's ``text`` field holds 50 bytes.
@@ -121,11 +122,54 @@ def confidence_percent(confidence: float) -> int:
     return min(99, max(1, round(100 * confidence)))
 
 
-def format_confidence(confidence: float | None) -> str:
-    """``"35 % likely a person"``, or ``""`` when unknown."""
+#: A confidence whose range is at least this wide is shown with its range: one number would
+#: claim more than is known (:mod:`sarmission.alerts.operator_calibration`).
+WIDE_RANGE = 0.2
+
+
+def check_confidence_range(
+    confidence_range: tuple[float, float] | None, confidence: float | None
+) -> tuple[float, float] | None:
+    """A confidence's range as floats (None stays None); ValueError unless both ends lie in
+    [0, 1] around ``confidence``, which it needs."""
+    if confidence_range is None:
+        return None
+    low, high = (float(v) for v in confidence_range)
+    if confidence is None or not 0.0 <= low <= confidence <= high <= 1.0:
+        raise ValueError(
+            f"confidence range must lie in [0, 1] around the confidence {confidence}, "
+            f"got {confidence_range}"
+        )
+    return low, high
+
+
+def is_wide(confidence_range: tuple[float, float] | None) -> bool:
+    """Whether a confidence's range is too wide to show it as one number."""
+    return confidence_range is not None and (
+        confidence_range[1] - confidence_range[0] >= WIDE_RANGE
+    )
+
+
+def format_confidence(
+    confidence: float | None, confidence_range: tuple[float, float] | None = None
+) -> str:
+    """``"35 % likely a person"``, with its range when wide (``"35 % likely a person
+    (4-75 %)"``), or ``""`` when unknown."""
     if confidence is None:
         return ""
-    return f"{confidence_percent(confidence)} % likely a person"
+    text = f"{confidence_percent(confidence)} % likely a person"
+    if is_wide(confidence_range):
+        low, high = (confidence_percent(v) for v in confidence_range)
+        text += f" ({low}-{high} %)"
+    return text
+
+
+def short_confidence(confidence: float, confidence_range: tuple[float, float] | None = None) -> str:
+    """The confidence for a short line: ``"35%"``, or its range when wide (``"4-75%"``)."""
+    if is_wide(confidence_range):
+        low, high = (confidence_percent(v) for v in confidence_range)
+        return f"{low}-{high}%"
+    return f"{confidence_percent(confidence)}%"
 
 
 def drift_course_speed(drift_ne: tuple[float, float]) -> tuple[float, float]:
@@ -240,6 +284,13 @@ class Alert:
     #: (:mod:`sarmission.mission.confidence`); None: unknown (no model for the head, an
     #: operator's confirmation, a candidate, an older store). ``score`` is the head's raw score.
     confidence: float | None = None
+    #: The range of ``confidence`` (its central 80 %) given what the mission's operator
+    #: decisions have taught so far; None: no such range (a model without a mission's
+    #: calibration, or unknown)
+    confidence_range: tuple[float, float] | None = None
+    #: The log-odds of a person that the confidence model read from the evidence alone, before
+    #: the mission's calibration; None: no model
+    evidence_logit: float | None = None
 
     def __post_init__(self) -> None:
         if self.position is not None:
@@ -247,6 +298,9 @@ class Alert:
         if self.drift_ne is not None:
             self.drift_ne = check_drift(self.drift_ne)
         self.confidence = check_confidence(self.confidence)
+        self.confidence_range = check_confidence_range(self.confidence_range, self.confidence)
+        if self.evidence_logit is not None:
+            self.evidence_logit = check_logit(self.evidence_logit)
         if self.tier not in TIERS:
             raise ValueError(f"alert tier must be one of {TIERS}, got {self.tier!r}")
         if self.decision is not None and self.decision not in DECISIONS:
@@ -325,8 +379,9 @@ class Alert:
         return f"drifting {speed:.1f} m/s to {round(course) % 360:03d}°"
 
     def format_confidence(self) -> str:
-        """``"35 % likely a person"``, or ``""`` when unknown (:func:`format_confidence`)."""
-        return format_confidence(self.confidence)
+        """``"35 % likely a person"`` (with its range when wide), or ``""`` when unknown
+        (:func:`format_confidence`)."""
+        return format_confidence(self.confidence, self.confidence_range)
 
     def format_score(self) -> str:
         """The head's score with the calibrated confidence when known:
@@ -338,14 +393,15 @@ class Alert:
     def statustext(self) -> str:
         """One-line alert for MAVLink STATUSTEXT, at most 50 bytes in UTF-8, starting with the
         short id, e.g. ``T1-k3 SAR swimmer 0.91 -35.36291,149.16523 ±4m``: the head's score, or
-        with a calibrated confidence that instead as a percentage (``swimmer 35%``). The class
+        with a calibrated confidence that instead as a percentage (``swimmer 35%``, or its range
+        ``swimmer 4-75%`` while that is wide). The class
         name is shortened if needed, and left out, then the error radius, if even that does not
         fit."""
         head = f"{self.short_id} SAR"
         likely = (
             f"{self.score:.2f}"
             if self.confidence is None
-            else f"{confidence_percent(self.confidence)}%"
+            else short_confidence(self.confidence, self.confidence_range)
         )
         tail = f" {likely} {self.format_position()}"
         error = f" {self.format_error()}" if self.position is not None else ""
@@ -371,6 +427,10 @@ class Alert:
             "class_name": self.class_name,
             "score": self.score,
             "confidence": self.confidence,
+            "confidence_range": (
+                None if self.confidence_range is None else list(self.confidence_range)
+            ),
+            "evidence_logit": self.evidence_logit,
             "lock_time": self.lock_time,
             "lock_time_iso": utc_iso(self.lock_time),
             "frame_index": self.frame_index,

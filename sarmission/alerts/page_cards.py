@@ -14,12 +14,15 @@ waiting instead of a card that appears and vanishes several times a second over 
 Candidates already stored when the page opens show at once.
 """
 
+from sarmission.alerts.model import WIDE_RANGE
+
 #: Seconds a live candidate stays off the page while the evidence decides it (the default
 #: confirmation waits 2 s: ``ConfirmConfig.min_seen_s``).
 SETTLE_S = 3.0
 
 CARDS_JS = (
     f"const SETTLE_MS = {round(SETTLE_S * 1000)};\n"
+    f"const WIDE_RANGE = {WIDE_RANGE};\n"
     + r"""
 const NAMES = {mavlink_loiter: "loiter", mavlink_roi: "camera ROI",
                mavlink_mission: "mission visit"};
@@ -98,9 +101,16 @@ function render(a) {
   const title = el("div", "title", a.class_name);
   title.appendChild(el("span", "score", a.score.toFixed(2)));
   if (a.confidence !== null && a.confidence !== undefined) {  // calibrated: what the score means
-    const pct = Math.min(99, Math.max(1, Math.round(100 * a.confidence)));
-    const likely = el("span", "likely" + (pct < 20 ? " low" : ""), pct + " % likely a person");
-    likely.title = "calibrated on simulated flights whose truth is known";
+    const pct = (p) => Math.min(99, Math.max(1, Math.round(100 * p)));
+    const range = a.confidence_range;
+    const wide = range && range[1] - range[0] >= WIDE_RANGE;
+    let text = pct(a.confidence) + " % likely a person";
+    if (wide) text += " (" + pct(range[0]) + "-" + pct(range[1]) + " %)";
+    const low = (range ? pct(range[1]) : pct(a.confidence)) < 20;
+    const likely = el("span", "likely" + (low ? " low" : "") + (wide ? " wide" : ""), text);
+    likely.title = wide
+      ? "still learning this mission: the range narrows as you confirm or dismiss alerts"
+      : "calibrated by your decisions on this mission's alerts";
     title.appendChild(likely);
   }
   title.appendChild(el("span", "target", "target " + a.target_id

@@ -33,6 +33,8 @@ CSV_COLUMNS = (
     "class_name",
     "score",
     "confidence",
+    "confidence_low",
+    "confidence_high",
     "frame_index",
     "footage_time_s",
     "pixel_x",
@@ -104,6 +106,7 @@ def _rows(report: ReportInput) -> list[dict[str, object]]:
                 "class_name": a.class_name,
                 "score": f"{a.score:.3f}",
                 "confidence": "" if a.confidence is None else f"{a.confidence:.3f}",
+                **_confidence_range(a),
                 "frame_index": a.frame_index,
                 "footage_time_s": "" if ft is None else f"{ft:.3f}",
                 "pixel_x": "" if px is None else f"{px[0]:.1f}",
@@ -175,6 +178,14 @@ def _card(alert: Alert, frame_times: dict[int, float]) -> str:
         f"{'' if px is None else f', pixel {px[0]:.0f},{px[1]:.0f}'}<br>"
         f'<span class="{cls}">{where}</span></div>'
     )
+
+
+def _confidence_range(alert: Alert) -> dict[str, str]:
+    """The CSV's ``confidence_low`` and ``confidence_high`` (empty when unknown)."""
+    bounds = getattr(alert, "confidence_range", None)
+    if bounds is None:
+        return {"confidence_low": "", "confidence_high": ""}
+    return {"confidence_low": f"{bounds[0]:.3f}", "confidence_high": f"{bounds[1]:.3f}"}
 
 
 def _table(rows: Sequence[dict[str, object]]) -> str:

@@ -35,7 +35,8 @@ since that was all that was known; schema 4 added tiers, operator decisions, the
 ``discarded`` and ``decided`` events with who and why, the drone's track and mission areas: an
 older alert is a confirmed one without a decision, as it was; schema 5 added the time of the
 latest fix a position rests on, unknown for older alerts; schema 6 the target's drift, likewise;
-schema 7 the calibrated confidence of a confirmation, unknown for older alerts).
+schema 7 the calibrated confidence of a confirmation, unknown for older alerts; schema 8
+its range and the evidence's log-odds, with the ``rated`` event, unknown for older alerts).
 """
 
 from __future__ import annotations
@@ -58,16 +59,17 @@ from sarmission.alerts.model import (
     Decision,
     Refusal,
     Sends,
-    check_confidence,
     check_drift,
     check_position,
     dismiss_radius_m,
+    format_confidence,
 )
+from sarmission.alerts.operator_calibration import OffsetBelief, Rating, check_logit
 from sarmission.errors import SarmissionError
 
 #: "SARA" in ASCII, stored in the database header to recognise our files.
 APPLICATION_ID = 0x53415241
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 
 #: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
 DRONE_POINTS_KEPT = 20_000
@@ -80,9 +82,19 @@ MAX_AREA_VERTICES = 10_000
 #: accepted / refused a command for it; ``sent``: it went out once more on a channel without
 #: acknowledgement; ``confirmed``: a candidate became confirmed (by the system, or by the
 #: operator named in ``by``); ``discarded``: the system gave up on a candidate; ``decided``: an
-#: operator confirmed or dismissed it (``detail``).
+#: operator confirmed or dismissed it (``detail``); ``rated``: its confidence was rated again
+#: after an operator's decision on another alert of its mission (``detail``: the new rating).
 EventKind = Literal[
-    "new", "ack", "delivered", "refused", "sent", "position", "confirmed", "discarded", "decided"
+    "new",
+    "ack",
+    "delivered",
+    "refused",
+    "sent",
+    "position",
+    "confirmed",
+    "discarded",
+    "decided",
+    "rated",
 ]
 _EVENT_KINDS = {
     2: ("new", "ack", "delivered", "position"),
@@ -100,6 +112,7 @@ _EVENT_KINDS = {
     ),
 }
 _EVENT_KINDS[5] = _EVENT_KINDS[6] = _EVENT_KINDS[7] = _EVENT_KINDS[4]
+_EVENT_KINDS[8] = (*_EVENT_KINDS[7], "rated")
 
 
 def _events_table(name: str, schema: int = SCHEMA_VERSION) -> str:
@@ -191,7 +204,10 @@ CREATE TABLE alerts (
     position_time REAL,
     drift_north   REAL,
     drift_east    REAL,
-    confidence    REAL CHECK (confidence BETWEEN 0 AND 1)
+    confidence    REAL CHECK (confidence BETWEEN 0 AND 1),
+    confidence_low  REAL CHECK (confidence_low BETWEEN 0 AND 1),
+    confidence_high REAL CHECK (confidence_high BETWEEN 0 AND 1),
+    evidence_logit  REAL
 );
 CREATE INDEX alerts_by_target ON alerts (mission_id, target_id);
 """
@@ -256,6 +272,19 @@ ALTER TABLE alerts ADD COLUMN drift_east REAL
 """,
     # Schema 6 kept no confidence: unknown it stays.
     6: "ALTER TABLE alerts ADD COLUMN confidence REAL CHECK (confidence BETWEEN 0 AND 1)",
+    # Schema 7 kept no range nor log-odds: unknown they stay; the log learns ``rated``.
+    7: """
+ALTER TABLE alerts ADD COLUMN confidence_low REAL CHECK (confidence_low BETWEEN 0 AND 1);
+ALTER TABLE alerts ADD COLUMN confidence_high REAL CHECK (confidence_high BETWEEN 0 AND 1);
+ALTER TABLE alerts ADD COLUMN evidence_logit REAL;
+"""
+    + _events_table("events_8", 8)
+    + """;
+INSERT INTO events_8 (seq, kind, alert_id, time, by, detail)
+    SELECT seq, kind, alert_id, time, by, detail FROM events;
+DROP TABLE events;
+ALTER TABLE events_8 RENAME TO events
+""",
 }
 
 
@@ -273,7 +302,7 @@ SELECT a.alert_id, a.mission_id, a.target_id, a.class_name, a.score, a.lock_time
        a.drone_lat, a.drone_lon, a.drone_alt_m, a.track, a.pixel_track, a.thumbnail,
        a.ack_time, a.ack_by, a.tier, a.evidence, a.confirmed_at, a.discarded, a.discarded_at,
        a.decision, a.decided_by, a.decided_at, a.position_time, a.drift_north, a.drift_east,
-       a.confidence
+       a.confidence, a.confidence_low, a.confidence_high, a.evidence_logit
 FROM alerts a
 """
 #: Alerts still to go to the autopilot: confirmed and not dismissed by an operator.
@@ -288,7 +317,8 @@ class AlertEvent:
     ``"refused"`` (a command accepted / refused by the autopilot), ``"sent"`` (sent once more on
     a channel without acknowledgement), ``"position"`` (a position attached to an alert that
     had none, or a placed alert's position refined), ``"confirmed"`` / ``"discarded"`` (a
-    candidate's tier settled) or ``"decided"`` (an operator's decision); ``seq`` is its position
+    candidate's tier settled), ``"decided"`` (an operator's decision) or ``"rated"`` (its
+    confidence rated again after an operator's decision on another alert); ``seq`` is its position
     in the store's event log; ``alert`` is the alert as it is now; ``by`` the operator who made
     the change (None: the system or unknown); ``detail`` the evidence, reason or decision of
     that change."""
@@ -433,8 +463,9 @@ class AlertStore:
                 "drone_lat, drone_lon, drone_alt_m, track, pixel_track, thumbnail, ack_time, "
                 "ack_by, added_time, tier, evidence, confirmed_at, discarded, discarded_at, "
                 "decision, decided_by, decided_at, position_time, drift_north, drift_east, "
-                "confidence) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
-                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "confidence, confidence_low, confidence_high, evidence_logit) VALUES (?, ?, ?, ?, "
+                "?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, "
+                "?, ?, ?, ?, ?)",
                 (
                     alert.alert_id,
                     alert.mission_id,
@@ -465,6 +496,8 @@ class AlertStore:
                     alert.position_time,
                     *(alert.drift_ne if alert.drift_ne is not None else (None, None)),
                     alert.confidence,
+                    *(alert.confidence_range or (None, None)),
+                    alert.evidence_logit,
                 ),
             )
             if cur.rowcount == 0:
@@ -652,27 +685,32 @@ class AlertStore:
         alert_id: str,
         evidence: str,
         when: float | None = None,
-        confidence: float | None = None,
+        evidence_logit: float | None = None,
     ) -> Alert | None:
         """The system confirms a candidate: tier ``confirmed``, ``evidence`` (why), confirmed at
-        ``when`` (the controller's time, default now) with the calibrated ``confidence`` that a
-        person is there (None: unknown); event ``confirmed``. Returns the alert,
+        ``when`` (the controller's time, default now); event ``confirmed``. ``evidence_logit``:
+        the log-odds of a person a confidence model read from its evidence (None: no model);
+        the alert's confidence is then rated by what the mission's operator decisions have
+        taught (:meth:`rating`). Returns the alert,
         or None, changing nothing, when an operator has dismissed it: a dismissal always wins
         over a later promotion. Already confirmed (by the system or an operator): returns it
         unchanged. A candidate the system had discarded is confirmed (its discard reason stays
         in the log). Unknown id: KeyError."""
         t = _finite_time(when)
-        confidence = check_confidence(confidence)
+        z = None if evidence_logit is None else check_logit(evidence_logit)
         with self._transaction() as conn:
             state = self._state(conn, alert_id)
             if state.decision == "dismissed":
                 return None
             changed = state.tier != "confirmed"
             if changed:
+                rated = (None,) * 3 if z is None else self._belief(conn, alert_id).rate(z)
                 conn.execute(
                     "UPDATE alerts SET tier = 'confirmed', evidence = ?, confirmed_at = ?, "
-                    "confidence = ?, discarded = NULL, discarded_at = NULL WHERE alert_id = ?",
-                    (evidence, t, confidence, alert_id),
+                    "confidence = ?, confidence_low = ?, confidence_high = ?, "
+                    "evidence_logit = ?, discarded = NULL, discarded_at = NULL "
+                    "WHERE alert_id = ?",
+                    (evidence, t, *rated, z, alert_id),
                 )
                 self._log(conn, "confirmed", alert_id, detail=evidence)
         if changed:
@@ -716,7 +754,9 @@ class AlertStore:
         """Record an operator's ``decision`` (``"confirmed"`` or ``"dismissed"``) by ``by``,
         durably; event ``decided`` (``detail``: the decision). Confirming a candidate also
         confirms it (event ``confirmed`` with ``by``), dismissing one suppresses its place
-        (:meth:`dismissed_zones`) and keeps the system from promoting it later.
+        (:meth:`dismissed_zones`) and keeps the system from promoting it later. A decision on
+        an alert a confidence model rated teaches the mission's calibration: its alerts still
+        undecided are rated again (event ``rated`` for each whose confidence changed).
 
         The alert's current decision repeated changes nothing (``changed`` False, no event).
         A contradicting one (dismiss after confirm, or back) replaces it: operators change their
@@ -752,11 +792,64 @@ class AlertStore:
                     self._log(
                         conn, "confirmed", alert_id, by=name, detail=f"confirmed by operator {name}"
                     )
+                if state.evidence_logit is not None:
+                    self._rerate(conn, alert_id)
         if changed:
             self._notify()
         alert = self.get(alert_id)
         assert alert is not None
         return Decided(alert, changed)
+
+    # ------------------------------------------------------------------ calibration
+
+    def rating(self, mission_id: str, evidence_logit: float) -> Rating:
+        """The confidence the mission's operator decisions so far give an alert whose evidence
+        says log-odds ``evidence_logit`` (:mod:`sarmission.alerts.operator_calibration`)."""
+        with self._lock:
+            return self._mission_belief(self._conn, mission_id).rate(evidence_logit)
+
+    @staticmethod
+    def _mission_belief(conn: sqlite3.Connection, mission_id: str) -> OffsetBelief:
+        rows = conn.execute(
+            "SELECT evidence_logit, decision FROM alerts WHERE mission_id = ? AND "
+            "evidence_logit IS NOT NULL AND decision IS NOT NULL ORDER BY seq",
+            (mission_id,),
+        ).fetchall()
+        return OffsetBelief((z, decision == "confirmed") for z, decision in rows)
+
+    def _belief(self, conn: sqlite3.Connection, alert_id: str) -> OffsetBelief:
+        """The belief of the mission ``alert_id`` belongs to."""
+        (mission_id,) = conn.execute(
+            "SELECT mission_id FROM alerts WHERE alert_id = ?", (alert_id,)
+        ).fetchone()
+        return self._mission_belief(conn, mission_id)
+
+    def _rerate(self, conn: sqlite3.Connection, alert_id: str) -> None:
+        """Rate again the undecided rated alerts of ``alert_id``'s mission."""
+        belief = self._belief(conn, alert_id)
+        rows = conn.execute(
+            "SELECT alert_id, evidence_logit, confidence FROM alerts WHERE mission_id = "
+            "(SELECT mission_id FROM alerts WHERE alert_id = ?) AND evidence_logit IS NOT NULL "
+            "AND decision IS NULL ORDER BY seq",
+            (alert_id,),
+        ).fetchall()
+        for other, z, before in rows:
+            rated = belief.rate(z)
+            if before is not None and abs(rated.confidence - before) < 5e-4:
+                continue
+            conn.execute(
+                "UPDATE alerts SET confidence = ?, confidence_low = ?, confidence_high = ? "
+                "WHERE alert_id = ?",
+                (*rated, other),
+            )
+            self._log(
+                conn,
+                "rated",
+                other,
+                detail=f"{format_confidence(rated.confidence, (rated.low, rated.high))} "
+                f"after {belief.decisions} operator decision"
+                + ("" if belief.decisions == 1 else "s"),
+            )
 
     # ------------------------------------------------------------------ drone and area
 
@@ -836,10 +929,11 @@ class AlertStore:
     # ------------------------------------------------------------------ helpers
 
     def _state(self, conn: sqlite3.Connection, alert_id: str) -> _TierState:
-        """The alert's tier, discard reason and decision, read inside a write transaction.
-        Unknown id: KeyError."""
+        """The alert's tier, discard reason, decision and evidence log-odds, read inside a write
+        transaction. Unknown id: KeyError."""
         row = conn.execute(
-            "SELECT tier, discarded, decision FROM alerts WHERE alert_id = ?", (alert_id,)
+            "SELECT tier, discarded, decision, evidence_logit FROM alerts WHERE alert_id = ?",
+            (alert_id,),
         ).fetchone()
         if row is None:
             raise KeyError(alert_id)
@@ -1130,6 +1224,7 @@ class _TierState(NamedTuple):
     tier: str
     discarded: str | None
     decision: str | None
+    evidence_logit: float | None
 
 
 def _finite_time(when: float | None) -> float:
@@ -1144,7 +1239,8 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
     (alert_id, mission_id, target_id, class_name, score, lock_time, frame_index, lat, lon,
      position_note, error_m, target_hae_m, d_lat, d_lon, d_alt, track, pixel_track, thumbnail,
      ack_time, ack_by, tier, evidence, confirmed_at, discarded, discarded_at, decision,
-     decided_by, decided_at, position_time, drift_n, drift_e, confidence) = row  # fmt: skip
+     decided_by, decided_at, position_time, drift_n, drift_e, confidence, confidence_low,
+     confidence_high, evidence_logit) = row  # fmt: skip
     return Alert(
         alert_id=alert_id,
         mission_id=mission_id,
@@ -1177,4 +1273,6 @@ def _row_to_alert(row: tuple, acks: list[tuple], sends: list[tuple]) -> Alert:
         position_time=position_time,
         drift_ne=None if drift_n is None else (drift_n, drift_e),
         confidence=confidence,
+        confidence_range=None if confidence_low is None else (confidence_low, confidence_high),
+        evidence_logit=evidence_logit,
     )

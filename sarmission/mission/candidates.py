@@ -137,12 +137,12 @@ class CandidateBook:
             if found.verdict == "confirm":
                 if prepare is not None:
                     prepare(alert)
-                likely = (
+                evidence_logit = (
                     None
                     if self.confidence is None
-                    else self.confidence.probability(self.evidence[target_id].sightings)
+                    else self.confidence.logit(self.evidence[target_id].sightings)
                 )
-                stored = self.store.promote(alert.alert_id, found.summary(), when, likely)
+                stored = self.store.promote(alert.alert_id, found.summary(), when, evidence_logit)
                 if stored is None:  # dismissed by the operator meanwhile: stays silent
                     log.info(
                         "target %d confirmed by evidence but dismissed by the operator", target_id

@@ -14,9 +14,13 @@ certainty. The class shares let a head's classes weigh differently (a life jacke
 telling than a dark blob called a swimmer). A model is fitted for one head: it names that
 head's classes and is kept beside its files as ``<stem>.confidence.json``
 (:func:`confidence_beside`). Every figure the model reads comes from the evidence the
-confirmation already gathers (:mod:`sarmission.mission.confirmation`). None ships with the
-package: the share of people among confirmed alerts is a property of the scene's clutter, and
-a model fitted on the simulator was badly wrong on held-out footage (docs/confidence.md).
+confirmation already gathers (:mod:`sarmission.mission.confirmation`).
+
+The share of people among confirmed alerts is a property of the scene's clutter: a model
+fitted on the simulator ranks alerts but its level was badly wrong on held-out footage
+(docs/confidence.md). So the confirmation stores the model's log-odds (:meth:`logit`), and
+the alert store turns them into the confidence shown with the level the mission's operator
+decisions teach (:mod:`sarmission.alerts.operator_calibration`).
 
 The file is input like any other: a malformed one is refused with a one-line reason, and a
 model fitted for other classes than the head's is not used (its numbers would mean nothing).
@@ -33,6 +37,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from sarmission.alerts.operator_calibration import MAX_LOGIT
 from sarmission.errors import SarmissionError
 from sarmission.mission.confirmation import Sighting
 
@@ -87,13 +92,21 @@ class ConfidenceModel:
         mean = float(np.mean([s.score for s in sightings]))
         return [score_logit(mean), *class_shares(sightings, list(self.class_weights))]
 
-    def probability(self, sightings: Sequence[Sighting]) -> float | None:
-        """The probability that a person is there, or None without sightings."""
+    def logit(self, sightings: Sequence[Sighting]) -> float | None:
+        """The log-odds that a person is there (within ±:data:`MAX_LOGIT`), or None without
+        sightings."""
         if not sightings:
             return None
         x = self.features(sightings)
         z = self.bias + self.score_weight * x[0]
         z += sum(w * v for w, v in zip(self.class_weights.values(), x[1:], strict=True))
+        return min(max(z, -MAX_LOGIT), MAX_LOGIT)
+
+    def probability(self, sightings: Sequence[Sighting]) -> float | None:
+        """The probability that a person is there, or None without sightings."""
+        z = self.logit(sightings)
+        if z is None:
+            return None
         return 1.0 / (1.0 + math.exp(-z)) if z > -700 else 0.0
 
     def to_json(self) -> str:
