@@ -49,7 +49,9 @@ class Rig:
         port = free_udp_port()
         self.vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", self.mission).start()
         self.link = MavlinkLink(f"udpout:127.0.0.1:{port}")
-        self.outbox = Outbox(CommandSender(self.link, retries=2, ack_timeout_s=1.0))
+        # a generous ACK wait: on a loaded machine a re-send after a slow ACK reaches the
+        # vehicle as a second command and the counts below would be off
+        self.outbox = Outbox(CommandSender(self.link, retries=2, ack_timeout_s=5.0))
         self.store = AlertStore(tmp_path / "alerts.db")
         self.lines: list[str] = []
         self.clock = Clock()
@@ -134,6 +136,39 @@ def test_sixteen_alerts_in_ten_seconds_make_one_reposition_then_the_nearest(rig_
     delivered = [a for a in rig.store.list() if "mavlink_loiter" in a.delivered]
     assert sorted(a.target_id for a in delivered) == [1, 2, 3, 4, 5]
     assert any("visit plan: loiter to target" in line for line in rig.lines)
+
+
+def test_a_queued_visit_the_operator_overrules_is_withdrawn(rig_factory):
+    """Queued behind the first visit, one alert is dismissed by the operator and another's
+    confidence is rated below ``min_confidence`` by the operator's decisions on others: when
+    the next visit is due neither is flown to; the third is."""
+    rig = rig_factory(["loiter"], aircraft=at(40.0, 0.0), min_confidence=0.4)
+    rig.alert(1, 60.0, 0.0)  # flown to at once
+    rig.policy.tick()
+    rig.alert(2, 120.0, 0.0)  # dismissed later
+    rated = make_alert(3, tier="candidate", position=at(150.0, 0.0), error_m=3.0)
+    rig.store.add(rated)
+    rig.policy.announce(rig.store.promote(rated.alert_id, "held 3 s", None, 0.0))
+    assert rig.store.get(rated.alert_id).confidence == pytest.approx(0.5)
+    rig.alert(4, 180.0, 0.0)  # stays
+    rig.settle()
+    assert sorted(rig.policy.planner.pending) == [2, 3, 4]
+    rig.store.decide(rig.store.list()[1].alert_id, "dismissed", "ana")
+    for k in range(3):  # other rated alerts, all dismissed: the mission's level drops
+        other = make_alert(10 + k, tier="candidate")
+        rig.store.add(other)
+        rig.store.promote(other.alert_id, "held 3 s", None, 0.0)
+        rig.store.decide(other.alert_id, "dismissed", "ana")
+    assert rig.store.get(rated.alert_id).confidence < 0.4
+    rig.clock.t += 60.0
+    rig.settle()
+    first, second = rig.commands(M.MAV_CMD_DO_REPOSITION)
+    assert second.params[4:6] == pytest.approx([round(v * 1e7) for v in at(180.0, 0.0)], abs=1)
+    assert not rig.policy.planner.pending
+    withdrawn = [line for line in rig.lines if "visit withdrawn" in line]
+    assert len(withdrawn) == 2 and "dismissed by ana" in withdrawn[0]
+    assert "below the 40 % " in withdrawn[1]
+    assert "visits withdrawn (dismissed or rated down since): 2" in rig.policy.summary()
 
 
 def survey_items() -> list[MissionItem]:

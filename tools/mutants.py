@@ -1847,6 +1847,15 @@ MUTANTS: list[Mutant] = [
         "the aircraft is sent to debris an alert calls 5 % likely a person",
     ),
     Mutant(
+        "visits.overruled_flown",
+        "sarmission/mission/actions.py",
+        "        self._withdraw_overruled()\n",
+        "",
+        ("tests/test_actions_visits.py",),
+        "delivery",
+        "the aircraft flies to a queued target the operator dismissed a minute before",
+    ),
+    Mutant(
         "refinement.earlier_runs_forgotten",
         _CONTROLLER,
         "a.target_id: a for a in store.followed_alerts(self.mission_id)",

@@ -27,7 +27,9 @@ refined (:mod:`~sarmission.mission.refinement`), a visit still queued for it goe
 position (:meth:`ActionPolicy.refine`); nothing already sent is sent again. Positional actions are
 withheld, with the reason on the console, for a position whose error exceeds ``max_error_m`` or
 that lies more than ``area_margin_m`` outside the mission area
-(:class:`~sarmission.mission.visits.MoveGate`). Everything goes through the
+(:class:`~sarmission.mission.visits.MoveGate`). A queued visit is withdrawn when, by the time
+it is due, the operator has dismissed its alert or the gate refuses it as the store now has it
+(its confidence rated down by the operator's decisions). Everything goes through the
 :class:`~sarmission.mavlink.commands.Outbox`, which waits for each COMMAND_ACK with retries and
 keeps actions queued while the link is down. The store records what is known on each action's own
 channel (:data:`CHANNELS`): a command's answer (accepted, i.e. delivered, or refused with the
@@ -140,6 +142,7 @@ class ActionPolicy:
         self.visit_loiter_s = config.visit_loiter_s
         self._visit_alerts: dict[int, Alert] = {}  # target id -> its newest placed alert
         self.withheld = 0
+        self.withdrawn = 0  # queued visits the store overruled since (see _withdraw_overruled)
         self.acknowledged = 0
         self.refused = 0
         self.sent = 0
@@ -161,6 +164,11 @@ class ActionPolicy:
             + (
                 f", withheld (no bounded position in the area): {self.withheld}"
                 if self.withheld
+                else ""
+            )
+            + (
+                f", visits withdrawn (dismissed or rated down since): {self.withdrawn}"
+                if self.withdrawn
                 else ""
             )
             + (
@@ -235,6 +243,27 @@ class ActionPolicy:
         self.outbox.submit(ClearRoi(), key=_Key("", ROI_RELEASE, 0))
         return True
 
+    def _withdraw_overruled(self) -> None:
+        """Withdraw the queued visits whose alert the store now says not to fly to: dismissed
+        by the operator, or refused by the move gate as it stands (its confidence rated down
+        by the operator's decisions on other alerts) since it was queued."""
+        for target_id, queued in list(self._visit_alerts.items()):
+            current = self.store.get(queued.alert_id)
+            if current is None or target_id not in self.planner.pending:
+                continue
+            reason = (
+                f"dismissed by {current.decided_by}"
+                if current.dismissed
+                else self._move_refusal(current)
+            )
+            if reason:
+                del self.planner.pending[target_id]
+                del self._visit_alerts[target_id]
+                self.withdrawn += 1
+                self.console(
+                    f"  -> target {target_id} ({queued.short_id}): visit withdrawn: {reason}"
+                )
+
     def _move_refusal(self, alert: Alert) -> str:
         """Why the vehicle may not be sent to ``alert``'s position ("" when it may)."""
         if self.move_gate is None:
@@ -277,6 +306,9 @@ class ActionPolicy:
         """The next visit (``loiter``) or the whole pending plan (``mission``), when due."""
         entry = next((e for e in self.policy if e in _VISITS), None)
         if entry is None or not self.planner.pending or self.planner.seconds_to_next() > 0:
+            return
+        self._withdraw_overruled()
+        if not self.planner.pending:
             return
         here = self.aircraft_position()
         visits = (
