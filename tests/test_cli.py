@@ -355,8 +355,11 @@ def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: P
     args = parser.parse_args(["replay", "clip.mp4"])
     _, note = build_detector(args, load_mission_from_args(args))
     assert note.startswith("model: the shipped default")
-    # none shipped: fitted on the simulator it was wrong on held-out footage (docs/confidence.md)
-    assert "; alert confidence: none fitted for mitenet_head." in note
+    # shipped beside the maritime head, calibrated per mission (docs/confidence_adaptation.md)
+    assert note.endswith(
+        "; alert confidence: mitenet_head.confidence.json, its level learnt from the "
+        "operator's decisions"
+    )
 
 
 def test_a_mission_names_a_shipped_head_by_name(tmp_path: Path) -> None:

@@ -243,4 +243,6 @@ def confidence_of_head(head: object) -> HeadConfidence:
             f"{', '.join(model.classes)}, the head has {', '.join(classes)}",
             True,
         )
-    return HeadConfidence(model, f"alert confidence: {path.name}")
+    return HeadConfidence(
+        model, f"alert confidence: {path.name}, its level learnt from the operator's decisions"
+    )
