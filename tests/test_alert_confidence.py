@@ -190,7 +190,7 @@ def test_a_confirmation_stores_its_confidence(tmp_path: Path):
         low, mean, high = (confidence_percent(v) for v in (expected[1], expected[0], expected[2]))
         assert low < mean < high and high - low >= 20  # no decisions yet: a wide range
         line = format_alert(promotion.alert)
-        assert f"({mean} % likely a person ({low}-{high} %))" in line
+        assert f"({mean} % likely a person, between {low} and {high} %)" in line
         assert promotion.alert.statustext().split()[3] == f"{low}-{high}%"
 
 

@@ -118,7 +118,7 @@ def test_new_alert_shows_live_and_ack_button_works(
             store.promote(a.alert_id, "held 3 s", None, -2.0)
         waiting = f"document.querySelector('[data-alert-id=\"{rated[1].alert_id}\"]')"
         shown = store.get(rated[1].alert_id).format_confidence()
-        assert shown.endswith(" %)")  # e.g. "20 % likely a person (1-75 %)"
+        assert ", between " in shown  # e.g. "20 % likely a person, between 1 and 75 %"
         browser.wait_for(f"!!{waiting} && {waiting}.innerText.includes({shown!r})", timeout=5.0)
         assert browser.js(f"{waiting}.querySelector('.likely.wide') !== null") is True
         store.decide(rated[0].alert_id, "confirmed", "sam")

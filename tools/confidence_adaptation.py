@@ -227,9 +227,9 @@ def main() -> int:
         "",
         f"With the shipped prior (standard deviation {PRIOR_SD:g}), an alert whose 10-90 % "
         f"range is {100 * WIDE_RANGE:.0f} points or wider is shown with its range "
-        '("20 % likely a person (1-75 %)"), so that a number that is not yet known is not '
-        "read as one. How many were, and the calibration error of the alerts shown as one "
-        "number:",
+        '("20 % likely a person, between 1 and 75 %"), so that a number that is not yet '
+        "known is not read as one. How many were, and the calibration error of the alerts "
+        "shown as one number:",
         "",
         *ranges,
         "",

@@ -153,14 +153,14 @@ def is_wide(confidence_range: tuple[float, float] | None) -> bool:
 def format_confidence(
     confidence: float | None, confidence_range: tuple[float, float] | None = None
 ) -> str:
-    """``"35 % likely a person"``, with its range when wide (``"35 % likely a person
-    (4-75 %)"``), or ``""`` when unknown."""
+    """``"35 % likely a person"``, with its range when wide (``"35 % likely a person, between
+    4 and 75 %"``), or ``""`` when unknown."""
     if confidence is None:
         return ""
     text = f"{confidence_percent(confidence)} % likely a person"
     if is_wide(confidence_range):
         low, high = (confidence_percent(v) for v in confidence_range)
-        text += f" ({low}-{high} %)"
+        text += f", between {low} and {high} %"
     return text
 
 

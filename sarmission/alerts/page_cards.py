@@ -105,7 +105,7 @@ function render(a) {
     const range = a.confidence_range;
     const wide = range && range[1] - range[0] >= WIDE_RANGE;
     let text = pct(a.confidence) + " % likely a person";
-    if (wide) text += " (" + pct(range[0]) + "-" + pct(range[1]) + " %)";
+    if (wide) text += ", between " + pct(range[0]) + " and " + pct(range[1]) + " %";
     const low = (range ? pct(range[1]) : pct(a.confidence)) < 20;
     const likely = el("span", "likely" + (low ? " low" : "") + (wide ? " wide" : ""), text);
     likely.title = wide

@@ -253,7 +253,10 @@ def run(args: argparse.Namespace) -> int:
         figures = total.as_dict()
         print("\n".join(format_reliability(figures["candidate_reliability"], "track score")))
         if figures["alert_confidence_reliability"]["bins"]:
-            print("What an alert's confidence means (share with a person under it):")
+            print(
+                "What an alert's confidence means (share with a person under it; nobody decides "
+                "on the suite's alerts, so this is the confidence before any operator decision):"
+            )
             print(
                 "\n".join(format_reliability(figures["alert_confidence_reliability"], "confidence"))
             )
