@@ -53,6 +53,7 @@ def test_new_alert_shows_live_and_ack_button_works(
         assert browser.js("location.href") == feed.url + "/"
         assert browser.js("document.cookie") == ""
         assert browser.js("document.querySelectorAll('article.alert').length") == 2
+        assert browser.js("document.getElementById('taught').hidden") is True  # none rated
         browser.js("document.getElementById('operator').value = 'sam'")
 
         alert = make_alert(3, score=0.87, confidence=0.12)
@@ -121,10 +122,14 @@ def test_new_alert_shows_live_and_ack_button_works(
         assert ", between " in shown  # e.g. "20 % likely a person, between 1 and 75 %"
         browser.wait_for(f"!!{waiting} && {waiting}.innerText.includes({shown!r})", timeout=5.0)
         assert browser.js(f"{waiting}.querySelector('.likely.wide') !== null") is True
+        taught = "document.getElementById('taught')"
+        assert browser.js(f"{taught}.hidden") is False
+        assert "learnt from 0 of your decisions" in browser.js(f"{taught}.innerText")
         store.decide(rated[0].alert_id, "confirmed", "sam")
         again = store.get(rated[1].alert_id).format_confidence()
         assert again != shown
         browser.wait_for(f"{waiting}.innerText.includes({again!r})", timeout=5.0)
+        browser.wait_for(f"{taught}.innerText.includes('learnt from 1 of')", timeout=5.0)
 
 
 def test_page_without_the_token_is_refused_and_a_refused_stream_is_retried(

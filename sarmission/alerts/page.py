@@ -21,7 +21,9 @@ _BODY = """<body data-live="0">
   <div class="status"><span class="dot"></span><span id="status">connecting</span></div>
   <div class="counts"><span id="total">0</span> alerts &middot;
     <span class="unacked"><span id="unacked">0</span> unacknowledged</span> &middot;
-    <span class="review"><span id="review">0</span> to review</span></div>
+    <span class="review"><span id="review">0</span> to review</span>
+    <span id="taught" hidden>&middot; confidence learnt from <span id="decisions">0</span>
+      of your decisions</span></div>
   <label>Operator <input id="operator" autocomplete="off" placeholder="your name"></label>
   <label class="toggle"><input type="checkbox" id="show-discarded"> show discarded</label>
   <nav>

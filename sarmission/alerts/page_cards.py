@@ -232,9 +232,25 @@ function counts() {
   document.getElementById("total").textContent = total;
   document.getElementById("unacked").textContent = unacked;
   document.getElementById("review").textContent = review;
+  taught();
   document.getElementById("empty").hidden = alerts.size > 0;
   const n = unacked + review;
   document.title = (n ? "(" + n + ") " : "") + "SAR alerts";
+}
+function taught() {  // the decisions the newest mission's confidence has learnt from
+  let newest = null;
+  for (const v of alerts.values()) {
+    if (!newest || v.alert.lock_time > newest.lock_time) newest = v.alert;
+  }
+  let rated = 0, decided = 0;
+  for (const v of alerts.values()) {
+    const a = v.alert;
+    if (a.mission_id !== newest.mission_id || a.evidence_logit == null) continue;
+    rated++;
+    if (a.decision) decided++;
+  }
+  document.getElementById("taught").hidden = rated === 0;
+  document.getElementById("decisions").textContent = decided;
 }
 function select(id, fromMap) {
   mapView.selected = id;
