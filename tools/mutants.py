@@ -1526,8 +1526,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "candidates.verdict_on_wall_clock",
         _CANDIDATES,
-        "stored = self.store.promote(alert.alert_id, found.summary(), when, likely)",
-        "stored = self.store.promote(alert.alert_id, found.summary(), None, likely)",
+        "stored = self.store.promote(alert.alert_id, found.summary(), when, evidence_logit)",
+        "stored = self.store.promote(alert.alert_id, found.summary(), None, evidence_logit)",
         ("tests/test_controller_tiers.py",),
         "delivery",
         "a replay's confirmation is stamped with the wall clock, not the footage's time",
