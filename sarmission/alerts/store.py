@@ -704,7 +704,11 @@ class AlertStore:
                 return None
             changed = state.tier != "confirmed"
             if changed:
-                rated = (None,) * 3 if z is None else self._belief(conn, alert_id).rate(z)
+                rated = (
+                    (None,) * 3
+                    if z is None
+                    else self._mission_belief(conn, state.mission_id).rate(z)
+                )
                 conn.execute(
                     "UPDATE alerts SET tier = 'confirmed', evidence = ?, confirmed_at = ?, "
                     "confidence = ?, confidence_low = ?, confidence_high = ?, "
@@ -793,7 +797,7 @@ class AlertStore:
                         conn, "confirmed", alert_id, by=name, detail=f"confirmed by operator {name}"
                     )
                 if state.evidence_logit is not None:
-                    self._rerate(conn, alert_id)
+                    self._rerate(conn, state.mission_id)
         if changed:
             self._notify()
         alert = self.get(alert_id)
@@ -817,21 +821,13 @@ class AlertStore:
         ).fetchall()
         return OffsetBelief((z, decision == "confirmed") for z, decision in rows)
 
-    def _belief(self, conn: sqlite3.Connection, alert_id: str) -> OffsetBelief:
-        """The belief of the mission ``alert_id`` belongs to."""
-        (mission_id,) = conn.execute(
-            "SELECT mission_id FROM alerts WHERE alert_id = ?", (alert_id,)
-        ).fetchone()
-        return self._mission_belief(conn, mission_id)
-
-    def _rerate(self, conn: sqlite3.Connection, alert_id: str) -> None:
-        """Rate again the undecided rated alerts of ``alert_id``'s mission."""
-        belief = self._belief(conn, alert_id)
+    def _rerate(self, conn: sqlite3.Connection, mission_id: str) -> None:
+        """Rate again the undecided rated alerts of ``mission_id``."""
+        belief = self._mission_belief(conn, mission_id)
         rows = conn.execute(
-            "SELECT alert_id, evidence_logit, confidence FROM alerts WHERE mission_id = "
-            "(SELECT mission_id FROM alerts WHERE alert_id = ?) AND evidence_logit IS NOT NULL "
-            "AND decision IS NULL ORDER BY seq",
-            (alert_id,),
+            "SELECT alert_id, evidence_logit, confidence FROM alerts WHERE mission_id = ? "
+            "AND evidence_logit IS NOT NULL AND decision IS NULL ORDER BY seq",
+            (mission_id,),
         ).fetchall()
         for other, z, before in rows:
             rated = belief.rate(z)
@@ -929,10 +925,11 @@ class AlertStore:
     # ------------------------------------------------------------------ helpers
 
     def _state(self, conn: sqlite3.Connection, alert_id: str) -> _TierState:
-        """The alert's tier, discard reason, decision and evidence log-odds, read inside a write
-        transaction. Unknown id: KeyError."""
+        """The alert's tier, discard reason, decision, evidence log-odds and mission, read inside
+        a write transaction. Unknown id: KeyError."""
         row = conn.execute(
-            "SELECT tier, discarded, decision, evidence_logit FROM alerts WHERE alert_id = ?",
+            "SELECT tier, discarded, decision, evidence_logit, mission_id FROM alerts "
+            "WHERE alert_id = ?",
             (alert_id,),
         ).fetchone()
         if row is None:
@@ -1225,6 +1222,7 @@ class _TierState(NamedTuple):
     discarded: str | None
     decision: str | None
     evidence_logit: float | None
+    mission_id: str
 
 
 def _finite_time(when: float | None) -> float:

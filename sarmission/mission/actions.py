@@ -196,10 +196,8 @@ class ActionPolicy:
             return False
         refusal = self._move_refusal(alert)
         if refusal:
-            del self.planner.pending[target_id]
-            self._visit_alerts.pop(target_id, None)
+            self._withdraw_visit(target_id, alert.short_id, refusal)
             self.withheld += 1
-            self.console(f"  -> target {target_id} ({alert.short_id}): visit withdrawn: {refusal}")
             return True
         self.planner.add(target_id, alert.position)
         self._visit_alerts[target_id] = alert
@@ -257,12 +255,14 @@ class ActionPolicy:
                 else self._move_refusal(current)
             )
             if reason:
-                del self.planner.pending[target_id]
-                del self._visit_alerts[target_id]
+                self._withdraw_visit(target_id, queued.short_id, reason)
                 self.withdrawn += 1
-                self.console(
-                    f"  -> target {target_id} ({queued.short_id}): visit withdrawn: {reason}"
-                )
+
+    def _withdraw_visit(self, target_id: int, short_id: str, reason: str) -> None:
+        """Take ``target_id``'s queued visit out of the plan, saying why on the console."""
+        del self.planner.pending[target_id]
+        self._visit_alerts.pop(target_id, None)
+        self.console(f"  -> target {target_id} ({short_id}): visit withdrawn: {reason}")
 
     def _move_refusal(self, alert: Alert) -> str:
         """Why the vehicle may not be sent to ``alert``'s position ("" when it may)."""
