@@ -127,6 +127,8 @@ SHIPPED_SEED = 1
 #: The training seed of the shipped land head: of three seeds of ``--land-presets wild``, the
 #: one with the best validation F2 (0.583 against 0.562 and 0.558; docs/land_head.md).
 SHIPPED_LAND_SEED = 2
+#: With ``--average``: the training seed of the land head with the alternative world's land.
+SHIPPED_LAND_ALTWORLD_SEED = 0
 TRAIN_ARGS = [
     "--epochs",
     "30",
@@ -348,6 +350,19 @@ def main() -> int:
         "(the shipped land head's recipe) or the urban land alone (default: wild)",
     )
     parser.add_argument(
+        "--average",
+        action="store_true",
+        help="land head: the mean of the land recipe's head (--seed) and the same recipe's "
+        "with the alternative world's land (--altworld-seed)",
+    )
+    parser.add_argument(
+        "--altworld-seed",
+        type=int,
+        default=SHIPPED_LAND_ALTWORLD_SEED,
+        help="with --average: the training seed of the head with the alternative world's land "
+        f"(default {SHIPPED_LAND_ALTWORLD_SEED})",
+    )
+    parser.add_argument(
         "--from-scratch",
         action="store_true",
         help="land head: start from random weights instead of the maritime head's",
@@ -380,21 +395,61 @@ def main() -> int:
 
 
 def train_land(args: argparse.Namespace, extra: list[str]) -> int:
-    """Render and train a land head into ``--work`` (module docstring)."""
+    """Render and train a land head into ``--work`` (module docstring); with ``--average``,
+    the mean of the land recipe's head and the head of the same recipe with the alternative
+    world's land."""
+    if args.average:
+        if args.altworld or args.from_scratch or args.land_presets != "wild":
+            print(
+                "--average takes neither --altworld, --from-scratch nor --land-presets",
+                file=sys.stderr,
+            )
+            return 2
+        return train_land_average(args, extra)
+    out, code = train_land_head(args, extra, args.altworld, args.seed)
+    if code or args.no_install or args.from_scratch:
+        return code
+    install(out, shipped_checkpoint("land"))
+    return 0
+
+
+def train_land_head(
+    args: argparse.Namespace, extra: list[str], altworld: bool, seed: int, reuse: bool = False
+) -> tuple[Path, int]:
+    """Train one land head (``altworld``: with the alternative world's land) with ``seed``
+    into ``--work`` (``reuse``: unless it is there); returns its checkpoint and the exit
+    code."""
     train = render_land_training_set(args.work, args.land_presets)
-    if args.altworld:  # its land only, people as the land head's ``person``
+    if altworld:  # its land only, people as the land head's ``person``
         train = add_altworld(args.work, train, ("land",), {})
     val = render_heldout_val(args.work, LAND_VAL, rename={}, name="heldout_land_val")
     stem = "mitenet_land_head" + ("_scratch" if args.from_scratch else "")
     stem += "" if args.land_presets == "urban" else f"_{args.land_presets}"
-    stem += "_altworld" if args.altworld else ""
-    stem += "" if args.seed == 0 else f"_seed{args.seed}"
+    stem += "_altworld" if altworld else ""
+    stem += "" if seed == 0 else f"_seed{seed}"
     recipe = LAND_ARGS + ([] if args.from_scratch else LAND_INIT_ARGS)
     out = args.work / f"{stem}.pt"
-    code = train_head(train, val, out, recipe, args.seed, extra)
-    if code or args.no_install or args.from_scratch:
+    if reuse and out.is_file():
+        print(f"reusing {out}")
+        return out, 0
+    return out, train_head(train, val, out, recipe, seed, extra)
+
+
+def train_land_average(args: argparse.Namespace, extra: list[str]) -> int:
+    """The averaged land head (module docstring): the land recipe with ``--seed`` and the
+    same recipe with the alternative world's land with ``--altworld-seed``, each trained
+    unless ``--work`` holds it, averaged with equal weights, exported and installed."""
+    heads = []
+    for altworld, seed in ((False, args.seed), (True, args.altworld_seed)):
+        out, code = train_land_head(args, extra, altworld, seed, reuse=True)
+        if code:
+            return code
+        heads.append(out)
+    out = args.work / f"mitenet_land_head_average_seed{args.seed}_alt{args.altworld_seed}.onnx"
+    code = sarmission(["export", "--average", *map(str, heads), "--out", str(out)])
+    if code or args.no_install:
         return code
-    install(out, shipped_checkpoint("land"))
+    install(out.with_suffix(".pt"), shipped_checkpoint("land"))
     return 0
 
 

@@ -1,8 +1,13 @@
-"""``sarmission export``: write the head as ONNX (opset 17, variable number of proposals)."""
+"""``sarmission export``: write the head as ONNX (opset 17, variable number of proposals).
+
+``--average A.pt B.pt`` exports the weighted mean of several heads' weights instead
+(:mod:`sarmission.training.average`) and writes its ``.pt`` beside the ONNX file.
+"""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -18,9 +23,37 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="torch weights (.pt) or a shipped head's name (maritime, land); default: maritime",
     )
+    parser.add_argument(
+        "--average",
+        nargs="+",
+        type=Path,
+        default=None,
+        metavar="HEAD.pt",
+        help="export the weighted mean of these heads' weights (two or more .pt files of one "
+        "architecture and class list, fine-tuned from one head) instead of --model; the "
+        "averaged .pt is written beside --out",
+    )
+    parser.add_argument(
+        "--weights",
+        default=None,
+        help="with --average: one weight per head, comma-separated (default: equal)",
+    )
     parser.add_argument("--out", default="mitenet_head.onnx", help="ONNX file to write")
     parser.add_argument("--opset", type=int, default=17)
     parser.set_defaults(func=run)
+
+
+def _weights(text: str | None) -> list[float] | None:
+    """``--weights`` as numbers (``ValueError`` naming the bad one)."""
+    if text is None:
+        return None
+    values = []
+    for part in text.split(","):
+        try:
+            values.append(float(part))
+        except ValueError:
+            raise ValueError(f"--weights: {part.strip()!r} is not a number") from None
+    return values
 
 
 def run(args: argparse.Namespace) -> int:
@@ -28,9 +61,25 @@ def run(args: argparse.Namespace) -> int:
     from sarmission.models import default_model_path, is_head_name, shipped_head_path
     from sarmission.perception.export import export_head_onnx
 
-    model = args.model or default_model_path("torch")
-    if is_head_name(model):
-        model = shipped_head_path(model, "torch")
+    if args.weights is not None and args.average is None:
+        raise ValueError("--weights needs --average")
+    if args.average is not None:
+        from sarmission.perception.runtime import save_head_checkpoint
+        from sarmission.training.average import average_heads
+
+        if args.model is not None:
+            raise ValueError("--model and --average exclude each other")
+        model = save_head_checkpoint(
+            average_heads(args.average, _weights(args.weights)), Path(args.out).with_suffix(".pt")
+        )
+        print(f"wrote {model}: the mean of {len(args.average)} heads")
+    else:
+        model = args.model or default_model_path("torch")
+        if is_head_name(model):
+            model = shipped_head_path(model, "torch")
     report = export_head_onnx(model, args.out, opset=args.opset)
-    print(f"wrote {args.out}: {report}")
+    print(
+        f"wrote {report.path}: {report.num_parameters:,} parameters, opset {report.opset}, "
+        f"max |onnx - torch| {report.max_abs_diff:.2e}"
+    )
     return 0
