@@ -1865,4 +1865,22 @@ MUTANTS: list[Mutant] = [
         "after a restart an earlier run's alert stays where its target was, however far it "
         "drifts while seen again",
     ),
+    Mutant(
+        "average.weights_not_normalised",
+        "sarmission/training/average.py",
+        "(w / total) * s[key].double() for w, s in zip(weights, states, strict=True)",
+        "w * s[key].double() for w, s in zip(weights, states, strict=True)",
+        ("tests/test_average_heads.py",),
+        "metric",
+        "an averaged head's weights are the sum, not the mean: a head that scores nothing right",
+    ),
+    Mutant(
+        "average.other_classes_mixed",
+        "sarmission/training/average.py",
+        "if head.config != first.config:",
+        "if head.config.widths != first.config.widths:",
+        ("tests/test_average_heads.py",),
+        "metric",
+        "a swimmer head's rows averaged into a person head's: each class scores the other",
+    ),
 ]
