@@ -171,6 +171,41 @@ def test_a_queued_visit_the_operator_overrules_is_withdrawn(rig_factory):
     assert "visits withdrawn (dismissed or rated down since): 2" in rig.policy.summary()
 
 
+def test_a_visit_withheld_as_too_unlikely_goes_once_rated_up(rig_factory):
+    """``min_confidence`` 0.6: two targets rated 50 % likely are not flown to. The operator
+    confirms other alerts of the mission, which rates both up, then dismisses one of the two:
+    only the other is queued (at the next check) and flown to."""
+    rig = rig_factory(["loiter"], aircraft=at(40.0, 0.0), min_confidence=0.6)
+    held = []
+    for target_id, north in ((1, 120.0), (2, 200.0)):
+        alert = make_alert(target_id, tier="candidate", position=at(north, 0.0), error_m=3.0)
+        rig.store.add(alert)
+        rig.policy.announce(rig.store.promote(alert.alert_id, "held 3 s", None, 0.0))
+        held.append(alert.alert_id)
+    rig.settle()
+    assert not rig.commands(M.MAV_CMD_DO_REPOSITION) and not rig.policy.planner.pending
+    assert rig.policy.withheld == 2
+    for k in range(3):  # other rated alerts, all people: the mission's level rises
+        other = make_alert(10 + k, tier="candidate")
+        rig.store.add(other)
+        rig.store.promote(other.alert_id, "held 3 s", None, 0.0)
+        rig.store.decide(other.alert_id, "confirmed", "ana")
+    assert rig.store.get(held[0]).confidence > 0.6
+    assert rig.store.decide(held[1], "dismissed", "ana").confidence > 0.6
+    rig.clock.t += 0.5  # the store is read at most every RATED_UP_CHECK_S
+    rig.policy.tick()
+    assert not rig.policy.planner.pending
+    rig.clock.t += 1.0
+    rig.settle()
+    (visit,) = rig.commands(M.MAV_CMD_DO_REPOSITION)
+    assert visit.params[4:6] == pytest.approx([round(v * 1e7) for v in at(120.0, 0.0)], abs=1)
+    queued = [line for line in rig.lines if "visit queued: rated up to" in line]
+    assert len(queued) == 1 and "target 1 " in queued[0]
+    rig.clock.t += 120.0
+    rig.settle()
+    assert len(rig.commands(M.MAV_CMD_DO_REPOSITION)) == 1  # the dismissed one never goes
+
+
 def survey_items() -> list[MissionItem]:
     """The pilot's mission on the vehicle: home, speed, a 4-corner box, DO_JUMP back to 2."""
     wire = [

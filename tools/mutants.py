@@ -1883,4 +1883,23 @@ MUTANTS: list[Mutant] = [
         "metric",
         "a swimmer head's rows averaged into a person head's: each class scores the other",
     ),
+    Mutant(
+        "visits.rated_up_never_queued",
+        "sarmission/mission/actions.py",
+        "        self._queue_rated_up()",
+        "        pass",
+        ("tests/test_actions_visits.py",),
+        "delivery",
+        "a target withheld as too unlikely stays unvisited after the operator's decisions "
+        "rate it likely",
+    ),
+    Mutant(
+        "visits.rated_up_dismissed_flown",
+        "sarmission/mission/actions.py",
+        "if current is None or current.dismissed or current.position is None:",
+        "if current is None or current.position is None:",
+        ("tests/test_actions_visits.py",),
+        "delivery",
+        "a target the operator dismissed is flown to once its confidence is rated up",
+    ),
 ]

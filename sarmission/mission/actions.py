@@ -29,7 +29,10 @@ withheld, with the reason on the console, for a position whose error exceeds ``m
 that lies more than ``area_margin_m`` outside the mission area
 (:class:`~sarmission.mission.visits.MoveGate`). A queued visit is withdrawn when, by the time
 it is due, the operator has dismissed its alert or the gate refuses it as the store now has it
-(its confidence rated down by the operator's decisions). Everything goes through the
+(its confidence rated down by the operator's decisions); a visit withheld only because its
+target was too unlikely a person is queued once the operator's decisions on other alerts rate
+it up to ``min_confidence`` (checked every :data:`RATED_UP_CHECK_S`), unless it was dismissed.
+Everything goes through the
 :class:`~sarmission.mavlink.commands.Outbox`, which waits for each COMMAND_ACK with retries and
 keeps actions queued while the link is down. The store records what is known on each action's own
 channel (:data:`CHANNELS`): a command's answer (accepted, i.e. delivered, or refused with the
@@ -43,6 +46,7 @@ re-submitted: flying to an older target first would only delay the newest order.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -74,6 +78,8 @@ CHANNELS: dict[str, str] = {
 }
 _POSITIONAL = ("loiter", "roi", "mission")
 _VISITS = ("loiter", "mission")
+#: How often (seconds) visits withheld for their confidence are checked against the store.
+RATED_UP_CHECK_S = 1.0
 #: Outbox key channel of the camera release (not an alert delivery: nothing is stored).
 ROI_RELEASE = "roi_release"
 __all__ = ["CHANNELS", "ROI_RELEASE", "ROI_SETTLE_S", "ActionPolicy", "ascii_statustext"]
@@ -141,6 +147,8 @@ class ActionPolicy:
         )
         self.visit_loiter_s = config.visit_loiter_s
         self._visit_alerts: dict[int, Alert] = {}  # target id -> its newest placed alert
+        self._too_unlikely: dict[int, Alert] = {}  # target id -> visit withheld for confidence
+        self._rated_up_checked = -math.inf
         self.withheld = 0
         self.withdrawn = 0  # queued visits the store overruled since (see _withdraw_overruled)
         self.acknowledged = 0
@@ -292,20 +300,53 @@ class ActionPolicy:
             self.console(
                 f"  -> target {alert.target_id} ({alert.short_id}): {entry} withheld: {refusal}"
             )
+            if entry in _VISITS and self._too_unlikely_alone(alert):
+                self._too_unlikely[alert.target_id] = alert
             return False
         if entry == "roi":
             lat, lon = alert.position
             self.outbox.submit(SetRoi(lat, lon, self.target_altitude_m), key=key)
             return True
+        self._too_unlikely.pop(alert.target_id, None)
         if not self.planner.add(alert.target_id, alert.position):
             return False  # visited already
         self._visit_alerts[alert.target_id] = alert
         return True
 
+    def _too_unlikely_alone(self, alert: Alert) -> bool:
+        """Whether the move gate refuses ``alert`` for its confidence alone (its position
+        would do)."""
+        return self.move_gate is not None and not self.move_gate.refusal(
+            alert.position, alert.error_m
+        )
+
+    def _queue_rated_up(self) -> None:
+        """Queue the visits withheld for their target's confidence that the store now rates
+        likely enough (the operator's decisions on other alerts); forget the dismissed ones."""
+        now = self.clock()
+        if not self._too_unlikely or now - self._rated_up_checked < RATED_UP_CHECK_S:
+            return
+        self._rated_up_checked = now
+        for target_id, withheld in list(self._too_unlikely.items()):
+            current = self.store.get(withheld.alert_id)
+            if current is None or current.dismissed or current.position is None:
+                del self._too_unlikely[target_id]
+            elif not self._move_refusal(current):
+                del self._too_unlikely[target_id]
+                if self.planner.add(target_id, current.position):
+                    self._visit_alerts[target_id] = current
+                    self.console(
+                        f"  -> target {target_id} ({current.short_id}): visit queued: "
+                        f"rated up to {current.format_confidence()}"
+                    )
+
     def _dispatch_visits(self) -> None:
         """The next visit (``loiter``) or the whole pending plan (``mission``), when due."""
         entry = next((e for e in self.policy if e in _VISITS), None)
-        if entry is None or not self.planner.pending or self.planner.seconds_to_next() > 0:
+        if entry is None:
+            return
+        self._queue_rated_up()
+        if not self.planner.pending or self.planner.seconds_to_next() > 0:
             return
         self._withdraw_overruled()
         if not self.planner.pending:

@@ -200,7 +200,8 @@ class ActionsConfig:
     ``min_confidence`` above 0 they also go only to targets at least that likely to be a person
     (:mod:`sarmission.mission.confidence`; an alert without a confidence, e.g. one an operator
     confirmed, is not held back): the aircraft is not sent to debris the head called a
-    swimmer."""
+    swimmer. A target held back is visited once the operator's decisions rate it likely
+    enough."""
 
     policy: list[str] = field(default_factory=lambda: ["alert"])
     retries: int = 3
