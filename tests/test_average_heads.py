@@ -128,14 +128,13 @@ def test_export_weights_without_average_is_refused(tmp_path, capsys):
     assert "--weights needs --average" in capsys.readouterr().err
 
 
-def test_the_land_recipe_averages_the_two_heads_it_trains_and_installs_the_mean(
-    tmp_path, monkeypatch
-):
+def test_the_land_recipe_averages_the_two_heads_it_trains(tmp_path, monkeypatch):
     """``tools/train_default_model.py --head land --average``: the land recipe's head and
-    the head with the alternative world's land, each with its own seed, averaged and installed
-    (training stubbed here: its heads are written at random)."""
+    the head with the alternative world's land, each with its own seed, averaged into
+    ``--work`` and never installed (training stubbed here: its heads are written at random)."""
     tool = load_tool("train_default_model")
     trained = []
+    states = {}
 
     def fake_train(args, extra, altworld, seed, reuse=False):
         out = tmp_path / f"head_alt{int(altworld)}_seed{seed}.pt"
@@ -143,18 +142,20 @@ def test_the_land_recipe_averages_the_two_heads_it_trains_and_installs_the_mean(
         states[altworld] = _head(out, 10 * seed + altworld)
         return out, 0
 
-    states = {}
     monkeypatch.setattr(tool, "train_land_head", fake_train)
-    monkeypatch.setattr(tool, "shipped_checkpoint", lambda name: tmp_path / "pkg" / "land.pt")
-    (tmp_path / "pkg").mkdir()
+    installed = []
+    monkeypatch.setattr(tool, "install", lambda *paths: installed.append(paths))
+    work = tmp_path / "work"
+    work.mkdir()
     argv = ["x", "--head", "land", "--average", "--seed", "2", "--altworld-seed", "1"]
-    monkeypatch.setattr("sys.argv", [*argv, "--work", str(tmp_path / "work")])
+    monkeypatch.setattr("sys.argv", [*argv, "--work", str(work)])
     assert tool.main() == 0
     assert trained == [(False, 2, True), (True, 1, True)]
-    installed = load_head_checkpoint(tmp_path / "pkg" / "land.pt").state_dict()
+    assert not installed
+    mean_head = load_head_checkpoint(work / "mitenet_land_head_average_seed2_alt1.pt")
     key = "cls_branch.fc.2.weight"
     mean = (states[False][key] + states[True][key]) / 2
-    assert torch.allclose(installed[key], mean, atol=1e-6)
-    assert (tmp_path / "pkg" / "land.onnx").is_file()
-    monkeypatch.setattr("sys.argv", [*argv, "--altworld", "--work", str(tmp_path / "work")])
+    assert torch.allclose(mean_head.state_dict()[key], mean, atol=1e-6)
+    assert (work / "mitenet_land_head_average_seed2_alt1.onnx").is_file()
+    monkeypatch.setattr("sys.argv", [*argv, "--altworld", "--work", str(work)])
     assert tool.main() == 2

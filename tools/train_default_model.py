@@ -41,12 +41,12 @@ before the wild land presets existed) and picks its epoch on the held-out land v
 clips, people scored as ``person``; seed :data:`SHIPPED_LAND_SEED` by default (docs/land_head.md);
 ``--from-scratch`` starts from random weights (never installed); ``--average`` trains the land
 recipe (``--seed``) and the same with the alternative world's land (``--altworld-seed``) and
-installs the mean of their weights (``sarmission export --average``; tried and not shipped,
-docs/land_head.md)::
+writes the mean of their weights into ``--work`` (``sarmission export --average``; tried and
+not shipped, docs/land_head.md; never installed)::
 
     python tools/train_default_model.py --head land     # about 8 minutes on 2 CPU cores
     python tools/train_default_model.py --head land --land-presets urban --seed 0 --no-install
-    python tools/train_default_model.py --head land --average --no-install
+    python tools/train_default_model.py --head land --average
 
 The rendered data (several GB of 4K video) stays in ``--work``; only the two small model files
 are copied into the package.
@@ -442,7 +442,8 @@ def train_land_head(
 def train_land_average(args: argparse.Namespace, extra: list[str]) -> int:
     """The averaged land head (module docstring): the land recipe with ``--seed`` and the
     same recipe with the alternative world's land with ``--altworld-seed``, each trained
-    unless ``--work`` holds it, averaged with equal weights, exported and installed."""
+    unless ``--work`` holds it, averaged with equal weights and exported into ``--work``
+    (never installed: not the shipped recipe)."""
     heads = []
     for altworld, seed in ((False, args.seed), (True, args.altworld_seed)):
         out, code = train_land_head(args, extra, altworld, seed, reuse=True)
@@ -450,11 +451,7 @@ def train_land_average(args: argparse.Namespace, extra: list[str]) -> int:
             return code
         heads.append(out)
     out = args.work / f"mitenet_land_head_average_seed{args.seed}_alt{args.altworld_seed}.onnx"
-    code = sarmission(["export", "--average", *map(str, heads), "--out", str(out)])
-    if code or args.no_install:
-        return code
-    install(out.with_suffix(".pt"), shipped_checkpoint("land"))
-    return 0
+    return sarmission(["export", "--average", *map(str, heads), "--out", str(out)])
 
 
 def install(trained: Path, shipped_pt: Path) -> None:
