@@ -307,9 +307,14 @@ class ActionPolicy:
             lat, lon = alert.position
             self.outbox.submit(SetRoi(lat, lon, self.target_altitude_m), key=key)
             return True
+        return self._queue_visit(alert)
+
+    def _queue_visit(self, alert: Alert) -> bool:
+        """Put ``alert``'s target (placed, past the move gate) in the visit plan; False when
+        it was visited already."""
         self._too_unlikely.pop(alert.target_id, None)
         if not self.planner.add(alert.target_id, alert.position):
-            return False  # visited already
+            return False
         self._visit_alerts[alert.target_id] = alert
         return True
 
@@ -332,9 +337,7 @@ class ActionPolicy:
             if current is None or current.dismissed or current.position is None:
                 del self._too_unlikely[target_id]
             elif not self._move_refusal(current):
-                del self._too_unlikely[target_id]
-                if self.planner.add(target_id, current.position):
-                    self._visit_alerts[target_id] = current
+                if self._queue_visit(current):
                     self.console(
                         f"  -> target {target_id} ({current.short_id}): visit queued: "
                         f"rated up to {current.format_confidence()}"
