@@ -15,6 +15,7 @@ from conftest import free_udp_port
 from motion_scenes import moving_target, to_bgr
 
 from sarmission.cli import build_parser, main
+from sarmission.errors import SarmissionError
 from sarmission.perception.head import MiteHead
 from sarmission.perception.runtime import save_head_checkpoint
 
@@ -318,6 +319,40 @@ def test_recentring_comes_from_the_mission_file_or_the_command_line(tmp_path: Pa
     assert build_mitenet(parser.parse_args(["detect", "clip.mp4"])).recentre is False
     assert build_mitenet(parser.parse_args(["detect", "clip.mp4", "--recentre"])).recentre is True
     assert parser.parse_args(["eval", "--annotations", "a.json", "--recentre"]).recentre is True
+
+
+def test_orientations_come_from_the_mission_file_or_the_command_line(tmp_path: Path) -> None:
+    """[detector] orientations reaches the detector and --orientations overrides it; 1 (a
+    single look) is the built-in default; counts other than 1, 4, 8 are refused in one line."""
+    from sarmission.commands.detector_options import build_mitenet
+    from sarmission.commands.mission_options import build_detector, load_mission_from_args
+
+    parser = build_parser()
+    plain = parser.parse_args(["replay", "clip.mp4"])
+    assert build_detector(plain, load_mission_from_args(plain))[0].orientations == 1
+    mission_file = tmp_path / "m.toml"
+    mission_file.write_text("[detector]\norientations = 8\n")
+    from_file = parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+    assert build_detector(from_file, load_mission_from_args(from_file))[0].orientations == 8
+    cli = parser.parse_args(
+        ["replay", "clip.mp4", "--mission", str(mission_file), "--orientations", "4"]
+    )
+    assert build_detector(cli, load_mission_from_args(cli))[0].orientations == 4
+    assert (
+        build_mitenet(parser.parse_args(["detect", "clip.mp4", "--orientations", "8"])).orientations
+        == 8
+    )
+    assert (
+        parser.parse_args(["eval", "--annotations", "a.json", "--orientations", "4"]).orientations
+        == 4
+    )
+    mission_file.write_text("[detector]\norientations = 3\n")
+    with pytest.raises(SarmissionError, match="orientations: expected one of 1, 4, 8"):
+        load_mission_from_args(
+            parser.parse_args(["replay", "clip.mp4", "--mission", str(mission_file)])
+        )
+    with pytest.raises(SystemExit):
+        parser.parse_args(["detect", "clip.mp4", "--orientations", "2"])
 
 
 def test_the_mission_file_chooses_the_head_and_the_command_line_wins(tmp_path: Path) -> None:

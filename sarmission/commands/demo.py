@@ -113,6 +113,7 @@ def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -
             "detector.crop_scales": list(args.crop_scales),
             "detector.refine_threshold": args.refine_threshold,
             "detector.recentre": args.recentre,
+            "detector.orientations": args.orientations,
             "detector.score_threshold": args.conf,
         }
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from sarmission.perception.orientations import ORIENTATION_COUNTS
 from sarmission.perception.types import (
     DEFAULT_COLOUR_SHARE,
     DEFAULT_CROP_SCALES,
@@ -22,7 +23,7 @@ DEFAULT_SCORE_THRESHOLD = 0.3
 
 def add_detector_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--model --runtime --ds --topn --colour-share --crop-scales --refine-threshold
-    --recentre --ego-motion --conf`` to ``parser``."""
+    --recentre --orientations --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument(
         "--model",
@@ -71,6 +72,15 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
         "keep that crop's score and box (docs/recentring.md; default: off)",
     )
     group.add_argument(
+        "--orientations",
+        type=int,
+        choices=ORIENTATION_COUNTS,
+        default=1,
+        help="score each would-be detection in this many orientations (quarter turns, "
+        "mirrors) and average: 4 or 8 cost up to that many head passes "
+        "(docs/experiments.md; default: 1)",
+    )
+    group.add_argument(
         "--ego-motion",
         choices=("estimate", "none"),
         default="estimate",
@@ -107,6 +117,7 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
         crop_scales=args.crop_scales,
         refine_threshold=args.refine_threshold,
         recentre=args.recentre,
+        orientations=args.orientations,
     )
 
 

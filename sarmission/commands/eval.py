@@ -224,6 +224,7 @@ def run(args: argparse.Namespace) -> int:
             crop_scales=args.crop_scales,
             refine_threshold=args.refine_threshold,
             recentre=args.recentre,
+            orientations=args.orientations,
             **metric_options,
         )
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
@@ -278,6 +279,7 @@ def _evaluate_model(
         crop_scales=args.crop_scales,
         refine_threshold=args.refine_threshold,
         recentre=args.recentre,
+        orientations=args.orientations,
     )
     person_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
@@ -303,6 +305,7 @@ def _evaluate_model(
             "crop_scales": list(args.crop_scales),
             "refine_threshold": net.refine_threshold,
             "recentre": net.recentre,
+            "orientations": net.orientations,
             "conf": args.conf,
             "frames": len(run.frame_ms),
             "skipped_frames": run.skipped,
@@ -324,6 +327,11 @@ def _format_detector(detector: dict[str, Any]) -> str:
             else ""
         )
         + (", recentred" if detector["recentre"] else "")
+        + (
+            f", {detector['orientations']} orientations"
+            if detector.get("orientations", 1) > 1
+            else ""
+        )
         + f", conf={detector['conf']:g}; {detector['frames']} frames"
         + (f" ({skipped} unreadable, skipped)" if skipped else "")
         + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)"

@@ -56,13 +56,14 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
         crop_scales=None,
         refine_threshold=None,
         recentre=None,
+        orientations=None,
         conf=None,
     )
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
     """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/
-    --crop-scales/--refine-threshold/--recentre/--conf`` on top."""
+    --crop-scales/--refine-threshold/--recentre/--orientations/--conf`` on top."""
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
@@ -73,6 +74,7 @@ def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
         ("crop_scales", "detector.crop_scales"),
         ("refine_threshold", "detector.refine_threshold"),
         ("recentre", "detector.recentre"),
+        ("orientations", "detector.orientations"),
         ("conf", "detector.score_threshold"),
     ):
         value = getattr(args, option)
@@ -132,6 +134,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
         crop_scales=tuple(d.crop_scales),
         refine_threshold=d.refine_threshold,
         recentre=d.recentre,
+        orientations=d.orientations,
     )
     return detector, note
 

@@ -121,6 +121,7 @@ def run_sweep(
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
     refine_threshold: float | None = None,
     recentre: bool = False,
+    orientations: int = 1,
 ) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
@@ -142,6 +143,7 @@ def run_sweep(
                 crop_scales=crop_scales,
                 refine_threshold=refine_threshold,
                 recentre=recentre,
+                orientations=orientations,
             )
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:

@@ -156,8 +156,9 @@ class DetectorConfig:
     first-crop score from which a proposal gets the further ones, ``refine_threshold`` (None: the
     detection threshold; see :class:`~sarmission.perception.mitenet.MiteNet`), whether a
     proposal is cropped again where the head placed the target, ``recentre`` (off: measured in
-    docs/recentring.md), detection threshold; ``model`` the head: a shipped one by name
-    (``"default"`` or ``"maritime"``, ``"land"``: :mod:`sarmission.models`) or a
+    docs/recentring.md), in how many ``orientations`` each would-be detection is scored (1, 4
+    or 8, averaged; off: docs/experiments.md), the detection threshold; ``model`` the head: a
+    shipped one by name (``"default"`` or ``"maritime"``, ``"land"``: :mod:`sarmission.models`) or a
     ``.pt``/``.pth``/``.onnx`` file, relative to the mission file's folder when written there (a
     head fine-tuned for the area's sea or land goes with its mission)."""
 
@@ -168,6 +169,7 @@ class DetectorConfig:
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
     refine_threshold: float | None = None
     recentre: bool = False
+    orientations: int = 1
     score_threshold: float = 0.3
 
 

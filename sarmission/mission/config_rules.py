@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 from sarmission.alerts.cot import parse_cot_url
 from sarmission.errors import SarmissionError
 from sarmission.models import DEFAULT_NAME, SHIPPED_HEADS, is_head_name
+from sarmission.perception.orientations import ORIENTATION_COUNTS
 from sarmission.perception.types import MAX_CROP_SCALE, VALID_DS
 
 if TYPE_CHECKING:
@@ -104,6 +105,8 @@ def detector_problem(d: DetectorConfig) -> Problem:
         return "crop_scales", f"expected a list of numbers in (0, {MAX_CROP_SCALE:g}]"
     if not 0.0 <= d.score_threshold <= 1.0:
         return "score_threshold", "expected a number in [0, 1]"
+    if isinstance(d.orientations, bool) or d.orientations not in ORIENTATION_COUNTS:
+        return "orientations", f"expected one of {', '.join(map(str, ORIENTATION_COUNTS))}"
     if d.refine_threshold is not None and not 0.0 <= d.refine_threshold <= 1.0:
         return "refine_threshold", "expected a number in [0, 1]"
     return None

@@ -20,6 +20,11 @@ from sarmission.perception.chroma import (
 )
 from sarmission.perception.crops import CROP_SIZE, crop_flops, motion_enhanced_crops
 from sarmission.perception.head_config import HeadConfig, ltrb_to_boxes
+from sarmission.perception.orientations import (
+    check_orientations,
+    ltrb_from_orientation,
+    oriented_crops,
+)
 from sarmission.perception.pyramid import half_resolution
 from sarmission.perception.rpn import TTMRPN
 from sarmission.perception.runtime import (
@@ -44,6 +49,11 @@ STAGES = ("vstmd", "colour", "rpn", "crops", "head")
 #: crop's, and how high the first crop must score, for a proposal to be cropped again.
 RECENTRE_MIN_SHIFT_PX = 2.0
 RECENTRE_MIN_SCORE = 0.1
+
+
+def _sigmoid(logits: np.ndarray) -> np.ndarray:
+    """Class probabilities (float64) of the head's logits."""
+    return 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
 
 
 def scaled_boxes(boxes: np.ndarray, scale: float) -> np.ndarray:
@@ -151,6 +161,10 @@ class MiteNet:
             box replace the first's, and further scales are cut around the new centre. The
             proposals miss small targets by several pixels (the response lags a moving target),
             so a 16-px crop can hold a tiny target at its edge. Measured: docs/recentring.md.
+        orientations: 1, 4 or 8: every crop that scores at least ``score_threshold`` is scored
+            again turned by quarter turns (4) or by every symmetry of the square (8), and its
+            class probabilities and box are the mean over the orientations
+            (:mod:`~sarmission.perception.orientations`; 1: the single look of the paper).
     """
 
     def __init__(
@@ -168,6 +182,7 @@ class MiteNet:
         crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
         refine_threshold: float | None = None,
         recentre: bool = False,
+        orientations: int = 1,
     ) -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
             raise ValueError(
@@ -182,6 +197,7 @@ class MiteNet:
         self.crop_scales = tuple(float(s) for s in crop_scales)
         self.refine_threshold = score_threshold if refine_threshold is None else refine_threshold
         self.recentre = bool(recentre)
+        self.orientations = check_orientations(orientations)
         self.head = head_runtime
         self.ds = ds
         self.topn = topn
@@ -304,9 +320,30 @@ class MiteNet:
     def _classify(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Best class probability, its class id and the box bins of every crop."""
         logits, ltrb = self.head.predict(crops)
-        probs = 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
+        probs = _sigmoid(logits)
+        if self.orientations > 1:
+            self._average_orientations(crops, probs, ltrb)
         class_ids = probs.argmax(axis=1)
         return probs[np.arange(len(probs)), class_ids], class_ids, ltrb
+
+    def _average_orientations(self, crops: np.ndarray, probs: np.ndarray, ltrb: np.ndarray) -> None:
+        """Replace, in place, the probabilities and boxes of the crops scoring at least the
+        detection threshold by their means over :attr:`orientations` orientations."""
+        sure = np.flatnonzero(probs.max(axis=1) >= self.score_threshold)
+        if sure.size == 0:
+            return
+        ops = range(1, self.orientations)
+        chosen = crops[sure]
+        logits, turned = self.head.predict(
+            np.concatenate([oriented_crops(chosen, op) for op in ops])
+        )
+        prob_sum, ltrb_sum = probs[sure].copy(), ltrb[sure].astype(np.float64)
+        for i, op in enumerate(ops):
+            view = slice(i * sure.size, (i + 1) * sure.size)
+            prob_sum += _sigmoid(logits[view])
+            ltrb_sum += ltrb_from_orientation(turned[view], op)
+        probs[sure] = prob_sum / self.orientations
+        ltrb[sure] = ltrb_sum / self.orientations
 
     def _recentre(
         self,
@@ -397,7 +434,8 @@ class MiteNet:
         ``flops``: ``vstmd`` (``VSTMD.flops``), ``rpn_other`` (``TTMRPN.flops`` on the 1/ds maps,
         the chromatic anomaly map when colour proposals are on, and the N crops), ``head``
         (2 x MACs of every conv/linear per proposal, times N and the crops per proposal: one per
-        crop scale, one more when recentring), ``total``. N is ``topn``, the most proposals a
+        crop scale, one more when recentring, all of it times the orientations: the most a frame
+        can cost), ``total``. N is ``topn``, the most proposals a
         frame can have. ``parameters``: ``head`` (learned) and ``total`` (vSTMD and
         the RPN learn nothing).
         """
@@ -417,7 +455,7 @@ class MiteNet:
                 # the half-resolution frame is vSTMD's at ds >= 2, the map's own at 1
                 + (height * width * 3 if colour and self.ds == 1 else 0)
             ),
-            "head": head_flops_per_proposal(head) * crops,
+            "head": head_flops_per_proposal(head) * crops * self.orientations,
         }
         flops["total"] = sum(flops.values())
         params = count_parameters(head)

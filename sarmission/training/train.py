@@ -74,6 +74,7 @@ from sarmission.evaluation.box_metrics import evaluate_boxes
 from sarmission.evaluation.matching import FrameBoxes
 from sarmission.perception.head import HeadConfig, MiteHead, ltrb_to_boxes
 from sarmission.perception.mitenet import nms_xyxy
+from sarmission.perception.orientations import MIRROR_LTRB, ROT90_LTRB
 from sarmission.perception.runtime import save_head_checkpoint
 from sarmission.training.consistency import consistency_loss, rounding_perturbation
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
@@ -87,10 +88,6 @@ STATE_VERSION = 2
 _RESUMABLE_CHANGES = ("resume", "progress", "num_threads", "cache_dir")
 #: Texture crops in the bank that ``texture_negatives`` draws from.
 TEXTURE_BANK_SIZE = 4096
-#: ``l, t, r, b`` index permutation of a crop rotated by 90 degrees (torch.rot90, k=1) and of
-#: a left-right mirror.
-_ROT90_LTRB = (1, 2, 3, 0)
-_MIRROR_LTRB = (2, 1, 0, 3)
 
 
 @dataclass
@@ -262,9 +259,9 @@ def dihedral(
         idx = torch.nonzero(ops == op).flatten()
         c, t, s = crops[idx], ltrb[idx], scale[idx]
         for _ in range(op % 4):
-            c, t, s = torch.rot90(c, 1, dims=(2, 3)), t[:, _ROT90_LTRB], s[:, [1, 0]]
+            c, t, s = torch.rot90(c, 1, dims=(2, 3)), t[:, ROT90_LTRB], s[:, [1, 0]]
         if op >= 4:
-            c, t = torch.flip(c, dims=(3,)), t[:, _MIRROR_LTRB]
+            c, t = torch.flip(c, dims=(3,)), t[:, MIRROR_LTRB]
         crops[idx], ltrb[idx], scale[idx] = c, t, s
     return crops, ltrb, scale
 
