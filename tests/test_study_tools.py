@@ -200,3 +200,34 @@ def test_size_gate_sizes_real_boxes_by_band_with_both_measures():
     # the ground extent stretches people seen low: larger at the median, sometimes unsized
     assert np.median(low["on the ground"]) > 1.2 * np.median(low["across the sight"])
     assert {name for name, _ in sizes} <= set(tool.CLASSES)
+
+
+def test_batch_norm_statistics_are_those_of_the_footage_crops() -> None:
+    """tools/bn_adaptation_study.py: a batch-norm layer's running mean becomes the mean of what
+    reaches it over all the crops (two full batches: the mean of their means), its variance
+    that of the crops to within the spread between the batches; the weights stay."""
+    import torch
+
+    from sarmission.perception.head import MiteHead
+
+    study = load_tool("bn_adaptation_study")
+    torch.manual_seed(0)
+    model = MiteHead()
+    before = {k: v.clone() for k, v in model.state_dict().items() if "running" not in k}
+    crops = np.random.default_rng(0).random((2 * study.BATCH, 4, 16, 16)).astype(np.float32) * 3
+    seen = []
+    stem_conv, stem_bn = model.stem[0][0], model.stem[0][1]
+    adapted = study.with_statistics_of(model, crops)
+    assert not adapted.training
+    hook = stem_conv.register_forward_hook(lambda _m, _i, out: seen.append(out.detach()))
+    with torch.no_grad():
+        adapted(torch.from_numpy(crops))
+    hook.remove()
+    out = seen[0]
+    mean = out.mean(dim=(0, 2, 3))
+    torch.testing.assert_close(stem_bn.running_mean, mean, rtol=1e-4, atol=1e-5)
+    torch.testing.assert_close(stem_bn.running_var, out.var(dim=(0, 2, 3)), rtol=0.02, atol=1e-4)
+    assert not torch.allclose(stem_bn.running_mean, torch.zeros_like(mean), atol=1e-2)
+    for name, value in adapted.state_dict().items():
+        if name in before and value.is_floating_point():
+            torch.testing.assert_close(value, before[name])
