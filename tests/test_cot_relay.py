@@ -108,6 +108,36 @@ def test_confirmed_alerts_go_out_move_when_refined_and_leave_when_dismissed(tmp_
         assert relay.deleted == 1 and "1 markers deleted" in relay.summary()
 
 
+def test_a_marker_says_again_how_likely_a_person_once_decisions_rate_it_again(tmp_path, tak):
+    """An operator's decision on one alert rates the mission's undecided alerts again: their
+    markers go out at once with the new confidence in their remarks, and the refresh sends
+    that confidence, not the one first sent."""
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ids = []
+        for target in (1, 2):
+            alert = make_alert(target, tier="candidate")
+            store.add(alert)
+            store.promote(alert.alert_id, "held 3 s", 1.7e9 + target, -2.0)
+            ids.append(alert.alert_id)
+        first, second = (store.get(i) for i in ids)
+        before = first.format_confidence()
+        assert before
+        relay = CotRelay(store, [CotSender(tak.url)], "test-mission", refresh_s=60.0).start()
+        try:
+            assert wait_until(lambda: tak.of(second.cot_uid), 5.0)
+            assert before in tak.of(second.cot_uid)[-1].find("detail/remarks").text
+            store.decide(first.alert_id, "confirmed", "ana")
+            after = store.get(second.alert_id).format_confidence()
+            assert after != before
+            assert wait_until(
+                lambda: after in tak.of(second.cot_uid)[-1].find("detail/remarks").text, 5.0
+            )
+            relay.refresh()
+            assert after in tak.of(second.cot_uid)[-1].find("detail/remarks").text
+        finally:
+            relay.stop()
+
+
 def test_what_is_confirmed_just_before_stop_still_goes_out(tmp_path, tak):
     with AlertStore(tmp_path / "alerts.db") as store:
         relay = CotRelay(store, [CotSender(tak.url)], "test-mission").start()

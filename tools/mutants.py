@@ -1681,6 +1681,15 @@ MUTANTS: list[Mutant] = [
         "unconfirmed candidates (clutter the evidence has not judged) go to the team",
     ),
     Mutant(
+        "cot_relay.rating_not_resent",
+        _COT_RELAY,
+        '_RESEND = frozenset(("new", "confirmed", "position", "decided", "rated"))',
+        '_RESEND = frozenset(("new", "confirmed", "position", "decided"))',
+        _T_COT,
+        "delivery",
+        "the team's marker keeps the confidence of its first send after decisions rate it again",
+    ),
+    Mutant(
         "refinement.drift_change_ignored",
         _REFINEMENT,
         "return old != new\n",

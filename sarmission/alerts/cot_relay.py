@@ -5,9 +5,10 @@ sends every alert the team should see (confirmed, placed, not dismissed by an op
 destination (:class:`~sarmission.alerts.cot.CotSender`: UDP, e.g. the SA multicast group, or a
 TAK Server's TCP input):
 
-- when it is confirmed (by the evidence or an operator), placed after its alert, or refined:
-  the event's uid is per target (:attr:`~sarmission.alerts.model.Alert.cot_uid`), so the
-  marker moves rather than multiplies;
+- when it is confirmed (by the evidence or an operator), placed after its alert, refined, or
+  rated again (the operator's decisions on other alerts changed how likely it is a person, which
+  its remarks say): the event's uid is per target
+  (:attr:`~sarmission.alerts.model.Alert.cot_uid`), so the marker moves rather than multiplies;
 - every ``refresh_s`` again, so that a TAK client that joins late sees it and its stale time
   (``stale_after_s``) is renewed;
 - once an operator dismisses it: a delete event (:func:`~sarmission.alerts.cot.cot_delete`)
@@ -40,7 +41,7 @@ REFRESH_S = 60.0
 #: marker must outlive a lost link to the aircraft).
 STALE_AFTER_S = 3600.0
 #: Store events after which an alert is sent again (or deleted).
-_RESEND = frozenset(("new", "confirmed", "position", "decided"))
+_RESEND = frozenset(("new", "confirmed", "position", "decided", "rated"))
 
 
 def for_the_team(alert: Alert) -> bool:
