@@ -101,10 +101,13 @@ def test_detect_reports_a_missing_input(
 
 
 def test_export_writes_onnx_that_loads_with_a_dynamic_proposal_axis(
-    checkpoint: Path, tmp_path: Path
+    checkpoint: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     out = tmp_path / "head.onnx"
     assert main(["export", "--model", str(checkpoint), "--out", str(out)]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith(f"wrote {out}: ") and ", opset 17, max |onnx - torch| " in line
+    assert float(line.rsplit(" ", 1)[1]) < 1e-4
     model = onnx.load(str(out))
     onnx.checker.check_model(model)
     first_dim = model.graph.input[0].type.tensor_type.shape.dim[0]

@@ -439,7 +439,7 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(["train", *argv])
 
 
-def test_cli_trains_and_exports_onnx(data, tmp_path):
+def test_cli_trains_and_exports_onnx(data, tmp_path, capsys):
     out = tmp_path / "model.pt"
     args = _parse(
         [
@@ -464,6 +464,8 @@ def test_cli_trains_and_exports_onnx(data, tmp_path):
         ]
     )
     assert args.func(args) == 0
+    printed = capsys.readouterr().out
+    assert f"wrote {out.with_suffix('.onnx')}: " in printed and "max |onnx - torch| " in printed
     config = load_head_checkpoint(out).config
     assert config.classes == ("swimmer", "swimmer_with_life_jacket")
     assert config.motion_floor == 0.02  # the crops were cut with it: the head keeps it

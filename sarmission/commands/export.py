@@ -77,9 +77,5 @@ def run(args: argparse.Namespace) -> int:
         model = args.model or default_model_path("torch")
         if is_head_name(model):
             model = shipped_head_path(model, "torch")
-    report = export_head_onnx(model, args.out, opset=args.opset)
-    print(
-        f"wrote {report.path}: {report.num_parameters:,} parameters, opset {report.opset}, "
-        f"max |onnx - torch| {report.max_abs_diff:.2e}"
-    )
+    print(export_head_onnx(model, args.out, opset=args.opset).summary())
     return 0

@@ -283,6 +283,5 @@ def run(args: argparse.Namespace) -> int:
     if args.onnx:
         from sarmission.perception.export import export_head_onnx
 
-        report = export_head_onnx(result.checkpoint, result.checkpoint.with_suffix(".onnx"))
-        print(f"wrote {report.path} (max |onnx - torch| {report.max_abs_diff:.2e})")
+        print(export_head_onnx(result.checkpoint, result.checkpoint.with_suffix(".onnx")).summary())
     return 0

@@ -37,6 +37,13 @@ class ExportReport:
     num_parameters: int
     max_abs_diff: float
 
+    def summary(self) -> str:
+        """One line for the console: what was written and how closely ONNX matches torch."""
+        return (
+            f"wrote {self.path}: {self.num_parameters:,} parameters, opset {self.opset}, "
+            f"max |onnx - torch| {self.max_abs_diff:.2e}"
+        )
+
 
 def head_onnx_bytes(model: MiteHead, opset: int = 17) -> bytes:
     """Serialised ONNX of ``model`` (eval mode, TorchScript exporter) with sarmission metadata.
