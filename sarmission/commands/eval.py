@@ -327,11 +327,7 @@ def _format_detector(detector: dict[str, Any]) -> str:
             else ""
         )
         + (", recentred" if detector["recentre"] else "")
-        + (
-            f", {detector['orientations']} orientations"
-            if detector.get("orientations", 1) > 1
-            else ""
-        )
+        + (f", {detector['orientations']} orientations" if detector["orientations"] > 1 else "")
         + f", conf={detector['conf']:g}; {detector['frames']} frames"
         + (f" ({skipped} unreadable, skipped)" if skipped else "")
         + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)"
