@@ -8,6 +8,7 @@ import torch
 from conftest import load_tool
 
 from sarmission.cli import main as sarmission
+from sarmission.models import shipped_checkpoint
 from sarmission.perception.head import HeadConfig, MiteHead
 from sarmission.perception.runtime import (
     OnnxHeadRuntime,
@@ -128,13 +129,10 @@ def test_export_weights_without_average_is_refused(tmp_path, capsys):
     assert "--weights needs --average" in capsys.readouterr().err
 
 
-def test_the_land_recipe_averages_the_two_heads_it_trains(tmp_path, monkeypatch):
-    """``tools/train_default_model.py --head land --average``: the land recipe's head and
-    the head with the alternative world's land, each with its own seed, averaged into
-    ``--work`` and never installed (training stubbed here: its heads are written at random)."""
-    tool = load_tool("train_default_model")
-    trained = []
-    states = {}
+def _stub_land_training(tool, tmp_path, monkeypatch):
+    """Stub ``train_land_head`` and ``install`` of ``tools/train_default_model.py``: heads
+    written at random; returns the calls, the heads' states and the installs."""
+    trained, states, installed = [], {}, []
 
     def fake_train(args, extra, altworld, seed, reuse=False):
         out = tmp_path / f"head_alt{int(altworld)}_seed{seed}.pt"
@@ -143,19 +141,53 @@ def test_the_land_recipe_averages_the_two_heads_it_trains(tmp_path, monkeypatch)
         return out, 0
 
     monkeypatch.setattr(tool, "train_land_head", fake_train)
-    installed = []
     monkeypatch.setattr(tool, "install", lambda *paths: installed.append(paths))
+    return trained, states, installed
+
+
+def test_the_land_recipe_installs_the_3_to_1_mean_of_the_two_heads_it_trains(tmp_path, monkeypatch):
+    """``tools/train_default_model.py --head land``: the land recipe's head (seed 2) and the
+    head with the alternative world's land (seed 0), averaged 3 to 1 into ``--work`` and
+    installed as the shipped land head (training stubbed: its heads are written at random)."""
+    tool = load_tool("train_default_model")
+    trained, states, installed = _stub_land_training(tool, tmp_path, monkeypatch)
     work = tmp_path / "work"
     work.mkdir()
-    argv = ["x", "--head", "land", "--average", "--seed", "2", "--altworld-seed", "1"]
-    monkeypatch.setattr("sys.argv", [*argv, "--work", str(work)])
+    monkeypatch.setattr("sys.argv", ["x", "--head", "land", "--work", str(work)])
     assert tool.main() == 0
-    assert trained == [(False, 2, True), (True, 1, True)]
-    assert not installed
-    mean_head = load_head_checkpoint(work / "mitenet_land_head_average_seed2_alt1.pt")
+    assert trained == [(False, 2, True), (True, 0, True)]
+    mean_pt = work / "mitenet_land_head_average_seed2_alt0_w3-1.pt"
+    assert installed == [(mean_pt, shipped_checkpoint("land"))]
+    key = "cls_branch.fc.2.weight"
+    mean = 0.75 * states[False][key] + 0.25 * states[True][key]
+    assert torch.allclose(load_head_checkpoint(mean_pt).state_dict()[key], mean, atol=1e-6)
+    assert mean_pt.with_suffix(".onnx").is_file()
+
+
+def test_the_land_recipe_takes_other_weights_and_seeds_without_installing(
+    tmp_path, monkeypatch, capsys
+):
+    tool = load_tool("train_default_model")
+    trained, states, installed = _stub_land_training(tool, tmp_path, monkeypatch)
+    work = tmp_path / "work"
+    work.mkdir()
+    argv = ["x", "--head", "land", "--seed", "1", "--altworld-seed", "2", "--work", str(work)]
+    monkeypatch.setattr("sys.argv", [*argv, "--average-weights", "1,1", "--no-install"])
+    assert tool.main() == 0
+    assert trained == [(False, 1, True), (True, 2, True)] and not installed
+    mean_head = load_head_checkpoint(work / "mitenet_land_head_average_seed1_alt2_w1-1.pt")
     key = "cls_branch.fc.2.weight"
     mean = (states[False][key] + states[True][key]) / 2
     assert torch.allclose(mean_head.state_dict()[key], mean, atol=1e-6)
-    assert (work / "mitenet_land_head_average_seed2_alt1.onnx").is_file()
-    monkeypatch.setattr("sys.argv", [*argv, "--altworld", "--work", str(work)])
+    monkeypatch.setattr("sys.argv", [*argv, "--average-weights", "1,1", "--single"])
     assert tool.main() == 2
+    assert "--average-weights needs the mean of two heads" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flag", [["--single"], ["--altworld"], ["--land-presets", "urban"]])
+def test_a_single_land_head_is_trained_alone_and_never_installed(tmp_path, monkeypatch, flag):
+    tool = load_tool("train_default_model")
+    trained, _, installed = _stub_land_training(tool, tmp_path, monkeypatch)
+    monkeypatch.setattr("sys.argv", ["x", "--head", "land", *flag, "--work", str(tmp_path)])
+    assert tool.main() == 0
+    assert trained == [("--altworld" in flag, 2, False)] and not installed
