@@ -149,6 +149,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "away, divided by its spread or FLOOR if more (RGB in [0, 1], e.g. 0.05; 1 centres "
         "only; default: 0, raw colour)",
     )
+    parser.add_argument(
+        "--still-share",
+        type=float,
+        default=0.0,
+        metavar="SHARE",
+        help="share of the crops given the motion channel of a background crop of their batch, "
+        "as a still person under a hovering camera has none of their own, e.g. 0.3 "
+        "(default: none)",
+    )
     parser.add_argument("--topn", type=int, default=25, help="RPN proposals per frame (N)")
     parser.add_argument(
         "--colour-share",
@@ -261,6 +270,7 @@ def config_from_args(args: argparse.Namespace):
         texture_positives=args.texture_positives,
         rounding_consistency=args.rounding_consistency,
         crop_norm=args.crop_norm,
+        still_share=args.still_share,
         cache_dir=args.cache_dir,
         init=args.init,
         init_classes=parse_pairs(args.init_class, "--init-class"),

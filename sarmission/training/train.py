@@ -15,6 +15,10 @@ drawn from ``numpy.random.default_rng([seed, epoch, 2])``; they take the symmetr
 randomisation as every crop does. With ``texture_positives`` above 0, that share of a batch's
 positives has its surroundings replaced by a bank texture
 (:func:`~sarmission.training.textures.paste_on_textures`), drawn from the same generator.
+With ``still_share`` above 0, that share of a batch's crops then takes the motion channel of a
+negative of the batch (:func:`~sarmission.training.still_motion.borrow_background_motion`,
+drawn from ``numpy.random.default_rng([seed, epoch, 4])``): a still person under a hovering
+camera has no motion of its own.
 The loss is :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
 With ``rounding_consistency`` above 0, each batch also goes through the head as another
 decoder's rounding would give it (:func:`~sarmission.training.consistency.rounding_perturbation`,
@@ -80,6 +84,7 @@ from sarmission.training.consistency import consistency_loss, rounding_perturbat
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
 from sarmission.training.losses import LossWeights, head_loss
 from sarmission.training.randomise import Randomisation, randomise_crops
+from sarmission.training.still_motion import borrow_background_motion
 from sarmission.training.textures import paste_on_textures, texture_bank
 
 STATE_FORMAT = "sarmission.train_state"
@@ -125,6 +130,9 @@ class TrainConfig:
     #: The head sees each crop's colour relative to the crop, its spread floored at this
     #: (:class:`HeadConfig` ``crop_norm``; 0: raw colour).
     crop_norm: float = 0.0
+    #: Share of the crops given the motion channel of a negative of their batch (0: none;
+    #: :mod:`sarmission.training.still_motion`).
+    still_share: float = 0.0
     crops: CropSettings = field(default_factory=CropSettings)
     loss: LossWeights = field(default_factory=LossWeights)
     score_threshold: float = 0.5
@@ -165,6 +173,8 @@ class TrainConfig:
             )
         if not 0.0 <= self.crop_norm <= 1.0:
             raise ValueError(f"crop_norm must be in [0, 1], got {self.crop_norm}")
+        if not 0.0 <= self.still_share <= 1.0:
+            raise ValueError(f"still_share must be in [0, 1], got {self.still_share}")
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         self.randomise.validate()
@@ -175,7 +185,8 @@ class TrainConfig:
         d = asdict(self)
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
-        for key in ("texture_negatives", "texture_positives", "rounding_consistency", "crop_norm"):
+        optional = ("texture_negatives", "texture_positives", "rounding_consistency")
+        for key in (*optional, "crop_norm", "still_share"):
             if not d[key]:
                 d.pop(key)  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
@@ -376,6 +387,7 @@ def _train_epoch(
     randomising = np.random.default_rng([config.seed, epoch, 1])
     texturing = np.random.default_rng([config.seed, epoch, 2])
     rounding = np.random.default_rng([config.seed, epoch, 3])
+    stilling = np.random.default_rng([config.seed, epoch, 4])
     steps = math.ceil(n / config.batch_size)
     scale_all = data.scale
     sums = dict.fromkeys(("loss", "cls", "nwd", "dfl", "rounding"), 0.0)
@@ -403,6 +415,8 @@ def _train_epoch(
             crops, target, scale = dihedral(crops, target, scale, symmetry)
         if config.randomise.transforms:
             crops, target = randomise_crops(crops, target, labels, config.randomise, randomising)
+        if config.still_share > 0:
+            crops = borrow_background_motion(crops, labels, config.still_share, stilling)
         if config.rounding_consistency > 0:
             both = torch.cat([crops, rounding_perturbation(crops, rounding)])
             all_logits, all_bins, all_ltrb = model.forward_with_bins(both)
