@@ -324,6 +324,46 @@ def test_recentring_comes_from_the_mission_file_or_the_command_line(tmp_path: Pa
     assert parser.parse_args(["eval", "--annotations", "a.json", "--recentre"]).recentre is True
 
 
+def test_a_shipped_head_brings_its_own_confirmation_threshold_unless_the_mission_sets_one(
+    tmp_path: Path,
+) -> None:
+    """The land head's scores run lower than the maritime head's: flown without a mission
+    threshold, alerts take the land head's (0.55); a mission file or --set that names one
+    keeps it, and a model file keeps the mission's, whatever it is."""
+    from sarmission.commands.mission_options import build_detector, load_mission_from_args
+    from sarmission.mission.config import ConfirmConfig
+    from sarmission.models import CONFIRM_MIN_SCORE, DEFAULT_HEAD, shipped_head_path
+
+    assert ConfirmConfig().min_score == CONFIRM_MIN_SCORE[DEFAULT_HEAD]
+    parser = build_parser()
+
+    def threshold(*argv: str) -> tuple[float, str]:
+        args = parser.parse_args(["replay", "clip.mp4", *argv])
+        mission = load_mission_from_args(args)
+        _, note = build_detector(args, mission)
+        return mission.confirm.min_score, note
+
+    land, note = threshold("--model", "land")
+    assert land == CONFIRM_MIN_SCORE["land"] == 0.55
+    assert "a mean score of 0.55, the land head's [confirm] min_score" in note
+    default, note = threshold()
+    assert default == 0.7 and "min_score" not in note
+    assert threshold("--model", "land", "--set", "confirm.min_score=0.8")[0] == 0.8
+    assert threshold("--model", "maritime")[0] == 0.7
+    file_head = shipped_head_path("land", "onnx")
+    assert threshold("--model", str(file_head))[0] == 0.7
+    in_mission = tmp_path / "land.toml"
+    in_mission.write_text('[detector]\nmodel = "land"\n')
+    assert threshold("--mission", str(in_mission))[0] == 0.55
+    own = tmp_path / "own.toml"
+    own.write_text('[detector]\nmodel = "land"\n[confirm]\nmin_score = 0.7\n')
+    assert threshold("--mission", str(own))[0] == 0.7
+    shipped = parser.parse_args(
+        ["replay", "clip.mp4", "--mission", str(REPO / "missions" / "urban_demo.toml")]
+    )
+    assert load_mission_from_args(shipped).confirm.min_score == CONFIRM_MIN_SCORE["land"]
+
+
 def test_orientations_come_from_the_mission_file_or_the_command_line(tmp_path: Path) -> None:
     """[detector] orientations reaches the detector and --orientations overrides it; 1 (a
     single look) is the built-in default; counts other than 1, 4, 8 are refused in one line."""

@@ -1442,6 +1442,25 @@ MUTANTS: list[Mutant] = [
         "crops under the detection threshold pay for every orientation too",
     ),
     Mutant(
+        "head_min_score.land_threshold_ignored",
+        "sarmission/commands/mission_options.py",
+        'if shipped is None or "confirm.min_score" in mission.explicit:',
+        "if True:",
+        ("tests/test_cli.py",),
+        "lock",
+        "--model land holds the land head's alerts to the maritime head's 0.7: fewer land "
+        "people found",
+    ),
+    Mutant(
+        "head_min_score.mission_threshold_overridden",
+        "sarmission/commands/mission_options.py",
+        'if shipped is None or "confirm.min_score" in mission.explicit:',
+        "if shipped is None:",
+        ("tests/test_cli.py",),
+        "lock",
+        "the head's threshold replaces the one the mission file or --set gave",
+    ),
+    Mutant(
         "still_motion.donor_any_crop",
         "sarmission/training/still_motion.py",
         "negatives = np.flatnonzero(labels.numpy() < 0)",

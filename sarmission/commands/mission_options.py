@@ -123,6 +123,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
     from sarmission.mission.confidence import confidence_of_head
 
     note += f"; {confidence_of_head(head).note}"
+    note += adopt_head_min_score(mission, model)
     d = mission.detector
     detector = MiteNet(
         head,
@@ -137,6 +138,22 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
         orientations=d.orientations,
     )
     return detector, note
+
+
+def adopt_head_min_score(mission: MissionConfig, model: str | None) -> str:
+    """Give ``mission`` the ``[confirm] min_score`` of the shipped head ``model`` names (None:
+    the default head) unless the mission file or an override set one; returns a note for the
+    model line ("" when nothing changed). A model file keeps the mission's threshold."""
+    from sarmission.models import shipped_min_score
+
+    shipped = shipped_min_score(model)
+    if shipped is None or "confirm.min_score" in mission.explicit:
+        return ""
+    name, threshold = shipped
+    if mission.confirm.min_score == threshold:
+        return ""
+    mission.confirm.min_score = threshold
+    return f"; alerts need a mean score of {threshold:g}, the {name} head's [confirm] min_score"
 
 
 def build_recorder(args: argparse.Namespace) -> Recorder | None:

@@ -242,7 +242,10 @@ class ConfirmConfig:
     of discarding it (0: the mean of all sightings, decided once). The defaults were chosen on
     the development scenarios (``tools/candidate_features.py``, ``tools/confirmation_rules.py``),
     ``min_seen_s``, ``min_seen_share`` and ``min_score`` on held-out validation clips
-    (``tools/heldout_alerts.py --split validation``), never on the scored suite or a test clip."""
+    (``tools/heldout_alerts.py --split validation``), never on the scored suite or a test clip.
+    ``min_score`` is the maritime head's; a mission that leaves it unset and flies another
+    shipped head takes that head's (:data:`sarmission.models.CONFIRM_MIN_SCORE`), since each
+    head's scores run on their own scale."""
 
     min_seen_s: float = 2.0
     min_sightings: int = 20
@@ -303,10 +306,14 @@ class MissionConfig:
     sim: SimConfig = field(default_factory=SimConfig)
     name: str = "mission"
     source: str | None = None
+    #: The ``section.key`` settings the file or an override gave (the rest are defaults).
+    explicit: set[str] = field(default_factory=set, compare=False, repr=False)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain nested dict of the effective values (for ``--help`` and logs)."""
-        return dataclasses.asdict(self)
+        values = dataclasses.asdict(self)
+        values.pop("explicit")
+        return values
 
 
 _SECTIONS: dict[str, type] = {
@@ -412,6 +419,7 @@ def _apply(cfg: MissionConfig, data: Mapping[str, Any], origin: str) -> None:
                 f"{origin}: [{section}] must be a table, got {_describe(values)}"
             )
         _apply_section(getattr(cfg, section), values, section, origin)
+        cfg.explicit.update(f"{section}.{key}" for key in values)
 
 
 def _validate(cfg: MissionConfig, origin: str) -> None:

@@ -18,6 +18,10 @@ SHIPPED_HEADS: dict[str, str] = {"maritime": "mitenet_head", "land": "mitenet_la
 #: The head used when none is named, and the name that means it whichever it is.
 DEFAULT_HEAD = "maritime"
 DEFAULT_NAME = "default"
+#: Shipped head name -> the ``[confirm] min_score`` chosen with its scores on held-out
+#: validation clips (maritime: docs/experiments.md; land: docs/land_head.md). A mission that
+#: does not set ``min_score`` takes its head's.
+CONFIRM_MIN_SCORE: dict[str, float] = {"maritime": 0.7, "land": 0.55}
 
 
 def shipped_checkpoint(name: str) -> Path:
@@ -64,3 +68,13 @@ def default_model_path(runtime: str = "torch") -> Path:
     Raises ``SarmissionError`` when the package was installed without its model files.
     """
     return shipped_head_path(DEFAULT_NAME, runtime)
+
+
+def shipped_min_score(model: str | Path | None) -> tuple[str, float] | None:
+    """The shipped head ``model`` names (None: the default) and its confirmation threshold
+    (:data:`CONFIRM_MIN_SCORE`); None for a model file, whose threshold is unknown."""
+    if model is None or model == DEFAULT_NAME:
+        model = DEFAULT_HEAD
+    if not isinstance(model, str) or model not in CONFIRM_MIN_SCORE:
+        return None
+    return model, CONFIRM_MIN_SCORE[model]
