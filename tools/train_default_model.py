@@ -45,7 +45,7 @@ recipe's head alone (the land head shipped 2026-11-28 to 29); so do ``--altworld
 alternative world's land), ``--from-scratch`` (random weights) and ``--land-presets urban``
 (the recipe tried before the wild land presets existed); a single head is never installed::
 
-    python tools/train_default_model.py --head land     # about 15 minutes on 2 CPU cores, rendered
+    python tools/train_default_model.py --head land     # about 12 minutes on 2 CPU cores, rendered
     python tools/train_default_model.py --head land --single --no-install
     python tools/train_default_model.py --head land --average-weights 1,1 --no-install
     python tools/train_default_model.py --head land --land-presets urban --seed 0 --no-install
