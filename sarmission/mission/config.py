@@ -40,7 +40,7 @@ from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.mission.config_rules import ACTION_POLICIES as ACTION_POLICIES
 from sarmission.mission.config_rules import DEFAULT_MODEL, SECTION_RULES
-from sarmission.models import is_head_name
+from sarmission.models import CONFIRM_MIN_SCORE, DEFAULT_HEAD, is_head_name
 from sarmission.perception.types import (
     DEFAULT_COLOUR_SHARE,
     DEFAULT_CROP_SCALES,
@@ -253,7 +253,7 @@ class ConfirmConfig:
     max_speed_m_s: float = 1.5
     min_size_m: float = 0.15
     max_size_m: float = 2.5
-    min_score: float = 0.7
+    min_score: float = CONFIRM_MIN_SCORE[DEFAULT_HEAD]
     give_up_s: float = 20.0
     score_window_s: float = 0.0
 

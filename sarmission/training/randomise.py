@@ -51,8 +51,10 @@ TRANSFORMS: tuple[str, ...] = (
     "blocks",
     "geometry",
 )
-#: Colour channels of a head crop (RGB); channel 3 is the motion response.
+#: Colour channels of a head crop (RGB) ...
 RGB = slice(0, 3)
+#: ... and its motion channel, the enhanced motion response E.
+MOTION = 3
 
 
 @dataclass(frozen=True)

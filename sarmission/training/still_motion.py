@@ -17,8 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-#: The motion channel of a head crop (after RGB).
-MOTION = 3
+from sarmission.training.randomise import MOTION
 
 
 def borrow_background_motion(
@@ -31,7 +30,7 @@ def borrow_background_motion(
     negatives = np.flatnonzero(labels.numpy() < 0)
     n = crops.shape[0]
     chosen = np.flatnonzero(rng.random(n) < share)
-    if share == 0.0 or not len(negatives) or not len(chosen):
+    if not len(negatives) or not len(chosen):
         return crops
     donors = negatives[rng.integers(0, len(negatives), size=len(chosen))]
     out = crops.clone()

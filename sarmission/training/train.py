@@ -185,8 +185,14 @@ class TrainConfig:
         d = asdict(self)
         for key in _RESUMABLE_CHANGES:
             d.pop(key)
-        optional = ("texture_negatives", "texture_positives", "rounding_consistency")
-        for key in (*optional, "crop_norm", "still_share"):
+        optional = (
+            "texture_negatives",
+            "texture_positives",
+            "rounding_consistency",
+            "crop_norm",
+            "still_share",
+        )
+        for key in optional:
             if not d[key]:
                 d.pop(key)  # states written before the setting existed still resume
         d["crops"] = self.crops.to_dict()
