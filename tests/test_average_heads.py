@@ -191,3 +191,41 @@ def test_a_single_land_head_is_trained_alone_and_never_installed(tmp_path, monke
     monkeypatch.setattr("sys.argv", ["x", "--head", "land", *flag, "--work", str(tmp_path)])
     assert tool.main() == 0
     assert trained == [("--altworld" in flag, 2, False)] and not installed
+
+
+def test_a_land_part_is_reused_only_when_trained_with_the_same_options(tmp_path, monkeypatch):
+    """The land recipe's mean reuses a part found in ``--work`` only when the arguments
+    recorded beside it are the ones it would train it with; a part trained with other
+    options, or with no record, is trained again (rendering and training stubbed)."""
+    tool = load_tool("train_default_model")
+    for name in ("render_land_training_set", "add_altworld", "render_heldout_val"):
+        monkeypatch.setattr(tool, name, lambda *a, **k: tmp_path / "data.json")
+    runs = []
+
+    def fake_sarmission(command):
+        runs.append(command)
+        out = tmp_path / command[command.index("--out") + 1]
+        out.write_bytes(b"head")
+        return 0
+
+    monkeypatch.setattr(tool, "sarmission", fake_sarmission)
+    args = tool.argparse.Namespace(work=tmp_path, land_presets="wild", from_scratch=False)
+    out, code = tool.train_land_head(args, ["--still-share", "0.3"], False, 2, reuse=True)
+    assert code == 0 and len(runs) == 1 and runs[0][-2:] == ["--still-share", "0.3"]
+    assert tool.train_land_head(args, ["--still-share", "0.3"], False, 2, reuse=True)[0] == out
+    assert len(runs) == 1  # the same options: reused
+    tool.train_land_head(args, [], False, 2, reuse=True)
+    assert len(runs) == 2 and "--still-share" not in runs[1]  # other options: trained again
+    out.with_suffix(".args.json").write_text("not json")
+    tool.train_land_head(args, [], False, 2, reuse=True)
+    assert len(runs) == 3  # no readable record: trained again
+    tool.train_land_head(args, [], False, 2, reuse=False)
+    assert len(runs) == 4
+
+    def failing(command):
+        runs.append(command)
+        return 1
+
+    monkeypatch.setattr(tool, "sarmission", failing)
+    assert tool.train_land_head(args, [], False, 2, reuse=False)[1] == 1
+    assert not out.with_suffix(".args.json").exists()  # a failed run leaves no record

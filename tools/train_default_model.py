@@ -57,6 +57,7 @@ are copied into the package.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -445,16 +446,18 @@ def train_land_head(
     recipe = LAND_ARGS + ([] if args.from_scratch else LAND_INIT_ARGS)
     out = args.work / f"{stem}.pt"
     if reuse and out.is_file():
-        print(f"reusing {out}")
-        return out, 0
+        if trained_with(out) == train_command(train, val, out, recipe, seed, extra):
+            print(f"reusing {out}")
+            return out, 0
+        print(f"retraining {out}: it was not trained with these options", file=sys.stderr)
     return out, train_head(train, val, out, recipe, seed, extra)
 
 
 def train_land_average(args: argparse.Namespace, extra: list[str]) -> int:
     """The land head's mean (module docstring): the land recipe with ``--seed`` and the same
     recipe with the alternative world's land with ``--altworld-seed``, each trained unless
-    ``--work`` holds it, averaged with ``--average-weights`` and exported into ``--work``;
-    installed unless ``--no-install``."""
+    ``--work`` holds it trained with the same options, averaged with ``--average-weights``
+    and exported into ``--work``; installed unless ``--no-install``."""
     heads = []
     for altworld, seed in ((False, args.seed), (True, args.altworld_seed)):
         out, code = train_land_head(args, extra, altworld, seed, reuse=True)
@@ -482,28 +485,50 @@ def install(trained: Path, shipped_pt: Path) -> None:
     print(f"installed {shipped_pt.name} and {onnx_name} into {shipped_pt.parent}")
 
 
+def train_command(
+    train: Path, val: Path, out: Path, recipe: list[str], seed: int, extra: list[str]
+) -> list[str]:
+    """The ``sarmission train`` arguments: :data:`TRAIN_ARGS`, then ``recipe``, the seed and
+    the user's own options (later ones win)."""
+    return [
+        "train",
+        "--train",
+        str(train),
+        "--val",
+        str(val),
+        "--out",
+        str(out),
+        "--onnx",
+        *TRAIN_ARGS,
+        *recipe,
+        "--seed",
+        str(seed),
+        *extra,
+    ]
+
+
+def trained_with(checkpoint: Path) -> list[str] | None:
+    """The ``sarmission train`` arguments recorded beside ``checkpoint`` by :func:`train_head`,
+    or None when there is no readable record (a head trained some other way)."""
+    try:
+        recorded = json.loads(checkpoint.with_suffix(".args.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return recorded if isinstance(recorded, list) else None
+
+
 def train_head(
     train: Path, val: Path, out: Path, recipe: list[str], seed: int, extra: list[str]
 ) -> int:
-    """``sarmission train`` with :data:`TRAIN_ARGS`, then ``recipe``, the seed and the user's
-    own options (later ones win); writes ``out`` and its ONNX; returns the exit code."""
-    return sarmission(
-        [
-            "train",
-            "--train",
-            str(train),
-            "--val",
-            str(val),
-            "--out",
-            str(out),
-            "--onnx",
-            *TRAIN_ARGS,
-            *recipe,
-            "--seed",
-            str(seed),
-            *extra,
-        ]
-    )
+    """``sarmission train`` with :func:`train_command`'s arguments; writes ``out``, its ONNX
+    and, once it is trained, the arguments beside it (``.args.json``, so that a later run
+    reuses it only for the same options); returns the exit code."""
+    command = train_command(train, val, out, recipe, seed, extra)
+    out.with_suffix(".args.json").unlink(missing_ok=True)
+    code = sarmission(command)
+    if not code:
+        out.with_suffix(".args.json").write_text(json.dumps(command))
+    return code
 
 
 if __name__ == "__main__":
