@@ -194,12 +194,17 @@ def test_a_single_land_head_is_trained_alone_and_never_installed(tmp_path, monke
 
 
 def test_a_land_part_is_reused_only_when_trained_with_the_same_options(tmp_path, monkeypatch):
-    """The land recipe's mean reuses a part found in ``--work`` only when the arguments
-    recorded beside it are the ones it would train it with; a part trained with other
-    options, or with no record, is trained again (rendering and training stubbed)."""
+    """The land recipe's mean reuses a part found in ``--work`` only when the record beside
+    it holds the arguments it would train it with and the same input files; a part trained
+    with other options, other data, from another head, or with no record, is trained again
+    (rendering and training stubbed)."""
     tool = load_tool("train_default_model")
+    data, start = tmp_path / "data.json", tmp_path / "maritime.pt"
+    data.write_text("clips")
+    start.write_bytes(b"maritime head")
     for name in ("render_land_training_set", "add_altworld", "render_heldout_val"):
-        monkeypatch.setattr(tool, name, lambda *a, **k: tmp_path / "data.json")
+        monkeypatch.setattr(tool, name, lambda *a, **k: data)
+    monkeypatch.setattr(tool, "DEFAULT_TORCH_MODEL", start)  # where --init default starts
     runs = []
 
     def fake_sarmission(command):
@@ -221,6 +226,14 @@ def test_a_land_part_is_reused_only_when_trained_with_the_same_options(tmp_path,
     assert len(runs) == 3  # no readable record: trained again
     tool.train_land_head(args, [], False, 2, reuse=False)
     assert len(runs) == 4
+    data.write_text("clips rendered again")
+    tool.train_land_head(args, [], False, 2, reuse=True)
+    assert len(runs) == 5  # another training set under the same name: trained again
+    tool.train_land_head(args, [], False, 2, reuse=True)
+    assert len(runs) == 5
+    start.write_bytes(b"another maritime head")
+    tool.train_land_head(args, [], False, 2, reuse=True)
+    assert len(runs) == 6  # another head to start from: trained again
 
     def failing(command):
         runs.append(command)

@@ -57,6 +57,7 @@ are copied into the package.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shutil
 import sys
@@ -446,7 +447,8 @@ def train_land_head(
     recipe = LAND_ARGS + ([] if args.from_scratch else LAND_INIT_ARGS)
     out = args.work / f"{stem}.pt"
     if reuse and out.is_file():
-        if trained_with(out) == train_command(train, val, out, recipe, seed, extra):
+        command = train_command(train, val, out, recipe, seed, extra)
+        if trained_with(out) == training_record(command):
             print(f"reusing {out}")
             return out, 0
         print(f"retraining {out}: it was not trained with these options", file=sys.stderr)
@@ -507,27 +509,41 @@ def train_command(
     ]
 
 
-def trained_with(checkpoint: Path) -> list[str] | None:
-    """The ``sarmission train`` arguments recorded beside ``checkpoint`` by :func:`train_head`,
-    or None when there is no readable record (a head trained some other way)."""
+def training_record(command: list[str]) -> dict:
+    """What a head trained by ``command`` was made from: the arguments and the SHA-256 of
+    every input file they name (the annotation files and the head it starts from, the
+    shipped head for ``--init default``), so that a re-rendered training set or another
+    starting head is not mistaken for the same training."""
+    out = command[command.index("--out") + 1]
+    files = [arg for arg in command if arg != out and Path(arg).is_file()]
+    if "--init" in command and command[command.index("--init") + 1] == "default":
+        files.append(str(DEFAULT_TORCH_MODEL))
+    digests = {name: hashlib.sha256(Path(name).read_bytes()).hexdigest() for name in files}
+    return {"arguments": command, "inputs": digests}
+
+
+def trained_with(checkpoint: Path) -> dict | None:
+    """The record :func:`train_head` wrote beside ``checkpoint`` (:func:`training_record`),
+    or None when there is no readable one (a head trained some other way)."""
     try:
         recorded = json.loads(checkpoint.with_suffix(".args.json").read_text())
     except (OSError, ValueError):
         return None
-    return recorded if isinstance(recorded, list) else None
+    return recorded if isinstance(recorded, dict) else None
 
 
 def train_head(
     train: Path, val: Path, out: Path, recipe: list[str], seed: int, extra: list[str]
 ) -> int:
     """``sarmission train`` with :func:`train_command`'s arguments; writes ``out``, its ONNX
-    and, once it is trained, the arguments beside it (``.args.json``, so that a later run
-    reuses it only for the same options); returns the exit code."""
+    and, once it is trained, its :func:`training_record` beside it (``.args.json``, so that a
+    later run reuses it only for the same options and inputs); returns the exit code."""
     command = train_command(train, val, out, recipe, seed, extra)
+    record = training_record(command)
     out.with_suffix(".args.json").unlink(missing_ok=True)
     code = sarmission(command)
     if not code:
-        out.with_suffix(".args.json").write_text(json.dumps(command))
+        out.with_suffix(".args.json").write_text(json.dumps(record))
     return code
 
 
