@@ -204,7 +204,7 @@ def test_a_land_part_is_reused_only_when_trained_with_the_same_options(tmp_path,
     start.write_bytes(b"maritime head")
     for name in ("render_land_training_set", "add_altworld", "render_heldout_val"):
         monkeypatch.setattr(tool, name, lambda *a, **k: data)
-    monkeypatch.setattr(tool, "DEFAULT_TORCH_MODEL", start)  # where --init default starts
+    monkeypatch.setattr(tool, "shipped_head_path", lambda name, runtime: start)  # --init default
     runs = []
 
     def fake_sarmission(command):

@@ -69,7 +69,12 @@ from heldout.presets import world
 from sarmission.cli import main as sarmission
 from sarmission.data.coco_video import read_coco_video, write_coco_video
 from sarmission.data.merge import merge_annotation_files
-from sarmission.models import DEFAULT_TORCH_MODEL, shipped_checkpoint
+from sarmission.models import (
+    DEFAULT_TORCH_MODEL,
+    is_head_name,
+    shipped_checkpoint,
+    shipped_head_path,
+)
 from sim.generate import merge_datasets
 
 #: The recipe of the shipped model: (preset, clips, frames per clip, frame size) and the
@@ -434,8 +439,8 @@ def train_land_head(
     args: argparse.Namespace, extra: list[str], altworld: bool, seed: int, reuse: bool = False
 ) -> tuple[Path, int]:
     """Train one land head (``altworld``: with the alternative world's land) with ``seed``
-    into ``--work`` (``reuse``: unless it is there); returns its checkpoint and the exit
-    code."""
+    into ``--work`` (``reuse``: unless it is there, trained the same way); returns its
+    checkpoint and the exit code."""
     train = render_land_training_set(args.work, args.land_presets)
     if altworld:  # its land only, people as the land head's ``person``
         train = add_altworld(args.work, train, ("land",), {})
@@ -446,13 +451,7 @@ def train_land_head(
     stem += "" if seed == 0 else f"_seed{seed}"
     recipe = LAND_ARGS + ([] if args.from_scratch else LAND_INIT_ARGS)
     out = args.work / f"{stem}.pt"
-    if reuse and out.is_file():
-        command = train_command(train, val, out, recipe, seed, extra)
-        if trained_with(out) == training_record(command):
-            print(f"reusing {out}")
-            return out, 0
-        print(f"retraining {out}: it was not trained with these options", file=sys.stderr)
-    return out, train_head(train, val, out, recipe, seed, extra)
+    return out, train_head(train, val, out, recipe, seed, extra, reuse)
 
 
 def train_land_average(args: argparse.Namespace, extra: list[str]) -> int:
@@ -516,34 +515,50 @@ def training_record(command: list[str]) -> dict:
     starting head is not mistaken for the same training."""
     out = command[command.index("--out") + 1]
     files = [arg for arg in command if arg != out and Path(arg).is_file()]
-    if "--init" in command and command[command.index("--init") + 1] == "default":
-        files.append(str(DEFAULT_TORCH_MODEL))
+    if "--init" in command and is_head_name(init := command[command.index("--init") + 1]):
+        files.append(str(shipped_head_path(init, "torch")))
     digests = {name: hashlib.sha256(Path(name).read_bytes()).hexdigest() for name in files}
     return {"arguments": command, "inputs": digests}
+
+
+def record_path(checkpoint: Path) -> Path:
+    """Where :func:`train_head` keeps ``checkpoint``'s :func:`training_record`."""
+    return checkpoint.with_suffix(".args.json")
 
 
 def trained_with(checkpoint: Path) -> dict | None:
     """The record :func:`train_head` wrote beside ``checkpoint`` (:func:`training_record`),
     or None when there is no readable one (a head trained some other way)."""
     try:
-        recorded = json.loads(checkpoint.with_suffix(".args.json").read_text())
+        recorded = json.loads(record_path(checkpoint).read_text())
     except (OSError, ValueError):
         return None
     return recorded if isinstance(recorded, dict) else None
 
 
 def train_head(
-    train: Path, val: Path, out: Path, recipe: list[str], seed: int, extra: list[str]
+    train: Path,
+    val: Path,
+    out: Path,
+    recipe: list[str],
+    seed: int,
+    extra: list[str],
+    reuse: bool = False,
 ) -> int:
     """``sarmission train`` with :func:`train_command`'s arguments; writes ``out``, its ONNX
-    and, once it is trained, its :func:`training_record` beside it (``.args.json``, so that a
-    later run reuses it only for the same options and inputs); returns the exit code."""
+    and, once it is trained, its :func:`training_record` beside it (``.args.json``); returns
+    the exit code. ``reuse``: keep ``out`` instead when its record is this training's."""
     command = train_command(train, val, out, recipe, seed, extra)
     record = training_record(command)
-    out.with_suffix(".args.json").unlink(missing_ok=True)
+    if reuse and out.is_file():
+        if trained_with(out) == record:
+            print(f"reusing {out}")
+            return 0
+        print(f"retraining {out}: it was not trained with these options", file=sys.stderr)
+    record_path(out).unlink(missing_ok=True)
     code = sarmission(command)
     if not code:
-        out.with_suffix(".args.json").write_text(json.dumps(record))
+        record_path(out).write_text(json.dumps(record))
     return code
 
 
