@@ -300,6 +300,17 @@ def maritime_objects_train() -> Preset:
     return Preset(base.name, scenario, base.mission)
 
 
+def maritime_floats_train() -> Preset:
+    """Training only: sea state 3 at 100 m, where people float on their back in about half the
+    cases, most of them with arms and legs spread (the survival float); the other presets draw
+    people on their back rarely and never spread out."""
+    base = _maritime("maritime_floats_train", 1205, 100.0, 75.0, 3, 8.0, (120.0, 35.0))
+    scenario = replace(
+        base.scenario, head_only_fraction=0.15, floating_fraction=0.45, starfish_fraction=0.7
+    )
+    return Preset(base.name, scenario, base.mission)
+
+
 def urban_train() -> Preset:
     """City blocks at 60 m, about 6 pedestrians per frame."""
     return _urban("urban_train", 4004, 60.0, 70.0, 6.0, (160.0, 40.0))
@@ -388,6 +399,7 @@ PRESETS: dict[str, Callable[[], Preset]] = {
         maritime_oblique_mid,
         maritime_oblique_high,
         maritime_objects_train,
+        maritime_floats_train,
         urban_train,
         urban_val,
         urban_test,

@@ -315,6 +315,9 @@ class Scenario:
     waves wash over swimmers. Swimmer sizes: head-and-shoulders across ``swimmer_width_m``;
     ``head_only_fraction`` show only a head (0.18-0.26 m), ``floating_fraction`` float on their
     back (body 1.3-1.8 m long). Life-jacket wearers float on their back in half the cases.
+    ``starfish_fraction`` of those floating on their back spread arms and legs wide (the
+    survival float taught to people who fall into the water), drawn by a generator of their
+    own, so that the rest of the world stays as it is without them.
     Urban counts apply to ``kind == "urban"``, maritime ones to ``"maritime"``; ``"wild"``
     (:mod:`sim.wild`) is land away from streets of the given ``biome``, with ``n_pedestrians``
     people and ``n_animals`` animals (flat figures only).
@@ -343,6 +346,7 @@ class Scenario:
     swimmer_width_m: tuple[float, float] = (0.4, 0.6)
     head_only_fraction: float = 0.2
     floating_fraction: float = 0.2
+    starfish_fraction: float = 0.0
     drift_m_s: tuple[float, float] = (0.1, 0.5)
     wind_from_deg: float = 250.0
     sun_azimuth_deg: float = 200.0
@@ -362,6 +366,8 @@ class Scenario:
             raise ValueError("wild scenes have flat figures only")
         if self.figures not in ("flat", "upright"):
             raise ValueError(f"figures must be 'flat' or 'upright', got {self.figures!r}")
+        if not 0 <= self.starfish_fraction <= 1:
+            raise ValueError(f"starfish_fraction must be in [0, 1], got {self.starfish_fraction}")
         if not 0 <= self.sea_state <= 6:
             raise ValueError(f"sea_state must be 0..6, got {self.sea_state}")
         n0, e0, n1, e1 = self.area_ne
@@ -451,7 +457,10 @@ def swimmer_parts(
     rng: np.random.Generator, width: float, pose: str, life_jacket: bool
 ) -> list[Part]:
     """Parts of a swimmer. ``pose``: ``"head"`` (only the head shows), ``"tread"`` (head and
-    shoulders, arms sweeping) or ``"float"`` (on the back, body ``width`` long)."""
+    shoulders, arms sweeping), ``"float"`` (on the back, body ``width`` long) or
+    ``"starfish"`` (on the back with arms and legs spread, :func:`starfish_parts`)."""
+    if pose == "starfish":
+        return starfish_parts(rng, width, life_jacket)
     skin = pick_colour(rng, SKIN)
     cover = pick_colour(rng, SWIM_CAP) if rng.random() < 0.3 else pick_colour(rng, HAIR)
     suit = pick_colour(rng, WETSUIT) if rng.random() < 0.6 else skin
@@ -549,6 +558,68 @@ def swimmer_parts(
     parts.append(
         Part("ellipse", 0.2 * half + 0.38 * half + 0.12, 0.0, 0.06, 0.06, 0.0, skin, 0.8, 0.2)
     )
+    return parts
+
+
+def starfish_parts(rng: np.random.Generator, length: float, life_jacket: bool) -> list[Part]:
+    """A person floating on the back, arms and legs spread wide, ``length`` metres from head to
+    feet: a small torso and head at the surface, thin limbs just under it (fainter the deeper
+    the legs hang), the whole figure boxed. The body axis points along local ``x``."""
+    k = length / 1.7
+    skin = pick_colour(rng, SKIN)
+    cover = pick_colour(rng, SWIM_CAP) if rng.random() < 0.3 else pick_colour(rng, HAIR)
+    suit = pick_colour(rng, WETSUIT) if rng.random() < 0.6 else pick_colour(rng, CLOTHES)
+    torso = pick_colour(rng, LIFE_JACKET) if life_jacket else suit
+    arms = skin if rng.random() < 0.5 else suit
+    ripple = (225.0, 225.0, 215.0)
+    parts = [Part("ellipse", 0.0, 0.0, 0.95 * k, 0.8 * k, 0.0, ripple, 0.1, 0.0, False)]
+    legs_opacity = float(rng.uniform(0.25, 0.55))
+    for side in (-1.0, 1.0):
+        spread = math.radians(rng.uniform(150.0, 170.0))
+        leg = 0.42 * k
+        parts.append(
+            Part(
+                "ellipse",
+                -0.2 * k + leg * math.cos(spread),
+                side * (0.09 * k + leg * math.sin(spread)),
+                leg,
+                0.055 * k,
+                side * spread,
+                suit,
+                legs_opacity,
+                0.1,
+            )
+        )
+        reach = math.radians(rng.uniform(55.0, 115.0))
+        arm = float(rng.uniform(0.28, 0.34)) * k
+        parts.append(
+            Part(
+                "ellipse",
+                0.3 * k + arm * math.cos(reach),
+                side * (0.16 * k + arm * math.sin(reach)),
+                arm,
+                0.04 * k,
+                side * reach,
+                arms,
+                float(rng.uniform(0.45, 0.8)),
+                0.1,
+            )
+        )
+    parts.append(
+        Part(
+            "ellipse",
+            0.08 * k,
+            0.0,
+            0.3 * k,
+            (0.2 if life_jacket else 0.15) * k,
+            0.0,
+            torso,
+            0.9 if life_jacket else float(rng.uniform(0.5, 0.8)),
+            0.3,
+        )
+    )
+    parts.append(Part("ellipse", 0.52 * k, 0.0, 0.11 * k, 0.095 * k, 0.0, cover, 0.9, 0.3))
+    parts.append(Part("ellipse", 0.56 * k, 0.0, 0.06 * k, 0.06 * k, 0.0, skin, 0.8, 0.2))
     return parts
 
 
@@ -795,6 +866,7 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
         return speed * math.cos(d), speed * math.sin(d)
 
     bob = 0.12 + 0.1 * sc.sea_state
+    starfish_rng = np.random.default_rng([sc.seed, 2])
     for k in range(sc.n_swimmers + sc.n_life_jacket):
         jacket = k >= sc.n_swimmers
         u = rng.random()
@@ -813,13 +885,18 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
         }[pose]
         if jacket and pose == "tread":
             size = rng.uniform(max(sc.swimmer_width_m[0], 0.5), max(sc.swimmer_width_m[1], 0.7))
+        place = uniform_in(rng, sc.area_ne)
+        heading = float(rng.uniform(0, 2 * math.pi))
+        parts = swimmer_parts(rng, float(size), pose, jacket)
+        if pose == "float" and starfish_rng.random() < sc.starfish_fraction:
+            parts = swimmer_parts(starfish_rng, float(size), "starfish", jacket)
         objects.append(
             SceneObject(
                 len(objects) + 1,
                 "swimmer_with_life_jacket" if jacket else "swimmer",
-                uniform_in(rng, sc.area_ne),
-                float(rng.uniform(0, 2 * math.pi)),
-                swimmer_parts(rng, float(size), pose, jacket),
+                place,
+                heading,
+                parts,
                 drift(),
                 wander_m=float(rng.uniform(0.2, 1.0)),
                 wander_period_s=float(rng.uniform(30, 90)),

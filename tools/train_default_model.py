@@ -28,7 +28,9 @@ of its own, docs/altworld.md; :data:`ALTWORLD_SPLITS`) to the training set (with
 land``, its land clips alone, people as ``person``).
 ``--presets broad`` leaves the wild land presets out; other options, e.g.
 ``--texture-negatives 0.25``, go to ``sarmission train``.
-``--presets objects`` adds ``maritime_objects_train`` (:data:`OBJECT_SPLITS`); ``--classes
+``--presets floats`` adds ``maritime_floats_train`` (:data:`FLOAT_SPLITS`, people floating on
+their back) to the wild recipe; ``--presets objects`` adds ``maritime_objects_train``
+(:data:`OBJECT_SPLITS`); ``--classes
 maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
 trains another seed into ``mitenet_head_seed<N>.pt`` (seed 0 into ``mitenet_head.pt``).
@@ -93,6 +95,9 @@ BROAD_SPLITS = (
 #: Added to :data:`BROAD_SPLITS` by ``--presets objects``: a sea crowded with boats, jetskis,
 #: buoys and life rings, for heads that learn them as classes (``--classes maritime``).
 OBJECT_SPLITS = (("maritime_objects_train", 4, 90, "3840x2160"),)
+#: Added to the wild recipe by ``--presets floats``: a sea where people float on their back in
+#: about half the cases, most with arms and legs spread (docs/maritime_head.md).
+FLOAT_SPLITS = (("maritime_floats_train", 4, 90, "3840x2160"),)
 #: Added to :data:`BROAD_SPLITS` by ``--presets wild``: the simulator's wild land (meadow,
 #: forest, rock, snow, sand; people trained as ``swimmer``).
 WILD_SPLITS = tuple(
@@ -105,6 +110,7 @@ EXTRA_SPLITS = {
     "broad": BROAD_SPLITS,
     "objects": BROAD_SPLITS + OBJECT_SPLITS,
     "wild": BROAD_SPLITS + WILD_SPLITS,
+    "floats": BROAD_SPLITS + WILD_SPLITS + FLOAT_SPLITS,
 }
 #: ``--altworld``: clips of the alternative training world (:mod:`altworld`, its own renderer):
 #: (world, clips, frames per clip), 1920x1080 with a 4K camera's ground sampling.
@@ -332,7 +338,8 @@ def main() -> int:
         default="wild",
         help="training presets: the maritime ones, those plus urban_train and the oblique "
         "maritime presets, or those plus maritime_objects_train or the wild land presets "
-        "(the shipped head's recipe; default: wild)",
+        "(the shipped head's recipe; default: wild), or the wild recipe plus "
+        "maritime_floats_train",
     )
     parser.add_argument(
         "--altworld",
@@ -406,7 +413,8 @@ def main() -> int:
         val = render_heldout_val(args.work)
     else:
         val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
-    stem = "mitenet_head" + ("_altworld" if args.altworld else "")
+    stem = "mitenet_head" + ("" if args.presets == "wild" else f"_{args.presets}")
+    stem += "_altworld" if args.altworld else ""
     out = args.work / (f"{stem}.pt" if args.seed == 0 else f"{stem}_seed{args.seed}.pt")
     code = train_head(train, val, out, [], args.seed, extra)
     if code:
