@@ -311,6 +311,15 @@ def maritime_floats_train() -> Preset:
     return Preset(base.name, scenario, base.mission)
 
 
+def maritime_buoys_train() -> Preset:
+    """Training only: sea state 2 at 80 m, with a round mooring buoy for every person in the
+    water; the other flat presets draw no buoys."""
+    base = _maritime("maritime_buoys_train", 1306, 80.0, 75.0, 2, 6.0, (160.0, 40.0))
+    sc = base.scenario
+    scenario = replace(sc, n_mooring_buoys=sc.n_swimmers + sc.n_life_jacket)
+    return Preset(base.name, scenario, base.mission)
+
+
 def urban_train() -> Preset:
     """City blocks at 60 m, about 6 pedestrians per frame."""
     return _urban("urban_train", 4004, 60.0, 70.0, 6.0, (160.0, 40.0))
@@ -400,6 +409,7 @@ PRESETS: dict[str, Callable[[], Preset]] = {
         maritime_oblique_high,
         maritime_objects_train,
         maritime_floats_train,
+        maritime_buoys_train,
         urban_train,
         urban_val,
         urban_test,

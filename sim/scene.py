@@ -318,6 +318,9 @@ class Scenario:
     ``starfish_fraction`` of those floating on their back spread arms and legs wide (the
     survival float taught to people who fall into the water), drawn by a generator of their
     own, so that the rest of the world stays as it is without them.
+    ``n_mooring_buoys`` round mooring buoys (0.4-1.2 m, in the colours of life jackets and
+    white) swing on their moorings over ``area_ne``; they too come from a generator of their
+    own and follow every other object, so a world without them is drawn as before.
     Urban counts apply to ``kind == "urban"``, maritime ones to ``"maritime"``; ``"wild"``
     (:mod:`sim.wild`) is land away from streets of the given ``biome``, with ``n_pedestrians``
     people and ``n_animals`` animals (flat figures only).
@@ -347,6 +350,7 @@ class Scenario:
     head_only_fraction: float = 0.2
     floating_fraction: float = 0.2
     starfish_fraction: float = 0.0
+    n_mooring_buoys: int = 0
     drift_m_s: tuple[float, float] = (0.1, 0.5)
     wind_from_deg: float = 250.0
     sun_azimuth_deg: float = 200.0
@@ -366,6 +370,8 @@ class Scenario:
             raise ValueError("wild scenes have flat figures only")
         if self.figures not in ("flat", "upright"):
             raise ValueError(f"figures must be 'flat' or 'upright', got {self.figures!r}")
+        if self.n_mooring_buoys < 0:
+            raise ValueError(f"n_mooring_buoys must be >= 0, got {self.n_mooring_buoys}")
         if not 0 <= self.starfish_fraction <= 1:
             raise ValueError(f"starfish_fraction must be in [0, 1], got {self.starfish_fraction}")
         if not 0 <= self.sea_state <= 6:
@@ -718,6 +724,51 @@ def debris_parts(rng: np.random.Generator, size: float) -> list[Part]:
     return parts
 
 
+MOORING_BUOY: tuple[BGR, ...] = (
+    (20, 100, 245),
+    (10, 140, 250),
+    (30, 200, 240),
+    (235, 235, 230),
+    (40, 40, 200),
+)
+
+
+def mooring_buoy_parts(rng: np.random.Generator, diameter: float) -> list[Part]:
+    """A round mooring buoy from above: a ring of disturbed water, the sphere darkening towards
+    its rim, a highlight, and now and then the dark pick-up ring on its top."""
+    r = diameter / 2
+    colour = pick_colour(rng, MOORING_BUOY)
+    ripple = (225.0, 225.0, 215.0)
+    parts = [
+        Part("ellipse", 0.0, 0.0, 1.5 * r, 1.5 * r, 0.0, ripple, 0.15, 0.0, False),
+        Part("ellipse", 0.0, 0.0, r, r, 0.0, colour, 1.0, 0.5),
+        Part("ellipse", 0.3 * r, -0.25 * r, 0.3 * r, 0.25 * r, 0.0, (250, 250, 250), 0.35, 0.0),
+    ]
+    if rng.random() < 0.4:
+        parts.append(Part("ellipse", 0.0, 0.0, 0.2 * r, 0.2 * r, 0.0, (40, 40, 45), 0.9, 0.0))
+    return parts
+
+
+def add_mooring_buoys(objects: list[SceneObject], sc: Scenario) -> None:
+    """Append the scenario's mooring buoys (their own generator: nothing else changes)."""
+    rng = np.random.default_rng([sc.seed, 3])
+    for _ in range(sc.n_mooring_buoys):
+        objects.append(
+            SceneObject(
+                len(objects) + 1,
+                "buoy",
+                uniform_in(rng, sc.area_ne),
+                float(rng.uniform(0, 2 * math.pi)),
+                mooring_buoy_parts(rng, float(rng.uniform(0.4, 1.2))),
+                wander_m=float(rng.uniform(0.3, 1.5)),
+                wander_period_s=float(rng.uniform(20, 60)),
+                bob_depth=float(rng.uniform(0.0, 0.15)),
+                bob_period_s=float(rng.uniform(3.0, 7.0)),
+                phase=float(rng.random()),
+            )
+        )
+
+
 def car_parts(rng: np.random.Generator) -> list[Part]:
     """A car from above: body, dark windscreen and rear window, roof, shadow."""
     length, width = float(rng.uniform(3.9, 4.9)), float(rng.uniform(1.7, 1.95))
@@ -927,6 +978,7 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
             )
         )
     add_birds_debris_glints(objects, rng, sc, diag, bob, drift)
+    add_mooring_buoys(objects, sc)
     return objects
 
 

@@ -1,4 +1,5 @@
-"""People floating on their back with arms and legs spread: the starfish pose and its preset."""
+"""Training material drawn on request only: people floating on their back with arms and legs
+spread (the starfish pose), round mooring buoys, and the presets that show them."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import pytest
 from sim.flight import Flight
 from sim.render import SceneRenderer
 from sim.scenarios import PRESETS, preset
-from sim.scene import Scenario, _maritime_objects, swimmer_parts
+from sim.scene import Scenario, _maritime_objects, mooring_buoy_parts, swimmer_parts
 from sim.sprites import outline_points
 
 PEOPLE = ("swimmer", "swimmer_with_life_jacket")
@@ -81,3 +82,42 @@ def test_the_floats_preset_shows_people_on_their_back_spread_out() -> None:
     frame, annotations = renderer.render(t, flight.state_at(t).camera_pose())
     assert frame.shape == (540, 960, 3)
     assert sum(a.category in PEOPLE for a in annotations) >= 3
+
+
+def test_mooring_buoys_follow_every_other_object_and_change_nothing_else() -> None:
+    plain = Scenario(kind="maritime", seed=43)
+    moored = replace(plain, n_mooring_buoys=9)
+    before, after = _maritime_objects(plain), _maritime_objects(moored)
+    assert after[: len(before)] == before
+    buoys = after[len(before) :]
+    assert [b.category for b in buoys] == ["buoy"] * 9
+    assert [b.track_id for b in buoys] == list(range(len(before) + 1, len(after) + 1))
+    for buoy in buoys:
+        assert buoy.velocity_ne == (0.0, 0.0)  # moored: it swings, it does not drift off
+        n, e = buoy.origin_ne
+        n0, e0, n1, e1 = plain.area_ne
+        assert n0 <= n <= n1 and e0 <= e <= e1
+
+
+def test_a_mooring_buoy_is_boxed_round_at_its_size() -> None:
+    for seed in range(10):
+        parts = mooring_buoy_parts(np.random.default_rng(seed), 0.8)
+        length, width = boxed_extent(parts)
+        assert length == pytest.approx(0.8, rel=0.02) and width == pytest.approx(0.8, rel=0.02)
+        assert not parts[0].in_box  # the ring of disturbed water is no part of the buoy
+
+
+def test_a_negative_buoy_count_is_refused() -> None:
+    with pytest.raises(ValueError, match="n_mooring_buoys"):
+        Scenario(kind="maritime", n_mooring_buoys=-1)
+
+
+def test_the_buoys_preset_shows_buoys_beside_people() -> None:
+    chosen = preset("maritime_buoys_train")
+    seeds = [make().scenario.seed for make in PRESETS.values()]
+    assert seeds.count(chosen.scenario.seed) == 1
+    flight = Flight(chosen.mission, seed=chosen.scenario.seed)
+    intr = chosen.mission.camera.intrinsics().scaled(960, 540)
+    renderer = SceneRenderer(chosen.scenario, intr)
+    seen = [a.category for a in renderer.render(30.0, flight.state_at(30.0).camera_pose())[1]]
+    assert seen.count("buoy") >= 2 and sum(c in PEOPLE for c in seen) >= 2, seen

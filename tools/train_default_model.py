@@ -29,7 +29,8 @@ land``, its land clips alone, people as ``person``).
 ``--presets broad`` leaves the wild land presets out; other options, e.g.
 ``--texture-negatives 0.25``, go to ``sarmission train``.
 ``--presets floats`` adds ``maritime_floats_train`` (:data:`FLOAT_SPLITS`, people floating on
-their back) to the wild recipe; ``--presets objects`` adds ``maritime_objects_train``
+their back) to the wild recipe, ``--presets buoys`` ``maritime_buoys_train`` (round mooring
+buoys, :data:`BUOY_SPLITS`); ``--presets objects`` adds ``maritime_objects_train``
 (:data:`OBJECT_SPLITS`); ``--classes
 maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
@@ -98,6 +99,9 @@ OBJECT_SPLITS = (("maritime_objects_train", 4, 90, "3840x2160"),)
 #: Added to the wild recipe by ``--presets floats``: a sea where people float on their back in
 #: about half the cases, most with arms and legs spread (docs/maritime_head.md).
 FLOAT_SPLITS = (("maritime_floats_train", 4, 90, "3840x2160"),)
+#: Added to the wild recipe by ``--presets buoys``: a calm sea with a round mooring buoy for
+#: every person in the water.
+BUOY_SPLITS = (("maritime_buoys_train", 4, 90, "3840x2160"),)
 #: Added to :data:`BROAD_SPLITS` by ``--presets wild``: the simulator's wild land (meadow,
 #: forest, rock, snow, sand; people trained as ``swimmer``).
 WILD_SPLITS = tuple(
@@ -111,6 +115,7 @@ EXTRA_SPLITS = {
     "objects": BROAD_SPLITS + OBJECT_SPLITS,
     "wild": BROAD_SPLITS + WILD_SPLITS,
     "floats": BROAD_SPLITS + WILD_SPLITS + FLOAT_SPLITS,
+    "buoys": BROAD_SPLITS + WILD_SPLITS + BUOY_SPLITS,
 }
 #: ``--altworld``: clips of the alternative training world (:mod:`altworld`, its own renderer):
 #: (world, clips, frames per clip), 1920x1080 with a 4K camera's ground sampling.
@@ -339,7 +344,7 @@ def main() -> int:
         help="training presets: the maritime ones, those plus urban_train and the oblique "
         "maritime presets, or those plus maritime_objects_train or the wild land presets "
         "(the shipped head's recipe; default: wild), or the wild recipe plus "
-        "maritime_floats_train",
+        "maritime_floats_train or maritime_buoys_train",
     )
     parser.add_argument(
         "--altworld",
