@@ -34,7 +34,8 @@ buoys, :data:`BUOY_SPLITS`); ``--presets objects`` adds ``maritime_objects_train
 (:data:`OBJECT_SPLITS`); ``--classes
 maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
-trains another seed into ``mitenet_head_seed<N>.pt`` (seed 0 into ``mitenet_head.pt``).
+trains another seed into ``mitenet_head_seed<N>.pt`` (seed 0 into ``mitenet_head.pt``), and
+presets other than ``wild`` name the file too (``mitenet_head_floats_seed<N>.pt``).
 
 ``--head land`` reproduces the shipped land head (class ``person``, ``mitenet_land_head.pt``
 and ``.onnx``, the mission's ``[detector] model = "land"``; docs/land_head.md): the weighted
@@ -362,7 +363,8 @@ def main() -> int:
         default=None,
         help=f"training seed (default {SHIPPED_SEED} for the maritime head, "
         f"{SHIPPED_LAND_SEED} for the land head: the shipped heads'); seed 0 writes "
-        "mitenet_head.pt, others mitenet_head_seed<N>.pt, so that several can be compared",
+        "mitenet_head.pt, others mitenet_head_seed<N>.pt, so that several can be compared "
+        "(presets other than wild add their name: mitenet_head_floats_seed<N>.pt)",
     )
     parser.add_argument(
         "--head",
