@@ -83,6 +83,8 @@ CAR: tuple[BGR, ...] = (
     (60, 90, 60),
     (120, 120, 125),
 )
+#: Disturbed water around something afloat.
+RIPPLE: BGR = (225.0, 225.0, 215.0)
 CLOTHES: tuple[BGR, ...] = (
     (40, 40, 40),
     (150, 60, 30),
@@ -471,18 +473,17 @@ def swimmer_parts(
     cover = pick_colour(rng, SWIM_CAP) if rng.random() < 0.3 else pick_colour(rng, HAIR)
     suit = pick_colour(rng, WETSUIT) if rng.random() < 0.6 else skin
     jacket = pick_colour(rng, LIFE_JACKET)
-    ripple = (225.0, 225.0, 215.0)
     parts: list[Part] = []
     if pose == "head":
         r = width / 2
-        parts.append(Part("ellipse", 0.0, 0.0, 1.7 * r, 1.6 * r, 0.0, ripple, 0.18, 0.0, False))
+        parts.append(Part("ellipse", 0.0, 0.0, 1.7 * r, 1.6 * r, 0.0, RIPPLE, 0.18, 0.0, False))
         parts.append(Part("ellipse", 0.0, 0.0, r, 0.92 * r, 0.0, cover, 0.95, 0.35))
         parts.append(Part("ellipse", 0.35 * r, 0.0, 0.55 * r, 0.6 * r, 0.0, skin, 0.8, 0.2))
         return parts
     if pose == "tread":
         w = width / 2
         head_r = min(0.12, 0.42 * w)
-        parts.append(Part("ellipse", 0.0, 0.0, 1.1 * w, 1.35 * w, 0.0, ripple, 0.15, 0.0, False))
+        parts.append(Part("ellipse", 0.0, 0.0, 1.1 * w, 1.35 * w, 0.0, RIPPLE, 0.15, 0.0, False))
         for side in (-1.0, 1.0):
             parts.append(
                 Part(
@@ -525,7 +526,7 @@ def swimmer_parts(
     length = width
     half = length / 2
     torso = pick_colour(rng, CLOTHES) if not life_jacket else jacket
-    parts.append(Part("ellipse", 0.0, 0.0, 1.05 * half, 0.32, 0.0, ripple, 0.12, 0.0, False))
+    parts.append(Part("ellipse", 0.0, 0.0, 1.05 * half, 0.32, 0.0, RIPPLE, 0.12, 0.0, False))
     parts.append(Part("ellipse", -0.55 * half, 0.0, 0.45 * half, 0.16, 0.0, suit, 0.35, 0.2))
     for side in (-1.0, 1.0):
         parts.append(
@@ -577,8 +578,7 @@ def starfish_parts(rng: np.random.Generator, length: float, life_jacket: bool) -
     suit = pick_colour(rng, WETSUIT) if rng.random() < 0.6 else pick_colour(rng, CLOTHES)
     torso = pick_colour(rng, LIFE_JACKET) if life_jacket else suit
     arms = skin if rng.random() < 0.5 else suit
-    ripple = (225.0, 225.0, 215.0)
-    parts = [Part("ellipse", 0.0, 0.0, 0.95 * k, 0.8 * k, 0.0, ripple, 0.1, 0.0, False)]
+    parts = [Part("ellipse", 0.0, 0.0, 0.95 * k, 0.8 * k, 0.0, RIPPLE, 0.1, 0.0, False)]
     legs_opacity = float(rng.uniform(0.25, 0.55))
     for side in (-1.0, 1.0):
         spread = math.radians(rng.uniform(150.0, 170.0))
@@ -738,9 +738,8 @@ def mooring_buoy_parts(rng: np.random.Generator, diameter: float) -> list[Part]:
     its rim, a highlight, and now and then the dark pick-up ring on its top."""
     r = diameter / 2
     colour = pick_colour(rng, MOORING_BUOY)
-    ripple = (225.0, 225.0, 215.0)
     parts = [
-        Part("ellipse", 0.0, 0.0, 1.5 * r, 1.5 * r, 0.0, ripple, 0.15, 0.0, False),
+        Part("ellipse", 0.0, 0.0, 1.5 * r, 1.5 * r, 0.0, RIPPLE, 0.15, 0.0, False),
         Part("ellipse", 0.0, 0.0, r, r, 0.0, colour, 1.0, 0.5),
         Part("ellipse", 0.3 * r, -0.25 * r, 0.3 * r, 0.25 * r, 0.0, (250, 250, 250), 0.35, 0.0),
     ]
@@ -938,7 +937,7 @@ def _maritime_objects(sc: Scenario) -> list[SceneObject]:
             size = rng.uniform(max(sc.swimmer_width_m[0], 0.5), max(sc.swimmer_width_m[1], 0.7))
         place = uniform_in(rng, sc.area_ne)
         heading = float(rng.uniform(0, 2 * math.pi))
-        parts = swimmer_parts(rng, float(size), pose, jacket)
+        parts = swimmer_parts(rng, float(size), pose, jacket)  # drawn always: rng stays in step
         if pose == "float" and starfish_rng.random() < sc.starfish_fraction:
             parts = swimmer_parts(starfish_rng, float(size), "starfish", jacket)
         objects.append(

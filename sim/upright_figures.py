@@ -21,6 +21,7 @@ from sim.scene import (
     HAIR,
     HULL,
     LIFE_JACKET,
+    RIPPLE,
     SKIN,
     SWIM_CAP,
     WETSUIT,
@@ -31,7 +32,6 @@ from sim.scene import (
 )
 
 Figure = tuple[list[Part], list[Upright]]
-RIPPLE: BGR = (225.0, 225.0, 215.0)
 BUOY: tuple[BGR, ...] = (
     (20, 200, 240),
     (30, 40, 200),

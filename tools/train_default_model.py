@@ -98,10 +98,10 @@ BROAD_SPLITS = (
 #: buoys and life rings, for heads that learn them as classes (``--classes maritime``).
 OBJECT_SPLITS = (("maritime_objects_train", 4, 90, "3840x2160"),)
 #: Added to the wild recipe by ``--presets floats``: a sea where people float on their back in
-#: about half the cases, most with arms and legs spread (docs/maritime_head.md).
+#: about half the cases, most with arms and legs spread (docs/floating_people.md).
 FLOAT_SPLITS = (("maritime_floats_train", 4, 90, "3840x2160"),)
 #: Added to the wild recipe by ``--presets buoys``: a calm sea with a round mooring buoy for
-#: every person in the water.
+#: every person in the water (docs/mooring_buoys.md).
 BUOY_SPLITS = (("maritime_buoys_train", 4, 90, "3840x2160"),)
 #: Added to :data:`BROAD_SPLITS` by ``--presets wild``: the simulator's wild land (meadow,
 #: forest, rock, snow, sand; people trained as ``swimmer``).
