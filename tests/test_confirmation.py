@@ -2,6 +2,7 @@
 glint moving with the aircraft, a boat, a speck and a faint blob are discarded, short evidence
 waits. Positions are built with pymap3d and seeded noise of each fix's stated error."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -173,3 +174,31 @@ def test_a_score_window_still_gives_up_and_still_drops_flicker():
     flicker.frames = len(every)
     found = assess(flicker, 102.0, windowed)
     assert found.verdict == "discard" and "seen in 26 % of frames" in found.reason, found
+
+
+def measured(extent, every: int = 1):
+    """The standing person's sightings (box 0.6 m), the object's extent measured in every
+    ``every``-th of them."""
+    return [
+        Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, "", None, extent)
+        if i % every == 0
+        else s
+        for i, s in enumerate(sightings())
+    ]
+
+
+def test_an_object_larger_than_its_box_is_discarded_by_its_extent():
+    rule = dataclasses.replace(RULE, max_extent_m=3.0)
+    boat = assess(evidence_of(measured(4.2)), 101.5, rule)
+    assert boat.verdict == "discard", boat
+    assert boat.reason == "4.2 m across against its surroundings is no person (at most 3 m)"
+    assert "extent 4.2 m" in boat.summary()
+    # a person with a shadow or splash: larger than its box, within the limit
+    assert assess(evidence_of(measured(3.0)), 101.5, rule).verdict == "confirm"
+    # measured in a quarter of the sightings counts; in fewer it is not enough to judge
+    assert assess(evidence_of(measured(4.2, every=4)), 101.5, rule).verdict == "discard"
+    few = assess(evidence_of(measured(4.2, every=5)), 101.5, rule)
+    assert few.verdict == "confirm" and few.extent_m is None, few
+    # 0: not measured, whatever the sightings carry
+    off = dataclasses.replace(RULE, max_extent_m=0.0)
+    assert assess(evidence_of(measured(4.2)), 101.5, off).verdict == "confirm"

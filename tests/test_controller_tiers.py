@@ -5,6 +5,7 @@ confirmation announces at once, a dismissal silences the place, also after a res
 
 import math
 
+import cv2
 import numpy as np
 import pymap3d
 import pytest
@@ -232,3 +233,23 @@ def test_a_life_ring_is_its_own_kind_of_alert(tmp_path, mission):
         (alert,) = run(ctl, 20)
         assert alert.class_name == "life_saving_appliances"
         assert "life_saving_appliances" in store.get(alert.alert_id).class_name
+
+
+def test_a_boat_the_head_boxes_as_a_person_is_too_large_against_its_surroundings(tmp_path, mission):
+    """The head's box never grows past its crop: a 16 px box on a 6 m boat is person-sized.
+    The object under it, measured in the frame, is not."""
+    box = box_at(5.0, 5.0, 60.0, side_px=16.0)  # 0.5 m: a person, by the box
+    cx, cy = int((box[0] + box[2]) / 2), int((box[1] + box[3]) / 2)
+    frame = np.full((H, W, 3), 90, np.uint8)
+    cv2.rectangle(frame, (cx - 90, cy - 30), (cx + 90, cy + 30), (235, 235, 240), -1)  # 6 m
+    script = [[(box, 0.9, 0)]] * 20
+    for max_extent_m, confirmed in ((3.0, False), (0.0, True)):
+        mission.confirm.max_extent_m = max_extent_m
+        with AlertStore(tmp_path / f"a{max_extent_m}.db") as store:
+            ctl = controller(mission, ScriptedDetector(script), flight(3.0), store)
+            alerts = [a for i in range(20) for a in ctl.process(i, i / FPS, frame)]
+            assert bool(alerts) == confirmed
+            (candidate,) = ctl.stats.candidates
+            if not confirmed:
+                reason = store.get(candidate.alert_id).discarded
+                assert "6.0 m across against its surroundings is no person" in reason

@@ -79,6 +79,8 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[detector]\nds = 3", "[detector] ds: expected one of 1, 2, 4, 8"),
         ("[telemetry]\nlatency_s = -1", "[telemetry] latency_s: expected a number >= 0"),
         ("[confirm]\nmin_size_m = 3.0", "[confirm] sizes/speed/score"),
+        ("[confirm]\nmax_extent_m = 1.0", "[confirm] max_extent_m: expected 0"),
+        ("[confirm]\nmax_extent_m = nan", "[confirm] max_extent_m"),
         ("[confirm]\nscore_window_s = 30", "[confirm] score_window_s: expected 0"),
         ("[confirm]\nscore_window_s = -1", "[confirm] score_window_s: expected 0"),
         ("[geolocation]\nmax_off_nadir_deg = 95", "[geolocation] max_off_nadir_deg"),

@@ -79,14 +79,16 @@ class CandidateBook:
         score: float,
         label: str = "",
         track_id: int | None = None,
+        extent_m: float | None = None,
     ) -> None:
         """One frame's sighting of a target (``lat`` None: no fix this frame; ``label`` the
-        head's class for it, empty when unknown; ``track_id`` the track that saw it)."""
+        head's class for it, empty when unknown; ``track_id`` the track that saw it;
+        ``extent_m`` the object's size against its surroundings, None when not measured)."""
         evidence = self.evidence.setdefault(target_id, TargetEvidence())
         if lat is None or lon is None or error_m is None:
             evidence.note_unplaced(t)
         else:
-            evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label, track_id))
+            evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label, track_id, extent_m))
 
     def forget(self, target_id: int, track_id: int) -> None:
         """Drop ``track_id``'s sightings from ``target_id``'s evidence (the registry took the

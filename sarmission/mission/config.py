@@ -236,13 +236,17 @@ class ConfirmConfig:
     """When a locked candidate becomes a confirmed alert (:mod:`sarmission.mission.confirmation`):
     seen for ``min_seen_s`` in ``min_sightings`` geolocated frames, at least ``min_seen_share``
     of the frames since its first sighting, drifting no faster than ``max_speed_m_s``,
-    ``min_size_m``-``max_size_m`` across the line of sight, its scores' mean at least
-    ``min_score``; discarded if not confirmed within ``give_up_s``. ``score_window_s`` > 0 judges
-    the score over the latest seconds only and lets a low one wait for a better view instead
-    of discarding it (0: the mean of all sightings, decided once). The defaults were chosen on
-    the development scenarios (``tools/candidate_features.py``, ``tools/confirmation_rules.py``),
-    ``min_seen_s``, ``min_seen_share`` and ``min_score`` on held-out validation clips
-    (``tools/heldout_alerts.py --split validation``), never on the scored suite or a test clip.
+    ``min_size_m``-``max_size_m`` across the line of sight, the object under it (measured against
+    its surroundings: :mod:`sarmission.perception.extent`) at most ``max_extent_m`` across (0:
+    not measured), its scores' mean at least ``min_score``; discarded if not confirmed within
+    ``give_up_s``. ``score_window_s`` > 0 judges the score over the latest seconds only and
+    lets a low one wait for a better view instead of discarding it (0: the mean of all
+    sightings, decided once). The defaults were chosen on the development scenarios
+    (``tools/candidate_features.py``, ``tools/confirmation_rules.py``), ``min_seen_s``,
+    ``min_seen_share`` and ``min_score`` on held-out validation clips (``tools/heldout_alerts.py
+    --split validation``), never on the scored suite or a test clip; ``max_extent_m`` on the
+    held-out validation clips and the frame-level sea clips of ``tools/heldout_eval.py``
+    (``tools/object_extent_study.py``), never on a flight's test clip.
     ``min_score`` is the maritime head's; a mission that leaves it unset and flies another
     shipped head takes that head's (:data:`sarmission.models.CONFIRM_MIN_SCORE`), since each
     head's scores run on their own scale."""
@@ -253,6 +257,7 @@ class ConfirmConfig:
     max_speed_m_s: float = 1.5
     min_size_m: float = 0.15
     max_size_m: float = 2.5
+    max_extent_m: float = 3.0
     min_score: float = CONFIRM_MIN_SCORE[DEFAULT_HEAD]
     give_up_s: float = 20.0
     score_window_s: float = 0.0

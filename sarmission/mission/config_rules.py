@@ -178,6 +178,8 @@ def confirm_problem(c: ConfirmConfig) -> Problem:
             "sizes/speed/score",
             "expected 0 < min_size_m < max_size_m, max_speed_m_s >= 0, min_score 0-1",
         )
+    if not (c.max_extent_m == 0 or c.max_extent_m >= c.max_size_m):
+        return "max_extent_m", "expected 0 (not measured) or at least max_size_m"
     if not 0 <= c.score_window_s <= c.give_up_s:
         return "score_window_s", "expected 0 (all sightings) up to give_up_s"
     return None

@@ -14,6 +14,11 @@ the frames processed since its first sighting (a person stays in view; clutter f
   sight (:func:`sarmission.geo.ground_size.apparent_size_m`: a standing person's height even
   in an oblique view) lies in ``[min_size_m, max_size_m]`` (a boat is metres long, a speck
   centimetres);
+- the object under it, measured against its surroundings (:mod:`sarmission.perception.extent`:
+  the head's box never grows past its crop, so a boat it calls a swimmer gets a person-sized
+  box), is at most ``max_extent_m`` across: the median over the sightings that measured it,
+  once at least :data:`MIN_EXTENT_SHARE` of them did. Its limit is looser than the box's,
+  since a person's shadow, splash or ring of disturbed water counts with the person;
 - the head's scores of its sightings agree: their mean is at least ``min_score`` (a few lucky
   crops do not make a person). With ``score_window_s`` > 0 the mean is over the sightings of
   the latest ``score_window_s`` only, and a candidate below it waits (until ``give_up_s``)
@@ -49,13 +54,16 @@ from sarmission.mission.position_estimate import line_fit
 
 Verdict = Literal["confirm", "wait", "discard"]
 
+#: Share of a candidate's sightings that must have measured its extent for it to count.
+MIN_EXTENT_SHARE = 0.25
+
 
 @dataclass(frozen=True)
 class Sighting:
     """One frame's evidence of a target: capture time, fix, its 1-sigma error, the object's size
     across the line of sight (metres; None when it could not be measured), the head's score and
-    its class name (empty: unknown, taken for a person), and the track that saw it (None:
-    not known)."""
+    its class name (empty: unknown, taken for a person), the track that saw it (None:
+    not known) and the object's extent against its surroundings (metres; None: not measured)."""
 
     t: float
     lat: float
@@ -65,6 +73,7 @@ class Sighting:
     score: float
     label: str = ""
     track_id: int | None = None
+    extent_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -80,6 +89,7 @@ class Assessment:
     speed_m_s: float | None = None
     size_m: float | None = None
     score: float | None = None
+    extent_m: float | None = None
 
     def summary(self) -> str:
         """One line of the evidence, e.g. ``1.3 s, 9 sightings, drift 0.2 m/s, 0.6 m, 0.84``."""
@@ -90,6 +100,8 @@ class Assessment:
             parts.append(f"drift {self.speed_m_s:.1f} m/s")
         if self.size_m is not None:
             parts.append(f"{self.size_m:.1f} m")
+        if self.extent_m is not None:
+            parts.append(f"extent {self.extent_m:.1f} m")
         if self.score is not None:
             parts.append(f"score {self.score:.2f}")
         return ", ".join(parts)
@@ -160,6 +172,12 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     seen = sightings[-1].t - sightings[0].t
     sizes = [s.size_m for s in sightings if s.size_m is not None]
     size = float(np.median(sizes)) if sizes else None
+    extents = [s.extent_m for s in sightings if s.extent_m is not None]
+    extent = (
+        float(np.median(extents))
+        if extents and len(extents) >= MIN_EXTENT_SHARE * len(sightings)
+        else None
+    )
     score = track_score(sightings, rule.score_window_s)
     share = evidence.seen_share if evidence.frames else None
     speed = spread = None
@@ -172,6 +190,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         speed_m_s=speed,
         size_m=size,
         score=score,
+        extent_m=extent,
     )
     enough = len(sightings) >= rule.min_sightings
     late = f"not confirmed within {rule.give_up_s:g} s"
@@ -187,6 +206,13 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         return Assessment(
             "discard",
             f"{size:.2f} m across is no person ({rule.min_size_m:g}-{rule.max_size_m:g} m)",
+            **figures,
+        )
+    if enough and extent is not None and 0 < rule.max_extent_m < extent:
+        return Assessment(
+            "discard",
+            f"{extent:.1f} m across against its surroundings is no person "
+            f"(at most {rule.max_extent_m:g} m)",
             **figures,
         )
     if (

@@ -69,6 +69,7 @@ from sarmission.mission.config import MissionConfig
 from sarmission.mission.position_estimate import WINDOW_S, latest_position
 from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
+from sarmission.perception.extent import object_extent
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
@@ -352,7 +353,7 @@ class MissionController:
             if track.just_locked:
                 self._pending_locks.add(track.track_id)
             return None
-        self._sighting(target, track, timestamp, pose, fix)
+        self._sighting(target, track, frame, timestamp, pose, fix)
         if track.just_locked or track.track_id in self._pending_locks:
             self._pending_locks.discard(track.track_id)
             self.stats.locks += 1
@@ -516,12 +517,13 @@ class MissionController:
         self,
         target: Target,
         track: TrackState,
+        frame: np.ndarray | YuvImage,
         timestamp: float,
         pose: PlatformPose | StaleTelemetry,
         fix: GeoFix | None,
     ) -> None:
-        """This frame's evidence of ``target``: the track's fix, its object's size, the
-        head's score of the detection it took and the track's class."""
+        """This frame's evidence of ``target``: the track's fix, the size of its box and of
+        the object under it, the head's score of the detection it took and the track's class."""
         if fix is None or not fix.ok or not isinstance(pose, PlatformPose):
             self.candidates.sighting(
                 target.target_id, timestamp, None, None, None, None, track.last_score
@@ -530,6 +532,13 @@ class MissionController:
         ground = self._ground_below_home()
         assert self._intrinsics is not None and ground is not None
         size = apparent_size_m(track.raw_box, self._intrinsics, pose, ground)
+        extent = None
+        if self.mission.confirm.max_extent_m > 0:
+            started = time.perf_counter()
+            box = object_extent(frame, track.raw_box)
+            self.stats.stage_ms["extent"] += (time.perf_counter() - started) * 1e3
+            if box is not None:
+                extent = apparent_size_m(box, self._intrinsics, pose, ground)
         label = class_name(self.detector.classes, track.class_id)
         self.candidates.sighting(
             target.target_id,
@@ -541,6 +550,7 @@ class MissionController:
             track.last_score,
             label,
             track.track_id,
+            extent,
         )
 
     def _candidate(

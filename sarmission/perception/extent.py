@@ -1,0 +1,169 @@
+"""How large the object under a detection is, measured against its surroundings.
+
+The head boxes what fits in its 16 x 16 crop: its boxes are never more than about twice the
+crop's side (~31 px at the first scale), so a boat 150 px long that the head calls a swimmer
+gets a person-sized box, and a size gate on that box cannot tell it from a person.
+:func:`object_extent` measures the object itself: in a square window around the detection, the
+pixels whose colour (CIE Lab) lies more than ``threshold`` robust standard deviations from the
+window's border band, closed over small gaps; the connected region that covers most of the
+detection's box is the object. The window grows (doubling) while the region, or another
+background, reaches its edge; windows wider than 256 px are sampled, at a cost that stays that
+of a 256 px window.
+
+The measurement refuses (None) rather than guess when its premise fails: the border band is
+still not one background (more than ``max_border_share`` of it stands out, e.g. a road's edge
+through grass) or the region still reaches the window's edge when the window is ``max_half_px``
+or meets the frame's edge (what lies beyond is unknown), or nothing under the box stands out.
+The region holds what differs from the background next to it: a person's shadow, splash or
+ring of disturbed water counts with the person, a boat's crew against its deck is measured as
+the crew.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from sarmission.yuv import YuvImage, picture_size
+
+#: Robust standard deviations (1.4826 x MAD per Lab channel) from the border's median.
+DEFAULT_THRESHOLD = 3.5
+#: The first window's half side in pixels (at least twice the box's longer side).
+DEFAULT_MIN_HALF_PX = 64
+#: The largest window's half side in pixels.
+DEFAULT_MAX_HALF_PX = 512
+#: Share of the border band that may stand out before the background counts as mixed.
+DEFAULT_MAX_BORDER_SHARE = 0.1
+#: Windows wider than twice this are sampled every (half // this)-th pixel: a window's cost
+#: stays that of a (2 x this) px square, and objects that need it are large.
+SAMPLED_HALF_PX = 128
+#: Lab units added to each channel's spread: a flat background does not make noise an object.
+SPREAD_FLOOR = 3.0
+
+
+def _window_bgr(
+    picture: np.ndarray | YuvImage, x0: int, y0: int, x1: int, y1: int, step: int
+) -> np.ndarray:
+    """Every ``step``-th pixel of the window, as BGR."""
+    if isinstance(picture, YuvImage):
+        rows, cols = np.arange(y0, y1, step)[:, None], np.arange(x0, x1, step)[None, :]
+        return picture.bgr_at(rows, cols)
+    window = picture[y0:y1:step, x0:x1:step]
+    if window.ndim == 2:
+        return cv2.cvtColor(np.ascontiguousarray(window), cv2.COLOR_GRAY2BGR)
+    return np.ascontiguousarray(window)
+
+
+def _histogram_median(counts: np.ndarray) -> int:
+    """The lower median of the values whose histogram is ``counts``."""
+    return int(np.searchsorted(np.cumsum(counts), (counts.sum() + 1) // 2))
+
+
+def _distance_tables(border: np.ndarray) -> list[np.ndarray]:
+    """Per Lab channel, each byte value's distance from the border's median in robust
+    standard deviations (1.4826 x MAD, plus :data:`SPREAD_FLOOR`)."""
+    values = np.arange(256)
+    tables = []
+    for channel in range(3):
+        counts = np.bincount(border[:, channel], minlength=256)
+        deviation = np.abs(values - _histogram_median(counts))
+        mad = _histogram_median(np.bincount(deviation, weights=counts, minlength=256))
+        tables.append((deviation / (1.4826 * mad + SPREAD_FLOOR)).astype(np.float32))
+    return tables
+
+
+def _region(
+    window_bgr: np.ndarray, inner: tuple[int, int, int, int], threshold: float, border_share: float
+) -> tuple[tuple[int, int, int, int], bool] | bool:
+    """``((x0, y0, x1, y1), touches_edge)`` of the region under ``inner`` in window pixels;
+    True when the border is mixed (an object across it, or two backgrounds), False when
+    nothing under ``inner`` stands out."""
+    lab = cv2.cvtColor(window_bgr, cv2.COLOR_BGR2LAB)
+    h, w = lab.shape[:2]
+    band = max(2, min(h, w) // 16)
+    border = np.concatenate(
+        [
+            lab[:band].reshape(-1, 3),
+            lab[h - band :].reshape(-1, 3),
+            lab[band : h - band, :band].reshape(-1, 3),
+            lab[band : h - band, w - band :].reshape(-1, 3),
+        ]
+    )
+    tables = _distance_tables(border)
+
+    def distance(pixels: np.ndarray) -> np.ndarray:
+        return np.maximum(
+            np.maximum(tables[0][pixels[..., 0]], tables[1][pixels[..., 1]]),
+            tables[2][pixels[..., 2]],
+        )
+
+    if float((distance(border) > threshold).mean()) > border_share:
+        return True
+    mask = (distance(lab) > threshold).astype(np.uint8)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    ix0, iy0, ix1, iy1 = inner
+    under = labels[iy0:iy1, ix0:ix1]
+    ids, counts = np.unique(under[under > 0], return_counts=True)
+    if ids.size == 0:
+        return False
+    left, top, width, height = (int(v) for v in stats[int(ids[np.argmax(counts)]), :4])
+    touches = left <= 0 or top <= 0 or left + width >= w or top + height >= h
+    return (left, top, left + width, top + height), touches
+
+
+def object_extent(
+    picture: np.ndarray | YuvImage,
+    box: np.ndarray | tuple[float, float, float, float],
+    threshold: float = DEFAULT_THRESHOLD,
+    min_half_px: int = DEFAULT_MIN_HALF_PX,
+    max_half_px: int = DEFAULT_MAX_HALF_PX,
+    max_border_share: float = DEFAULT_MAX_BORDER_SHARE,
+) -> np.ndarray | None:
+    """The ``[x1, y1, x2, y2]`` box (full-resolution pixels) of the object under the detection
+    ``box`` of ``picture`` (BGR or gray uint8, or the decoder's planes), or None when it cannot
+    be measured (module docstring). A box that is not finite, is empty or lies outside the
+    picture gives None; a picture that is not uint8 BGR or gray raises ValueError."""
+    coords = np.asarray(box, dtype=np.float64).reshape(-1)
+    if coords.size != 4 or not np.isfinite(coords).all():
+        return None
+    x1, y1, x2, y2 = (float(v) for v in coords)
+    if not isinstance(picture, YuvImage) and (
+        picture.dtype != np.uint8 or picture.ndim not in (2, 3)
+    ):
+        raise ValueError(f"expected a uint8 image, got {picture.dtype} with shape {picture.shape}")
+    height, width = picture_size(picture)
+    if not (x2 > x1 and y2 > y1) or x2 <= 0 or y2 <= 0 or x1 >= width or y1 >= height:
+        return None
+    cx, cy = (x1 + x2) / 2, (y1 + y2) / 2
+    half = max(int(min_half_px), int(math.ceil(2 * max(x2 - x1, y2 - y1))))
+    while True:
+        x0, y0 = int(max(0, cx - half)), int(max(0, cy - half))
+        xe, ye = int(min(width, cx + half + 1)), int(min(height, cy + half + 1))
+        step = max(1, half // SAMPLED_HALF_PX)
+        if (xe - x0) // step < 8 or (ye - y0) // step < 8:
+            return None
+        inner = (
+            int(max(0, math.floor(x1) - x0)) // step,
+            int(max(0, math.floor(y1) - y0)) // step,
+            int(min(xe - x0, math.ceil(x2) - x0 + 1) + step - 1) // step,
+            int(min(ye - y0, math.ceil(y2) - y0 + 1) + step - 1) // step,
+        )
+        window = _window_bgr(picture, x0, y0, xe, ye, step)
+        found = _region(window, inner, threshold, max_border_share)
+        if found is False:
+            return None
+        if found is not True:
+            (left, top, right, bottom), touches = found
+            if not touches:
+                return np.array(
+                    [x0 + left * step, y0 + top * step, x0 + right * step, y0 + bottom * step],
+                    np.float64,
+                )
+        # the object or another background reaches the window's edge: look wider
+        cut = x0 == 0 or y0 == 0 or xe == width or ye == height
+        if cut or half >= max_half_px:
+            return None
+        half = min(2 * half, int(max_half_px))
