@@ -213,3 +213,26 @@ def test_an_alert_refuses_an_impossible_confidence():
     for bad in (1.01, -0.5, float("nan")):
         with pytest.raises(ValueError, match="confidence"):
             make_alert(1, confidence=bad)
+
+
+def test_the_extent_is_measured_every_few_sightings_until_the_candidate_is_decided(
+    tmp_path: Path,
+):
+    from sarmission.mission.candidates import EXTENT_EVERY
+
+    with AlertStore(tmp_path / "a.db") as store:
+        book = CandidateBook(store, "test-mission", RULE)
+        alert = make_alert(1, tier="candidate")
+        store.add(alert)
+        book.add(1, alert)
+        wanted = []
+        for s in seen([0.8] * 11):
+            wanted.append(book.wants_extent(1))
+            book.sighting(1, s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, s.label, s.track_id)
+        assert wanted == [i % EXTENT_EVERY == 0 for i in range(11)]
+        assert book.wants_extent(2)  # a target not seen yet: its lock frame measures
+        s = seen([0.8] * 12)[-1]
+        book.sighting(1, s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, s.label, s.track_id)
+        assert len(book.evidence[1].sightings) % EXTENT_EVERY == 0 and book.wants_extent(1)
+        (_,) = book.review(101.2, when=1.7e9)  # confirmed: its extent no longer matters
+        assert not book.wants_extent(1)

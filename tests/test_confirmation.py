@@ -176,12 +176,12 @@ def test_a_score_window_still_gives_up_and_still_drops_flicker():
     assert found.verdict == "discard" and "seen in 26 % of frames" in found.reason, found
 
 
-def measured(extent, every: int = 1):
-    """The standing person's sightings (box 0.6 m), the object's extent measured in every
-    ``every``-th of them."""
+def measured(extent, count: int | None = None):
+    """The standing person's sightings (box 0.6 m), the object's extent measured in the first
+    ``count`` of them (None: all)."""
     return [
         Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, "", None, extent)
-        if i % every == 0
+        if count is None or i < count
         else s
         for i, s in enumerate(sightings())
     ]
@@ -195,9 +195,9 @@ def test_an_object_larger_than_its_box_is_discarded_by_its_extent():
     assert "extent 4.2 m" in boat.summary()
     # a person with a shadow or splash: larger than its box, within the limit
     assert assess(evidence_of(measured(3.0)), 101.5, rule).verdict == "confirm"
-    # measured in a quarter of the sightings counts; in fewer it is not enough to judge
-    assert assess(evidence_of(measured(4.2, every=4)), 101.5, rule).verdict == "discard"
-    few = assess(evidence_of(measured(4.2, every=5)), 101.5, rule)
+    # three measurements are enough to judge; two are not
+    assert assess(evidence_of(measured(4.2, count=3)), 101.5, rule).verdict == "discard"
+    few = assess(evidence_of(measured(4.2, count=2)), 101.5, rule)
     assert few.verdict == "confirm" and few.extent_m is None, few
     # 0: not measured, whatever the sightings carry
     off = dataclasses.replace(RULE, max_extent_m=0.0)

@@ -231,3 +231,24 @@ def test_batch_norm_statistics_are_those_of_the_footage_crops() -> None:
     for name, value in adapted.state_dict().items():
         if name in before and value.is_floating_point():
             torch.testing.assert_close(value, before[name])
+
+
+def test_extent_study_judges_a_track_as_the_confirmation_does():
+    tool = load_tool("object_extent_study")
+    from sarmission.mission.config import ConfirmConfig
+
+    rule = ConfirmConfig()  # box 0.15-2.5 m, extent at most 4 m
+
+    def track(box_m, extents):
+        return [tool.Sized(("clip", 1, 7), box_m, e, 1.0) for e in extents]
+
+    boat = track(0.9, [4.1] * 8)
+    assert tool.kept_by_gate(boat, rule) == (True, False)
+    person = track(0.6, [0.7, 3.6, 0.8, None])  # one wide measurement: the median stays small
+    assert tool.kept_by_gate(person, rule) == (True, True)
+    rarely = track(0.9, [4.1, 4.1] + [None] * 4)  # measured twice: not judged
+    assert tool.kept_by_gate(rarely, rule) == (True, True)
+    assert tool.kept_by_gate(track(None, [4.1]), rule) is None
+    rows = tool.table({"boat": boat, "person": person}, rule)
+    assert rows[2].startswith("| boat | 8 |") and rows[2].endswith("| 1 | 100 % | 0 % |")
+    assert rows[3].startswith("| person | 4 |") and rows[3].endswith("| 1 | 100 % | 100 % |")

@@ -6,15 +6,15 @@ that lies on an annotated box (``class_confusion.hits``) is sized twice across t
 sight (:func:`sarmission.geo.ground_size.apparent_size_m`): its own box, which never grows past
 the head's crop, and the object under it (:func:`sarmission.perception.extent.object_extent`).
 Per track, the confirmation's rule decides what the gate keeps: the median box size within
-``[confirm] min_size_m``-``max_size_m``, and, once a quarter of the sightings measured it, the
-median extent at most ``max_extent_m`` (:mod:`sarmission.mission.confirmation`). Sightings here
+``[confirm] min_size_m``-``max_size_m``, and, once three sightings measured it, the median
+extent at most ``max_extent_m`` (:mod:`sarmission.mission.confirmation`). Sightings here
 are the confident detections on a box, not a flight's tracks.
 
 Footage: the simulator's oblique presets and ``maritime_test`` at 4K (worlds no head trained
 on: the presets' seeds plus 500), and clips of the held-out generator's sea and land worlds
 (``tools/heldout_alerts.py``'s, rendered when missing).
 
-    nice -n 19 python tools/object_extent_study.py [--split validation|test] [--clips 3] \
+    nice -n 19 python tools/object_extent_study.py [--splits validation,test] [--clips 3] \
         [--sim-frames 12] [--out docs/object_extent.md]
 """
 
@@ -46,7 +46,7 @@ from sarmission.evaluation.matching import FrameBoxes  # noqa: E402
 from sarmission.geo.camera import CameraIntrinsics  # noqa: E402
 from sarmission.geo.ground_size import apparent_size_m  # noqa: E402
 from sarmission.mission.config import ConfirmConfig  # noqa: E402
-from sarmission.mission.confirmation import MIN_EXTENT_SHARE  # noqa: E402
+from sarmission.mission.confirmation import MIN_EXTENTS  # noqa: E402
 from sarmission.mission.replay_telemetry import frame_pose  # noqa: E402
 from sarmission.perception.extent import object_extent  # noqa: E402
 
@@ -164,8 +164,7 @@ def kept_by_gate(sightings: list[Sized], rule: ConfirmConfig) -> tuple[bool, boo
         return None
     by_box = rule.min_size_m <= float(np.median(sizes)) <= rule.max_size_m
     extents = [s.extent_m for s in sightings if s.extent_m is not None]
-    judged = extents and len(extents) >= MIN_EXTENT_SHARE * len(sightings)
-    too_large = bool(judged) and float(np.median(extents)) > rule.max_extent_m
+    too_large = len(extents) >= MIN_EXTENTS and float(np.median(extents)) > rule.max_extent_m
     return by_box, by_box and not too_large
 
 
@@ -237,7 +236,12 @@ def merge(into: dict[str, list[Sized]], more: dict[str, list[Sized]]) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--split", choices=sorted(SPLITS), default="validation")
+    parser.add_argument(
+        "--splits",
+        type=lambda text: [part for part in text.split(",") if part],
+        default=["validation"],
+        help=f"held-out clip splits, comma-separated: {', '.join(sorted(SPLITS))}",
+    )
     parser.add_argument("--clips", type=int, default=3, help="held-out clips per world")
     parser.add_argument("--sim-frames", type=int, default=12, help="frames per simulated world")
     parser.add_argument("--work", type=Path, default=Path("/tmp/sarmission-heldout-alerts"))
@@ -246,9 +250,12 @@ def main() -> int:
     args = parser.parse_args()
     started = time.monotonic()
     rule = ConfirmConfig()
-    first, _ = SPLITS[args.split]
+    unknown = sorted(set(args.splits) - set(SPLITS))
+    if unknown or not args.splits:
+        parser.error(f"--splits: expected some of {', '.join(sorted(SPLITS))}, got {unknown}")
     worlds = ["heldout_maritime", "heldout_land"]
-    render_clips(args.work, worlds, first, args.clips, CLIP_FRAMES, args.jobs)
+    for split in args.splits:
+        render_clips(args.work, worlds, SPLITS[split][0], args.clips, CLIP_FRAMES, args.jobs)
     sections: dict[str, dict[str, list[Sized]]] = {}
     timings: list[float] = []
     with tempfile.TemporaryDirectory(prefix="sarmission-extent-") as tmp:
@@ -257,17 +264,20 @@ def main() -> int:
             merge(sim, sized_detections(path, path.stem))
             print(f"{path.stem}: done", file=sys.stderr, flush=True)
         sections["The simulator: oblique presets and maritime_test, 4K"] = sim
-    for world in worlds:
-        found: dict[str, list[Sized]] = defaultdict(list)
-        for i in range(args.clips):
-            path = clip_path(args.work, world, first + i)
-            merge(found, sized_detections(path, path.parent.name))
-            print(f"{path.parent.name}: done", file=sys.stderr, flush=True)
-        sections[f"Held-out `{world}`, {args.split} clips {first}-{first + args.clips - 1}"] = found
+    for split in args.splits:
+        first = SPLITS[split][0]
+        for world in worlds:
+            found: dict[str, list[Sized]] = defaultdict(list)
+            for i in range(args.clips):
+                path = clip_path(args.work, world, first + i)
+                merge(found, sized_detections(path, path.parent.name))
+                print(f"{path.parent.name}: done", file=sys.stderr, flush=True)
+            last = first + args.clips - 1
+            sections[f"Held-out `{world}`, {split} clips {first}-{last}"] = found
     for by_class in sections.values():
         timings += [r.extent_ms for rows in by_class.values() for r in rows]
     command = (
-        f"nice -n 19 python tools/object_extent_study.py --split {args.split} "
+        f"nice -n 19 python tools/object_extent_study.py --splits {','.join(args.splits)} "
         f"--clips {args.clips} --sim-frames {args.sim_frames}"
     )
     lines = [
@@ -279,7 +289,8 @@ def main() -> int:
         "person as larger than one. `sarmission.perception.extent` measures the object under "
         "the detection against the background around it; the confirmation discards a "
         f"candidate whose median extent exceeds `[confirm] max_extent_m` ({rule.max_extent_m:g} "
-        "m), once at least a quarter of its sightings measured it, beside the box's own gate "
+        "m), once three of its sightings measured it (the mission measures every third sighting of "
+        "an undecided candidate; here every detection is measured), beside the box's own gate "
         f"({rule.min_size_m:g}-{rule.max_size_m:g} m). Rows: the classes the head's confident "
         "person detections (score above 0.5) lay on; sizes across the line of sight; a *track* "
         "is one annotated object of one clip, judged on its detections as the confirmation "

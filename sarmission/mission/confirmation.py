@@ -17,8 +17,9 @@ the frames processed since its first sighting (a person stays in view; clutter f
 - the object under it, measured against its surroundings (:mod:`sarmission.perception.extent`:
   the head's box never grows past its crop, so a boat it calls a swimmer gets a person-sized
   box), is at most ``max_extent_m`` across: the median over the sightings that measured it,
-  once at least :data:`MIN_EXTENT_SHARE` of them did. Its limit is looser than the box's,
-  since a person's shadow, splash or ring of disturbed water counts with the person;
+  once at least :data:`MIN_EXTENTS` did (the controller measures every few sightings while the
+  candidate is undecided). Its limit is looser than the box's, since a person's shadow, splash
+  or ring of disturbed water counts with the person;
 - the head's scores of its sightings agree: their mean is at least ``min_score`` (a few lucky
   crops do not make a person). With ``score_window_s`` > 0 the mean is over the sightings of
   the latest ``score_window_s`` only, and a candidate below it waits (until ``give_up_s``)
@@ -54,8 +55,8 @@ from sarmission.mission.position_estimate import line_fit
 
 Verdict = Literal["confirm", "wait", "discard"]
 
-#: Share of a candidate's sightings that must have measured its extent for it to count.
-MIN_EXTENT_SHARE = 0.25
+#: Sightings that must have measured a candidate's extent for it to count.
+MIN_EXTENTS = 3
 
 
 @dataclass(frozen=True)
@@ -173,11 +174,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     sizes = [s.size_m for s in sightings if s.size_m is not None]
     size = float(np.median(sizes)) if sizes else None
     extents = [s.extent_m for s in sightings if s.extent_m is not None]
-    extent = (
-        float(np.median(extents))
-        if extents and len(extents) >= MIN_EXTENT_SHARE * len(sightings)
-        else None
-    )
+    extent = float(np.median(extents)) if len(extents) >= MIN_EXTENTS else None
     score = track_score(sightings, rule.score_window_s)
     share = evidence.seen_share if evidence.frames else None
     speed = spread = None

@@ -533,7 +533,7 @@ class MissionController:
         assert self._intrinsics is not None and ground is not None
         size = apparent_size_m(track.raw_box, self._intrinsics, pose, ground)
         extent = None
-        if self.mission.confirm.max_extent_m > 0:
+        if self.mission.confirm.max_extent_m > 0 and self.candidates.wants_extent(target.target_id):
             started = time.perf_counter()
             box = object_extent(frame, track.raw_box)
             self.stats.stage_ms["extent"] += (time.perf_counter() - started) * 1e3
