@@ -123,7 +123,11 @@ def render(real: Sizes, sim: Sizes | None, command: str, rule: ConfirmConfig) ->
         "from its frame's meta through the replay's telemetry path and a 70-degree lens. A "
         "box sized on the ground can have no size when an edge lies above the horizon, so its "
         "share can be of fewer boxes. *Kept*: the share of the boxes the gate lets through; "
-        "for people it should be near 100 %, for boats and jetskis near 0.",
+        "for people it should be near 100 %, for boats and jetskis near 0. These are the "
+        "annotated boxes: in flight the box is the head's, which never grows past its crop "
+        "(about 31 px), so a boat the head calls a person gets a person-sized box; the "
+        "object's extent against its surroundings (`[confirm] max_extent_m`, "
+        "[object_extent.md](object_extent.md)) stands in for the size the box cannot show.",
         "",
         "## Real: SeaDronesSee validation annotations",
         "",
