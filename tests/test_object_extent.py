@@ -5,9 +5,9 @@ or larger than the largest window, and bad boxes give no measurement rather than
 import cv2
 import numpy as np
 import pytest
+from test_yuv import yuv_of
 
 from sarmission.perception.extent import object_extent
-from sarmission.yuv import YuvImage
 
 H, W = 720, 960
 WATER = (110, 90, 40)  # BGR, a dark blue-green sea
@@ -27,16 +27,6 @@ def centred(box, side: float = 16.0):
     """A head-sized detection box around the centre of ``box``."""
     cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
     return (cx - side / 2, cy - side / 2, cx + side / 2, cy + side / 2)
-
-
-def yuv_of(bgr: np.ndarray) -> YuvImage:
-    h, w = bgr.shape[:2]
-    i420 = cv2.cvtColor(bgr, cv2.COLOR_BGR2YUV_I420)
-    chroma = i420[h:].reshape(-1)
-    q = h * w // 4
-    return YuvImage(
-        i420[:h], chroma[:q].reshape(h // 2, w // 2), chroma[q:].reshape(h // 2, w // 2)
-    )
 
 
 def test_a_boat_is_measured_whole_from_a_box_on_part_of_it():

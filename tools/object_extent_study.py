@@ -26,10 +26,8 @@ import sys
 import tempfile
 import time
 from collections import defaultdict
-from collections.abc import Iterator
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,9 +37,11 @@ sys.path.insert(0, str(ROOT / "tools"))
 from class_confusion import hits  # noqa: E402
 from heldout_alerts import SPLITS, clip_path, render_clips  # noqa: E402
 
+from sarmission.boxes import xywh_to_xyxy  # noqa: E402
 from sarmission.class_roles import person_class_ids  # noqa: E402
-from sarmission.data.coco_video import VideoDataset, read_coco_video  # noqa: E402
+from sarmission.data.coco_video import read_coco_video  # noqa: E402
 from sarmission.data.meta_conventions import MetaPose, dataset_conventions, meta_pose  # noqa: E402
+from sarmission.data.sequence import iter_sequence, sequence_ids  # noqa: E402
 from sarmission.evaluation.matching import FrameBoxes  # noqa: E402
 from sarmission.geo.camera import CameraIntrinsics  # noqa: E402
 from sarmission.geo.ground_size import apparent_size_m  # noqa: E402
@@ -79,39 +79,19 @@ class Sized:
     extent_ms: float
 
 
-def frames_of(dataset: VideoDataset, root: Path) -> Iterator[tuple[object, np.ndarray]]:
-    """``(image, BGR picture)`` of every image, in video and frame order."""
-    videos = {v.id: v for v in dataset.videos}
-    captures: dict[int, cv2.VideoCapture] = {}
-    for image in sorted(dataset.images, key=lambda i: (i.video_id, i.frame_index)):
-        video = videos.get(image.video_id)
-        if video is not None and "file_name" in video.extra:
-            capture = captures.setdefault(
-                video.id, cv2.VideoCapture(str(root / video.extra["file_name"]))
-            )
-            ok, picture = capture.read()
-        else:
-            picture = cv2.imread(str(root / image.file_name))
-            ok = picture is not None
-        if not ok:
-            raise RuntimeError(f"cannot read the picture of {image.file_name}")
-        yield image, picture
-
-
-def sized_detections(path: Path, source: str) -> dict[str, list[Sized]]:
-    """Per class: the head's confident person detections on that class's boxes, sized."""
+def sized_detections(path: Path, source: str, head: object) -> dict[str, list[Sized]]:
+    """Per class: the ``head``'s confident person detections on that class's boxes, sized.
+    Each frame is decoded once: the detector and the measurement read the same picture."""
     from sarmission.commands.detector_options import (
         DEFAULT_DS,
         DEFAULT_SCORE_THRESHOLD,
         DEFAULT_TOPN,
     )
-    from sarmission.evaluation.run_model import run_mitenet
-    from sarmission.perception.mitenet import MiteNet, build_head_runtime
+    from sarmission.evaluation.run_model import NOMINAL_FPS
+    from sarmission.perception.mitenet import MiteNet
 
     dataset = read_coco_video(path)
-    head = build_head_runtime(None, "onnx")
     net = MiteNet(head, ds=DEFAULT_DS, topn=DEFAULT_TOPN, score_threshold=DEFAULT_SCORE_THRESHOLD)
-    run = run_mitenet(net, dataset, progress=False)
     people = list(person_class_ids(tuple(head.classes)))
     names = {c.id: SAME_AS.get(c.name, c.name) for c in dataset.categories}
     videos = {v.id: v for v in dataset.videos}
@@ -120,39 +100,35 @@ def sized_detections(path: Path, source: str) -> dict[str, list[Sized]]:
     for ann in dataset.annotations:
         boxes[ann.image_id].append(ann)
     out: dict[str, list[Sized]] = defaultdict(list)
-    for image, picture in frames_of(dataset, path.parent):
-        found = run.detections.get(image.id)
-        pose = meta_pose(image.telemetry, conventions)
-        if found is None or not isinstance(pose, MetaPose):
-            continue
-        keep = np.flatnonzero((found.scores > 0.5) & np.isin(found.class_ids, people))
-        anns = boxes[image.id]
-        if not keep.size or not anns:
-            continue
-        platform = frame_pose(pose)
-        hfov = float(videos[image.video_id].extra.get("hfov_deg", SIM_HFOV_DEG))
-        lens = CameraIntrinsics.from_hfov(image.width, image.height, hfov)
-        truth = np.array(
-            [[a.bbox[0], a.bbox[1], a.bbox[0] + a.bbox[2], a.bbox[1] + a.bbox[3]] for a in anns]
-        )
-        on = hits(FrameBoxes.of(found.boxes[keep], found.scores[keep]), truth)
-        area = (truth[:, 2] - truth[:, 0]) * (truth[:, 3] - truth[:, 1])
-        for row, index in enumerate(keep):
-            if not on[row].any():
+    for video_id in sequence_ids(dataset):
+        net.reset()
+        for position, item in enumerate(iter_sequence(dataset, video_id)):
+            found = net.process(item.frame_bgr, position / NOMINAL_FPS).detections
+            image, anns = item.image, boxes[item.image.id]
+            pose = meta_pose(image.telemetry, conventions)
+            keep = np.flatnonzero((found.scores > 0.5) & np.isin(found.class_ids, people))
+            if not keep.size or not anns or not isinstance(pose, MetaPose):
                 continue
-            ann = anns[min(np.flatnonzero(on[row]), key=lambda j: area[j])]
-            box = found.boxes[index]
-            started = time.perf_counter()
-            extent = object_extent(picture, box)
-            took = (time.perf_counter() - started) * 1e3
-            out[names[ann.category_id]].append(
-                Sized(
-                    (source, ann.video_id, ann.track_id),
-                    apparent_size_m(box, lens, platform),
-                    None if extent is None else apparent_size_m(extent, lens, platform),
-                    took,
+            platform = frame_pose(pose)
+            hfov = float(videos[image.video_id].extra.get("hfov_deg", SIM_HFOV_DEG))
+            lens = CameraIntrinsics.from_hfov(image.width, image.height, hfov)
+            truth = xywh_to_xyxy(np.array([a.bbox for a in anns], np.float64))
+            on = hits(FrameBoxes.of(found.boxes[keep], found.scores[keep]), truth)
+            area = (truth[:, 2] - truth[:, 0]) * (truth[:, 3] - truth[:, 1])
+            for row in np.flatnonzero(on.any(axis=1)):
+                ann = anns[min(np.flatnonzero(on[row]), key=lambda j: area[j])]
+                box = found.boxes[keep[row]]
+                started = time.perf_counter()
+                extent = object_extent(item.frame_bgr, box)
+                took = (time.perf_counter() - started) * 1e3
+                out[names[ann.category_id]].append(
+                    Sized(
+                        (source, ann.video_id, ann.track_id),
+                        apparent_size_m(box, lens, platform),
+                        None if extent is None else apparent_size_m(extent, lens, platform),
+                        took,
+                    )
                 )
-            )
     return out
 
 
@@ -249,10 +225,13 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
     started = time.monotonic()
-    rule = ConfirmConfig()
     unknown = sorted(set(args.splits) - set(SPLITS))
     if unknown or not args.splits:
         parser.error(f"--splits: expected some of {', '.join(sorted(SPLITS))}, got {unknown}")
+    from sarmission.perception.mitenet import build_head_runtime
+
+    rule = ConfirmConfig()
+    head = build_head_runtime(None, "onnx")  # the shipped head, as sarmission eval runs it
     worlds = ["heldout_maritime", "heldout_land"]
     for split in args.splits:
         render_clips(args.work, worlds, SPLITS[split][0], args.clips, CLIP_FRAMES, args.jobs)
@@ -261,7 +240,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="sarmission-extent-") as tmp:
         sim: dict[str, list[Sized]] = defaultdict(list)
         for path in simulated(args.sim_frames, Path(tmp)):
-            merge(sim, sized_detections(path, path.stem))
+            merge(sim, sized_detections(path, path.stem, head))
             print(f"{path.stem}: done", file=sys.stderr, flush=True)
         sections["The simulator: oblique presets and maritime_test, 4K"] = sim
     for split in args.splits:
@@ -270,7 +249,7 @@ def main() -> int:
             found: dict[str, list[Sized]] = defaultdict(list)
             for i in range(args.clips):
                 path = clip_path(args.work, world, first + i)
-                merge(found, sized_detections(path, path.parent.name))
+                merge(found, sized_detections(path, path.parent.name, head))
                 print(f"{path.parent.name}: done", file=sys.stderr, flush=True)
             last = first + args.clips - 1
             sections[f"Held-out `{world}`, {split} clips {first}-{last}"] = found
