@@ -56,6 +56,7 @@ class BenchRow:
     colour_share: float = 0.0
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES
     refine_threshold: float | None = None
+    fit_boxes: bool = True
     clip: dict[str, float | str] = field(default_factory=dict)  # :class:`ClipRow`, or empty
 
 
@@ -136,6 +137,7 @@ def _mitenet(
     colour_share: float,
     crop_scales: tuple[float, ...],
     refine_threshold: float | None,
+    fit_boxes: bool,
 ):
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
@@ -147,6 +149,7 @@ def _mitenet(
         colour_share=colour_share,
         crop_scales=crop_scales,
         refine_threshold=refine_threshold,
+        fit_boxes=fit_boxes,
     )
 
 
@@ -162,6 +165,7 @@ def measure_config(
     colour_share: float = DEFAULT_COLOUR_SHARE,
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
     refine_threshold: float | None = None,
+    fit_boxes: bool = True,
 ) -> BenchRow:
     """Time one configuration in this process (call it in a fresh process for memory figures).
 
@@ -173,7 +177,15 @@ def measure_config(
     apply_thread_plan()
     images = synthetic_frames(width, height, frames + WARMUP_FRAMES)
     net = _mitenet(
-        ds, topn, model, runtime, ego_motion, colour_share, crop_scales, refine_threshold
+        ds,
+        topn,
+        model,
+        runtime,
+        ego_motion,
+        colour_share,
+        crop_scales,
+        refine_threshold,
+        fit_boxes,
     )
     stage_ms: dict[str, list[float]] = {stage: [] for stage in STAGES}
     totals, proposals, memory_pass = [], [], []
@@ -211,6 +223,7 @@ def measure_config(
         colour_share=colour_share,
         crop_scales=tuple(crop_scales),
         refine_threshold=net.refine_threshold,
+        fit_boxes=net.fit_boxes,
     )
 
 
@@ -285,6 +298,7 @@ def measure_clip(
     colour_share: float = DEFAULT_COLOUR_SHARE,
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
     refine_threshold: float | None = None,
+    fit_boxes: bool = True,
     repeats: int = CLIP_REPEATS,
 ) -> ClipRow:
     """Alternate plain decoding passes and end-to-end passes (decoding one frame ahead in its
@@ -300,7 +314,15 @@ def measure_clip(
     apply_thread_plan()
     source = open_frame_source(Path(clip), yuv=True)
     net = _mitenet(
-        ds, topn, model, runtime, ego_motion, colour_share, crop_scales, refine_threshold
+        ds,
+        topn,
+        model,
+        runtime,
+        ego_motion,
+        colour_share,
+        crop_scales,
+        refine_threshold,
+        fit_boxes,
     )
     for i, frame in enumerate(source):  # warm-up: allocator, onnxruntime
         net.process(frame.image, frame.timestamp_s)
@@ -343,12 +365,16 @@ def measure_clip(
 
 
 def _settings_argv(
-    colour_share: float, crop_scales: tuple[float, ...], refine_threshold: float | None
+    colour_share: float,
+    crop_scales: tuple[float, ...],
+    refine_threshold: float | None,
+    fit_boxes: bool,
 ) -> list[str]:
     return [
         repr(colour_share),
         ",".join(repr(v) for v in crop_scales),
         "" if refine_threshold is None else repr(refine_threshold),
+        "1" if fit_boxes else "0",
     ]
 
 
@@ -374,10 +400,11 @@ def run_sweep(
     crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
     refine_threshold: float | None = None,
     clip: str | Path | None = None,
+    fit_boxes: bool = True,
 ) -> list[BenchRow]:
     """Run every (ds, N) configuration in a fresh process (and, with ``clip``, its end-to-end
     passes over that video in another) and collect the rows; ``on_row`` sees each."""
-    settings = _settings_argv(colour_share, crop_scales, refine_threshold)
+    settings = _settings_argv(colour_share, crop_scales, refine_threshold, fit_boxes)
     rows = []
     for ds, topn in [(ds, n) for ds in ds_values for n in topn_values]:
         common = [str(ds), str(topn), model or "", runtime, ego_motion, *settings]
@@ -397,7 +424,7 @@ def format_table(rows: list[BenchRow]) -> str:
     """Render the rows as a fixed-width text table."""
     header = (
         f"{'ds':>2} {'N':>4} {'vstmd':>7} {'colour':>6} {'rpn':>6} {'crops':>6} {'head':>6} "
-        f"{'total':>7} {'FPS':>6} {'mem':>6} {'ratio':>6} {'GFLOPs':>7} {'RSS MB':>7} "
+        f"{'fit':>5} {'total':>7} {'FPS':>6} {'mem':>6} {'ratio':>6} {'GFLOPs':>7} {'RSS MB':>7} "
         f"{'props':>6}"
     )
     lines = [header, "-" * len(header)]
@@ -405,7 +432,8 @@ def format_table(rows: list[BenchRow]) -> str:
         lines.append(
             f"{r.ds:>2} {r.topn:>4} {r.ms['vstmd']:>7.2f} {r.ms.get('colour', 0.0):>6.2f} "
             f"{r.ms['rpn']:>6.2f} "
-            f"{r.ms['crops']:>6.2f} {r.ms['head']:>6.2f} {r.total_ms:>7.2f} {r.fps:>6.1f} "
+            f"{r.ms['crops']:>6.2f} {r.ms['head']:>6.2f} {r.ms.get('fit', 0.0):>5.2f} "
+            f"{r.total_ms:>7.2f} {r.fps:>6.1f} "
             f"{r.memory_pass_ms:>6.2f} {r.ratio_to_memory_pass:>6.1f} "
             f"{r.gflops.get('total', float('nan')):>7.4f} {r.peak_rss_mb:>7.0f} "
             f"{r.proposals_per_frame:>6.1f}"
@@ -424,6 +452,7 @@ def format_table(rows: list[BenchRow]) -> str:
                 if len(rows[0].crop_scales) > 1 and rows[0].refine_threshold is not None
                 else ""
             )
+            + f"; boxes {'fitted to the object' if rows[0].fit_boxes else 'as the head gives them'}"
         )
     clip_rows = [r for r in rows if r.clip]
     if clip_rows:
@@ -469,16 +498,17 @@ def _worker(argv: list[str]) -> None:
     colour_share = float(argv[6])
     crop_scales = tuple(float(v) for v in argv[7].split(","))
     refine_threshold = float(argv[8]) if argv[8] else None
-    settings = (ego_motion, colour_share, crop_scales, refine_threshold)
+    fit_boxes = argv[9] == "1"
+    settings = (ego_motion, colour_share, crop_scales, refine_threshold, fit_boxes)
     if mode == "memory":
-        width, height, frames = (int(v) for v in argv[9:12])
+        width, height, frames = (int(v) for v in argv[10:13])
         row = asdict(
             measure_config(
                 int(ds), int(topn), width, height, frames, model or None, runtime, *settings
             )
         )
     else:
-        row = asdict(measure_clip(int(ds), int(topn), argv[9], model or None, runtime, *settings))
+        row = asdict(measure_clip(int(ds), int(topn), argv[10], model or None, runtime, *settings))
     print(json.dumps(row))
 
 

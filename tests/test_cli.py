@@ -152,8 +152,9 @@ def test_bench_prints_a_json_row_per_configuration() -> None:
     assert [(r["ds"], r["topn"]) for r in rows] == [(2, 10), (4, 10)]
     for row in rows:
         assert row["total_ms"] > 0 and row["memory_pass_ms"] > 0 and row["peak_rss_mb"] > 0
-        assert set(row["ms"]) == {"vstmd", "colour", "rpn", "crops", "head"}
+        assert set(row["ms"]) == {"vstmd", "colour", "rpn", "crops", "head", "fit"}
         assert row["colour_share"] == 0.4 and row["crop_scales"] == [1.0]  # the defaults
+        assert row["fit_boxes"] is True
 
 
 def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
@@ -181,9 +182,10 @@ def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
         for extra in (
             ["--crop-scales", "1,2"],
             ["--colour-share", "0", "--crop-scales", "1"],
-            ["--crop-scales", "1,2", "--refine-threshold", "0"],
+            ["--crop-scales", "1,2", "--refine-threshold", "0", "--no-fit-boxes"],
         )
     ]
+    assert runs[0]["fit_boxes"] is True and runs[2]["fit_boxes"] is False
     assert runs[1]["colour_share"] == 0.0 and runs[1]["crop_scales"] == [1.0]
     assert runs[0]["crop_scales"] == [1.0, 2.0]
     assert runs[0]["refine_threshold"] == 0.3 and runs[2]["refine_threshold"] == 0.0

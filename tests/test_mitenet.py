@@ -11,8 +11,10 @@ from motion_scenes import moving_target, to_bgr
 
 from sarmission.perception.crops import motion_enhanced_crops
 from sarmission.perception.export import head_onnx_bytes
+from sarmission.perception.extent import fit_boxes
 from sarmission.perception.head import MiteHead, head_flops_per_proposal, ltrb_to_boxes
 from sarmission.perception.mitenet import (
+    FIT_MAX_SIDE_S,
     RECENTRE_MIN_SCORE,
     RECENTRE_MIN_SHIFT_PX,
     MiteNet,
@@ -54,7 +56,7 @@ def test_proposals_find_the_moving_target(head: MiteHead):
             (boxes[:, 0] <= cx) & (cx <= boxes[:, 2]) & (boxes[:, 1] <= cy) & (cy <= boxes[:, 3])
         )
         assert inside.any(), (result.timestamp, boxes, (cx, cy))
-    assert set(net.per_stage_ms) == {"vstmd", "colour", "rpn", "crops", "head"}
+    assert set(net.per_stage_ms) == {"vstmd", "colour", "rpn", "crops", "head", "fit"}
     assert all(v >= 0 for v in net.per_stage_ms.values())
     assert results[0].motion.response.shape == (H // 2, W // 2)
 
@@ -240,7 +242,7 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
     crop replaces the first when it scores higher and boxes the target at least as large as the
     first crop (S); the others keep their first crop's score and box."""
     shipped = build_head_runtime(None, "onnx")
-    options = {"ds": 2, "topn": 25, "score_threshold": 0.0, "nms_iou": None}
+    options = {"ds": 2, "topn": 25, "score_threshold": 0.0, "nms_iou": None, "fit_boxes": False}
     threshold = 0.5
     single = MiteNet(shipped, crop_scales=(1.0,), **options)
     firsts, wides = [], []
@@ -293,13 +295,30 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
         MiteNet(TorchHeadRuntime(head), refine_threshold=1.5)
 
 
+def test_fitted_boxes_are_the_heads_fitted_to_the_object(sea_frames):
+    """fit_boxes=True changes boxes alone: each is the head's box passed through fit_boxes with
+    the 4 S cap, and scores and classes are the head's."""
+    shipped = build_head_runtime(None, "onnx")
+    options = {"ds": 2, "topn": 25, "score_threshold": 0.0}
+    heads = _run(MiteNet(shipped, fit_boxes=False, **options), sea_frames)
+    fitted = _run(MiteNet(shipped, **options), sea_frames)
+    replaced = 0
+    for frame, plain, fit in zip(sea_frames, heads, fitted, strict=True):
+        np.testing.assert_array_equal(fit.detections.scores, plain.detections.scores)
+        np.testing.assert_array_equal(fit.detections.class_ids, plain.detections.class_ids)
+        expected, count = fit_boxes(frame, plain.detections.boxes, FIT_MAX_SIDE_S * 16.0)
+        np.testing.assert_array_equal(fit.detections.boxes, expected)
+        replaced += count
+    assert replaced > 0
+
+
 def test_recentring_classifies_again_where_the_head_put_the_target(sea_frames):
     """recentre=True, shipped head, sea frames: a proposal whose first crop scores at least
     RECENTRE_MIN_SCORE and whose decoded box centre lies RECENTRE_MIN_SHIFT_PX or more from the
     crop's centre is cropped again (S x S) around that centre, and that crop's score and box
     replace the first's; every other proposal keeps its first crop's."""
     shipped = build_head_runtime(None, "onnx")
-    options = {"ds": 2, "topn": 25, "score_threshold": 0.0, "nms_iou": None}
+    options = {"ds": 2, "topn": 25, "score_threshold": 0.0, "nms_iou": None, "fit_boxes": False}
     single = MiteNet(shipped, **options)
     expected = []
     cases = set()

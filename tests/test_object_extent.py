@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from test_yuv import yuv_of
 
-from sarmission.perception.extent import object_extent
+from sarmission.perception.extent import fit_boxes, object_extent
 
 H, W = 720, 960
 WATER = (110, 90, 40)  # BGR, a dark blue-green sea
@@ -112,3 +112,38 @@ def test_a_bad_box_is_not_measured(box):
 def test_a_picture_that_is_not_uint8_is_refused():
     with pytest.raises(ValueError, match="uint8"):
         object_extent(sea(9).astype(np.float32), (300, 300, 316, 316))
+
+
+def test_a_person_lying_40_px_long_gets_a_box_of_their_length():
+    image = sea(7)
+    body = (300, 300, 340, 312)  # 40 x 12 px, on their back
+    cv2.rectangle(image, body[:2], (body[2] - 1, body[3] - 1), (60, 110, 230), -1)
+    torso = np.array([[306, 298, 322, 314]], np.float32)  # the head's 16 px box
+    fitted, replaced = fit_boxes(image, torso, max_side_px=64)
+    assert replaced == 1
+    assert fitted[0] == pytest.approx(np.array(body, np.float32), abs=2.0)
+    assert torso[0] == pytest.approx([306, 298, 322, 314])  # the input is not changed
+
+
+def test_fitting_keeps_the_heads_box_where_the_object_is_longer_than_the_cap():
+    image = sea(8)
+    cv2.rectangle(image, (400, 330), (559, 379), (235, 235, 240), -1)  # a 160 px hull
+    box = np.array([[470, 345, 486, 361]], np.float32)
+    fitted, replaced = fit_boxes(image, box, max_side_px=64)
+    assert replaced == 0
+    np.testing.assert_array_equal(fitted, box)
+
+
+def test_fitting_never_shrinks_a_box_nor_moves_it_off_its_centre():
+    image = sea(9)
+    cv2.circle(image, (200, 200), 3, (40, 120, 250), -1)  # a 7 px cap inside a 16 px box
+    cv2.rectangle(image, (400, 400), (439, 409), (250, 250, 250), -1)  # 40 px, a box on its end
+    boxes = np.array([[192, 192, 208, 208], [434, 397, 450, 413]], np.float32)
+    fitted, replaced = fit_boxes(image, boxes, max_side_px=64)
+    assert replaced == 0
+    np.testing.assert_array_equal(fitted, boxes)
+
+
+def test_fitting_no_boxes_gives_none():
+    fitted, replaced = fit_boxes(sea(10), np.zeros((0, 4), np.float32), max_side_px=64)
+    assert fitted.shape == (0, 4) and replaced == 0

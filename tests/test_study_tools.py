@@ -252,3 +252,28 @@ def test_extent_study_judges_a_track_as_the_confirmation_does():
     rows = tool.table({"boat": boat, "person": person}, rule)
     assert rows[2].startswith("| boat | 8 |") and rows[2].endswith("| 1 | 100 % | 0 % |")
     assert rows[3].startswith("| person | 4 |") and rows[3].endswith("| 1 | 100 % | 100 % |")
+
+
+def test_box_fit_counts_changed_boxes_and_tables_both_runs():
+    tool = load_tool("box_fit_study")
+    from sarmission.evaluation.matching import FrameBoxes
+    from sarmission.evaluation.run_model import ModelRun
+
+    box = np.array([[10, 10, 26, 26], [50, 50, 66, 66]], np.float32)
+    wider = box.copy()
+    wider[1] = [45, 50, 80, 66]
+    plain, fitted = ModelRun(), ModelRun()
+    plain.detections = {1: FrameBoxes.of(box, np.ones(2)), 2: FrameBoxes.of(box[:1], np.ones(1))}
+    fitted.detections = {1: FrameBoxes.of(wider, np.ones(2)), 2: FrameBoxes.of(box[:1], np.ones(1))}
+    assert tool._fitted(plain, fitted) == (3, 1)
+
+    def outcome(locked: int, fitted_boxes: int) -> object:
+        ssr = {f"{t:g}": (100.0 * locked / 8, locked, 8) for t in tool.NWD_THRESHOLDS}
+        return tool.Outcome(ssr, 40.0, 3, fitted_boxes, 30.0, 1.5)
+
+    lines = tool.table([("`sea` | maritime", {False: outcome(6, 0), True: outcome(7, 1)})])
+    assert lines[2].startswith("| `sea` | maritime | head | 75.0 % (6/8) |")
+    assert lines[3].startswith("| `sea` | maritime | fitted | 87.5 % (7/8) |")
+    assert lines[3].endswith("| 33 % | 30.0 | 1.50 |") and lines[2].endswith("| - | 30.0 | - |")
+    empty = tool.Outcome({f"{t:g}": (None, 0, 0) for t in tool.NWD_THRESHOLDS}, None, 0, 0, 1, 0)
+    assert "| - (0/0) |" in tool.table([("`land` | maritime", {False: empty})])[2]

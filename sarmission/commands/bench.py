@@ -96,6 +96,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "first, would-be detections also at the others (default: 1,2)",
     )
     add_refine_threshold_option(parser)
+    parser.add_argument(
+        "--fit-boxes",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="fit each detection's box to the object (the detector's default; "
+        "--no-fit-boxes times the head's boxes alone)",
+    )
     clip = parser.add_mutually_exclusive_group()
     clip.add_argument(
         "--clip",
@@ -146,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
                 crop_scales=args.crop_scales,
                 refine_threshold=args.refine_threshold,
                 clip=clip,
+                fit_boxes=args.fit_boxes,
             )
     print(rows_to_json(rows) if args.json else format_table(rows))
     return 0

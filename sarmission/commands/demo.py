@@ -114,6 +114,7 @@ def demo_mission(size: tuple[int, int], hfov: float, args: argparse.Namespace) -
             "detector.refine_threshold": args.refine_threshold,
             "detector.recentre": args.recentre,
             "detector.orientations": args.orientations,
+            "detector.fit_boxes": args.fit_boxes,
             "detector.score_threshold": args.conf,
         }
     )

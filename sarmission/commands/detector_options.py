@@ -23,7 +23,7 @@ DEFAULT_SCORE_THRESHOLD = 0.3
 
 def add_detector_options(parser: argparse.ArgumentParser) -> None:
     """Add ``--model --runtime --ds --topn --colour-share --crop-scales --refine-threshold
-    --recentre --orientations --ego-motion --conf`` to ``parser``."""
+    --recentre --orientations --fit-boxes --ego-motion --conf`` to ``parser``."""
     group = parser.add_argument_group("detector")
     group.add_argument(
         "--model",
@@ -81,6 +81,13 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
         "(docs/experiments.md; default: 1)",
     )
     group.add_argument(
+        "--fit-boxes",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="fit each detection's box to the object against its surroundings, up to 4 S "
+        "long (docs/box_fit.md; default: on)",
+    )
+    group.add_argument(
         "--ego-motion",
         choices=("estimate", "none"),
         default="estimate",
@@ -118,6 +125,7 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
         refine_threshold=args.refine_threshold,
         recentre=args.recentre,
         orientations=args.orientations,
+        fit_boxes=args.fit_boxes,
     )
 
 

@@ -225,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
             refine_threshold=args.refine_threshold,
             recentre=args.recentre,
             orientations=args.orientations,
+            fit_boxes=args.fit_boxes,
             **metric_options,
         )
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
@@ -280,6 +281,7 @@ def _evaluate_model(
         refine_threshold=args.refine_threshold,
         recentre=args.recentre,
         orientations=args.orientations,
+        fit_boxes=args.fit_boxes,
     )
     person_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
@@ -306,6 +308,7 @@ def _evaluate_model(
             "refine_threshold": net.refine_threshold,
             "recentre": net.recentre,
             "orientations": net.orientations,
+            "fit_boxes": net.fit_boxes,
             "conf": args.conf,
             "frames": len(run.frame_ms),
             "skipped_frames": run.skipped,
@@ -328,6 +331,7 @@ def _format_detector(detector: dict[str, Any]) -> str:
         )
         + (", recentred" if detector["recentre"] else "")
         + (f", {detector['orientations']} orientations" if detector["orientations"] > 1 else "")
+        + ("" if detector.get("fit_boxes", True) else ", boxes not fitted")
         + f", conf={detector['conf']:g}; {detector['frames']} frames"
         + (f" ({skipped} unreadable, skipped)" if skipped else "")
         + f", median {detector['median_ms']:.2f} ms/frame ({detector['fps']:.1f} FPS)"

@@ -57,13 +57,14 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
         refine_threshold=None,
         recentre=None,
         orientations=None,
+        fit_boxes=None,
         conf=None,
     )
 
 
 def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
     """The mission file with ``--set`` overrides, then ``--ds/--topn/--colour-share/
-    --crop-scales/--refine-threshold/--recentre/--orientations/--conf`` on top."""
+    --crop-scales/--refine-threshold/--recentre/--orientations/--fit-boxes/--conf`` on top."""
     from sarmission.mission.config import load_mission
 
     overrides: list[str] = list(args.overrides)
@@ -75,6 +76,7 @@ def load_mission_from_args(args: argparse.Namespace) -> MissionConfig:
         ("refine_threshold", "detector.refine_threshold"),
         ("recentre", "detector.recentre"),
         ("orientations", "detector.orientations"),
+        ("fit_boxes", "detector.fit_boxes"),
         ("conf", "detector.score_threshold"),
     ):
         value = getattr(args, option)
@@ -136,6 +138,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
         refine_threshold=d.refine_threshold,
         recentre=d.recentre,
         orientations=d.orientations,
+        fit_boxes=d.fit_boxes,
     )
     return detector, note
 

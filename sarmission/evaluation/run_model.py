@@ -31,7 +31,8 @@ class ModelRun:
     """What the detector produced, per image id.
 
     ``detections`` carry the head's class index and score; ``proposals`` the RPN boxes and
-    scores (class 0). ``frame_ms`` is the wall time of every processed frame, ``frame_size``
+    scores (class 0). ``frame_ms`` is the wall time of every processed frame, ``stage_ms`` each
+    stage's (``MiteNet.per_stage_ms``) per processed frame, ``frame_size``
     the ``(height, width)`` of the first one (``None`` when none was read) and ``skipped`` the
     number of frames that could not be read.
     """
@@ -39,6 +40,7 @@ class ModelRun:
     detections: dict[int, FrameBoxes] = field(default_factory=dict)
     proposals: dict[int, FrameBoxes] = field(default_factory=dict)
     frame_ms: list[float] = field(default_factory=list)
+    stage_ms: dict[str, list[float]] = field(default_factory=dict)
     frame_size: tuple[int, int] | None = None
     skipped: int = 0
 
@@ -93,6 +95,8 @@ def run_mitenet(
                 start = time.perf_counter()
                 result = net.process(frame, position / NOMINAL_FPS)
                 run.frame_ms.append((time.perf_counter() - start) * 1e3)
+                for stage, ms in net.per_stage_ms.items():
+                    run.stage_ms.setdefault(stage, []).append(ms)
                 if run.frame_size is None:
                     run.frame_size = (int(frame.shape[0]), int(frame.shape[1]))
                 det, prop = result.detections, result.proposals
@@ -122,6 +126,7 @@ def run_sweep(
     refine_threshold: float | None = None,
     recentre: bool = False,
     orientations: int = 1,
+    fit_boxes: bool = True,
 ) -> list[dict[str, Any]]:
     """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
 
@@ -144,6 +149,7 @@ def run_sweep(
                 refine_threshold=refine_threshold,
                 recentre=recentre,
                 orientations=orientations,
+                fit_boxes=fit_boxes,
             )
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:

@@ -157,7 +157,9 @@ class DetectorConfig:
     detection threshold; see :class:`~sarmission.perception.mitenet.MiteNet`), whether a
     proposal is cropped again where the head placed the target, ``recentre`` (off: measured in
     docs/recentring.md), in how many ``orientations`` each would-be detection is scored (1, 4
-    or 8, averaged; off: docs/experiments.md), the detection threshold; ``model`` the head: a
+    or 8, averaged; off: docs/experiments.md), whether each box is fitted to the object
+    against its surroundings, ``fit_boxes`` (docs/box_fit.md), the detection threshold;
+    ``model`` the head: a
     shipped one by name (``"default"`` or ``"maritime"``, ``"land"``: :mod:`sarmission.models`) or a
     ``.pt``/``.pth``/``.onnx`` file, relative to the mission file's folder when written there (a
     head fine-tuned for the area's sea or land goes with its mission)."""
@@ -170,6 +172,7 @@ class DetectorConfig:
     refine_threshold: float | None = None
     recentre: bool = False
     orientations: int = 1
+    fit_boxes: bool = True
     score_threshold: float = 0.3
 
 

@@ -167,3 +167,35 @@ def object_extent(
         if cut or half >= max_half_px:
             return None
         half = min(2 * half, int(max_half_px))
+
+
+#: The first window's half side when a detection's box is fitted: a box is at most about
+#: 2 S (32 px at S 16) long, so a 65 px window holds it with its background around it.
+FIT_MIN_HALF_PX = 32
+
+
+def fit_boxes(
+    picture: np.ndarray | YuvImage, boxes: np.ndarray, max_side_px: float
+) -> tuple[np.ndarray, int]:
+    """``boxes`` (``[n, 4]`` xyxy) with each replaced by the object's extent under it
+    (:func:`object_extent`) where that extent holds the box's centre, is longer than the box
+    and at most ``max_side_px`` long; the others are kept as they are. Also returns how many
+    were replaced.
+
+    Why: the head boxes what its 16 x 16 crop shows, so a person 30-50 px long (lying on their
+    back, swimming the crawl) gets a torso-sized box. The extent's cap keeps a boat, or a person
+    merged with a foam streak, from widening a person's box without bound."""
+    fitted = np.array(boxes, dtype=np.float32, copy=True).reshape(-1, 4)
+    replaced = 0
+    for i, box in enumerate(fitted):
+        extent = object_extent(picture, box, min_half_px=FIT_MIN_HALF_PX)
+        if extent is None:
+            continue
+        cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
+        side = max(box[2] - box[0], box[3] - box[1])
+        extent_side = max(extent[2] - extent[0], extent[3] - extent[1])
+        holds_centre = extent[0] <= cx <= extent[2] and extent[1] <= cy <= extent[3]
+        if holds_centre and side < extent_side <= max_side_px:
+            fitted[i] = extent
+            replaced += 1
+    return fitted, replaced

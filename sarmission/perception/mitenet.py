@@ -19,6 +19,7 @@ from sarmission.perception.chroma import (
     chroma_if_wanted,
 )
 from sarmission.perception.crops import CROP_SIZE, crop_flops, motion_enhanced_crops
+from sarmission.perception.extent import fit_boxes
 from sarmission.perception.head_config import HeadConfig, ltrb_to_boxes
 from sarmission.perception.orientations import (
     check_orientations,
@@ -44,11 +45,15 @@ from sarmission.perception.types import (
 from sarmission.perception.vstmd import VSTMD
 from sarmission.yuv import YuvImage
 
-STAGES = ("vstmd", "colour", "rpn", "crops", "head")
+STAGES = ("vstmd", "colour", "rpn", "crops", "head", "fit")
 #: With ``recentre``: how far (full-resolution pixels) the head's box centre must lie from the
 #: crop's, and how high the first crop must score, for a proposal to be cropped again.
 RECENTRE_MIN_SHIFT_PX = 2.0
 RECENTRE_MIN_SCORE = 0.1
+#: With ``fit_boxes``: the longest fitted box, as a multiple of the proposal side S (64 px at
+#: S 16). Longer than a person drawn at the largest scale the head sees (~60 px), short of a
+#: boat; a longer extent keeps the head's box.
+FIT_MAX_SIDE_S = 4.0
 
 
 def _sigmoid(logits: np.ndarray) -> np.ndarray:
@@ -165,6 +170,11 @@ class MiteNet:
             again turned by quarter turns (4) or by every symmetry of the square (8), and its
             class probabilities and box are the mean over the orientations
             (:mod:`~sarmission.perception.orientations`; 1: the single look of the paper).
+        fit_boxes: replace each detection's box by the object's extent against its
+            surroundings (:func:`~sarmission.perception.extent.fit_boxes`) where that is longer
+            than the head's box and at most :data:`FIT_MAX_SIDE_S` x S: the head boxes what its
+            16 px crop shows, a torso for a person lying 30-50 px long. Scores and classes are
+            the head's. Measured: docs/box_fit.md.
     """
 
     def __init__(
@@ -183,6 +193,7 @@ class MiteNet:
         refine_threshold: float | None = None,
         recentre: bool = False,
         orientations: int = 1,
+        fit_boxes: bool = True,
     ) -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
             raise ValueError(
@@ -198,6 +209,7 @@ class MiteNet:
         self.refine_threshold = score_threshold if refine_threshold is None else refine_threshold
         self.recentre = bool(recentre)
         self.orientations = check_orientations(orientations)
+        self.fit_boxes = bool(fit_boxes)
         self.head = head_runtime
         self.ds = ds
         self.topn = topn
@@ -263,9 +275,10 @@ class MiteNet:
 
         Detections are full-resolution ``xyxy`` boxes with the best class's probability and id;
         ``per_stage_ms`` holds this frame's wall time per stage (``vstmd``, ``rpn``, ``crops``,
-        ``head``; ``crops`` is the first scale's, ``head`` includes the further scales' crops, the
-        decoding and NMS). The arrays of ``result.motion`` belong to
-        the vSTMD model and stay valid until the next call (copy them to keep them).
+        ``head``, ``fit``; ``crops`` is the first scale's, ``head`` includes the further scales'
+        crops, the decoding and NMS, ``fit`` the boxes' fitting). The arrays of
+        ``result.motion`` belong to the vSTMD model and stay valid until the next call (copy
+        them to keep them).
         """
         self._check_frame(frame_bgr)
         t0 = time.perf_counter()
@@ -292,12 +305,17 @@ class MiteNet:
         t4 = time.perf_counter()
         detections = self._detect(frame, motion, proposals, crops, first)
         t5 = time.perf_counter()
+        if self.fit_boxes and len(detections.boxes):
+            boxes, _ = fit_boxes(frame, detections.boxes, FIT_MAX_SIDE_S * self.box_size)
+            detections = Detections(boxes, detections.scores, detections.class_ids)
+        t6 = time.perf_counter()
         self.per_stage_ms = {
             "vstmd": (t1 - t0) * 1e3,
             "colour": (t2 - t1) * 1e3,
             "rpn": (t3 - t2) * 1e3,
             "crops": (t4 - t3) * 1e3,
             "head": (t5 - t4) * 1e3,
+            "fit": (t6 - t5) * 1e3,
         }
         return FrameResult(
             timestamp=float(timestamp),
