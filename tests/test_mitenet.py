@@ -15,6 +15,7 @@ from sarmission.perception.extent import fit_boxes
 from sarmission.perception.head import MiteHead, head_flops_per_proposal, ltrb_to_boxes
 from sarmission.perception.mitenet import (
     FIT_MAX_SIDE_S,
+    FIT_MIN_SCORE,
     RECENTRE_MIN_SCORE,
     RECENTRE_MIN_SHIFT_PX,
     MiteNet,
@@ -296,20 +297,24 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
 
 
 def test_fitted_boxes_are_the_heads_fitted_to_the_object(sea_frames):
-    """fit_boxes=True changes boxes alone: each is the head's box passed through fit_boxes with
-    the 4 S cap, and scores and classes are the head's."""
+    """fit_boxes=True changes boxes alone: each scored at least FIT_MIN_SCORE is the head's box
+    passed through fit_boxes with the 4 S cap, the others are the head's, and scores and
+    classes are the head's."""
     shipped = build_head_runtime(None, "onnx")
     options = {"ds": 2, "topn": 25, "score_threshold": 0.0}
     heads = _run(MiteNet(shipped, fit_boxes=False, **options), sea_frames)
     fitted = _run(MiteNet(shipped, **options), sea_frames)
-    replaced = 0
+    replaced = unsure = 0
     for frame, plain, fit in zip(sea_frames, heads, fitted, strict=True):
         np.testing.assert_array_equal(fit.detections.scores, plain.detections.scores)
         np.testing.assert_array_equal(fit.detections.class_ids, plain.detections.class_ids)
-        expected, count = fit_boxes(frame, plain.detections.boxes, FIT_MAX_SIDE_S * 16.0)
-        np.testing.assert_array_equal(fit.detections.boxes, expected)
+        sure = plain.detections.scores >= FIT_MIN_SCORE
+        expected, count = fit_boxes(frame, plain.detections.boxes[sure], FIT_MAX_SIDE_S * 16.0)
+        np.testing.assert_array_equal(fit.detections.boxes[sure], expected)
+        np.testing.assert_array_equal(fit.detections.boxes[~sure], plain.detections.boxes[~sure])
         replaced += count
-    assert replaced > 0
+        unsure += int((~sure).sum())
+    assert replaced > 0 and unsure > 0
 
 
 def test_recentring_classifies_again_where_the_head_put_the_target(sea_frames):

@@ -2005,7 +2005,7 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "extent.mixed_border_trusted",
         "sarmission/perception/extent.py",
-        "if float((distance(border) > threshold).mean()) > border_share:",
+        "if float(stands_out(border.reshape(-1, 1, 3)).mean()) > border_share:",
         "if False:",
         ("tests/test_object_extent.py",),
         "lock",
@@ -2068,10 +2068,19 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "mitenet.fit_ignored",
         "sarmission/perception/mitenet.py",
-        "        if self.fit_boxes and len(detections.boxes):",
+        "        if len(sure):",
         "        if False:",
         ("tests/test_mitenet.py",),
         "metric",
         "fit_boxes is accepted but the head's boxes are returned",
+    ),
+    Mutant(
+        "mitenet.fit_every_score",
+        "sarmission/perception/mitenet.py",
+        "np.flatnonzero(detections.scores >= FIT_MIN_SCORE)",
+        "np.flatnonzero(detections.scores >= 0)",
+        ("tests/test_mitenet.py",),
+        "metric",
+        "every detection's box is fitted, a half millisecond each, also those no lock counts",
     ),
 ]

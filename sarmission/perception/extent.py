@@ -56,22 +56,26 @@ def _window_bgr(
     return np.ascontiguousarray(window)
 
 
-def _histogram_median(counts: np.ndarray) -> int:
-    """The lower median of the values whose histogram is ``counts``."""
-    return int(np.searchsorted(np.cumsum(counts), (counts.sum() + 1) // 2))
+#: Each Lab channel's offset in the flat (3 x 256) distance table.
+_CHANNEL_OFFSETS = np.array([0, 256, 512])
 
 
-def _distance_tables(border: np.ndarray) -> list[np.ndarray]:
-    """Per Lab channel, each byte value's distance from the border's median in robust
-    standard deviations (1.4826 x MAD, plus :data:`SPREAD_FLOOR`)."""
-    values = np.arange(256)
-    tables = []
-    for channel in range(3):
-        counts = np.bincount(border[:, channel], minlength=256)
-        deviation = np.abs(values - _histogram_median(counts))
-        mad = _histogram_median(np.bincount(deviation, weights=counts, minlength=256))
-        tables.append((deviation / (1.4826 * mad + SPREAD_FLOOR)).astype(np.float32))
-    return tables
+def _histogram_medians(counts: np.ndarray) -> np.ndarray:
+    """The lower median of the values each row of ``counts`` is the histogram of."""
+    cumulative = np.cumsum(counts, axis=1)
+    return np.argmax(cumulative >= (cumulative[:, -1:] + 1) // 2, axis=1)
+
+
+def _distance_table(border: np.ndarray) -> np.ndarray:
+    """``[3, 256]``: each Lab channel's byte values' distance from the border's median in
+    robust standard deviations (1.4826 x MAD, plus :data:`SPREAD_FLOOR`)."""
+    counts = np.bincount((border + _CHANNEL_OFFSETS).ravel(), minlength=768).reshape(3, 256)
+    deviation = np.abs(np.arange(256)[None, :] - _histogram_medians(counts)[:, None])
+    spread = np.bincount(
+        (deviation + _CHANNEL_OFFSETS[:, None]).ravel(), weights=counts.ravel(), minlength=768
+    ).reshape(3, 256)
+    mad = _histogram_medians(spread)
+    return deviation / (1.4826 * mad[:, None] + SPREAD_FLOOR)
 
 
 def _region(
@@ -91,25 +95,25 @@ def _region(
             lab[band : h - band, w - band :].reshape(-1, 3),
         ]
     )
-    tables = _distance_tables(border)
+    # per channel, 1 where a byte value lies more than ``threshold`` from the border's median
+    outlying = (_distance_table(border) > threshold).astype(np.uint8).T.reshape(256, 1, 3)
 
-    def distance(pixels: np.ndarray) -> np.ndarray:
-        return np.maximum(
-            np.maximum(tables[0][pixels[..., 0]], tables[1][pixels[..., 1]]),
-            tables[2][pixels[..., 2]],
-        )
+    def stands_out(pixels: np.ndarray) -> np.ndarray:
+        flags = cv2.LUT(pixels, outlying)
+        return np.maximum(np.maximum(flags[..., 0], flags[..., 1]), flags[..., 2])
 
-    if float((distance(border) > threshold).mean()) > border_share:
+    if float(stands_out(border.reshape(-1, 1, 3)).mean()) > border_share:
         return True
-    mask = (distance(lab) > threshold).astype(np.uint8)
+    mask = stands_out(lab)
     mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
     _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     ix0, iy0, ix1, iy1 = inner
     under = labels[iy0:iy1, ix0:ix1]
-    ids, counts = np.unique(under[under > 0], return_counts=True)
-    if ids.size == 0:
+    counts = np.bincount(under.ravel(), minlength=len(stats))
+    counts[0] = 0  # the background
+    if not counts.any():
         return False
-    left, top, width, height = (int(v) for v in stats[int(ids[np.argmax(counts)]), :4])
+    left, top, width, height = (int(v) for v in stats[int(np.argmax(counts)), :4])
     touches = left <= 0 or top <= 0 or left + width >= w or top + height >= h
     return (left, top, left + width, top + height), touches
 
