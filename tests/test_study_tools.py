@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from types import SimpleNamespace
 
@@ -277,3 +278,12 @@ def test_box_fit_counts_changed_boxes_and_tables_both_runs():
     assert lines[3].endswith("| 33 % | 30.0 | 1.50 |") and lines[2].endswith("| - | 30.0 | - |")
     empty = tool.Outcome({f"{t:g}": (None, 0, 0) for t in tool.NWD_THRESHOLDS}, None, 0, 0, 1, 0)
     assert "| - (0/0) |" in tool.table([("`land` | maritime", {False: empty})])[2]
+
+
+def test_box_fit_scores_only_clips_with_people_as_swimmers(tmp_path):
+    tool = load_tool("box_fit_study")
+    categories = [{"id": 1, "name": "swimmer"}, {"id": 3, "name": "person"}]
+    sea, land = tmp_path / "sea.json", tmp_path / "land.json"
+    sea.write_text(json.dumps({"categories": categories, "annotations": [{"category_id": 1}]}))
+    land.write_text(json.dumps({"categories": categories, "annotations": [{"category_id": 3}]}))
+    assert not tool._has_people(sea) and tool._has_people(land)

@@ -91,9 +91,11 @@ def _fitted(plain: ModelRun, fitted: ModelRun) -> tuple[int, int]:
 
 
 def _has_people(path: Path) -> bool:
-    """Whether the annotation file names a ``person`` category (the land world's)."""
-    categories = json.loads(path.read_text(encoding="utf-8"))["categories"]
-    return any(category["name"] == "person" for category in categories)
+    """Whether any annotation of the file is of the ``person`` category (the land world's; the
+    sea world names the category too, and annotates swimmers)."""
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    person = {category["id"] for category in doc["categories"] if category["name"] == "person"}
+    return any(annotation["category_id"] in person for annotation in doc["annotations"])
 
 
 def measure(paths: list[Path], model: str) -> dict[bool, Outcome]:
