@@ -14,6 +14,7 @@ from sarmission.perception.export import head_onnx_bytes
 from sarmission.perception.extent import fit_boxes
 from sarmission.perception.head import MiteHead, head_flops_per_proposal, ltrb_to_boxes
 from sarmission.perception.mitenet import (
+    FIT_MAX_PER_FRAME,
     FIT_MAX_SIDE_S,
     FIT_MIN_SCORE,
     RECENTRE_MIN_SCORE,
@@ -297,9 +298,9 @@ def test_second_crop_scale_refines_the_proposals_that_score_enough(sea_frames):
 
 
 def test_fitted_boxes_are_the_heads_fitted_to_the_object(sea_frames):
-    """fit_boxes=True changes boxes alone: each scored at least FIT_MIN_SCORE is the head's box
-    passed through fit_boxes with the 4 S cap, the others are the head's, and scores and
-    classes are the head's."""
+    """fit_boxes=True changes boxes alone: each of the FIT_MAX_PER_FRAME best scored at least
+    FIT_MIN_SCORE is the head's box passed through fit_boxes with the 4 S cap, the others are
+    the head's, and scores and classes are the head's."""
     shipped = build_head_runtime(None, "onnx")
     options = {"ds": 2, "topn": 25, "score_threshold": 0.0}
     heads = _run(MiteNet(shipped, fit_boxes=False, **options), sea_frames)
@@ -309,6 +310,8 @@ def test_fitted_boxes_are_the_heads_fitted_to_the_object(sea_frames):
         np.testing.assert_array_equal(fit.detections.scores, plain.detections.scores)
         np.testing.assert_array_equal(fit.detections.class_ids, plain.detections.class_ids)
         sure = plain.detections.scores >= FIT_MIN_SCORE
+        order = np.argsort(-plain.detections.scores, kind="stable")
+        sure[order[FIT_MAX_PER_FRAME:]] = False  # only the best-scored are fitted
         expected, count = fit_boxes(frame, plain.detections.boxes[sure], FIT_MAX_SIDE_S * 16.0)
         np.testing.assert_array_equal(fit.detections.boxes[sure], expected)
         np.testing.assert_array_equal(fit.detections.boxes[~sure], plain.detections.boxes[~sure])

@@ -192,11 +192,16 @@ def fit_boxes(
     fitted = np.array(boxes, dtype=np.float32, copy=True).reshape(-1, 4)
     replaced = 0
     for i, box in enumerate(fitted):
-        extent = object_extent(picture, box, min_half_px=FIT_MIN_HALF_PX)
+        side = max(box[2] - box[0], box[3] - box[1])
+        # A region under the box that still reaches the edge of a window this wide spans more
+        # than max_side_px: looking wider could not give a box to keep.
+        widest = int(math.ceil(max_side_px + side / 2))
+        extent = object_extent(
+            picture, box, min_half_px=min(FIT_MIN_HALF_PX, widest), max_half_px=widest
+        )
         if extent is None:
             continue
         cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
-        side = max(box[2] - box[0], box[3] - box[1])
         extent_side = max(extent[2] - extent[0], extent[3] - extent[1])
         holds_centre = extent[0] <= cx <= extent[2] and extent[1] <= cy <= extent[3]
         if holds_centre and side < extent_side <= max_side_px:

@@ -58,6 +58,9 @@ FIT_MAX_SIDE_S = 4.0
 #: counts towards a lock (the mission's and the evaluation's m-of-k take 0.5), so its box is
 #: not worth the half millisecond a fit costs.
 FIT_MIN_SCORE = 0.5
+#: With ``fit_boxes``: at most this many boxes are fitted per frame, the best-scored first: the
+#: fitting's cost stays bounded on a frame full of confident detections.
+FIT_MAX_PER_FRAME = 8
 
 
 def _sigmoid(logits: np.ndarray) -> np.ndarray:
@@ -175,7 +178,8 @@ class MiteNet:
             class probabilities and box are the mean over the orientations
             (:mod:`~sarmission.perception.orientations`; 1: the single look of the paper).
         fit_boxes: replace the box of each detection scored at least :data:`FIT_MIN_SCORE`
-            by the object's extent against its surroundings
+            (the :data:`FIT_MAX_PER_FRAME` best-scored) by the object's extent against its
+            surroundings
             (:func:`~sarmission.perception.extent.fit_boxes`) where that is longer than the
             head's box and at most :data:`FIT_MAX_SIDE_S` x S: the head boxes what its 16 px
             crop shows, a torso for a person lying 30-50 px long. Scores and classes are the
@@ -310,7 +314,8 @@ class MiteNet:
         t4 = time.perf_counter()
         detections = self._detect(frame, motion, proposals, crops, first)
         t5 = time.perf_counter()
-        sure = np.flatnonzero(detections.scores >= FIT_MIN_SCORE) if self.fit_boxes else []
+        sure = np.flatnonzero(detections.scores >= FIT_MIN_SCORE if self.fit_boxes else [])
+        sure = sure[np.argsort(-detections.scores[sure], kind="stable")[:FIT_MAX_PER_FRAME]]
         if len(sure):
             boxes = detections.boxes.copy()
             boxes[sure], _ = fit_boxes(frame, boxes[sure], FIT_MAX_SIDE_S * self.box_size)
