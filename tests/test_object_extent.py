@@ -125,9 +125,11 @@ def test_a_person_lying_40_px_long_gets_a_box_of_their_length():
     assert torso[0] == pytest.approx([306, 298, 322, 314])  # the input is not changed
 
 
-def test_fitting_keeps_the_heads_box_where_the_object_is_longer_than_the_cap():
+@pytest.mark.parametrize("length", [90, 160])
+def test_fitting_keeps_the_heads_box_where_the_object_is_longer_than_the_cap(length: int):
     image = sea(8)
-    cv2.rectangle(image, (400, 330), (559, 379), (235, 235, 240), -1)  # a 160 px hull
+    left = 478 - length // 2
+    cv2.rectangle(image, (left, 340), (left + length - 1, 369), (235, 235, 240), -1)  # a hull
     box = np.array([[470, 345, 486, 361]], np.float32)
     fitted, replaced = fit_boxes(image, box, max_side_px=64)
     assert replaced == 0

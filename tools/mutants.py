@@ -2077,10 +2077,19 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "mitenet.fit_every_score",
         "sarmission/perception/mitenet.py",
-        "np.flatnonzero(detections.scores >= FIT_MIN_SCORE)",
-        "np.flatnonzero(detections.scores >= 0)",
+        "np.flatnonzero(detections.scores >= FIT_MIN_SCORE if self.fit_boxes else [])",
+        "np.flatnonzero(detections.scores >= 0 if self.fit_boxes else [])",
         ("tests/test_mitenet.py",),
         "metric",
         "every detection's box is fitted, a half millisecond each, also those no lock counts",
+    ),
+    Mutant(
+        "mitenet.fit_uncounted",
+        "sarmission/perception/mitenet.py",
+        'sure = sure[np.argsort(-detections.scores[sure], kind="stable")[:FIT_MAX_PER_FRAME]]',
+        'sure = sure[np.argsort(-detections.scores[sure], kind="stable")]',
+        ("tests/test_mitenet.py",),
+        "metric",
+        "every confident detection of a frame is fitted: the fitting's cost has no bound",
     ),
 ]
