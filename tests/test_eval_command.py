@@ -401,6 +401,7 @@ def test_run_mitenet_resets_between_videos_in_frame_order(annotations):
     class Recorder:
         def __init__(self) -> None:
             self.calls: list[str] = []
+            self.per_stage_ms = {"head": 1.5}
 
         def reset(self) -> None:
             self.calls.append("reset")
@@ -421,3 +422,4 @@ def test_run_mitenet_resets_between_videos_in_frame_order(annotations):
     assert net.calls == per_video * 2
     assert sorted(run.image_ids) == [100, 101, 102, 200, 201, 202]
     assert run.frame_size == (H, W) and run.skipped == 0 and len(run.frame_ms) == 6
+    assert run.stage_ms == {"head": [1.5] * 6}

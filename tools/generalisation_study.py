@@ -443,7 +443,8 @@ def run_heads(
 ) -> dict[str, Any]:
     """Run MITE-Net with every head of ``heads`` (name -> HeadRuntime) over ``dataset``: vSTMD,
     the RPN and the first crops once per frame, each head's classification, refinement and NMS
-    on them (:meth:`MiteNet._detect`, exactly as :meth:`MiteNet.process` calls it), at the crop
+    on them (:meth:`MiteNet._detect` and :meth:`MiteNet.fitted`, exactly as
+    :meth:`MiteNet.process` calls them), at the crop
     scales ``crop_scales`` gives the head (absent or None: the default; the first scale must be
     the default's). Returns name -> :class:`~sarmission.evaluation.run_model.ModelRun`."""
     from sarmission.data.sequence import iter_sequence, sequence_ids
@@ -485,8 +486,15 @@ def run_heads(
                 det = (
                     result.detections
                     if net is driver
-                    else net._detect(
-                        frame, result.motion, prop, crops[net.motion_floor].copy(), first.copy()
+                    else net.fitted(
+                        frame,
+                        net._detect(
+                            frame,
+                            result.motion,
+                            prop,
+                            crops[net.motion_floor].copy(),
+                            first.copy(),
+                        ),
                     )
                 )
                 run = runs[name]

@@ -2068,8 +2068,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "mitenet.fit_ignored",
         "sarmission/perception/mitenet.py",
-        "        if len(sure):",
-        "        if False:",
+        "        if not len(sure):",
+        "        if True:",
         ("tests/test_mitenet.py",),
         "metric",
         "fit_boxes is accepted but the head's boxes are returned",

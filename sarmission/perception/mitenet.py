@@ -314,12 +314,7 @@ class MiteNet:
         t4 = time.perf_counter()
         detections = self._detect(frame, motion, proposals, crops, first)
         t5 = time.perf_counter()
-        sure = np.flatnonzero(detections.scores >= FIT_MIN_SCORE if self.fit_boxes else [])
-        sure = sure[np.argsort(-detections.scores[sure], kind="stable")[:FIT_MAX_PER_FRAME]]
-        if len(sure):
-            boxes = detections.boxes.copy()
-            boxes[sure], _ = fit_boxes(frame, boxes[sure], FIT_MAX_SIDE_S * self.box_size)
-            detections = Detections(boxes, detections.scores, detections.class_ids)
+        detections = self.fitted(frame, detections)
         t6 = time.perf_counter()
         self.per_stage_ms = {
             "vstmd": (t1 - t0) * 1e3,
@@ -336,6 +331,17 @@ class MiteNet:
             motion=motion,
             camera_shift=self.vstmd.last_shift,
         )
+
+    def fitted(self, frame: np.ndarray | YuvImage, detections: Detections) -> Detections:
+        """``detections`` of ``frame`` with their boxes fitted to the object as ``fit_boxes``
+        says (the class docstring); unchanged when it is off."""
+        sure = np.flatnonzero(detections.scores >= FIT_MIN_SCORE if self.fit_boxes else [])
+        sure = sure[np.argsort(-detections.scores[sure], kind="stable")[:FIT_MAX_PER_FRAME]]
+        if not len(sure):
+            return detections
+        boxes = detections.boxes.copy()
+        boxes[sure], _ = fit_boxes(frame, boxes[sure], FIT_MAX_SIDE_S * self.box_size)
+        return Detections(boxes, detections.scores, detections.class_ids)
 
     def _motion_from_luma(
         self, image: YuvImage, shift_px: tuple[float, float] | None
