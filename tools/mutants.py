@@ -2077,8 +2077,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "mitenet.fit_every_score",
         "sarmission/perception/mitenet.py",
-        "np.flatnonzero(detections.scores >= FIT_MIN_SCORE if self.fit_boxes else [])",
-        "np.flatnonzero(detections.scores >= 0 if self.fit_boxes else [])",
+        "np.flatnonzero(detections.scores >= FIT_MIN_SCORE)",
+        "np.flatnonzero(detections.scores >= 0)",
         ("tests/test_mitenet.py",),
         "metric",
         "every detection's box is fitted, a half millisecond each, also those no lock counts",

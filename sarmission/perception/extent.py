@@ -56,7 +56,7 @@ def _window_bgr(
     return np.ascontiguousarray(window)
 
 
-#: Each Lab channel's offset in the flat (3 x 256) distance table.
+#: Each Lab channel's offset in the flattened ``[3, 256]`` histograms of a window's border.
 _CHANNEL_OFFSETS = np.array([0, 256, 512])
 
 

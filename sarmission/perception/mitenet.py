@@ -179,11 +179,10 @@ class MiteNet:
             (:mod:`~sarmission.perception.orientations`; 1: the single look of the paper).
         fit_boxes: replace the box of each detection scored at least :data:`FIT_MIN_SCORE`
             (the :data:`FIT_MAX_PER_FRAME` best-scored) by the object's extent against its
-            surroundings
-            (:func:`~sarmission.perception.extent.fit_boxes`) where that is longer than the
-            head's box and at most :data:`FIT_MAX_SIDE_S` x S: the head boxes what its 16 px
-            crop shows, a torso for a person lying 30-50 px long. Scores and classes are the
-            head's. Measured: docs/box_fit.md.
+            surroundings (:func:`~sarmission.perception.extent.fit_boxes`) where that is longer
+            than the head's box and at most :data:`FIT_MAX_SIDE_S` x S: the head boxes what its
+            16 px crop shows, a torso for a person lying 30-50 px long. Scores and classes are
+            the head's. Measured: docs/box_fit.md.
     """
 
     def __init__(
@@ -335,7 +334,9 @@ class MiteNet:
     def fitted(self, frame: np.ndarray | YuvImage, detections: Detections) -> Detections:
         """``detections`` of ``frame`` with their boxes fitted to the object as ``fit_boxes``
         says (the class docstring); unchanged when it is off."""
-        sure = np.flatnonzero(detections.scores >= FIT_MIN_SCORE if self.fit_boxes else [])
+        if not self.fit_boxes:
+            return detections
+        sure = np.flatnonzero(detections.scores >= FIT_MIN_SCORE)
         sure = sure[np.argsort(-detections.scores[sure], kind="stable")[:FIT_MAX_PER_FRAME]]
         if not len(sure):
             return detections
