@@ -287,3 +287,23 @@ def test_box_fit_scores_only_clips_with_people_as_swimmers(tmp_path):
     sea.write_text(json.dumps({"categories": categories, "annotations": [{"category_id": 1}]}))
     land.write_text(json.dumps({"categories": categories, "annotations": [{"category_id": 3}]}))
     assert not tool._has_people(sea) and tool._has_people(land)
+
+
+def test_the_fit_cost_table_gives_the_ratio_of_the_medians():
+    fit_cost = load_tool("fit_cost")
+    result = {
+        True: {"frame_ms": 34.5, "fit_ms": 1.7, "frames": 88},
+        False: {"frame_ms": 30.0, "fit_ms": 0.0, "frames": 88},
+    }
+    rows = fit_cost.table(result).splitlines()
+    assert rows[2] == "| fitted | 34.50 | 1.70 | 88 | 1.150 |"
+    assert rows[3] == "| head's | 30.00 | 0.00 | 88 | 1 |"
+
+
+def test_the_fit_cost_measures_both_settings_over_the_same_frames():
+    fit_cost = load_tool("fit_cost")
+    result = fit_cost.measure(blocks=4, frames=3, width=640, height=360)
+    for on in (True, False):
+        assert result[on]["frames"] == 8  # the last two blocks, one per setting, 2 skipped each
+        assert result[on]["frame_ms"] > 0
+    assert result[False]["fit_ms"] < 0.05  # off: the stage only returns

@@ -26,6 +26,7 @@ import math
 import cv2
 import numpy as np
 
+from sarmission.perception import kernels
 from sarmission.yuv import YuvImage, picture_size
 
 #: Robust standard deviations (1.4826 x MAD per Lab channel) from the border's median.
@@ -41,6 +42,9 @@ DEFAULT_MAX_BORDER_SHARE = 0.1
 SAMPLED_HALF_PX = 128
 #: Lab units added to each channel's spread: a flat background does not make noise an object.
 SPREAD_FLOOR = 3.0
+#: Result codes of :func:`sarmission.perception.extent_kernels.region` (its ``NOTHING`` and
+#: ``MIXED``), spelled here so that this module never imports numba.
+_NOTHING, _MIXED = 0, 1
 
 
 def _window_bgr(
@@ -56,66 +60,24 @@ def _window_bgr(
     return np.ascontiguousarray(window)
 
 
-#: Each Lab channel's offset in the flattened ``[3, 256]`` histograms of a window's border.
-_CHANNEL_OFFSETS = np.array([0, 256, 512])
-
-
-def _histogram_medians(counts: np.ndarray) -> np.ndarray:
-    """The lower median of the values each row of ``counts`` is the histogram of."""
-    cumulative = np.cumsum(counts, axis=1)
-    return np.argmax(cumulative >= (cumulative[:, -1:] + 1) // 2, axis=1)
-
-
-def _distance_table(border: np.ndarray) -> np.ndarray:
-    """``[3, 256]``: each Lab channel's byte values' distance from the border's median in
-    robust standard deviations (1.4826 x MAD, plus :data:`SPREAD_FLOOR`)."""
-    counts = np.bincount((border + _CHANNEL_OFFSETS).ravel(), minlength=768).reshape(3, 256)
-    deviation = np.abs(np.arange(256)[None, :] - _histogram_medians(counts)[:, None])
-    spread = np.bincount(
-        (deviation + _CHANNEL_OFFSETS[:, None]).ravel(), weights=counts.ravel(), minlength=768
-    ).reshape(3, 256)
-    mad = _histogram_medians(spread)
-    return deviation / (1.4826 * mad[:, None] + SPREAD_FLOOR)
-
-
 def _region(
     window_bgr: np.ndarray, inner: tuple[int, int, int, int], threshold: float, border_share: float
 ) -> tuple[tuple[int, int, int, int], bool] | bool:
     """``((x0, y0, x1, y1), touches_edge)`` of the region under ``inner`` in window pixels;
     True when the border is mixed (an object across it, or two backgrounds), False when
-    nothing under ``inner`` stands out."""
+    nothing under ``inner`` stands out. The loop is :func:`extent_kernels.region
+    <sarmission.perception.extent_kernels.region>`: the border band's robust spread per Lab
+    channel, the pixels beyond ``threshold`` of it closed over one-pixel gaps, the 8-connected
+    region covering most of ``inner``."""
     lab = cv2.cvtColor(window_bgr, cv2.COLOR_BGR2LAB)
-    h, w = lab.shape[:2]
-    band = max(2, min(h, w) // 16)
-    border = np.concatenate(
-        [
-            lab[:band].reshape(-1, 3),
-            lab[h - band :].reshape(-1, 3),
-            lab[band : h - band, :band].reshape(-1, 3),
-            lab[band : h - band, w - band :].reshape(-1, 3),
-        ]
+    code, left, top, right, bottom, touches = kernels.extent_region(
+        lab, *inner, float(threshold), SPREAD_FLOOR, float(border_share)
     )
-    # per channel, 1 where a byte value lies more than ``threshold`` from the border's median
-    outlying = (_distance_table(border) > threshold).astype(np.uint8).T.reshape(256, 1, 3)
-
-    def stands_out(pixels: np.ndarray) -> np.ndarray:
-        flags = cv2.LUT(pixels, outlying)
-        return np.maximum(np.maximum(flags[..., 0], flags[..., 1]), flags[..., 2])
-
-    if float(stands_out(border.reshape(-1, 1, 3)).mean()) > border_share:
+    if code == _MIXED:
         return True
-    mask = stands_out(lab)
-    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    ix0, iy0, ix1, iy1 = inner
-    under = labels[iy0:iy1, ix0:ix1]
-    counts = np.bincount(under.ravel(), minlength=len(stats))
-    counts[0] = 0  # the background
-    if not counts.any():
+    if code == _NOTHING:
         return False
-    left, top, width, height = (int(v) for v in stats[int(np.argmax(counts)), :4])
-    touches = left <= 0 or top <= 0 or left + width >= w or top + height >= h
-    return (left, top, left + width, top + height), touches
+    return (int(left), int(top), int(right), int(bottom)), bool(touches)
 
 
 def object_extent(

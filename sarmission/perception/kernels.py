@@ -1,5 +1,6 @@
 """The compiled loops detection runs (vSTMD's lamina/medulla, lobula and shift estimate, the
-crops' bilinear sampling), without numba in the process where possible.
+crops' bilinear sampling, the object extent's region), without numba in the process where
+possible.
 
 Loading numba's JIT-compiled code costs a process about 120 MB (numba, LLVM, scipy.linalg) and
 half a second. So the loops are compiled ahead of time once per machine
@@ -40,7 +41,7 @@ KERNELS_ENV = "SARMISSION_KERNELS"
 #: Environment variable naming the directory of the compiled loops.
 KERNEL_DIR_ENV = "SARMISSION_KERNEL_DIR"
 #: Source files whose contents decide the compiled module.
-_SOURCES = ("vstmd_kernels.py", "crop_kernels.py", "kernels_aot.py")
+_SOURCES = ("vstmd_kernels.py", "crop_kernels.py", "extent_kernels.py", "kernels_aot.py")
 #: Longest a build may take before it is given up (seconds).
 BUILD_TIMEOUT_S = 600.0
 
@@ -73,13 +74,14 @@ class _Jit:
     name = "jit"
 
     def __init__(self) -> None:
-        from sarmission.perception import crop_kernels, vstmd_kernels
+        from sarmission.perception import crop_kernels, extent_kernels, vstmd_kernels
 
         self.lamina_medulla = vstmd_kernels.lamina_medulla
         self.lamina_medulla_shifted = vstmd_kernels.lamina_medulla_shifted
         self.translation_system = vstmd_kernels.translation_system
         self.combine_rectify = vstmd_kernels.combine_rectify
         self.bilinear = crop_kernels.bilinear
+        self.extent_region = extent_kernels.region
 
 
 class _Aot:
@@ -94,6 +96,7 @@ class _Aot:
         self.translation_system = module.translation_system
         self.combine_rectify = module.combine_rectify
         self.bilinear = module.bilinear
+        self.extent_region = module.extent_region
 
     def lamina_medulla(self, pooled: np.ndarray, *args: Any) -> None:
         tag = "u8" if pooled.dtype == np.uint8 else "f32"
@@ -147,6 +150,11 @@ def combine_rectify(centre: np.ndarray, surround: np.ndarray, bump: np.ndarray, 
 def bilinear(windows: np.ndarray, grid_x: np.ndarray, grid_y: np.ndarray, out: np.ndarray):
     """:func:`sarmission.perception.crop_kernels.bilinear`."""
     backend().bilinear(windows, grid_x, grid_y, out)
+
+
+def extent_region(lab: np.ndarray, *args: float) -> tuple[int, int, int, int, int, bool]:
+    """:func:`sarmission.perception.extent_kernels.region`."""
+    return backend().extent_region(lab, *args)
 
 
 # ---------------------------------------------------------------------------- the cache

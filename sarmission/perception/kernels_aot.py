@@ -1,4 +1,4 @@
-"""Compile the numba loops of vSTMD and the crops ahead of time into one extension module.
+"""Compile the numba loops (vSTMD, the crops, the object extent) ahead of time into one module.
 
 A process that JIT-loads numba's compiled code carries numba, LLVM and scipy.linalg (numba's BLAS
 check): about 120 MB of its memory and half a second of its start. numba's ``pycc`` turns the
@@ -30,13 +30,14 @@ _POOLED = {"u8": "uint8[:, ::1]", "f32": "float32[:, ::1]"}
 
 def _exports() -> list[tuple[str, str, Callable[..., object]]]:
     """``(exported name, numba signature, wrapper)`` of every compiled entry point."""
-    from sarmission.perception import crop_kernels, vstmd_kernels
+    from sarmission.perception import crop_kernels, extent_kernels, vstmd_kernels
 
     lamina = vstmd_kernels.lamina_medulla
     shifted = vstmd_kernels.lamina_medulla_shifted
     translation = vstmd_kernels.translation_system
     combine = vstmd_kernels.combine_rectify
     sample = crop_kernels.bilinear
+    region = extent_kernels.region
 
     def lamina_medulla(pooled, scale, p, lam, von, voff, corr, a0, decay, g_leak, v_rest, v_exc):
         lamina(pooled, scale, p, lam, von, voff, corr, a0, decay, g_leak, v_rest, v_exc)
@@ -58,6 +59,9 @@ def _exports() -> list[tuple[str, str, Callable[..., object]]]:
 
     def bilinear(windows, grid_x, grid_y, out):
         sample(windows, grid_x, grid_y, out)
+
+    def extent_region(lab, ix0, iy0, ix1, iy1, threshold, spread_floor, border_share):
+        return region(lab, ix0, iy0, ix1, iy1, threshold, spread_floor, border_share)
 
     exports: list[tuple[str, str, Callable[..., object]]] = []
     for tag, pooled in _POOLED.items():
@@ -89,6 +93,12 @@ def _exports() -> list[tuple[str, str, Callable[..., object]]]:
             "bilinear",
             "void(float32[:, :, :, ::1], float32[:, ::1], float32[:, ::1], float32[:, :, :, ::1])",
             bilinear,
+        ),
+        (
+            "extent_region",
+            "Tuple((int64, int64, int64, int64, int64, boolean))"
+            "(uint8[:, :, ::1], int64, int64, int64, int64, float64, float64, float64)",
+            extent_region,
         ),
     ]
     return exports
