@@ -183,8 +183,8 @@ def render(results: dict) -> str:
         "trajectories, matched at the NWD threshold shown. *Fitted*: the share of detections "
         "whose box changed. *ms/frame*: the whole detector's median, *fitting ms*: the "
         "fitting stage's median (`per_stage_ms['fit']`), on this machine's CPU, from one "
-        "pass each: the speed figure is `sarmission bench --ds 2 --topn 25 --fit-boxes` "
-        "against `--no-fit-boxes`, run alternately (docs/experiments.md).",
+        "pass each: the speed figure is `python tools/fit_cost.py`, fitting on and off side "
+        "by side in one process (docs/experiments.md).",
         "",
         *table(rows),
         "",
