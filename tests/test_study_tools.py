@@ -280,6 +280,40 @@ def test_box_fit_counts_changed_boxes_and_tables_both_runs():
     assert "| - (0/0) |" in tool.table([("`land` | maritime", {False: empty})])[2]
 
 
+def test_box_fit_near_misses_are_boxes_on_a_person_too_far_off_to_match():
+    tool = load_tool("box_fit_study")
+    from sarmission.evaluation.matching import FrameBoxes
+    from sarmission.evaluation.sar_metrics import SequenceFrame
+
+    people = FrameBoxes.of([[100, 100, 140, 112], [300, 300, 312, 312]], ids=[1, 2])
+    detections = FrameBoxes.of(
+        [
+            [100, 100, 140, 112],  # the first person exactly: matched at NWD 0.5
+            [300, 300, 336, 336],  # 36 px around a 12 px person: near, three times too long
+            [600, 600, 616, 616],  # on nobody
+        ],
+        [0.9, 0.8, 0.9],
+    )
+    near = tool.near_misses({"s": [SequenceFrame(0, people, detections)]})
+    assert near["n"] == 1 and near["long"] == 1.0 and near["short"] == 0.0
+    assert near["ratio_p50"] == pytest.approx(3.0) and near["long_side_px"] == 12.0
+    assert tool.near_misses({"s": [SequenceFrame(0, people, FrameBoxes.empty())]}) == {"n": 0}
+
+    ssr = {f"{t:g}": (50.0, 1, 2) for t in tool.NWD_THRESHOLDS}
+    far = {"0.5": 66.7, "0.3": 66.7, "0.1": 33.3}
+    measured = tool.Outcome(ssr, 66.7, 3, 0, 30.0, 0.0, far, near)
+    old = tool.Outcome(ssr, 66.7, 3, 0, 30.0, 0.0)  # results kept before near misses were
+    lines = tool.near_table(
+        [("`sea` | maritime", {False: measured}), ("`old` | land", {False: old})]
+    )
+    assert len(lines) == 3
+    assert lines[2] == (
+        "| `sea` | maritime | head | 66.7 % / 66.7 % / 33.3 % | 1 | 0 % | 100 % (12 px) "
+        "| 3.00 / 3.00 / 3.00 |"
+    )
+    assert tool.near_table([("`old` | land", {False: old})]) == []
+
+
 def test_box_fit_scores_only_clips_with_people_as_swimmers(tmp_path):
     tool = load_tool("box_fit_study")
     categories = [{"id": 1, "name": "swimmer"}, {"id": 3, "name": "person"}]
