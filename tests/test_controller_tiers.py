@@ -253,3 +253,20 @@ def test_a_boat_the_head_boxes_as_a_person_is_too_large_against_its_surroundings
             if not confirmed:
                 reason = store.get(candidate.alert_id).discarded
                 assert "6.0 m across against its surroundings is no person" in reason
+
+
+def test_the_extent_is_ready_before_the_first_candidate_when_it_is_measured(
+    tmp_path, mission, monkeypatch
+):
+    """OpenCV builds its Lab tables on first use (about 0.17 s): the controller has them built
+    when it starts, not at its first candidate's measurement, and only if it measures."""
+    from sarmission.perception import extent
+
+    prepared = []
+    monkeypatch.setattr(extent, "prepare", lambda: prepared.append(True))
+    for max_extent_m, expected in ((4.0, [True]), (0.0, [])):
+        prepared.clear()
+        mission.confirm.max_extent_m = max_extent_m
+        with AlertStore(tmp_path / f"p{max_extent_m}.db") as store:
+            controller(mission, ScriptedDetector([]), flight(1.0), store)
+        assert prepared == expected

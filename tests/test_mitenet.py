@@ -378,3 +378,27 @@ def test_frame_result_carries_the_camera_shift(head: MiteHead):
     panned = np.roll(frames[1], (2, 6), axis=(0, 1))  # the whole scene 6 px right, 2 px down
     shift = net.process(panned, 2 / 30).camera_shift
     np.testing.assert_allclose(shift, (6.0, 2.0), atol=0.5)
+
+
+def test_a_detector_that_fits_boxes_builds_the_extents_tables_when_it_is_made(monkeypatch):
+    from sarmission.perception import extent
+
+    prepared = []
+    monkeypatch.setattr(extent, "prepare", lambda: prepared.append(True))
+    head = build_head_runtime(None, "onnx")
+    MiteNet(head, fit_boxes=False)
+    assert prepared == []
+    MiteNet(head, fit_boxes=True)
+    assert prepared == [True]
+
+
+def test_preparing_the_extent_changes_no_measurement():
+    from sarmission.perception import extent
+
+    rng = np.random.default_rng(4)
+    image = rng.integers(60, 70, (200, 200, 3), dtype=np.uint8)
+    image[90:110, 80:130] = (20, 120, 240)
+    before = extent.object_extent(image, (95, 92, 111, 108))
+    extent.prepare()
+    np.testing.assert_array_equal(extent.object_extent(image, (95, 92, 111, 108)), before)
+    assert before is not None and before[2] - before[0] == pytest.approx(50, abs=2)

@@ -69,6 +69,7 @@ from sarmission.mission.config import MissionConfig
 from sarmission.mission.position_estimate import WINDOW_S, latest_position
 from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
+from sarmission.perception import extent as object_extents
 from sarmission.perception.extent import object_extent
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
@@ -204,6 +205,8 @@ class MissionController:
             (log.warning if found.refused else log.info)("%s", found.note)
             confidence = found.model
         self.candidates = CandidateBook(store, self.mission_id, mission.confirm, confidence)
+        if mission.confirm.max_extent_m > 0:
+            object_extents.prepare()  # not a stall at the first candidate's measurement
         self.console = console
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m

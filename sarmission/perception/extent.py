@@ -135,6 +135,15 @@ def object_extent(
         half = min(2 * half, int(max_half_px))
 
 
+def prepare() -> None:
+    """Build now what the first measurement would otherwise build mid-flight: OpenCV's Lab
+    tables (about 0.17 s on first use, a stall of several frames) and the region loop."""
+    lab = cv2.cvtColor(np.zeros((8, 8, 3), np.uint8), cv2.COLOR_BGR2LAB)
+    kernels.extent_region(
+        lab, 2, 2, 6, 6, DEFAULT_THRESHOLD, SPREAD_FLOOR, DEFAULT_MAX_BORDER_SHARE
+    )
+
+
 #: The first window's half side when a detection's box is fitted: a box is at most about
 #: 2 S (32 px at S 16) long, so a 65 px window holds it with its background around it.
 FIT_MIN_HALF_PX = 32

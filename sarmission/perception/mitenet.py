@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sarmission.perception import extent
 from sarmission.perception.chroma import (
     CHROMA_SCALE,
     chroma_applies,
@@ -218,6 +219,8 @@ class MiteNet:
         self.recentre = bool(recentre)
         self.orientations = check_orientations(orientations)
         self.fit_boxes = bool(fit_boxes)
+        if self.fit_boxes:
+            extent.prepare()
         self.head = head_runtime
         self.ds = ds
         self.topn = topn
