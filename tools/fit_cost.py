@@ -13,8 +13,13 @@ import argparse
 import statistics
 import sys
 import time
+from pathlib import Path
 
-from sarmission.threads import apply_thread_plan
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:  # runnable from a checkout that is not installed
+    sys.path.insert(0, str(ROOT))
+
+from sarmission.threads import apply_thread_plan  # noqa: E402
 
 #: Frames per block of one setting; the first two of each block are not timed (warm-up).
 BLOCK = 10
