@@ -1,8 +1,8 @@
 """The numba loop of :func:`sarmission.perception.extent.object_extent`'s region, in one pass.
 
 Done with numpy and OpenCV, a 65 px window costs a dozen small calls (histograms, a table, two
-lookups, a closing, connected components): about 0.4 ms per detection, most of it call
-overhead and OpenCV's thread dispatch. This loop gives the same region. Ties between
+lookups, a closing, connected components): about 0.4 ms per detection, most of it the calls'
+own overhead. This loop gives the same region. Ties between
 components that cover the box equally go to the one OpenCV labels first (its 8-connected
 labelling scans rows in pairs, column by column). Import it through
 :mod:`~sarmission.perception.kernels`, which compiles it ahead of time.
