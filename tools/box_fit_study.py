@@ -25,6 +25,7 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -177,25 +178,31 @@ def _percent(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f} %"
 
 
+def _labelled(rows: list[tuple[str, dict[bool, Outcome]]]) -> Iterator[tuple[str, bool, Outcome]]:
+    """``(footage | head | boxes cells, fitted?, outcome)`` of every outcome of ``rows``."""
+    for label, outcomes in rows:
+        footage, head = label.split(" | ")
+        for fit, outcome in outcomes.items():
+            yield f"{footage} | {head} | {'fitted' if fit else 'head'}", fit, outcome
+
+
 def table(rows: list[tuple[str, dict[bool, Outcome]]]) -> list[str]:
     lines = [
         "| footage | head | boxes | SSR NWD 0.5 | SSR NWD 0.3 | SSR NWD 0.1 | FAR/det | "
         "fitted | ms/frame | fitting ms/frame |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for label, outcomes in rows:
-        footage, head = label.split(" | ")
-        for fit, o in outcomes.items():
-            ssr = [
-                f"{_percent(o.ssr[f'{t:g}'][0])} ({o.ssr[f'{t:g}'][1]}/{o.ssr[f'{t:g}'][2]})"
-                for t in NWD_THRESHOLDS
-            ]
-            share = f"{100 * o.fitted / o.detections:.0f} %" if fit and o.detections else "-"
-            fit_ms = f"{o.fit_ms:.2f}" if fit else "-"
-            lines.append(
-                f"| {footage} | {head} | {'fitted' if fit else 'head'} | {' | '.join(ssr)} | "
-                f"{_percent(o.far_detections)} | {share} | {o.frame_ms:.1f} | {fit_ms} |"
-            )
+    for cells, fit, o in _labelled(rows):
+        ssr = [
+            f"{_percent(o.ssr[f'{t:g}'][0])} ({o.ssr[f'{t:g}'][1]}/{o.ssr[f'{t:g}'][2]})"
+            for t in NWD_THRESHOLDS
+        ]
+        share = f"{100 * o.fitted / o.detections:.0f} %" if fit and o.detections else "-"
+        fit_ms = f"{o.fit_ms:.2f}" if fit else "-"
+        lines.append(
+            f"| {cells} | {' | '.join(ssr)} | "
+            f"{_percent(o.far_detections)} | {share} | {o.frame_ms:.1f} | {fit_ms} |"
+        )
     return lines
 
 
@@ -211,25 +218,20 @@ def near_table(rows: list[tuple[str, dict[bool, Outcome]]]) -> list[str]:
         "p50 / p75 |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for label, outcomes in rows:
-        footage, head = label.split(" | ")
-        for fit, o in outcomes.items():
-            if o.far_by_nwd is None or o.near is None:
-                continue
-            far = " / ".join(_percent(o.far_by_nwd[f"{t:g}"]) for t in NWD_THRESHOLDS)
-            near = o.near
-            if not near["n"]:
-                sizes = "- | - | -"
-            else:
-                sizes = (
-                    f"{_share(near['short'], near['short_side_px'])} | "
-                    f"{_share(near['long'], near['long_side_px'])} | "
-                    f"{near['ratio_p25']:.2f} / {near['ratio_p50']:.2f} / {near['ratio_p75']:.2f}"
-                )
-            lines.append(
-                f"| {footage} | {head} | {'fitted' if fit else 'head'} | {far} | "
-                f"{near['n']:.0f} | {sizes} |"
+    for cells, _, o in _labelled(rows):
+        if o.far_by_nwd is None or o.near is None:
+            continue
+        far = " / ".join(_percent(o.far_by_nwd[f"{t:g}"]) for t in NWD_THRESHOLDS)
+        near = o.near
+        if not near["n"]:
+            sizes = "- | - | -"
+        else:
+            sizes = (
+                f"{_share(near['short'], near['short_side_px'])} | "
+                f"{_share(near['long'], near['long_side_px'])} | "
+                f"{near['ratio_p25']:.2f} / {near['ratio_p50']:.2f} / {near['ratio_p75']:.2f}"
             )
+        lines.append(f"| {cells} | {far} | {near['n']:.0f} | {sizes} |")
     return lines if len(lines) > 2 else []
 
 

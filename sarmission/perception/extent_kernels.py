@@ -79,15 +79,13 @@ def region(lab, ix0, iy0, ix1, iy1, threshold, spread_floor, border_share):  # p
         for v in range(256):
             outlying[c, v] = abs(v - median) / scale > threshold
     mask = np.zeros((h, w), np.uint8)
+    standing_out = 0  # of the border band's pixels
     for y in range(h):
+        edge_row = y < band or y >= h - band
         for x in range(w):
             mask[y, x] = (
                 outlying[0, lab[y, x, 0]] | outlying[1, lab[y, x, 1]] | outlying[2, lab[y, x, 2]]
             )
-    standing_out = 0
-    for y in range(h):
-        edge_row = y < band or y >= h - band
-        for x in range(w):
             if edge_row or x < band or x >= w - band:
                 standing_out += mask[y, x]
     if standing_out / n_border > border_share:
