@@ -46,3 +46,54 @@ def test_detection_scores_split_people_from_background(tool) -> None:
     assert scores["on_none"]["quantiles"][1] == pytest.approx(0.6)
     assert scores["false_per_frame_above_0.5"] == pytest.approx(1.0)  # 0.95 and 0.6 over 2
     assert scores["false_per_frame_above_0.9"] == pytest.approx(0.5)
+
+
+def test_people_called_counts_the_class_of_the_best_detection(tool) -> None:
+    swimmer = Annotation(1, 1, 1, (100.0, 100.0, 10.0, 10.0))
+    jacket = Annotation(2, 1, 2, (300.0, 300.0, 12.0, 12.0))
+    unseen = Annotation(3, 1, 2, (700.0, 700.0, 12.0, 12.0))  # nothing near it
+    buoy = Annotation(4, 1, 3, (900.0, 900.0, 12.0, 12.0))  # not a target
+    dataset = SimpleNamespace(
+        annotations=[swimmer, jacket, unseen, buoy],
+        categories=[
+            SimpleNamespace(id=1, name="swimmer"),
+            SimpleNamespace(id=2, name="swimmer_with_life_jacket"),
+            SimpleNamespace(id=3, name="buoy"),
+        ],
+    )
+    run = SimpleNamespace(
+        detections={
+            1: FrameBoxes.of(
+                np.array(
+                    [
+                        [100.0, 100.0, 110.0, 110.0],  # swimmer, called swimmer
+                        [300.0, 300.0, 312.0, 312.0],  # jacket: best-scored is swimmer
+                        [301.0, 301.0, 313.0, 313.0],  # jacket: called jacket, lower score
+                        [700.0, 700.0, 712.0, 712.0],  # on the unseen one, but at 0.4
+                        [900.0, 900.0, 912.0, 912.0],  # on the buoy
+                    ]
+                ),
+                scores=np.array([0.9, 0.8, 0.7, 0.4, 0.99]),
+                class_ids=np.array([0, 0, 1, 1, 1]),
+            )
+        }
+    )
+    called = tool.people_called(
+        dataset, run, targets={1, 2}, classes=("swimmer", "swimmer_with_life_jacket")
+    )
+    assert list(called) == ["swimmer", "swimmer_with_life_jacket"]
+    assert called["swimmer"] == {
+        "boxes": 1,
+        "found": 1,
+        "called": {"swimmer": 1, "swimmer_with_life_jacket": 0},
+    }
+    assert called["swimmer_with_life_jacket"] == {
+        "boxes": 2,
+        "found": 1,
+        "called": {"swimmer": 1, "swimmer_with_life_jacket": 0},
+    }
+    study = {"people_called": called}
+    section = tool._people_called_table({"splits": {"heldout_maritime": {"study": study}}})
+    assert "| `heldout_maritime` | swimmer_with_life_jacket | 2 | 1 | 100 % | 0 % |" in section
+    # results written before the table existed render without it
+    assert tool._people_called_table({"splits": {"x": {"study": {}}}}) == []
