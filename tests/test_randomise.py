@@ -10,12 +10,15 @@ import pytest
 import torch
 
 from sarmission.training.randomise import (
+    ALL,
     TRANSFORMS,
     Randomisation,
     blocks,
     geometry,
+    haze,
     hue,
     randomise_crops,
+    white_balance,
 )
 
 
@@ -136,10 +139,60 @@ def test_geometry_keeps_negative_targets_zero() -> None:
 
 
 def test_parse_names_all_and_none() -> None:
-    assert Randomisation.parse("all").transforms == TRANSFORMS
+    # the recipes written with "all" before haze existed train as they did
+    assert Randomisation.parse("all").transforms == (
+        "tone",
+        "white_balance",
+        "hue",
+        "blur",
+        "noise",
+        "blocks",
+        "geometry",
+    )
+    assert Randomisation.parse("all").transforms == ALL
+    assert Randomisation.parse("all,haze").transforms == TRANSFORMS
+    assert Randomisation.parse("haze, all").transforms == TRANSFORMS
     assert Randomisation.parse("none").transforms == ()
     assert Randomisation.parse("noise, tone").transforms == ("tone", "noise")
     with pytest.raises(ValueError, match="unknown randomisation"):
         Randomisation.parse("tone,sparkle")
     with pytest.raises(ValueError, match="probability"):
         Randomisation.parse("tone", probability=1.5)
+
+
+def test_haze_brightens_and_washes_out_colour() -> None:
+    crops = torch.zeros(64, 3, 16, 16)
+    crops[:, 0], crops[:, 1], crops[:, 2] = 0.9, 0.4, 0.1  # a life jacket's orange
+    out = haze(crops, np.random.default_rng(0))
+    spread_before = crops.amax(dim=1) - crops.amin(dim=1)
+    spread_after = out.amax(dim=1) - out.amin(dim=1)
+    brightness_before, brightness_after = crops.mean(dim=1), out.mean(dim=1)
+    assert torch.all(spread_after <= spread_before + 0.1 + 1e-6)  # the tint is at most 0.1
+    assert (spread_after < 0.75 * spread_before).float().mean() > 0.3
+    assert torch.all(brightness_after >= brightness_before - 1e-6)
+    assert (brightness_after > brightness_before + 0.05).float().mean() > 0.5
+    # the same transmission and airlight over the whole crop
+    assert torch.allclose(out[:, :, :1, :1].expand_as(out), out)
+
+
+def test_a_transform_not_asked_for_draws_nothing() -> None:
+    """``haze`` sits between ``white_balance`` and ``hue``; without it the others draw what
+    they drew before it existed, so a recipe of ``all`` trains bit for bit as it did."""
+    crops, ltrb, labels = _batch(n=24)
+    out, _ = randomise_crops(
+        crops, ltrb, labels, Randomisation(("white_balance", "hue"), 0.5), np.random.default_rng(5)
+    )
+    rng = np.random.default_rng(5)
+    expected = crops.clone()
+    for transform in (white_balance, hue):
+        chosen = torch.from_numpy(np.flatnonzero(rng.random(len(crops)) < 0.5))
+        expected[chosen, :3] = transform(expected[chosen, :3], rng)
+    assert torch.equal(out, expected)
+    hazed, _ = randomise_crops(
+        crops,
+        ltrb,
+        labels,
+        Randomisation(("white_balance", "haze", "hue"), 0.5),
+        np.random.default_rng(5),
+    )
+    assert not torch.equal(hazed, out)

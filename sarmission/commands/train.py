@@ -107,8 +107,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--randomise",
         default="none",
         help="crop-level domain randomisation: comma-separated transforms of "
-        "tone, white_balance, hue, blur, noise, blocks, geometry; 'all' or "
-        "'none'",
+        "tone, white_balance, haze, hue, blur, noise, blocks, geometry; 'none', or 'all' "
+        "(every one but haze), which may be followed by haze ('all,haze')",
     )
     parser.add_argument(
         "--randomise-p",

@@ -14,6 +14,11 @@ Transforms (:data:`TRANSFORMS`), in the order they are applied:
   the crop's mean, ``c, g ~ exp(U(-0.4, 0.4))``, ``b ~ U(-0.15, 0.15)``.
 * ``white_balance``: a gain per channel, ``exp(U(-0.2, 0.2))`` each (colour casts of light,
   water and camera).
+* ``haze`` (not in ``all``: asked for by name): veiling light that washes colours out,
+  ``x' = t x + (1 - t) A`` with transmission ``t ~ U(0.5, 1)`` and a pale airlight ``A``
+  (a grey level ``U(0.55, 1)`` per crop, each channel within 0.05 of it): haze, glare on the
+  lens, an exposure set for a darker scene. Colours come out brighter and less saturated, which
+  ``tone`` (it scales a crop about its own mean) does not reach.
 * ``hue``: the chroma of each pixel (YIQ ``I, Q``) rotated by ``U(-180, 180)`` degrees, weighted
   by its saturation ``w = clip((|IQ| - 0.03) / 0.08, 0, 1)``: grey water, rock and road keep
   their colour, saturated (clothing-like) colours take any hue.
@@ -45,12 +50,18 @@ from torch import Tensor
 TRANSFORMS: tuple[str, ...] = (
     "tone",
     "white_balance",
+    "haze",
     "hue",
     "blur",
     "noise",
     "blocks",
     "geometry",
 )
+#: Transforms that ``all`` leaves out, so that a recipe written with ``all`` trains as it did
+#: before they existed (a transform draws from the generator only when it is asked for).
+OPT_IN: frozenset[str] = frozenset({"haze"})
+#: What ``all`` means.
+ALL: tuple[str, ...] = tuple(n for n in TRANSFORMS if n not in OPT_IN)
 #: Colour channels of a head crop (RGB) ...
 RGB = slice(0, 3)
 #: ... and its motion channel, the enhanced motion response E.
@@ -76,12 +87,13 @@ class Randomisation:
 
     @classmethod
     def parse(cls, text: str, probability: float = 0.5) -> Randomisation:
-        """From a comma-separated list of transform names, ``all`` or ``none``/empty."""
+        """From a comma-separated list of transform names, ``none``/empty, or ``all``
+        (:data:`ALL`), which may be followed by opt-in names (``all,haze``)."""
         names = [t.strip() for t in text.split(",") if t.strip()]
-        if names == ["all"]:
-            names = list(TRANSFORMS)
-        elif names == ["none"]:
+        if names == ["none"]:
             names = []
+        elif "all" in names:
+            names = [n for n in names if n != "all"] + list(ALL)
         config = cls(
             tuple(n for n in TRANSFORMS if n in names)
             + tuple(n for n in names if n not in TRANSFORMS),
@@ -110,6 +122,16 @@ def white_balance(rgb: Tensor, rng: np.random.Generator) -> Tensor:
     n = rgb.shape[0]
     gains = torch.exp(torch.from_numpy(rng.uniform(-0.2, 0.2, size=(n, 3)).astype(np.float32)))
     return (rgb * gains.view(n, 3, 1, 1)).clamp(0.0, 1.0)
+
+
+def haze(rgb: Tensor, rng: np.random.Generator) -> Tensor:
+    """Veiling light per crop: a pale airlight mixed in (module docstring)."""
+    n = rgb.shape[0]
+    t = _u(rng, 0.5, 1.0, n).view(n, 1, 1, 1)
+    level = _u(rng, 0.55, 1.0, n).view(n, 1, 1, 1)
+    tint = torch.from_numpy(rng.uniform(-0.05, 0.05, size=(n, 3)).astype(np.float32))
+    airlight = (level + tint.view(n, 3, 1, 1)).clamp(0.0, 1.0)
+    return (t * rgb + (1.0 - t) * airlight).clamp(0.0, 1.0)
 
 
 _RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
@@ -248,6 +270,7 @@ def geometry(
 _PHOTOMETRIC = {
     "tone": tone,
     "white_balance": white_balance,
+    "haze": haze,
     "hue": hue,
     "blur": blur,
     "noise": noise,
