@@ -2128,4 +2128,22 @@ MUTANTS: list[Mutant] = [
         "metric",
         "every confident detection of a frame is fitted: the fitting's cost has no bound",
     ),
+    Mutant(
+        "randomise.haze_in_all",
+        "sarmission/training/randomise.py",
+        "ALL: tuple[str, ...] = tuple(n for n in TRANSFORMS if n not in OPT_IN)",
+        "ALL: tuple[str, ...] = TRANSFORMS",
+        ("tests/test_randomise.py",),
+        "lock",
+        "'all' takes in haze: every recipe written with it trains another head than it did",
+    ),
+    Mutant(
+        "randomise.haze_darkens",
+        "sarmission/training/randomise.py",
+        "level = _u(rng, 0.55, 1.0, n)",
+        "level = _u(rng, 0.0, 0.45, n)",
+        ("tests/test_randomise.py",),
+        "lock",
+        "haze mixes in a dark veil: colours come out darker, not washed out as in glare",
+    ),
 ]
