@@ -191,12 +191,11 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
         gt = xywh_to_xyxy(np.asarray([ann.bbox], np.float64))
         proposals = run.proposals[ann.image_id]
         detections = run.detections[ann.image_id]
-        confident = detections.boxes[detections.scores > 0.5]
         proposed = bool(len(proposals.boxes)) and nwd_matrix(gt, proposals.boxes).max() >= 0.1
-        near = nwd_matrix(gt, confident)[0] if len(confident) else np.zeros(0)
+        sure, near = confident_near(ann, detections)
         detected = bool(near.size) and near.max() >= 0.5
         if near.size and near.max() >= 0.1:
-            best = confident[int(near.argmax())]
+            best = detections.boxes[sure[int(near.argmax())]]
             ratios.append(
                 float(max(best[2] - best[0], best[3] - best[1]) / max(ann.bbox[2], ann.bbox[3]))
             )
@@ -267,6 +266,20 @@ def detection_scores(dataset: Any, run: Any, targets: set[int]) -> dict[str, Any
     }
 
 
+def confident_near(ann: Any, detections: Any) -> tuple[Any, Any]:
+    """The detections of ``ann``'s frame scored above 0.5 (their indices) and their NWD to its
+    box: what the box study and :func:`people_called` count a person found or detected by."""
+    import numpy as np
+
+    from sarmission.boxes import nwd_matrix, xywh_to_xyxy
+
+    sure = np.flatnonzero(detections.scores > 0.5)
+    if not sure.size:
+        return sure, np.zeros(0)
+    gt = xywh_to_xyxy(np.asarray([ann.bbox], np.float64))
+    return sure, nwd_matrix(gt, detections.boxes[sure])[0]
+
+
 def people_called(
     dataset: Any, run: Any, targets: set[int], classes: Sequence[str]
 ) -> dict[str, Any]:
@@ -275,8 +288,6 @@ def people_called(
     head class. A swimmer in a life jacket called ``swimmer`` is found, yet the alert tells the
     rescue team the wrong thing, and the box metrics, which match classes, miss it."""
     import numpy as np
-
-    from sarmission.boxes import nwd_matrix, xywh_to_xyxy
 
     names = {c.id: c.name for c in dataset.categories}
     table: dict[str, dict[str, Any]] = {}
@@ -288,11 +299,8 @@ def people_called(
         )
         row["boxes"] += 1
         detections = run.detections[ann.image_id]
-        sure = np.flatnonzero(detections.scores > 0.5)
-        if not sure.size:
-            continue
-        gt = xywh_to_xyxy(np.asarray([ann.bbox], np.float64))
-        near = sure[nwd_matrix(gt, detections.boxes[sure])[0] >= 0.1]
+        sure, nwd = confident_near(ann, detections)
+        near = sure[nwd >= 0.1]
         if not near.size:
             continue
         best = near[int(np.argmax(detections.scores[near]))]
