@@ -480,3 +480,26 @@ def test_run_refuses_a_mistyped_cot_destination_before_starting(
         ["run", "--connect", "udp:127.0.0.1:1", "--sim", "--cot", "udp://239.2.3.1:6969"]
     )
     assert args.cot == ["udp://239.2.3.1:6969"]
+
+
+def test_detector_flags_set_every_option_of_the_cascade():
+    """`detect` and `eval` (a single run and a sweep) build MiteNet from one list of the detector
+    flags: every option apart from the head, ds, N and those no flag sets is in it, with the
+    flag's value."""
+    import inspect
+
+    from sarmission.commands.detector_options import detector_settings
+    from sarmission.perception.mitenet import MiteNet
+
+    not_flags = {"self", "head_runtime", "ds", "topn", "target_size", "box_size", "classes"}
+    not_flags |= {"nms_iou"}
+    options = set(inspect.signature(MiteNet.__init__).parameters) - not_flags
+    argv = ["eval", "--annotations", "a.json", "--no-fit-boxes", "--crop-scales", "1,2"]
+    argv += ["--recentre", "--orientations", "4", "--conf", "0.4", "--ego-motion", "none"]
+    settings = detector_settings(build_parser().parse_args(argv))
+    assert set(settings) == options
+    assert settings["fit_boxes"] is False and settings["recentre"] is True
+    assert settings["crop_scales"] == (1.0, 2.0) and settings["orientations"] == 4
+    assert settings["score_threshold"] == 0.4 and settings["ego_motion"] == "none"
+    with pytest.raises(ValueError, match="colour"):
+        detector_settings(build_parser().parse_args(argv + ["--colour-share", "2"]))

@@ -1307,7 +1307,7 @@ def measure(args: argparse.Namespace, command: str) -> dict[str, Any]:
                 datasets["maritime_test"],
                 [ds],
                 [n],
-                args.conf,
+                score_threshold=args.conf,
                 progress=not args.no_progress,
                 colour_share=args.colour_share,
             )

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from sarmission.perception.orientations import ORIENTATION_COUNTS
 from sarmission.perception.types import (
@@ -102,6 +102,24 @@ def add_detector_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def detector_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The :class:`~sarmission.perception.mitenet.MiteNet` keyword options the detector flags
+    set, checked, apart from the head, ds and N. One list for every command that builds the
+    cascade, so that no command drops a flag the others honour."""
+    check_colour_share(args.colour_share)
+    check_refine_threshold(args.refine_threshold)
+    return {
+        "score_threshold": args.conf,
+        "ego_motion": args.ego_motion,
+        "colour_share": args.colour_share,
+        "crop_scales": args.crop_scales,
+        "refine_threshold": args.refine_threshold,
+        "recentre": args.recentre,
+        "orientations": args.orientations,
+        "fit_boxes": args.fit_boxes,
+    }
+
+
 def build_mitenet(args: argparse.Namespace) -> MiteNet:
     """Create the MITE-Net cascade from parsed detector options (loads the head weights)."""
     from sarmission.models import default_model_path
@@ -110,23 +128,10 @@ def build_mitenet(args: argparse.Namespace) -> MiteNet:
 
     if args.topn < 1:
         raise ValueError(f"--topn must be at least 1, got {args.topn}")
-    check_colour_share(args.colour_share)
-    check_refine_threshold(args.refine_threshold)
+    settings = detector_settings(args)
     model_path = args.model or default_model_path(args.runtime)
     head = load_head_runtime(model_path, runtime=args.runtime)
-    return MiteNet(
-        head,
-        ds=args.ds,
-        topn=args.topn,
-        score_threshold=args.conf,
-        ego_motion=args.ego_motion,
-        colour_share=args.colour_share,
-        crop_scales=args.crop_scales,
-        refine_threshold=args.refine_threshold,
-        recentre=args.recentre,
-        orientations=args.orientations,
-        fit_boxes=args.fit_boxes,
-    )
+    return MiteNet(head, ds=args.ds, topn=args.topn, **settings)
 
 
 def add_refine_threshold_option(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:

@@ -28,6 +28,7 @@ from sarmission.commands.detector_options import (
     add_detector_options,
     check_colour_share,
     check_refine_threshold,
+    detector_settings,
 )
 from sarmission.commands.progress import add_progress_option, bars_wanted
 from sarmission.perception.types import VALID_DS
@@ -216,17 +217,10 @@ def run(args: argparse.Namespace) -> int:
             dataset,
             args.sweep_ds,
             args.sweep_topn,
-            args.conf,
             max_frames=args.max_frames,
             progress=bars_wanted(args),
-            ego_motion=args.ego_motion,
-            colour_share=args.colour_share,
-            crop_scales=args.crop_scales,
-            refine_threshold=args.refine_threshold,
-            recentre=args.recentre,
-            orientations=args.orientations,
-            fit_boxes=args.fit_boxes,
             **metric_options,
+            **detector_settings(args),
         )
         print(report_to_json(rows) if args.json else f"model: {label}\n" + format_sweep(rows))
         return 0
@@ -270,19 +264,7 @@ def _evaluate_model(
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet
 
-    net = MiteNet(
-        head,
-        ds=args.ds,
-        topn=args.topn,
-        score_threshold=args.conf,
-        ego_motion=args.ego_motion,
-        colour_share=args.colour_share,
-        crop_scales=args.crop_scales,
-        refine_threshold=args.refine_threshold,
-        recentre=args.recentre,
-        orientations=args.orientations,
-        fit_boxes=args.fit_boxes,
-    )
+    net = MiteNet(head, ds=args.ds, topn=args.topn, **detector_settings(args))
     person_category_map(dataset.categories, net.classes)  # fail before running, not after
     run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
     if not run.frame_ms:

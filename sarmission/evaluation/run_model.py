@@ -20,7 +20,6 @@ from sarmission.evaluation.matching import FrameBoxes
 from sarmission.evaluation.report import evaluate_detections
 from sarmission.perception.mitenet import MiteNet
 from sarmission.perception.runtime import HeadRuntime
-from sarmission.perception.types import DEFAULT_COLOUR_SHARE, DEFAULT_CROP_SCALES
 
 #: Nominal frame rate for the timestamps passed to the detector (they do not change its output).
 NOMINAL_FPS = 30.0
@@ -112,7 +111,6 @@ def run_sweep(
     dataset: VideoDataset,
     ds_values: Sequence[int],
     topn_values: Sequence[int],
-    score_threshold: float,
     *,
     m: int = 3,
     k: int = 5,
@@ -120,15 +118,10 @@ def run_sweep(
     nwd_thr: float = 0.5,
     max_frames: int | None = None,
     progress: bool = True,
-    ego_motion: str = "estimate",
-    colour_share: float = DEFAULT_COLOUR_SHARE,
-    crop_scales: tuple[float, ...] = DEFAULT_CROP_SCALES,
-    refine_threshold: float | None = None,
-    recentre: bool = False,
-    orientations: int = 1,
-    fit_boxes: bool = True,
+    **detector: Any,
 ) -> list[dict[str, Any]]:
-    """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each.
+    """Evaluate every (ds, N) configuration on ``dataset`` (paper Table 4), one row each;
+    ``detector`` holds MiteNet's other keyword options (score threshold, crop scales, ...).
 
     Row keys: ``ds``, ``topn``, ``ssr`` and ``far_per_frame`` (%), ``far_detections`` (%),
     ``avg_search_time_frames``, ``median_ms`` and ``fps`` (measured in this run), ``frames``,
@@ -138,19 +131,7 @@ def run_sweep(
     rows = []
     for ds in ds_values:
         for topn in topn_values:
-            net = MiteNet(
-                head,
-                ds=ds,
-                topn=topn,
-                score_threshold=score_threshold,
-                ego_motion=ego_motion,
-                colour_share=colour_share,
-                crop_scales=crop_scales,
-                refine_threshold=refine_threshold,
-                recentre=recentre,
-                orientations=orientations,
-                fit_boxes=fit_boxes,
-            )
+            net = MiteNet(head, ds=ds, topn=topn, **detector)
             run = run_mitenet(net, dataset, max_frames, progress, desc=f"ds={ds} N={topn}")
             if run.frame_size is None or run.median_ms is None:
                 raise ValueError("no frame of the dataset could be read")
