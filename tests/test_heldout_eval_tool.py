@@ -97,3 +97,36 @@ def test_people_called_counts_the_class_of_the_best_detection(tool) -> None:
     assert "| `heldout_maritime` | swimmer_with_life_jacket | 2 | 1 | 100 % | 0 % |" in section
     # results written before the table existed render without it
     assert tool._people_called_table({"splits": {"x": {"study": {}}}}) == []
+
+
+def test_operating_points_count_people_found_and_clutter_per_threshold(tool) -> None:
+    person = Annotation(1, 1, 7, (100.0, 100.0, 10.0, 10.0))
+    other = Annotation(2, 1, 7, (400.0, 400.0, 10.0, 10.0))  # found by nothing
+    buoy = Annotation(3, 1, 3, (300.0, 300.0, 12.0, 12.0))  # not a target: clutter
+    dataset = SimpleNamespace(annotations=[person, other, buoy])
+    run = SimpleNamespace(
+        detections={
+            1: FrameBoxes.of(
+                np.array(
+                    [
+                        [100.0, 100.0, 110.0, 110.0],  # on the person, 0.65
+                        [102.0, 101.0, 114.0, 113.0],  # near the person, 0.85: found, no clutter
+                        [300.0, 300.0, 312.0, 312.0],  # on the buoy: clutter
+                        [700.0, 700.0, 716.0, 716.0],  # open water, under every threshold
+                    ]
+                ),
+                scores=np.array([0.65, 0.85, 0.75, 0.45]),
+            ),
+            2: FrameBoxes.of(np.array([[10.0, 10.0, 26.0, 26.0]]), scores=np.array([0.95])),
+        }
+    )
+    op = tool.operating_points(dataset, run, targets={7})
+    assert op["boxes"] == 2 and op["frames"] == 2
+    by_t = {p["threshold"]: p for p in op["points"]}
+    assert [by_t[t]["found"] for t in (0.5, 0.8, 0.9)] == [0.5, 0.5, 0.0]
+    # clutter: 0.75 (buoy) and 0.95 (frame without people) over 2 frames
+    assert [by_t[t]["clutter_per_frame"] for t in (0.5, 0.7, 0.8, 0.9)] == [1.0, 1.0, 0.5, 0.5]
+    study = {"operating_points": op}
+    section = tool._operating_points_table({"splits": {"heldout_maritime": {"study": study}}})
+    assert "| `heldout_maritime` | 2 | 2 | 50.0 % / 1.00 |" in "\n".join(section)
+    assert tool._operating_points_table({"splits": {"x": {"study": {}}}}) == []
