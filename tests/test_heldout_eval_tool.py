@@ -130,3 +130,19 @@ def test_operating_points_count_people_found_and_clutter_per_threshold(tool) -> 
     section = tool._operating_points_table({"splits": {"heldout_maritime": {"study": study}}})
     assert "| `heldout_maritime` | 2 | 2 | 50.0 % / 1.00 |" in "\n".join(section)
     assert tool._operating_points_table({"splits": {"x": {"study": {}}}}) == []
+
+
+def test_a_render_of_other_clips_is_not_reused(tool, tmp_path) -> None:
+    """Validation clips (150 on) and test clips (0 on) have the same counts: the first video's
+    index tells them apart, so a folder of one is never scored as the other."""
+    import json
+
+    path = tmp_path / "heldout_maritime.json"
+    videos = [{"id": i + 1, "name": f"heldout_maritime_{150 + i}"} for i in range(2)]
+    images = [{"id": i + 1} for i in range(2 * 3)]
+    path.write_text(json.dumps({"videos": videos, "images": images}))
+    assert tool._rendered(path, 2, 3)
+    assert tool._rendered(path, 2, 3, first_clip=150)
+    assert not tool._rendered(path, 2, 3, first_clip=0)
+    assert not tool._rendered(path, 2, 4, first_clip=150)
+    assert not tool._rendered(tmp_path / "missing.json", 2, 3)

@@ -8,6 +8,10 @@ is kept)::
     nice -n 19 python tools/heldout_eval.py                 # renders into /tmp/sarmission-heldout
     python tools/heldout_eval.py --from-json /tmp/sarmission-heldout/heldout_results.json
 
+Heads and settings are compared on validation clips, never on these: ``--first-clip 150
+--own-sequences 0 --land-clips 0 --work W --doc F --model HEAD`` renders and scores held-out
+validation sea clips 150 on into a page of its own.
+
 The shipped head has no ``person`` class: on the land world people are scored as ``swimmer``
 (an annotation copy with the category renamed), as ``tools/results.py`` does for ``urban_test``.
 Measured numbers are kept as JSON (``<work>/heldout_results.json``); the Markdown is a pure
@@ -52,12 +56,19 @@ def _run(cmd: list[str]) -> str:
     return done.stdout
 
 
-def _rendered(path: Path, videos: int, frames: int) -> bool:
-    """True when ``path`` holds ``videos`` x ``frames`` frames already (a re-run skips it)."""
+def _rendered(path: Path, videos: int, frames: int, first_clip: int | None = None) -> bool:
+    """True when ``path`` holds ``videos`` x ``frames`` frames already (a re-run skips it), and
+    with ``first_clip`` when its first video is that clip (``<world>_<index>``)."""
     if not path.is_file():
         return False
     doc = json.loads(path.read_text())
-    return len(doc.get("videos", [])) == videos and len(doc.get("images", [])) == videos * frames
+    shown = doc.get("videos", [])
+    if len(shown) != videos or len(doc.get("images", [])) != videos * frames:
+        return False
+    if first_clip is None:
+        return True
+    index = str(shown[0].get("name", "")).rsplit("_", 1)[-1]
+    return index.isdigit() and int(index) == first_clip
 
 
 def render_heldout(
@@ -66,7 +77,7 @@ def render_heldout(
     """Clips ``first_clip`` on of held-out world ``name`` in ``work/<name>`` (kept when there)."""
     path = work / name / f"{name}.json"
     label = name if first_clip == 0 else f"{name} from clip {first_clip}"
-    if _rendered(path, clips, frames):
+    if _rendered(path, clips, frames, first_clip):
         reused.append(label)
     else:
         print(f"rendering {label}: {clips} x {frames} frames", file=sys.stderr)
@@ -391,7 +402,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "study": box_study(own, args.model),
         }
     if args.maritime_clips:
-        sea = render_heldout(work, "heldout_maritime", args.maritime_clips, args.frames, reused)
+        sea = render_heldout(
+            work, "heldout_maritime", args.maritime_clips, args.frames, reused, args.first_clip
+        )
         splits["heldout_maritime"] = {
             "renderer": "heldout",
             "scored_as": None,
@@ -400,7 +413,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "study": box_study(sea, args.model),
         }
     if args.land_clips:
-        land = render_heldout(work, "heldout_land", args.land_clips, args.frames, reused)
+        land = render_heldout(
+            work, "heldout_land", args.land_clips, args.frames, reused, args.first_clip
+        )
         # a head with a person class (the land head) is scored on people as they are
         person_head = "person" in head_classes(args.model)
         splits["heldout_land"] = {
@@ -425,6 +440,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "own_sequences": args.own_sequences,
             "maritime_clips": args.maritime_clips,
             "land_clips": args.land_clips,
+            "first_clip": args.first_clip,
             "model": args.model or "shipped default",
         },
         "splits": splits,
@@ -450,6 +466,8 @@ def _per_clip_ssr(report: Mapping[str, Any]) -> dict[str, tuple[int, int]]:
 def render_section(results: Mapping[str, Any]) -> str:
     """The generated part of docs/heldout.md."""
     s = results["settings"]
+    first = s.get("first_clip", 0)
+    clips = "used nowhere else" if first == 0 else f"validation clips from {first} on"
     lines = [
         BEGIN,
         "",
@@ -470,7 +488,7 @@ def render_section(results: Mapping[str, Any]) -> str:
         f"- `heldout_maritime`: {s['maritime_clips']} clips x {s['frames']} frames; "
         f"`heldout_land`: {s['land_clips']} clips x {s['frames']} frames; both 1920x1080 windows "
         "with a 4K camera's ground sampling (`python -m heldout.generate`, seeds 7731000+i and "
-        "7742000+i, used nowhere else).",
+        f"7742000+i, {clips}).",
         "",
         "### SAR criteria and module recall",
         "",
@@ -739,6 +757,13 @@ def main(argv: list[str] | None = None) -> int:
         default=3,
         help="clips of heldout_land, 0 for none; the third hovers (default: 3)",
     )
+    parser.add_argument(
+        "--first-clip",
+        type=int,
+        default=0,
+        help="first held-out clip: 0, the test clips (default); 100 or 150 on, validation "
+        "clips, where heads and thresholds are compared (use another --work and --doc)",
+    )
     parser.add_argument("--model", default=None, help="head weights (default: the shipped one)")
     parser.add_argument("--doc", default=str(DEFAULT_DOC), help="Markdown file to update")
     parser.add_argument(
@@ -750,8 +775,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.from_json:
         results = json.loads(Path(args.from_json).read_text())
     else:
-        if min(args.frames, args.own_sequences, args.maritime_clips) < 1 or args.land_clips < 0:
-            parser.error("frame and clip counts must be positive")
+        if (
+            min(args.frames, args.maritime_clips) < 1
+            or min(args.own_sequences, args.land_clips) < 0
+        ):
+            parser.error("frame and clip counts must be positive (own and land clips: 0 for none)")
+        if args.first_clip < 0:
+            parser.error("--first-clip must be 0 or more")
         results = measure(args)
         out = Path(args.work) / "heldout_results.json"
         out.write_text(json.dumps(results, indent=1))
