@@ -239,6 +239,15 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
 SCORE_QUANTILES = (10, 50, 90)
 
 
+def people_boxes(dataset: Any, targets: set[int]) -> dict[int, list]:
+    """The boxes (``x, y, w, h``) of the people (categories ``targets``) of each image."""
+    people: dict[int, list] = {}
+    for ann in dataset.annotations:
+        if ann.category_id in targets:
+            people.setdefault(ann.image_id, []).append(ann.bbox)
+    return people
+
+
 def detection_scores(dataset: Any, run: Any, targets: set[int]) -> dict[str, Any]:
     """How sure the head is where it is wrong: the scores of the detections (conf 0.3) that lie
     on a person (NWD >= 0.5 to a person's box of their frame, any class) and of those that lie
@@ -248,10 +257,7 @@ def detection_scores(dataset: Any, run: Any, targets: set[int]) -> dict[str, Any
 
     from sarmission.boxes import nwd_matrix, xywh_to_xyxy
 
-    people: dict[int, list] = {}
-    for ann in dataset.annotations:
-        if ann.category_id in targets:
-            people.setdefault(ann.image_id, []).append(ann.bbox)
+    people = people_boxes(dataset, targets)
     on_person: list[float] = []
     on_none: list[float] = []
     for image_id, detections in run.detections.items():
@@ -308,10 +314,7 @@ def operating_points(dataset: Any, run: Any, targets: set[int]) -> dict[str, Any
 
     from sarmission.boxes import nwd_matrix, xywh_to_xyxy
 
-    people: dict[int, list] = {}
-    for ann in dataset.annotations:
-        if ann.category_id in targets:
-            people.setdefault(ann.image_id, []).append(ann.bbox)
+    people = people_boxes(dataset, targets)
     best_on_person: list[float] = []
     clutter: list[float] = []
     for image_id, detections in run.detections.items():
@@ -622,9 +625,14 @@ def render_section(results: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _studied(results: Mapping[str, Any], key: str) -> dict[str, Any]:
+    """The splits whose study holds ``key`` (results written before it existed have none)."""
+    return {n: s for n, s in results["splits"].items() if s["study"].get(key)}
+
+
 def _people_called_table(results: Mapping[str, Any]) -> list[str]:
     """The "what the head calls the people it finds" table (none for results without it)."""
-    splits = {n: s for n, s in results["splits"].items() if s["study"].get("people_called")}
+    splits = _studied(results, "people_called")
     if not splits:
         return []
     classes: list[str] = []
@@ -661,7 +669,7 @@ def _people_called_table(results: Mapping[str, Any]) -> list[str]:
 
 def _operating_points_table(results: Mapping[str, Any]) -> list[str]:
     """The "people found against clutter" table (none for results without it)."""
-    splits = {n: s for n, s in results["splits"].items() if s["study"].get("operating_points")}
+    splits = _studied(results, "operating_points")
     if not splits:
         return []
     thresholds = [
