@@ -157,34 +157,19 @@ def test_bench_prints_a_json_row_per_configuration() -> None:
         assert row["fit_boxes"] is True
 
 
-def test_bench_runs_the_chosen_colour_share_and_crop_scales() -> None:
-    common = [
-        sys.executable,
-        "-m",
-        "sarmission.cli",
-        "bench",
-        "--size",
-        "320x240",
-        "--ds",
-        "2",
-        "--topn",
-        "10",
-        "--frames",
-        "2",
-        "--json",
-    ]
-    runs = [
-        json.loads(
-            subprocess.run(
-                common + extra, capture_output=True, text=True, timeout=240, check=True
-            ).stdout
-        )[0]
-        for extra in (
-            ["--crop-scales", "1,2"],
-            ["--colour-share", "0", "--crop-scales", "1"],
-            ["--crop-scales", "1,2", "--refine-threshold", "0", "--no-fit-boxes"],
-        )
-    ]
+def test_bench_runs_the_chosen_colour_share_and_crop_scales(
+    capsys: pytest.CaptureFixture,
+) -> None:
+    """In process (the entry point itself is run above): each option reaches the row."""
+    common = ["bench", "--size", "320x240", "--ds", "2", "--topn", "10", "--frames", "2", "--json"]
+    runs = []
+    for extra in (
+        ["--crop-scales", "1,2"],
+        ["--colour-share", "0", "--crop-scales", "1"],
+        ["--crop-scales", "1,2", "--refine-threshold", "0", "--no-fit-boxes"],
+    ):
+        assert main(common + extra) == 0
+        runs.append(json.loads(capsys.readouterr().out)[0])
     assert runs[0]["fit_boxes"] is True and runs[2]["fit_boxes"] is False
     assert runs[1]["colour_share"] == 0.0 and runs[1]["crop_scales"] == [1.0]
     assert runs[0]["crop_scales"] == [1.0, 2.0]

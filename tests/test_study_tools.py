@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from types import SimpleNamespace
@@ -195,9 +196,11 @@ def test_size_gate_sizes_real_boxes_by_band_with_both_measures():
         pytest.skip(f"{REAL} not present")
     from sarmission.data.coco_video import read_coco_video
 
-    sizes = tool.box_sizes(read_coco_video(REAL))
+    real = read_coco_video(REAL)
+    # every fourth box (each is geolocated twice; the whole file takes 20 s)
+    sizes = tool.box_sizes(dataclasses.replace(real, annotations=real.annotations[::4]))
     low = sizes[("swimmer", 0)]
-    assert len(low["across the sight"]) > 500
+    assert len(low["across the sight"]) > 200
     # the ground extent stretches people seen low: larger at the median, sometimes unsized
     assert np.median(low["on the ground"]) > 1.2 * np.median(low["across the sight"])
     assert {name for name, _ in sizes} <= set(tool.CLASSES)
