@@ -217,6 +217,22 @@ def heldout_maritime_empty() -> WorldPreset:
     return _without_people(heldout_maritime(), "heldout_maritime_empty", 7733)
 
 
+def heldout_maritime_clutter() -> WorldPreset:
+    """The held-out sea's distractors, many to a frame and no people: buoys six times, debris
+    four times, birds three times and boats twice as dense as in ``heldout_maritime``, so that
+    validation counts enough objects to tell heads apart by what they take for a person."""
+    sea = heldout_maritime()
+    dense = {"buoy": 6.0, "debris": 4.0, "bird": 3.0, "boat": 2.0}
+    kept = {k: v * dense[k] for k, v in sea.population.per_frame.items() if k not in PEOPLE}
+    return replace(
+        sea,
+        name="heldout_maritime_clutter",
+        seed=7735,
+        population=Population(kept),
+        description=heldout_maritime_clutter.__doc__ or "",
+    )
+
+
 def heldout_land_empty() -> WorldPreset:
     """The held-out land without people: rocks, logs, animals and birds only."""
     return _without_people(heldout_land(), "heldout_land_empty", 7744)
@@ -230,6 +246,7 @@ WORLDS: dict[str, Callable[[], WorldPreset]] = {
     "heldout_land": heldout_land,
     "heldout_maritime_empty": heldout_maritime_empty,
     "heldout_land_empty": heldout_land_empty,
+    "heldout_maritime_clutter": heldout_maritime_clutter,
 }
 
 

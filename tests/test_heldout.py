@@ -163,3 +163,17 @@ def test_background_only_worlds_keep_the_distractors_and_no_person(empty: str, f
     }
     assert set(kinds) <= distractors and len(kinds) >= 2
     assert world(empty).seed not in {world(n).seed for n in ("heldout_land", "heldout_maritime")}
+
+
+def test_the_clutter_world_is_the_sea_s_distractors_denser_and_without_people() -> None:
+    sea, clutter = world("heldout_maritime"), world("heldout_maritime_clutter")
+    people = {"person", "swimmer", "swimmer_with_life_jacket"}
+    assert not people & set(clutter.population.per_frame)
+    for kind, density in clutter.population.per_frame.items():
+        assert density >= 2 * sea.population.per_frame[kind]
+    others = ("heldout_maritime", "heldout_land", "heldout_maritime_empty", "heldout_land_empty")
+    assert clutter.seed not in {world(n).seed for n in others}
+    kinds = Counter()
+    for clip in range(2):
+        kinds.update(t.look.kind for t in draw_clip(clutter, clip, 1920, 1080, 1.0).things)
+    assert not people & set(kinds) and kinds["buoy"] >= 4

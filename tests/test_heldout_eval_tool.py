@@ -132,6 +132,52 @@ def test_operating_points_count_people_found_and_clutter_per_threshold(tool) -> 
     assert tool._operating_points_table({"splits": {"x": {"study": {}}}}) == []
 
 
+def test_objects_called_count_each_track_by_the_share_of_its_frames(tool) -> None:
+    """An object is taken for a person when a detection above 0.7 lies on it (NWD 0.1 or
+    centred inside its box) in at least 30 % of its frames; one without a track is its own."""
+    swimmer = [Annotation(10 + f, f, 1, (100.0, 100.0, 10.0, 10.0), 1, 1) for f in range(5)]
+    buoy = [Annotation(20 + f, f, 2, (300.0, 300.0, 12.0, 12.0), 2, 1) for f in range(5)]
+    boat = [Annotation(30 + f, f, 3, (500.0, 500.0, 80.0, 40.0), 3, 1) for f in range(5)]
+    loose = [Annotation(40 + f, f, 2, (700.0, 700.0, 12.0, 12.0)) for f in range(2)]
+    dataset = SimpleNamespace(
+        categories=[
+            SimpleNamespace(id=1, name="swimmer"),
+            SimpleNamespace(id=2, name="buoy"),
+            SimpleNamespace(id=3, name="boat"),
+        ],
+        annotations=swimmer + buoy + boat + loose,
+    )
+    on_swimmer, on_buoy = [100.0, 100.0, 110.0, 110.0], [300.0, 300.0, 312.0, 312.0]
+    on_boat_deck = [530.0, 510.0, 546.0, 526.0]  # far in NWD, centred inside the boat's box
+    on_loose = [700.0, 700.0, 712.0, 712.0]
+    frames = {
+        0: ([on_swimmer, on_buoy, on_boat_deck, on_loose], [0.9, 0.72, 0.8, 0.9]),
+        1: ([on_swimmer, on_buoy], [0.71, 0.69]),  # the buoy's under the score
+        2: ([on_swimmer], [0.5]),
+        3: ([], []),
+        4: ([on_buoy], [0.95]),
+    }
+    run = SimpleNamespace(
+        detections={
+            f: FrameBoxes.of(np.array(boxes, np.float64).reshape(-1, 4), scores=np.array(s))
+            for f, (boxes, s) in frames.items()
+        }
+    )
+    called = tool.objects_called(dataset, run)
+    # swimmer 2 of 5 frames, buoy 2 of 5, boat 1 of 5 (under 30 %); the two loose boxes are
+    # two buoys, one seen in its only frame
+    assert called == {
+        "boat": {"objects": 1, "called": 0},
+        "buoy": {"objects": 3, "called": 2},
+        "swimmer": {"objects": 1, "called": 1},
+    }
+    section = "\n".join(
+        tool._objects_called_table({"splits": {"x": {"study": {"objects_called": called}}}})
+    )
+    assert "| `x` | 0 / 1 | 2 / 3 | 1 / 1 |" in section
+    assert tool._objects_called_table({"splits": {"x": {"study": {}}}}) == []
+
+
 def test_a_render_of_other_clips_is_not_reused(tool, tmp_path) -> None:
     """Validation clips (150 on) and test clips (0 on) have the same counts: the first video's
     index tells them apart, so a folder of one is never scored as the other."""
