@@ -67,6 +67,21 @@ def size_band(area: float) -> str:
     return "larger"
 
 
+def centres_inside(a_xyxy: np.ndarray, b_xyxy: np.ndarray) -> np.ndarray:
+    """``[M, N]``: the centre of box ``m`` of ``a`` lies inside box ``n`` of ``b`` (edges
+    included). Matches a small box on part of a large one, which NWD cannot."""
+    a = np.asarray(a_xyxy, dtype=np.float64).reshape(-1, 4)
+    b = np.asarray(b_xyxy, dtype=np.float64).reshape(-1, 4)
+    cx = (a[:, 0, None] + a[:, 2, None]) / 2
+    cy = (a[:, 1, None] + a[:, 3, None]) / 2
+    return (
+        (cx >= b[None, :, 0])
+        & (cx <= b[None, :, 2])
+        & (cy >= b[None, :, 1])
+        & (cy <= b[None, :, 3])
+    )
+
+
 def nwd_matrix(
     a_xyxy: np.ndarray, b_xyxy: np.ndarray, constant: float = NWD_CONSTANT
 ) -> np.ndarray:

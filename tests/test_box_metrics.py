@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from sarmission.boxes import centres_inside
 from sarmission.evaluation.box_metrics import (
     evaluate_boxes,
     f_beta,
@@ -130,3 +131,12 @@ def test_recall_at_nwd_thresholds():
     one = {0: FrameBoxes.of([box(50, 50, 8)]), 1: FrameBoxes.of([box(50, 51, 8)])}
     gt_pair = {0: FrameBoxes.of([box(50, 50, 8), box(52, 50, 8)])}
     assert recall_at_nwd(gt_pair, one)[0.5] == pytest.approx(0.5)
+
+
+def test_centres_inside_matches_a_small_box_on_part_of_a_large_one():
+    small = np.array([box(10, 10, 4), box(50, 50, 4), box(20, 5, 2)])
+    large = np.array([[0.0, 0.0, 20.0, 20.0], [45.0, 45.0, 46.0, 46.0]])
+    inside = centres_inside(small, large)
+    assert inside.shape == (3, 2)
+    # the third's centre (20, 5) lies on the first box's edge: inside
+    assert inside.tolist() == [[True, False], [False, False], [True, False]]

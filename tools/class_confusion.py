@@ -34,6 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from sarmission.boxes import centres_inside  # noqa: E402
 from sarmission.class_roles import (  # noqa: E402
     normalise_class,
     person_class_ids,
@@ -65,15 +66,7 @@ def hits(detections: FrameBoxes, truth: np.ndarray) -> np.ndarray:
     boxes = detections.boxes[keep]
     if not len(boxes) or not len(truth):
         return np.zeros((len(boxes), len(truth)), bool)
-    cx = (boxes[:, 0] + boxes[:, 2]) / 2
-    cy = (boxes[:, 1] + boxes[:, 3]) / 2
-    inside = (
-        (cx[:, None] >= truth[None, :, 0])
-        & (cx[:, None] <= truth[None, :, 2])
-        & (cy[:, None] >= truth[None, :, 1])
-        & (cy[:, None] <= truth[None, :, 3])
-    )
-    return inside | (nwd_matrix(boxes, truth) > 0.5)
+    return centres_inside(boxes, truth) | (nwd_matrix(boxes, truth) > 0.5)
 
 
 def count_calls(

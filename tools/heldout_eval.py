@@ -363,7 +363,7 @@ def objects_called(dataset: Any, run: Any) -> dict[str, dict[str, int]]:
     more, and for people as for buoys the same way."""
     import numpy as np
 
-    from sarmission.boxes import nwd_matrix, xywh_to_xyxy
+    from sarmission.boxes import centres_inside, nwd_matrix, xywh_to_xyxy
 
     names = {c.id: c.name for c in dataset.categories}
     seen: dict[tuple[Any, int], list[bool]] = {}
@@ -376,11 +376,10 @@ def objects_called(dataset: Any, run: Any) -> dict[str, dict[str, int]]:
         on = False
         if sure.size:
             boxes = detections.boxes[sure]
-            x, y, w, h = ann.bbox
-            cx, cy = (boxes[:, 0] + boxes[:, 2]) / 2, (boxes[:, 1] + boxes[:, 3]) / 2
-            inside = (cx >= x) & (cx <= x + w) & (cy >= y) & (cy <= y + h)
-            near = nwd_matrix(xywh_to_xyxy(np.asarray([ann.bbox], np.float64)), boxes)[0] >= 0.1
-            on = bool((inside | near).any())
+            truth = xywh_to_xyxy(np.asarray([ann.bbox], np.float64))
+            on = bool(
+                (centres_inside(boxes, truth)[:, 0] | (nwd_matrix(truth, boxes)[0] >= 0.1)).any()
+            )
         # a box without a track is an object of its own
         key = (ann.video_id, ann.track_id) if ann.track_id is not None else (-1, ann.id)
         seen.setdefault(key, []).append(on)
