@@ -221,14 +221,11 @@ def heldout_maritime_clutter() -> WorldPreset:
     """The held-out sea's distractors, many to a frame and no people: buoys six times, debris
     four times, birds three times and boats twice as dense as in ``heldout_maritime``, so that
     validation counts enough objects to tell heads apart by what they take for a person."""
-    sea = heldout_maritime()
+    empty = _without_people(heldout_maritime(), "heldout_maritime_clutter", 7735)
     dense = {"buoy": 6.0, "debris": 4.0, "bird": 3.0, "boat": 2.0}
-    kept = {k: v * dense[k] for k, v in sea.population.per_frame.items() if k not in PEOPLE}
     return replace(
-        sea,
-        name="heldout_maritime_clutter",
-        seed=7735,
-        population=Population(kept),
+        empty,
+        population=Population({k: v * dense[k] for k, v in empty.population.per_frame.items()}),
         description=heldout_maritime_clutter.__doc__ or "",
     )
 

@@ -435,6 +435,18 @@ def head_classes(model: str | None) -> tuple[str, ...]:
     return tuple(build_head_runtime(model, "onnx").config.classes)
 
 
+def heldout_split(annotations: Path, model: str | None, scored: Path | None = None) -> dict:
+    """One held-out split's results: the report on ``scored`` (an annotation copy with people
+    renamed to the head's class) or on ``annotations`` themselves, its clips and its study."""
+    return {
+        "renderer": "heldout",
+        "scored_as": None if scored is None else "person -> swimmer",
+        "report": evaluate(scored or annotations, model),
+        "clips": clip_conditions(annotations),
+        "study": box_study(annotations, model),
+    }
+
+
 #: The held-out sea's distractors, dense and without people (``--clutter-clips``).
 CLUTTER_WORLD = "heldout_maritime_clutter"
 
@@ -458,37 +470,21 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         sea = render_heldout(
             work, "heldout_maritime", args.maritime_clips, args.frames, reused, args.first_clip
         )
-        splits["heldout_maritime"] = {
-            "renderer": "heldout",
-            "scored_as": None,
-            "report": evaluate(sea, args.model),
-            "clips": clip_conditions(sea),
-            "study": box_study(sea, args.model),
-        }
+        splits["heldout_maritime"] = heldout_split(sea, args.model)
     if args.clutter_clips:
         clutter = render_heldout(
             work, CLUTTER_WORLD, args.clutter_clips, args.frames, reused, args.first_clip
         )
-        splits[CLUTTER_WORLD] = {
-            "renderer": "heldout",
-            "scored_as": None,
-            "report": evaluate(clutter, args.model),
-            "clips": clip_conditions(clutter),
-            "study": box_study(clutter, args.model),
-        }
+        splits[CLUTTER_WORLD] = heldout_split(clutter, args.model)
     if args.land_clips:
         land = render_heldout(
             work, "heldout_land", args.land_clips, args.frames, reused, args.first_clip
         )
         # a head with a person class (the land head) is scored on people as they are
         person_head = "person" in head_classes(args.model)
-        splits["heldout_land"] = {
-            "renderer": "heldout",
-            "scored_as": None if person_head else "person -> swimmer",
-            "report": evaluate(land if person_head else persons_as_swimmers(land), args.model),
-            "clips": clip_conditions(land),
-            "study": box_study(land, args.model),
-        }
+        splits["heldout_land"] = heldout_split(
+            land, args.model, None if person_head else persons_as_swimmers(land)
+        )
     return {
         "command": "python tools/heldout_eval.py " + shlex.join(sys.argv[1:]),
         "generated": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
@@ -887,7 +883,9 @@ def main(argv: list[str] | None = None) -> int:
             min(args.frames, args.maritime_clips) < 1
             or min(args.own_sequences, args.land_clips, args.clutter_clips) < 0
         ):
-            parser.error("frame and clip counts must be positive (own and land clips: 0 for none)")
+            parser.error(
+                "frame and clip counts must be positive (own, land and clutter clips: 0 for none)"
+            )
         if args.first_clip < 0:
             parser.error("--first-clip must be 0 or more")
         results = measure(args)
