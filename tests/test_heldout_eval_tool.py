@@ -176,6 +176,19 @@ def test_objects_called_count_each_track_by_the_share_of_its_frames(tool) -> Non
     )
     assert "| `x` | 0 / 1 | 2 / 3 | 1 / 1 |" in section
     assert tool._objects_called_table({"splits": {"x": {"study": {}}}}) == []
+    # the same rule at every threshold of the curve
+    curve = tool.object_curve(dataset, run)
+    at = {t: i for i, t in enumerate(curve["thresholds"])}
+    taken = {k: v["called"] for k, v in curve["classes"].items()}
+    assert {k: v["objects"] for k, v in curve["classes"].items()} == {
+        "boat": 1,
+        "buoy": 3,
+        "swimmer": 1,
+    }
+    assert [taken["swimmer"][at[t]] for t in (0.3, 0.7, 0.75)] == [1, 1, 0]
+    # buoy track 0.72 / 0.69 / - / - / 0.95; the loose one seen once at 0.9
+    assert [taken["buoy"][at[t]] for t in (0.65, 0.7, 0.75, 0.85, 0.9)] == [2, 2, 1, 1, 0]
+    assert set(taken["boat"]) == {0}
 
 
 def test_a_render_of_other_clips_is_not_reused(tool, tmp_path) -> None:

@@ -231,6 +231,7 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
         "people_called": people_called(dataset, run, targets, net.classes),
         "operating_points": operating_points(dataset, run, targets),
         "objects_called": objects_called(dataset, run),
+        "object_curve": object_curve(dataset, run),
         "by_motion": {
             key: {"n_boxes": n, "rpn_recall": float(p / n), "detected": float(d / n)}
             for key, (n, p, d) in sorted(groups.items())
@@ -355,41 +356,69 @@ def operating_points(dataset: Any, run: Any, targets: set[int]) -> dict[str, Any
 OBJECT_SCORE, OBJECT_SHARE = 0.7, 0.3
 
 
+def object_scores(dataset: Any, run: Any) -> dict[tuple[Any, int], tuple[str, list[float]]]:
+    """Per object (track; a box without a track is an object of its own): its annotated class
+    and, for each frame it is in, the best score of a detection (any class, conf 0.3) lying on
+    it, within NWD 0.1 of its box or centred inside it; 0 where none does."""
+    import numpy as np
+
+    from sarmission.boxes import centres_inside, nwd_matrix, xywh_to_xyxy
+
+    names = {c.id: c.name for c in dataset.categories}
+    objects: dict[tuple[Any, int], tuple[str, list[float]]] = {}
+    for ann in dataset.annotations:
+        if ann.image_id not in run.detections:
+            continue
+        detections = run.detections[ann.image_id]
+        best = 0.0
+        if len(detections.boxes):
+            truth = xywh_to_xyxy(np.asarray([ann.bbox], np.float64))
+            on = centres_inside(detections.boxes, truth)[:, 0] | (
+                nwd_matrix(truth, detections.boxes)[0] >= 0.1
+            )
+            if on.any():
+                best = float(detections.scores[on].max())
+        key = (ann.video_id, ann.track_id) if ann.track_id is not None else (-1, ann.id)
+        objects.setdefault(key, (names[ann.category_id], []))[1].append(best)
+    return objects
+
+
+def _taken(scores: list[float], threshold: float) -> bool:
+    return sum(s > threshold for s in scores) >= OBJECT_SHARE * len(scores)
+
+
 def objects_called(dataset: Any, run: Any) -> dict[str, dict[str, int]]:
     """Per annotated class: how many objects (tracks) there are and how many the head takes
     for a person (:data:`OBJECT_SCORE`, :data:`OBJECT_SHARE`). A detection lies on an object
     when within NWD 0.1 of its box or centred inside it; every class of a head is a person's.
     Flights count a few false alerts, too few to tell heads apart; objects in frames count
     more, and for people as for buoys the same way."""
-    import numpy as np
-
-    from sarmission.boxes import centres_inside, nwd_matrix, xywh_to_xyxy
-
-    names = {c.id: c.name for c in dataset.categories}
-    seen: dict[tuple[Any, int], list[bool]] = {}
-    kind: dict[tuple[Any, int], str] = {}
-    for ann in dataset.annotations:
-        if ann.image_id not in run.detections:
-            continue
-        detections = run.detections[ann.image_id]
-        sure = np.flatnonzero(detections.scores > OBJECT_SCORE)
-        on = False
-        if sure.size:
-            boxes = detections.boxes[sure]
-            truth = xywh_to_xyxy(np.asarray([ann.bbox], np.float64))
-            on = bool(
-                (centres_inside(boxes, truth)[:, 0] | (nwd_matrix(truth, boxes)[0] >= 0.1)).any()
-            )
-        # a box without a track is an object of its own
-        key = (ann.video_id, ann.track_id) if ann.track_id is not None else (-1, ann.id)
-        seen.setdefault(key, []).append(on)
-        kind[key] = names[ann.category_id]
     table: dict[str, dict[str, int]] = {}
-    for key, frames in seen.items():
-        row = table.setdefault(kind[key], {"objects": 0, "called": 0})
+    for kind, scores in object_scores(dataset, run).values():
+        row = table.setdefault(kind, {"objects": 0, "called": 0})
         row["objects"] += 1
-        row["called"] += int(np.mean(frames) >= OBJECT_SHARE)
+        row["called"] += int(_taken(scores, OBJECT_SCORE))
     return dict(sorted(table.items()))
+
+
+#: Score thresholds of the object curve: from the detector's conf 0.3 up.
+OBJECT_CURVE_THRESHOLDS = tuple(round(0.3 + 0.05 * i, 2) for i in range(14))
+
+
+def object_curve(dataset: Any, run: Any) -> dict[str, Any]:
+    """Objects taken for a person per annotated class at each of
+    :data:`OBJECT_CURVE_THRESHOLDS` (the :func:`objects_called` rule with that score).
+
+    Why: heads differ mostly in how high they score everything; people and clutter taken at
+    one threshold rise together. Compared at equal people taken, a head that tells people
+    from clutter better takes less clutter."""
+    table: dict[str, dict[str, Any]] = {}
+    for kind, scores in object_scores(dataset, run).values():
+        row = table.setdefault(kind, {"objects": 0, "called": [0] * len(OBJECT_CURVE_THRESHOLDS)})
+        row["objects"] += 1
+        for i, t in enumerate(OBJECT_CURVE_THRESHOLDS):
+            row["called"][i] += int(_taken(scores, t))
+    return {"thresholds": list(OBJECT_CURVE_THRESHOLDS), "classes": dict(sorted(table.items()))}
 
 
 def people_called(
