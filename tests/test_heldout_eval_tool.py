@@ -205,3 +205,27 @@ def test_a_render_of_other_clips_is_not_reused(tool, tmp_path) -> None:
     assert not tool._rendered(path, 2, 3, first_clip=0)
     assert not tool._rendered(path, 2, 4, first_clip=150)
     assert not tool._rendered(tmp_path / "missing.json", 2, 3)
+
+
+def test_a_buoy_the_head_names_a_buoy_is_not_taken_for_a_person(tool) -> None:
+    """With the head's person classes given, only their detections count: a buoy detected as
+    ``buoy`` is not taken, one detected as ``swimmer`` is."""
+    named = [Annotation(1 + f, f, 2, (300.0, 300.0, 12.0, 12.0), 1, 1) for f in range(2)]
+    mistaken = [Annotation(10 + f, f, 2, (500.0, 500.0, 12.0, 12.0), 2, 1) for f in range(2)]
+    dataset = SimpleNamespace(
+        categories=[SimpleNamespace(id=2, name="buoy")], annotations=named + mistaken
+    )
+    boxes = np.array([[300.0, 300.0, 312.0, 312.0], [500.0, 500.0, 512.0, 512.0]])
+    run = SimpleNamespace(
+        detections={
+            f: FrameBoxes.of(boxes, scores=np.array([0.9, 0.8]), class_ids=np.array([4, 0]))
+            for f in range(2)
+        }
+    )
+    assert tool.objects_called(dataset, run, person_ids=[0, 1]) == {
+        "buoy": {"objects": 2, "called": 1}
+    }
+    assert tool.objects_called(dataset, run) == {"buoy": {"objects": 2, "called": 2}}
+    curve = tool.object_curve(dataset, run, person_ids=[0, 1])
+    assert curve["classes"]["buoy"]["called"][curve["thresholds"].index(0.75)] == 1
+    assert curve["classes"]["buoy"]["called"][curve["thresholds"].index(0.8)] == 0

@@ -182,6 +182,7 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
     import numpy as np
 
     from sarmission.boxes import nwd_matrix, xywh_to_xyxy
+    from sarmission.class_roles import person_class_ids
     from sarmission.data.coco_video import read_coco_video
     from sarmission.evaluation.run_model import run_mitenet
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
@@ -195,6 +196,7 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
     print(f"box study on {annotations.name}", file=sys.stderr)
     net = MiteNet(build_head_runtime(model, "onnx"), ds=2, topn=25, score_threshold=0.3)
     run = run_mitenet(net, dataset, progress=False)
+    people = person_class_ids(net.classes).tolist()
     hovering = {v.id for v in dataset.videos if not v.extra.get("speed_m_s")}
     groups: dict[str, list[int]] = {}
     ratios: list[float] = []
@@ -230,8 +232,8 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
         "scores": detection_scores(dataset, run, targets),
         "people_called": people_called(dataset, run, targets, net.classes),
         "operating_points": operating_points(dataset, run, targets),
-        "objects_called": objects_called(dataset, run),
-        "object_curve": object_curve(dataset, run),
+        "objects_called": objects_called(dataset, run, people),
+        "object_curve": object_curve(dataset, run, people),
         "by_motion": {
             key: {"n_boxes": n, "rpn_recall": float(p / n), "detected": float(d / n)}
             for key, (n, p, d) in sorted(groups.items())
@@ -356,10 +358,14 @@ def operating_points(dataset: Any, run: Any, targets: set[int]) -> dict[str, Any
 OBJECT_SCORE, OBJECT_SHARE = 0.7, 0.3
 
 
-def object_scores(dataset: Any, run: Any) -> dict[tuple[Any, int], tuple[str, list[float]]]:
+def object_scores(
+    dataset: Any, run: Any, person_ids: Sequence[int] | None = None
+) -> dict[tuple[Any, int], tuple[str, list[float]]]:
     """Per object (track; a box without a track is an object of its own): its annotated class
-    and, for each frame it is in, the best score of a detection (any class, conf 0.3) lying on
-    it, within NWD 0.1 of its box or centred inside it; 0 where none does."""
+    and, for each frame it is in, the best score of a detection (conf 0.3) of a person class
+    (``person_ids``; None: any class) lying on it, within NWD 0.1 of its box or centred inside
+    it; 0 where none does. A head that names buoys does not take the buoy it names for a
+    person."""
     import numpy as np
 
     from sarmission.boxes import centres_inside, nwd_matrix, xywh_to_xyxy
@@ -376,6 +382,8 @@ def object_scores(dataset: Any, run: Any) -> dict[tuple[Any, int], tuple[str, li
             on = centres_inside(detections.boxes, truth)[:, 0] | (
                 nwd_matrix(truth, detections.boxes)[0] >= 0.1
             )
+            if person_ids is not None:
+                on &= np.isin(detections.class_ids, np.asarray(person_ids, np.int64))
             if on.any():
                 best = float(detections.scores[on].max())
         key = (ann.video_id, ann.track_id) if ann.track_id is not None else (-1, ann.id)
@@ -387,14 +395,15 @@ def _taken(scores: list[float], threshold: float) -> bool:
     return sum(s > threshold for s in scores) >= OBJECT_SHARE * len(scores)
 
 
-def objects_called(dataset: Any, run: Any) -> dict[str, dict[str, int]]:
+def objects_called(
+    dataset: Any, run: Any, person_ids: Sequence[int] | None = None
+) -> dict[str, dict[str, int]]:
     """Per annotated class: how many objects (tracks) there are and how many the head takes
-    for a person (:data:`OBJECT_SCORE`, :data:`OBJECT_SHARE`). A detection lies on an object
-    when within NWD 0.1 of its box or centred inside it; every class of a head is a person's.
-    Flights count a few false alerts, too few to tell heads apart; objects in frames count
-    more, and for people as for buoys the same way."""
+    for a person (:data:`OBJECT_SCORE`, :data:`OBJECT_SHARE`; detections of ``person_ids``,
+    :func:`object_scores`). Flights count a few false alerts, too few to tell heads apart;
+    objects in frames count more, and for people as for buoys the same way."""
     table: dict[str, dict[str, int]] = {}
-    for kind, scores in object_scores(dataset, run).values():
+    for kind, scores in object_scores(dataset, run, person_ids).values():
         row = table.setdefault(kind, {"objects": 0, "called": 0})
         row["objects"] += 1
         row["called"] += int(_taken(scores, OBJECT_SCORE))
@@ -405,7 +414,7 @@ def objects_called(dataset: Any, run: Any) -> dict[str, dict[str, int]]:
 OBJECT_CURVE_THRESHOLDS = tuple(round(0.3 + 0.05 * i, 2) for i in range(14))
 
 
-def object_curve(dataset: Any, run: Any) -> dict[str, Any]:
+def object_curve(dataset: Any, run: Any, person_ids: Sequence[int] | None = None) -> dict[str, Any]:
     """Objects taken for a person per annotated class at each of
     :data:`OBJECT_CURVE_THRESHOLDS` (the :func:`objects_called` rule with that score).
 
@@ -413,7 +422,7 @@ def object_curve(dataset: Any, run: Any) -> dict[str, Any]:
     one threshold rise together. Compared at equal people taken, a head that tells people
     from clutter better takes less clutter."""
     table: dict[str, dict[str, Any]] = {}
-    for kind, scores in object_scores(dataset, run).values():
+    for kind, scores in object_scores(dataset, run, person_ids).values():
         row = table.setdefault(kind, {"objects": 0, "called": [0] * len(OBJECT_CURVE_THRESHOLDS)})
         row["objects"] += 1
         for i, t in enumerate(OBJECT_CURVE_THRESHOLDS):
