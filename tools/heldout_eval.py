@@ -196,7 +196,8 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
     print(f"box study on {annotations.name}", file=sys.stderr)
     net = MiteNet(build_head_runtime(model, "onnx"), ds=2, topn=25, score_threshold=0.3)
     run = run_mitenet(net, dataset, progress=False)
-    people = person_class_ids(net.classes).tolist()
+    # matched once, read at the confirmation's score and along the curve
+    objects = object_scores(dataset, run, person_class_ids(net.classes).tolist())
     hovering = {v.id for v in dataset.videos if not v.extra.get("speed_m_s")}
     groups: dict[str, list[int]] = {}
     ratios: list[float] = []
@@ -232,8 +233,8 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
         "scores": detection_scores(dataset, run, targets),
         "people_called": people_called(dataset, run, targets, net.classes),
         "operating_points": operating_points(dataset, run, targets),
-        "objects_called": objects_called(dataset, run, people),
-        "object_curve": object_curve(dataset, run, people),
+        "objects_called": _called_at_score(objects),
+        "object_curve": _curve_of(objects),
         "by_motion": {
             key: {"n_boxes": n, "rpn_recall": float(p / n), "detected": float(d / n)}
             for key, (n, p, d) in sorted(groups.items())
@@ -402,8 +403,13 @@ def objects_called(
     for a person (:data:`OBJECT_SCORE`, :data:`OBJECT_SHARE`; detections of ``person_ids``,
     :func:`object_scores`). Flights count a few false alerts, too few to tell heads apart;
     objects in frames count more, and for people as for buoys the same way."""
+    return _called_at_score(object_scores(dataset, run, person_ids))
+
+
+def _called_at_score(objects: Mapping[Any, tuple[str, list[float]]]) -> dict[str, dict[str, int]]:
+    """:func:`objects_called` from :func:`object_scores`."""
     table: dict[str, dict[str, int]] = {}
-    for kind, scores in object_scores(dataset, run, person_ids).values():
+    for kind, scores in objects.values():
         row = table.setdefault(kind, {"objects": 0, "called": 0})
         row["objects"] += 1
         row["called"] += int(_taken(scores, OBJECT_SCORE))
@@ -421,8 +427,13 @@ def object_curve(dataset: Any, run: Any, person_ids: Sequence[int] | None = None
     Why: heads differ mostly in how high they score everything; people and clutter taken at
     one threshold rise together. Compared at equal people taken, a head that tells people
     from clutter better takes less clutter."""
+    return _curve_of(object_scores(dataset, run, person_ids))
+
+
+def _curve_of(objects: Mapping[Any, tuple[str, list[float]]]) -> dict[str, Any]:
+    """:func:`object_curve` from :func:`object_scores`."""
     table: dict[str, dict[str, Any]] = {}
-    for kind, scores in object_scores(dataset, run, person_ids).values():
+    for kind, scores in objects.values():
         row = table.setdefault(kind, {"objects": 0, "called": [0] * len(OBJECT_CURVE_THRESHOLDS)})
         row["objects"] += 1
         for i, t in enumerate(OBJECT_CURVE_THRESHOLDS):
@@ -820,9 +831,9 @@ def _objects_called_table(results: Mapping[str, Any]) -> list[str]:
         lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
     lines += [
         "",
-        f"Objects taken for a person / objects (tracks) of each annotated class: a detection of "
-        f"any class scored above {OBJECT_SCORE:g} (the confirmation's `min_score`) lies on the "
-        f"object in at least {100 * OBJECT_SHARE:.0f} % of the frames it is in (its "
+        "Objects taken for a person / objects (tracks) of each annotated class: a detection of "
+        f"a person class scored above {OBJECT_SCORE:g} (the confirmation's `min_score`) lies on "
+        f"the object in at least {100 * OBJECT_SHARE:.0f} % of the frames it is in (its "
         "`min_seen_share`), within NWD 0.1 of its box or centred inside it. A frame-level "
         "stand-in for alerts: people found, and distractors that would raise false alerts.",
     ]
