@@ -97,9 +97,10 @@ class VerdictRecorder:
         return TargetEvidence(evidence.sightings[:n], evidence.first_seen, evidence.frames)
 
 
-def development_detector(base):
-    """The shipped head's detector with the tools' defaults (ONNX, estimated ego-motion)."""
-    detector_args = argparse.Namespace(model=None, runtime="onnx", ego_motion="estimate")
+def development_detector(base, model: str | None = None):
+    """The detector with the tools' defaults (ONNX, estimated ego-motion): the shipped head, or
+    the head file ``model``."""
+    detector_args = argparse.Namespace(model=model, runtime="onnx", ego_motion="estimate")
     detector, _ = build_detector(detector_args, base)
     return detector
 
