@@ -115,3 +115,22 @@ def test_what_lay_under_a_lock_is_read_from_the_truth_of_its_frame():
     assert features.under_lock(truth, lock(7, 304, 306)) == "debris"
     assert features.under_lock(truth, lock(7, 600, 600)) == "water"
     assert features.under_lock(truth, lock(8, 106, 104)) == "water"  # no truth for the frame
+
+
+def test_the_development_flights_fly_the_head_they_are_given():
+    features = load_tool("candidate_features")
+    from sarmission.mission.config import load_mission
+    from sarmission.models import shipped_head_path
+
+    base = load_mission(None, [])
+    land = str(shipped_head_path("land", "onnx"))
+    assert features.development_detector(base).classes == (
+        "swimmer",
+        "swimmer_with_life_jacket",
+    )
+    assert features.development_detector(base, land).classes == ("person",)
+    flown = record([candidate(1, True, "discard", PERSON)])
+    rows = rules.compare(flown, [("defaults", ConfirmConfig())])
+    assert "with the shipped head." in rules.page(rows, flown, "cmd")
+    flown["model"] = land
+    assert f"with the head {land}." in rules.page(rows, flown, "cmd")
