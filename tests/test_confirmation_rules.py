@@ -134,3 +134,23 @@ def test_the_development_flights_fly_the_head_they_are_given():
     assert "with the shipped head." in rules.page(rows, flown, "cmd")
     flown["model"] = land
     assert f"with the head {land}." in rules.page(rows, flown, "cmd")
+
+
+def test_variants_replayed_at_once_give_the_rows_one_at_a_time_gives():
+    flown = record(
+        [
+            candidate(1, True, "discard", PERSON),
+            candidate(2, False, "discard", DEBRIS),
+            candidate(3, False, "discard", BOAT),
+        ]
+    )
+    variants = [
+        ("defaults", ConfirmConfig()),
+        rules.variant("low:min_score=0.55"),
+        rules.variant("window:score_window_s=2,min_score=0.85"),
+    ]
+    alone = rules.compare(flown, variants)
+    # as JSON, so that a delay no person gave (NaN) compares equal
+    assert json.dumps(rules.compare(flown, variants, jobs=2)) == json.dumps(alone)
+    assert [r["variant"] for r in alone] == ["defaults", "low", "window"]
+    assert [r["clutter confirmed"] for r in alone] == [0, 1, 0]

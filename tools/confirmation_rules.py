@@ -1,7 +1,7 @@
 """Confirmation rules compared on the same evidence: fly the development scenarios once, then
 replay every candidate's sightings frame by frame through each rule.
 
-    python tools/confirmation_rules.py [--record F.json] [--seconds 240]
+    python tools/confirmation_rules.py [--record F.json] [--seconds 240] [--model HEAD] [--jobs 2]
         [--variant NAME:KEY=VALUE,KEY=VALUE ...] [--doc docs/confirmation_rules.md]
 
 A flight keeps each candidate's whole evidence (sightings go on after its verdict), the times
@@ -191,38 +191,45 @@ def variant(text: str) -> tuple[str, ConfirmConfig]:
     return name, rule
 
 
-def compare(record: dict, variants: list[tuple[str, ConfirmConfig]]) -> list[dict]:
-    """One row per variant (see module)."""
-    rows = []
-    for name, rule in variants:
-        is_default = rule == ConfirmConfig()
-        people = clutter = found = false = 0
-        delays: list[float] = []
-        disagree = 0
-        for frames, candidate in recorded(record):
-            verdict, delay = replay(frames, candidate, rule)
-            if is_default and verdict != candidate.verdict:
-                disagree += 1
-            people += candidate.person
-            clutter += not candidate.person
-            if verdict == "confirm":
-                found += candidate.person
-                false += not candidate.person
-                if candidate.person:
-                    delays.append(delay)
-        rows.append(
-            {
-                "variant": name,
-                "people": people,
-                "people confirmed": found,
-                "clutter": clutter,
-                "clutter confirmed": false,
-                "delay p50": float(np.median(delays)) if delays else math.nan,
-                "delay p90": float(np.percentile(delays, 90)) if delays else math.nan,
-                "disagree": disagree if is_default else None,
-            }
-        )
-    return rows
+def compare_one(record: dict, name: str, rule: ConfirmConfig) -> dict:
+    """The row of one variant (see module)."""
+    is_default = rule == ConfirmConfig()
+    people = clutter = found = false = 0
+    delays: list[float] = []
+    disagree = 0
+    for frames, candidate in recorded(record):
+        verdict, delay = replay(frames, candidate, rule)
+        if is_default and verdict != candidate.verdict:
+            disagree += 1
+        people += candidate.person
+        clutter += not candidate.person
+        if verdict == "confirm":
+            found += candidate.person
+            false += not candidate.person
+            if candidate.person:
+                delays.append(delay)
+    return {
+        "variant": name,
+        "people": people,
+        "people confirmed": found,
+        "clutter": clutter,
+        "clutter confirmed": false,
+        "delay p50": float(np.median(delays)) if delays else math.nan,
+        "delay p90": float(np.percentile(delays, 90)) if delays else math.nan,
+        "disagree": disagree if is_default else None,
+    }
+
+
+def compare(record: dict, variants: list[tuple[str, ConfirmConfig]], jobs: int = 1) -> list[dict]:
+    """One row per variant, in their order; ``jobs`` > 1 replays that many variants at once
+    in processes of their own (a replay of a 16-minute record takes minutes per variant)."""
+    if jobs <= 1 or len(variants) <= 1:
+        return [compare_one(record, name, rule) for name, rule in variants]
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=min(jobs, len(variants))) as pool:
+        futures = [pool.submit(compare_one, record, name, rule) for name, rule in variants]
+        return [f.result() for f in futures]
 
 
 def table(rows: list[dict]) -> str:
@@ -270,6 +277,7 @@ def main() -> int:
     parser.add_argument("--variant", action="append", default=[], help="NAME:KEY=VALUE,...")
     parser.add_argument("--doc", type=Path, default=None, help="write the table as a page")
     parser.add_argument("--model", default=None, help="head weights (default: the shipped head)")
+    parser.add_argument("--jobs", type=int, default=1, help="variants replayed at once")
     args = parser.parse_args()
     variants = [("defaults", ConfirmConfig()), *map(variant, args.variant)]
     if args.record and args.record.exists():
@@ -278,7 +286,7 @@ def main() -> int:
         record = fly_development(args.scenarios.split(","), args.seconds, args.model)
         if args.record:
             args.record.write_text(json.dumps(record))
-    rows = compare(record, variants)
+    rows = compare(record, variants, args.jobs)
     print(table(rows))
     disagree = rows[0]["disagree"]
     if disagree:
