@@ -222,7 +222,7 @@ def compare_one(record: dict, name: str, rule: ConfirmConfig) -> dict:
 
 def compare(record: dict, variants: list[tuple[str, ConfirmConfig]], jobs: int = 1) -> list[dict]:
     """One row per variant, in their order; ``jobs`` > 1 replays that many variants at once
-    in processes of their own (a replay of a 16-minute record takes minutes per variant)."""
+    in processes of their own, since each replays every candidate frame by frame."""
     if jobs <= 1 or len(variants) <= 1:
         return [compare_one(record, name, rule) for name, rule in variants]
     from concurrent.futures import ProcessPoolExecutor
