@@ -155,6 +155,27 @@ def pixel_of(mission, north: float, east: float) -> tuple[float, float]:
     return float(uv[0, 0]), float(uv[0, 1])
 
 
+def scripted(mission, n: int, where) -> list:
+    """``n`` frames of a 10 px box on each ground point ``where(i)`` lists for frame ``i``."""
+    script = []
+    for i in range(n):
+        boxes = []
+        for north, east in where(i):
+            u, v = pixel_of(mission, north, east)
+            boxes.append(((u - 5, v - 5, u + 5, v + 5), 0.8, 0))
+        script.append(boxes)
+    return script
+
+
+def fly_exact(tmp_path, mission, script: list, console=lambda s: None):
+    """``script`` through a controller with exact telemetry: the controller and the one
+    alert, as stored."""
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = exact_controller(mission, script, store, console)
+        (alert,) = run_frames(ctl, len(script))
+        return ctl, store.get(alert.alert_id)
+
+
 def test_a_drifting_swimmer_is_placed_where_they_are_not_where_they_were(tmp_path, mission):
     """A swimmer drifting south-east at 0.5 m/s for 28 s (staying in view; the buffer keeps
     30 s of telemetry), exact telemetry: the alert follows to within a metre of where they are
@@ -174,7 +195,7 @@ def test_a_drifting_swimmer_is_placed_where_they_are_not_where_they_were(tmp_pat
         ctl = exact_controller(mission, script, store, lines.append)
         (alert,) = run_frames(ctl, n)
         stored = store.get(alert.alert_id)
-    frame = ctl.stats.position_frames[alert.alert_id]
+    frame = ctl.stats.position_frames[stored.alert_id]
     assert frame >= n - REFINE_PERIOD_S * FPS
     # the store says how old the position is: as of its frame's fix
     ahead = stored.position_time - stored.lock_time
@@ -303,21 +324,13 @@ def test_a_track_that_joined_only_by_the_re_find_radius_does_not_move_the_alert(
     away and is seen for 10 s. The registry joins it to the target by the re-find radius
     (a person can swim 6 m in 3 s), unsure whether it is them: the alert stays where the
     swimmer was seen."""
-    n = int(16.0 * FPS)
-    u, v = pixel_of(mission, *TARGET_NED)
-    b_u, b_v = pixel_of(mission, TARGET_NED[0] - 6.0, TARGET_NED[1])
-    script = []
-    for i in range(n):
-        if i < 3 * FPS:
-            script.append([((u - 5, v - 5, u + 5, v + 5), 0.8, 0)])
-        elif i >= 6 * FPS:
-            script.append([((b_u - 5, b_v - 5, b_u + 5, b_v + 5), 0.8, 0)])
-        else:
-            script.append([])
-    with AlertStore(tmp_path / "alerts.db") as store:
-        ctl = exact_controller(mission, script, store, lambda s: None)
-        (alert,) = run_frames(ctl, n)
-        stored = store.get(alert.alert_id)
+    other = (TARGET_NED[0] - 6.0, TARGET_NED[1])
+    script = scripted(
+        mission,
+        int(16.0 * FPS),
+        lambda i: [TARGET_NED[:2]] if i < 3 * FPS else [other] if i >= 6 * FPS else [],
+    )
+    ctl, stored = fly_exact(tmp_path, mission, script)
     (target,) = ctl.registry.targets.values()
     assert [s.loose for s in target.shares.values()].count(True) == 1
     assert distance_m(stored.position, truth_latlon(mission)) < 0.5
@@ -407,3 +420,83 @@ def test_the_confirmation_goes_out_at_its_fixes_not_at_the_locks_one(tmp_path, m
     assert distance_m(lock, truth) > 9.0
     ((_, announced),) = actions.announced
     assert distance_m(announced, truth) < 2.0
+
+
+def test_glints_where_the_person_was_never_move_the_alert(tmp_path, mission):
+    """A person alerted and then out of sight for 15 s; four sun glints 3 m off lock one after
+    the other, each for under a second, and join the target within the ground gate (not by
+    the re-find radius). Together they fill the refinement window with enough fixes, yet
+    none has a confirmation's evidence of its own: the alert stays where the person was."""
+    glint = (TARGET_NED[0], TARGET_NED[1] + 3.0)
+    glint_frames = [range(int(s * FPS), int((s + 0.8) * FPS)) for s in (18.0, 21.0, 24.0, 27.0)]
+
+    def where(i: int) -> list:
+        if i < 3 * FPS:
+            return [TARGET_NED[:2]]
+        return [glint] if any(i in frames for frames in glint_frames) else []
+
+    ctl, stored = fly_exact(tmp_path, mission, scripted(mission, int(30.0 * FPS), where))
+    (target,) = ctl.registry.targets.values()
+    glints = [s for s in target.shares.values() if s.joined > 15.0]
+    assert len(glints) == 4 and not any(s.loose for s in glints)
+    assert sum(s.fixes for s in glints) >= mission.confirm.min_sightings
+    assert distance_m(stored.position, truth_latlon(mission)) < 0.5
+
+
+def test_a_second_person_where_the_first_was_widens_the_alerts_error(tmp_path, mission):
+    """A swimmer drifting north at 1 m/s is alerted and lost at 10 s; 10 s later another,
+    still, swimmer is seen for 10 s where the first was last seen. The registry joins them to
+    the first's target (within its gate of the latest fix). The alert moves to them, but its
+    error grows to cover where the first would be by then had they drifted on, and the
+    console says why."""
+    drift = np.array([1.0, 0.0])
+    n = int(30.0 * FPS)
+    lost, found = int(10.0 * FPS), int(20.0 * FPS)
+    start = np.array([DRONE_NED[0] - 8.0, DRONE_NED[1]])
+
+    def place(i: int) -> np.ndarray:
+        return start + drift * min(i, lost) / FPS
+
+    script = scripted(mission, n, lambda i: [place(i)] if i < lost or i >= found else [])
+    lines: list[str] = []
+    ctl, stored = fly_exact(tmp_path, mission, script, lines.append)
+    (target,) = ctl.registry.targets.values()
+    (second,) = [s for s in target.shares.values() if s.joined > 15.0]
+    assert not second.loose and second.jump_m is not None and second.jump_m > 5.0
+    # compared once the track had a confirmation's evidence (1 s): the first would be 21 m
+    # from the start by then
+    second_at = ned_to_geodetic(*place(lost), 0.0, *mission.area.home)[:2]
+    first_at = ned_to_geodetic(*(start + drift * 21.0), 0.0, *mission.area.home)[:2]
+    assert distance_m(second_at, first_at) > 10.0
+    # the window's oldest fixes are the first's last ones: the position lies near the second
+    assert distance_m(stored.position, second_at) < 2.0
+    assert distance_m(stored.position, first_at) <= 2.0 * stored.error_m
+    assert stored.error_m >= second.jump_m
+    assert any("m apart: one person moved, or two" in line for line in lines), lines
+
+
+def test_a_refinement_is_of_the_frame_of_its_latest_fix(tmp_path, mission):
+    """A swimmer drifting east at 0.5 m/s is seen for 14 s, then a glint locks beside where
+    they were lost: its sighting brings a refinement that was due, to the swimmer's position
+    as of their last fix. The position is of that frame (what the scorer compares with the
+    truth), not of the glint's."""
+    drift = np.array([0.0, 0.5])
+    n = int(18.0 * FPS)
+    lost = int(14.0 * FPS)
+    start = np.array([DRONE_NED[0], DRONE_NED[1] - 4.0])
+    glint = start + drift * 14.0 + np.array([2.0, 0.0])
+
+    def where(i: int) -> list:
+        if i < lost:
+            return [start + drift * i / FPS]
+        return [glint] if i >= int(17.0 * FPS) else []
+
+    ctl, stored = fly_exact(tmp_path, mission, scripted(mission, n, where))
+    (target,) = ctl.registry.targets.values()
+    (glint,) = [s for s in target.shares.values() if s.joined > 15.0]
+    assert not glint.loose and not glint.jump_m
+    frame = ctl.stats.position_frames[stored.alert_id]
+    assert frame == lost - 1
+    assert stored.position_time - stored.lock_time == pytest.approx(
+        (frame - stored.frame_index) / FPS, abs=1e-6
+    )

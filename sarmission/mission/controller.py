@@ -46,7 +46,7 @@ import logging
 import math
 import re
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -62,6 +62,7 @@ from sarmission.geo.geolocate import FixLimits, GeoFix, PlatformPose, geolocate
 from sarmission.geo.ground_size import apparent_size_m
 from sarmission.geo.wgs84 import ned_to_geodetic
 from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
+from sarmission.mission import continuity
 from sarmission.mission.actions import ActionPolicy
 from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.confidence import ConfidenceModel, confidence_of_head
@@ -77,6 +78,10 @@ from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
 from sarmission.yuv import YuvImage
 
 log = logging.getLogger(__name__)
+
+#: Frames whose capture times are kept to find the frame a refined position is of (the
+#: refinement window's span at 100 frames/s).
+FRAME_TIMES_KEPT = int(WINDOW_S * 100)
 
 #: Geolocated history entries put in an alert (the newest ones).
 ALERT_TRACK_POINTS = 10
@@ -121,8 +126,8 @@ class ControllerStats:
     objects: int = 0  # locked targets the head calls an object (boat, buoy): never alerted
     located_later: int = 0
     refined: int = 0  # placed alerts moved to their target's better position
-    # alert id -> the frame its stored position is of (its lock, placement or refinement),
-    # now and as the alert was confirmed
+    # alert id -> the frame its stored position is of (its lock or placement; a refinement's
+    # latest fix), now and as the alert was confirmed
     position_frames: dict[str, int] = field(default_factory=dict)
     confirmed_position_frames: dict[str, int] = field(default_factory=dict)
     unplaced: Counter[str] = field(default_factory=Counter)  # alerts without a position, by why
@@ -234,6 +239,9 @@ class MissionController:
         # telemetry once the autopilot's state allows a fix
         self._unplaced_sightings: dict[int, list[tuple[float, float, float]]] = {}
         self._paused = False  # the last frame was not searched (camera on a target)
+        # (capture time, frame index) of the latest frames run: the frame a refined position,
+        # as of its latest fix, is of
+        self._frame_times: deque[tuple[float, int]] = deque(maxlen=FRAME_TIMES_KEPT)
         self._drone_recorded = -math.inf
         self._store_area(mission)
 
@@ -256,6 +264,7 @@ class MissionController:
         if self._search_paused():
             return []
         started = time.perf_counter()
+        self._frame_times.append((timestamp, frame_index))
         result, tracks, scene = self._detect_and_track(frame, frame_index, timestamp)
         pose, changed = self._observe_locked(tracks, frame, frame_index, timestamp, scene)
         self._place_from_buffer(frame_index)
@@ -357,6 +366,7 @@ class MissionController:
                 self._pending_locks.add(track.track_id)
             return None
         self._sighting(target, track, frame, timestamp, pose, fix)
+        self._check_continuity(target, track.track_id)
         if track.just_locked or track.track_id in self._pending_locks:
             self._pending_locks.discard(track.track_id)
             self.stats.locks += 1
@@ -556,6 +566,25 @@ class MissionController:
             extent,
         )
 
+    def _check_continuity(self, target: Target, track_id: int) -> None:
+        """Compare a track that joined ``target`` after it was out of sight with the target's
+        earlier fixes, once it has a confirmation's evidence (:mod:`continuity`)."""
+        evidence = self.candidates.evidence.get(target.target_id)
+        if evidence is None:
+            return
+        rule = self.mission.confirm
+        jump = continuity.check(
+            target, track_id, evidence.sightings, rule.min_sightings, rule.min_seen_s
+        )
+        if jump:
+            log.info(
+                "track %d's fixes lie %.1f m from target %d's before it joined: the same "
+                "person moved, or another is there; its positions carry that in their error",
+                track_id,
+                jump,
+                target.target_id,
+            )
+
     def _candidate(
         self,
         target: Target,
@@ -723,22 +752,21 @@ class MissionController:
             return
         if not force and not self.refiner.worth_a_look(alert.alert_id, timestamp):
             return  # before the fit: it costs a window of fixes
-        # only the tracks the registry is sure of: one that joined only by the re-find radius
-        # may be something else near where the person was, and one taken back out of the
-        # target (its sightings leave the evidence at its next sighting) is something else
-        shares = target.shares
+        # only the tracks that continue the target (:mod:`continuity`): one that joined only
+        # by the re-find radius, or after a gap with too little evidence of its own, may be
+        # something else near where the person was; one taken back out of the target (its
+        # sightings leave the evidence at its next sighting) is something else
         since = evidence.sightings[-1].t - WINDOW_S
-        sure = [
-            x
-            for x in evidence.sightings[bisect.bisect_left(evidence.sightings, since, key=_time) :]
-            if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)
-        ]
+        start = bisect.bisect_left(evidence.sightings, since, key=_time)
+        sure = continuity.placing(target, evidence.sightings[start:])
         rule = self.mission.confirm
         estimate = latest_position(sure, min_fixes=rule.min_sightings, min_span_s=rule.min_seen_s)
         if estimate is None:
             return
+        apart = continuity.ambiguity_m(target)
+        error = math.hypot(estimate.error_m, apart)
         due = self.refiner.due(
-            alert, estimate.position, estimate.error_m, timestamp, force, estimate.velocity_ne
+            alert, estimate.position, error, timestamp, force, estimate.velocity_ne, apart
         )
         if due is None:
             return
@@ -759,7 +787,7 @@ class MissionController:
         alert.position_time, alert.drift_ne = fixed, due.drift_ne
         self.refiner.done(alert.alert_id, timestamp)
         self.stats.refined += 1
-        self.stats.position_frames[alert.alert_id] = frame_index
+        self.stats.position_frames[alert.alert_id] = self._frame_at(estimate.t, frame_index)
         if force:  # the confirmation's own line follows with the position
             return
         line = format_refined(alert, due, frame_index)
@@ -768,6 +796,14 @@ class MissionController:
             self.recorder.text("alerts", line, level="INFO")
         if self.actions is not None and alert.tier == "confirmed":
             self.actions.refine(alert)
+
+    def _frame_at(self, t: float, default: int) -> int:
+        """The index of the latest frame run captured at or before ``t`` (``default``: none
+        kept)."""
+        for captured, index in reversed(self._frame_times):
+            if captured <= t:
+                return index
+        return default
 
     # -- recording -------------------------------------------------------------------------------
     def _record(
@@ -902,9 +938,14 @@ def format_refined(alert: Alert, refinement: Refinement, frame_index: int) -> st
     """One console line for a placed alert moved to its target's better position."""
     where = f"{alert.format_position(6)} {alert.format_error()}".rstrip()
     drift = f"{alert.format_drift()}; " if alert.drift_ne is not None else ""
+    apart = (
+        f"sightings {refinement.apart_m:.1f} m apart: one person moved, or two; "
+        if refinement.apart_m > 0
+        else ""
+    )
     return (
         f"REFINED target {alert.target_id}: {alert.class_name} at {where} "
-        f"(moved {refinement.moved_m:.1f} m; {drift}frame {frame_index})"
+        f"(moved {refinement.moved_m:.1f} m; {drift}{apart}frame {frame_index})"
     )
 
 

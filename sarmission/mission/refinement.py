@@ -42,18 +42,21 @@ REFINE_DRIFT_TOLERANCE_M_S = 0.1
 
 @dataclass(frozen=True)
 class Refinement:
-    """A better position for an alert: where, its 1-sigma error, how far it moved, and the
-    target's drift (m/s north, east; None: not estimated)."""
+    """A better position for an alert: where, its 1-sigma error, how far it moved, the
+    target's drift (m/s north, east; None: not estimated) and how far apart its tracks' fixes
+    lay (m; 0: they agree; :mod:`sarmission.mission.continuity`), which the error includes."""
 
     position: tuple[float, float]
     error_m: float | None
     moved_m: float
     drift_ne: tuple[float, float] | None = None
+    apart_m: float = 0.0
 
     def detail(self) -> str:
         """The event log's line for it."""
         error = "unknown" if self.error_m is None else f"+- {self.error_m:.1f} m"
-        return f"refined: moved {self.moved_m:.1f} m, {error}"
+        apart = f" (sightings {self.apart_m:.1f} m apart)" if self.apart_m > 0 else ""
+        return f"refined: moved {self.moved_m:.1f} m, {error}{apart}"
 
 
 @dataclass
@@ -78,9 +81,11 @@ class PositionRefiner:
         now: float,
         force: bool = False,
         drift_ne: tuple[float, float] | None = None,
+        apart_m: float = 0.0,
     ) -> Refinement | None:
         """The refinement ``alert`` should get at time ``now`` from its target's ``position``,
-        ``error_m`` and ``drift_ne``, or None. ``force``: any change beyond
+        ``error_m`` (which includes ``apart_m``, how far apart its tracks' fixes lay) and
+        ``drift_ne``, or None. ``force``: any change beyond
         :data:`FORCED_TOLERANCE_M`, or of the drift, however soon (the confirmation). An alert
         without a position gets none here: it is placed, not refined."""
         if alert.position is None or position is None:
@@ -104,7 +109,7 @@ class PositionRefiner:
             and not self._drift_changed(alert.drift_ne, drift_ne, force)
         ):
             return None
-        return Refinement(position, error_m, moved, drift_ne)
+        return Refinement(position, error_m, moved, drift_ne, apart_m)
 
     def _drift_changed(
         self, old: tuple[float, float] | None, new: tuple[float, float] | None, force: bool

@@ -154,7 +154,13 @@ class WeightedFixes:
 class TrackShare:
     """What one track added to a target, so that it can be taken out again: its fixes' weighted
     sums (:class:`WeightedFixes`), latest fix, class votes and best score, when it joined and
-    whether it joined only by the re-find radius (``loose``)."""
+    whether it joined only by the re-find radius (``loose``).
+
+    ``gap_s`` is how long the target had been out of sight when the track joined (0 for the
+    track that started it, NaN for a target known from an earlier run); ``fixes`` and
+    ``first_fix_t`` count its placed sightings. ``jump_m`` is set by
+    :mod:`sarmission.mission.continuity` once the track's fixes were compared with the
+    target's before it joined (None: not yet)."""
 
     joined: float
     loose: bool = False
@@ -162,6 +168,10 @@ class TrackShare:
     last_fix: tuple[float, float, float | None, float] | None = None
     class_votes: Counter[int] = field(default_factory=Counter)
     best_score: float = 0.0
+    gap_s: float = 0.0
+    fixes: int = 0
+    first_fix_t: float = math.nan
+    jump_m: float | None = None
 
 
 @dataclass
@@ -440,12 +450,16 @@ class TargetRegistry:
                 )
             self._by_track[track_id] = target.target_id
             target.track_ids.add(track_id)
-            target.shares[track_id] = TrackShare(joined=t, loose=match.loose)
+            gap = 0.0 if is_new else t - target.last_seen
+            target.shares[track_id] = TrackShare(joined=t, loose=match.loose, gap_s=gap)
         share = target.shares[track_id]  # every track that joined through here has one
         if placed:
             target.add_fix(fix, track_id)
             assert fix.lat is not None and fix.lon is not None
             target.last_fix = share.last_fix = (fix.lat, fix.lon, fix.error_m, t)
+            share.fixes += 1
+            if share.fixes == 1:
+                share.first_fix_t = t
         elif target.position is None:
             target.note = note or (fix.note if fix is not None else "") or "no position"
         target.class_votes[int(class_id)] += 1
