@@ -202,3 +202,30 @@ def test_an_object_larger_than_its_box_is_discarded_by_its_extent():
     # 0: not measured, whatever the sightings carry
     off = dataclasses.replace(RULE, max_extent_m=0.0)
     assert assess(evidence_of(measured(4.2)), 101.5, off).verdict == "confirm"
+
+
+def test_the_sightings_figures_are_fitted_once_per_change(monkeypatch):
+    """A candidate is assessed every frame: its drift is fitted again only when its sightings
+    changed, while the frames and the clock still decide on their own."""
+    import sarmission.mission.confirmation as confirmation
+
+    fits = []
+    real = confirmation.drift_speed
+    monkeypatch.setattr(confirmation, "drift_speed", lambda s: fits.append(len(s)) or real(s))
+    items = [dataclasses.replace(s, track_id=1) for s in sightings(seconds=0.5)]
+    ev = evidence_of(items)
+    for frame in range(5):
+        ev.frames = len(items) + frame
+        assert assess(ev, 100.6 + frame / 30, RULE).verdict == "wait"
+    assert fits == [len(items)]
+    # with no new sighting, the clock alone gives it up
+    assert assess(ev, 100.0 + RULE.give_up_s + 1.0, RULE).verdict == "discard"
+    assert fits == [len(items)]
+    later = dataclasses.replace(items[-1], t=items[-1].t + 0.1, track_id=2)
+    ev.add(later)
+    assess(ev, 100.7, RULE)
+    assert fits == [len(items), len(items) + 1]
+    ev.forget(2)
+    found = assess(ev, 100.7, RULE)
+    assert fits == [len(items), len(items) + 1, len(items)]
+    assert found.sightings == len(items)

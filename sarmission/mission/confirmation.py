@@ -108,13 +108,60 @@ class Assessment:
         return ", ".join(parts)
 
 
+@dataclass(frozen=True)
+class SightingFigures:
+    """What a candidate's sightings say, whatever the time or the frames since: the span they
+    cover, the median size and extent (None: unmeasured), the mean score (over the latest
+    ``score_window_s`` when > 0), the drift speed and its standard error (None: under three
+    sightings) and the object classes the head named."""
+
+    seen_s: float
+    size_m: float | None
+    extent_m: float | None
+    score: float
+    speed_m_s: float | None
+    spread_m_s: float | None
+    objects: Counter[str]
+
+
+def sighting_figures(sightings: list[Sighting], score_window_s: float) -> SightingFigures:
+    """The figures of ``sightings`` (non-empty, in time order)."""
+    sizes = [s.size_m for s in sightings if s.size_m is not None]
+    extents = [s.extent_m for s in sightings if s.extent_m is not None]
+    speed = spread = None
+    if len(sightings) >= 3:
+        speed, spread = drift_speed(sightings)
+    return SightingFigures(
+        seen_s=sightings[-1].t - sightings[0].t,
+        size_m=float(np.median(sizes)) if sizes else None,
+        extent_m=float(np.median(extents)) if len(extents) >= MIN_EXTENTS else None,
+        score=track_score(sightings, score_window_s),
+        speed_m_s=speed,
+        spread_m_s=spread,
+        objects=Counter(s.label for s in sightings if s.label and role_of(s.label) == "object"),
+    )
+
+
 @dataclass
 class TargetEvidence:
-    """The sightings of one target, in order of capture time."""
+    """The sightings of one target, in order of capture time. The figures of its sightings
+    are kept until they change (:meth:`figures`): a candidate is assessed every frame, and
+    fitting its drift over hundreds of sightings each time would cost milliseconds a frame."""
 
     sightings: list[Sighting] = field(default_factory=list)
     first_seen: float = math.nan
     frames: int = 0  # frames processed since the first sighting, that one included
+    _figures: tuple[tuple[int, float, float, float], SightingFigures] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    def figures(self, score_window_s: float) -> SightingFigures:
+        """:func:`sighting_figures` of the sightings (non-empty), computed again only when
+        they changed."""
+        key = (len(self.sightings), self.sightings[0].t, self.sightings[-1].t, score_window_s)
+        if self._figures is None or self._figures[0] != key:
+            self._figures = (key, sighting_figures(self.sightings, score_window_s))
+        return self._figures[1]
 
     @property
     def seen_share(self) -> float:
@@ -170,16 +217,10 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         if age > rule.give_up_s:
             return Assessment("discard", f"never placed within {rule.give_up_s:g} s")
         return Assessment("wait", "no position yet")
-    seen = sightings[-1].t - sightings[0].t
-    sizes = [s.size_m for s in sightings if s.size_m is not None]
-    size = float(np.median(sizes)) if sizes else None
-    extents = [s.extent_m for s in sightings if s.extent_m is not None]
-    extent = float(np.median(extents)) if len(extents) >= MIN_EXTENTS else None
-    score = track_score(sightings, rule.score_window_s)
+    measured = evidence.figures(rule.score_window_s)
+    seen, size, extent, score = measured.seen_s, measured.size_m, measured.extent_m, measured.score
+    speed, spread, objects = measured.speed_m_s, measured.spread_m_s, measured.objects
     share = evidence.seen_share if evidence.frames else None
-    speed = spread = None
-    if len(sightings) >= 3:
-        speed, spread = drift_speed(sightings)
     figures = dict(
         seen_s=seen,
         sightings=len(sightings),
@@ -191,7 +232,6 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
     )
     enough = len(sightings) >= rule.min_sightings
     late = f"not confirmed within {rule.give_up_s:g} s"
-    objects = Counter(s.label for s in sightings if s.label and role_of(s.label) == "object")
     if enough and 2 * sum(objects.values()) >= len(sightings):
         name, _ = objects.most_common(1)[0]
         return Assessment(
