@@ -153,19 +153,26 @@ def recorded(record: dict) -> Iterator[tuple[list[float], Recorded]]:
             )
 
 
+def catch_up(evidence: TargetEvidence, sightings: list[Sighting], taken: int, now: float) -> int:
+    """One reviewed frame at ``now``: the recorded ``sightings`` from index ``taken`` captured
+    by then join ``evidence``, and the frame counts; returns how many are taken now."""
+    while taken < len(sightings) and sightings[taken].t <= now:
+        evidence.sightings.append(sightings[taken])
+        taken += 1
+    if not math.isnan(evidence.first_seen):
+        evidence.frames += 1
+    return taken
+
+
 def replay(frames: list[float], candidate: Recorded, rule: ConfirmConfig) -> tuple[str, float]:
     """The verdict ``rule`` gives ``candidate`` reviewed at ``frames`` from its first review on,
     and the time from that review to it (``wait``: none fell before the flight ended)."""
     evidence = TargetEvidence(first_seen=candidate.first_seen)
-    sightings, taken = candidate.sightings, 0
+    taken = 0
     for now in frames:
         if now < candidate.first_review:
             continue
-        while taken < len(sightings) and sightings[taken].t <= now:
-            evidence.sightings.append(sightings[taken])
-            taken += 1
-        if not math.isnan(evidence.first_seen):
-            evidence.frames += 1
+        taken = catch_up(evidence, candidate.sightings, taken, now)
         found = assess(evidence, now, rule)
         if found.verdict != "wait":
             return found.verdict, now - candidate.first_review

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import sys
 import time
@@ -33,7 +32,7 @@ for folder in (ROOT, ROOT / "tools"):  # runnable from a checkout that is not in
     if str(folder) not in sys.path:
         sys.path.insert(0, str(folder))
 
-from confirmation_rules import recorded  # noqa: E402
+from confirmation_rules import catch_up, recorded  # noqa: E402
 
 from sarmission.mission.config import ConfirmConfig  # noqa: E402
 from sarmission.mission.confirmation import TargetEvidence, assess  # noqa: E402
@@ -52,12 +51,7 @@ def review_times(
         mode = "kept" if (index // block) % 2 == 0 else "refitted"
         due = [i for i in open_ if candidates[i].first_review <= now]
         for i in due:
-            sightings = candidates[i].sightings
-            while taken[i] < len(sightings) and sightings[taken[i]].t <= now:
-                evidence[i].sightings.append(sightings[taken[i]])
-                taken[i] += 1
-            if not math.isnan(evidence[i].first_seen):
-                evidence[i].frames += 1
+            taken[i] = catch_up(evidence[i], candidates[i].sightings, taken[i], now)
         started = time.perf_counter()
         for i in due:
             if mode == "refitted":

@@ -75,7 +75,7 @@ def check(
     has ``min_fixes`` fixes over ``min_span_s`` (``sightings``: the target's, in time order);
     sets and returns the share's jump (None: not due, or already done)."""
     share = target.shares.get(track_id)
-    if share is None or share.loose or share.jump_m is not None or continues(share):
+    if share is None or share.loose or continues(share):  # compared already, or no need
         return None
     if share.fixes < min_fixes or not share.last_fix:
         return None
