@@ -72,3 +72,13 @@ def test_the_replay_gets_the_clips_lens(tool, tmp_path) -> None:
     sets = [cmd[i + 1] for i, word in enumerate(cmd) if word == "--set"]
     assert sets == ["camera.width=960", "camera.height=540", "camera.hfov_deg=30.0", "a.b=1"]
     assert cmd[cmd.index("--video-id") + 1] == "1" and cmd[cmd.index("--fps") + 1] == "10"
+
+
+def test_rendering_without_ffmpeg_says_so_before_any_work(tool, tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(tool.shutil, "which", lambda name: None)
+    rendered = []
+    monkeypatch.setattr(tool, "render_clip", lambda *args: rendered.append(args))
+    with pytest.raises(SystemExit, match="ffmpeg is not installed"):
+        tool.render_clips(tmp_path, ["heldout_maritime"], 50, 2, 30, 1)
+    assert rendered == []
+    assert not (tmp_path / "heldout_maritime").exists()

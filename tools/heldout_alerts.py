@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -135,6 +136,11 @@ def render_clips(
     ]
     if not todo:
         return
+    if shutil.which("ffmpeg") is None:
+        raise SystemExit(
+            f"{len(todo)} clips to render and ffmpeg is not installed: the held-out clips are "
+            "H.264 video (e.g. apt-get install ffmpeg)"
+        )
     print(f"rendering {len(todo)} clips of {frames} frames", file=sys.stderr, flush=True)
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         futures = [pool.submit(render_clip, work, w, i, frames) for w, i in todo]
