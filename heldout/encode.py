@@ -11,6 +11,17 @@ import cv2
 import numpy as np
 
 
+def ffmpeg_path() -> str:
+    """The ``ffmpeg`` executable H.264 clips are written with; OSError, saying so, if none."""
+    ffmpeg = shutil.which("ffmpeg")
+    if ffmpeg is None:
+        raise OSError(
+            "ffmpeg is not installed: it is needed to write H.264 video "
+            "(or write JPEG images instead)"
+        )
+    return ffmpeg
+
+
 class H264Writer:
     """MP4 (H.264, yuv420p) through an ``ffmpeg`` process fed raw BGR frames on its stdin.
 
@@ -21,12 +32,7 @@ class H264Writer:
     def __init__(
         self, path: Path, width: int, height: int, fps: float, bits_per_pixel: float
     ) -> None:
-        ffmpeg = shutil.which("ffmpeg")
-        if ffmpeg is None:
-            raise OSError(
-                "ffmpeg is not installed: it is needed to write H.264 video "
-                "(or write JPEG images instead)"
-            )
+        ffmpeg = ffmpeg_path()
         self.path = path
         self.size = (width, height)
         bitrate = int(bits_per_pixel * width * height * fps)

@@ -75,7 +75,7 @@ def test_the_replay_gets_the_clips_lens(tool, tmp_path) -> None:
 
 
 def test_rendering_without_ffmpeg_says_so_before_any_work(tool, tmp_path, monkeypatch) -> None:
-    monkeypatch.setattr(tool.shutil, "which", lambda name: None)
+    monkeypatch.setattr("shutil.which", lambda name: None)
     rendered = []
     monkeypatch.setattr(tool, "render_clip", lambda *args: rendered.append(args))
     with pytest.raises(SystemExit, match="ffmpeg is not installed"):

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -41,6 +40,7 @@ from alert_suite import fly_parser, head_commit, render  # noqa: E402
 from heldout_eval import _rendered  # noqa: E402
 from train_default_model import HELDOUT_VAL_FIRST_CLIP  # noqa: E402
 
+from heldout.encode import ffmpeg_path  # noqa: E402
 from heldout.generate import render_world  # noqa: E402
 from sarmission.alerts.store import AlertStore  # noqa: E402
 from sarmission.data.coco_video import Video, VideoDataset, read_coco_video  # noqa: E402
@@ -89,10 +89,8 @@ INTRO = [
     "candidate's score at its lock, not the mean over its sightings the suite's page uses. "
     "Compare runs flown side by side on one machine: a machine renders the clips bit for bit "
     "the same every time, but not as another kind of machine does, and the figures move with "
-    "the render (the shipped head and code of 54329e5 found 24 of the 45 sea people with 10 "
-    "false alerts on the clips rendered on 2026-11-30, `sea_shipped_070_test6_b`, and 20 "
-    "with 7 on those of 2026-12-01, `sea_shipped_54329e5_1201_test6`; two machines of that "
-    "day agree).",
+    "the render (one head and code, two renders: `sea_shipped_070_test6_b` and "
+    "`sea_shipped_54329e5_1201_test6`).",
     "",
 ]
 
@@ -136,11 +134,10 @@ def render_clips(
     ]
     if not todo:
         return
-    if shutil.which("ffmpeg") is None:
-        raise SystemExit(
-            f"{len(todo)} clips to render and ffmpeg is not installed: the held-out clips are "
-            "H.264 video (e.g. apt-get install ffmpeg)"
-        )
+    try:
+        ffmpeg_path()
+    except OSError as exc:
+        raise SystemExit(f"{len(todo)} clips to render: {exc}") from None
     print(f"rendering {len(todo)} clips of {frames} frames", file=sys.stderr, flush=True)
     with ProcessPoolExecutor(max_workers=jobs) as pool:
         futures = [pool.submit(render_clip, work, w, i, frames) for w, i in todo]
