@@ -4,6 +4,7 @@ set, and the held-out validation split of the training recipe."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
@@ -112,3 +113,49 @@ def test_the_land_recipe_adds_only_the_alternative_land_with_people_as_person(
     assert not (tmp_path / "altworld" / "altworld_sea.json").exists()
     names = {c.id: c.name for c in merged.categories}
     assert any(names[a.category_id] == "person" for a in merged.annotations)
+
+
+def test_training_without_ffmpeg_stops_before_rendering_anything(tmp_path, monkeypatch) -> None:
+    """The held-out validation clips are H.264: without ffmpeg the recipe says so in one line
+    before it renders the (long) training set, for the maritime and the land head."""
+    tool = load_tool("train_default_model")
+    monkeypatch.setattr("shutil.which", lambda name: None)
+    rendered = []
+    for name in ("render_training_set", "render_broad_training_set", "render_land_training_set"):
+        monkeypatch.setattr(tool, name, lambda *args, _n=name: rendered.append(_n))
+    for head in ("maritime", "land"):
+        monkeypatch.setattr(sys, "argv", ["x", "--work", str(tmp_path), "--head", head])
+        with pytest.raises(SystemExit, match="ffmpeg is not installed") as stop:
+            tool.main()
+        assert "heldout_" in str(stop.value)
+    assert rendered == []
+
+
+def test_ffmpeg_is_not_needed_once_the_validation_clips_are_there(tmp_path, monkeypatch) -> None:
+    tool = load_tool("train_default_model")
+    monkeypatch.setattr("shutil.which", lambda name: None)
+    assert tool.heldout_val_missing(tmp_path) == [w for w, _, _ in tool.HELDOUT_VAL]
+    (tmp_path / "heldout_val" / "heldout_maritime").mkdir(parents=True)
+    (tmp_path / "heldout_val" / "heldout_maritime" / "heldout_maritime.json").write_text("{}")
+    assert tool.heldout_val_missing(tmp_path) == ["heldout_land"]
+    (tmp_path / "heldout_val" / "heldout_val.json").write_text("{}")
+    assert tool.heldout_val_missing(tmp_path) == []
+    tool.require_ffmpeg_for(tmp_path)  # nothing to render: no ffmpeg needed
+
+
+def test_a_named_variant_gets_its_own_file(tmp_path, monkeypatch) -> None:
+    """``--name`` keeps two variants of one recipe trained in one folder apart."""
+    tool = load_tool("train_default_model")
+    trained = []
+    monkeypatch.setattr(tool, "render_broad_training_set", lambda work, presets: work / "t.json")
+    monkeypatch.setattr(tool, "render_heldout_val", lambda work: work / "v.json")
+    monkeypatch.setattr(tool, "train_head", lambda t, v, out, *a: trained.append(out.name) or 0)
+    for extra in ([], ["--name", "namer_debris"]):
+        monkeypatch.setattr(
+            sys,
+            "argv",
+            ["x", "--work", str(tmp_path), "--presets", "buoys", "--seed", "3", "--no-install"]
+            + extra,
+        )
+        assert tool.main() == 0
+    assert trained == ["mitenet_head_buoys_seed3.pt", "namer_debris_seed3.pt"]

@@ -68,6 +68,7 @@ import sys
 from pathlib import Path
 
 from altworld.generate import render_world as render_altworld_world
+from heldout.encode import ffmpeg_path
 from heldout.generate import render_world
 from heldout.presets import world
 from sarmission.cli import main as sarmission
@@ -288,6 +289,33 @@ def render_land_training_set(work: Path, presets: str = "urban") -> Path:
     return merged
 
 
+def heldout_val_missing(
+    work: Path, splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL, name: str = "heldout_val"
+) -> list[str]:
+    """The worlds of ``splits`` whose validation clips :func:`render_heldout_val` would still
+    have to render into ``work/<name>``."""
+    folder = work / name
+    if (folder / f"{name}.json").is_file():
+        return []
+    return [w for w, _, _ in splits if not (folder / w / f"{w}.json").is_file()]
+
+
+def require_ffmpeg_for(
+    work: Path, splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL, name: str = "heldout_val"
+) -> None:
+    """Stop with one line, before any work, when held-out validation clips (H.264) are still
+    to be rendered and ffmpeg is missing."""
+    missing = heldout_val_missing(work, splits, name)
+    if not missing:
+        return
+    try:
+        ffmpeg_path()
+    except OSError as exc:
+        raise SystemExit(
+            f"held-out validation clips to render ({', '.join(missing)}): {exc}"
+        ) from None
+
+
 def render_heldout_val(
     work: Path,
     splits: tuple[tuple[str, int, int], ...] = HELDOUT_VAL,
@@ -301,6 +329,7 @@ def render_heldout_val(
     folder = work / name
     merged = folder / f"{name}.json"
     if not merged.is_file():
+        require_ffmpeg_for(work, splits, name)
         parts = []
         for name, clips, frames in splits:
             path = folder / name / f"{name}.json"
@@ -367,6 +396,13 @@ def main() -> int:
         "(presets other than wild add their name: mitenet_head_floats_seed<N>.pt)",
     )
     parser.add_argument(
+        "--name",
+        default=None,
+        help="maritime head: the file name's stem in --work instead of the one the presets "
+        "give (mitenet_head_buoys), so that variants of one recipe (other --classes or "
+        "learning rates) do not overwrite each other; the seed is still added",
+    )
+    parser.add_argument(
         "--head",
         choices=("maritime", "land"),
         default="maritime",
@@ -408,7 +444,10 @@ def main() -> int:
         args.seed = SHIPPED_SEED if args.head == "maritime" else SHIPPED_LAND_SEED
     args.work.mkdir(parents=True, exist_ok=True)
     if args.head == "land":
+        require_ffmpeg_for(args.work, LAND_VAL, "heldout_land_val")
         return train_land(args, extra)
+    if args.val == "heldout":
+        require_ffmpeg_for(args.work)
     train = (
         render_training_set(args.work)
         if args.presets == "maritime"
@@ -422,6 +461,7 @@ def main() -> int:
         val = render(args.work / VAL_SPLIT[0], VAL_SPLIT)
     stem = "mitenet_head" + ("" if args.presets == "wild" else f"_{args.presets}")
     stem += "_altworld" if args.altworld else ""
+    stem = args.name or stem
     out = args.work / (f"{stem}.pt" if args.seed == 0 else f"{stem}_seed{args.seed}.pt")
     code = train_head(train, val, out, [], args.seed, extra)
     if code:
