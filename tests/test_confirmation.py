@@ -204,6 +204,38 @@ def test_an_object_larger_than_its_box_is_discarded_by_its_extent():
     assert assess(evidence_of(measured(4.2)), 101.5, off).verdict == "confirm"
 
 
+def looked(change, count: int | None = None):
+    """The standing person's sightings, the look change measured in the first ``count`` of
+    them (None: all)."""
+    return [
+        dataclasses.replace(s, look_change=change) if count is None or i < count else s
+        for i, s in enumerate(sightings())
+    ]
+
+
+def test_a_steady_look_waits_when_the_rule_asks_for_a_changing_one():
+    rule = dataclasses.replace(RULE, min_look_change=0.15)
+    steady = assess(evidence_of(looked(0.05)), 101.5, rule)
+    assert steady.verdict == "wait", steady
+    assert steady.reason == "look steady over a second (change 0.05 < 0.15)"
+    assert "look change 0.05" in steady.summary()
+    assert assess(evidence_of(looked(0.4)), 101.5, rule).verdict == "confirm"
+    # it may still change: it waits until the rule gives up, then is discarded with the reason
+    late = assess(evidence_of(looked(0.05)), 100.0 + rule.give_up_s + 0.1, rule)
+    assert late.verdict == "discard" and "look steady" in late.reason, late
+    # three measurements are enough to judge; two are not
+    assert assess(evidence_of(looked(0.05, count=3)), 101.5, rule).verdict == "wait"
+    few = assess(evidence_of(looked(0.05, count=2)), 101.5, rule)
+    assert few.verdict == "wait" and few.look_change is None, few
+    assert few.reason == "look change not measured yet"
+    assert assess(evidence_of(looked(0.4, count=3)), 101.5, rule).verdict == "confirm"
+    # 0: not asked, whatever the sightings carry
+    assert assess(evidence_of(looked(0.05)), 101.5, RULE).verdict == "confirm"
+    # the other rules come first: a steady speck is discarded for its size, not kept waiting
+    speck = [dataclasses.replace(s, size_m=0.05) for s in looked(0.05)]
+    assert assess(evidence_of(speck), 101.5, rule).verdict == "discard"
+
+
 def test_the_sightings_figures_are_fitted_once_per_change(monkeypatch):
     """A candidate is assessed every frame: its drift is fitted again only when its sightings
     changed, while the frames and the clock still decide on their own."""

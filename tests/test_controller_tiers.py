@@ -270,3 +270,35 @@ def test_the_extent_is_ready_before_the_first_candidate_when_it_is_measured(
         with AlertStore(tmp_path / f"p{max_extent_m}.db") as store:
             controller(mission, ScriptedDetector([]), flight(1.0), store)
         assert prepared == expected
+
+
+def test_a_steady_object_waits_when_the_rule_asks_for_a_changing_look(tmp_path, mission):
+    """A floating object's look stays the same from frame to frame; a swimmer's arm swings.
+    Only with ``min_look_change`` does the steady one wait (and stay a candidate for the
+    operator) instead of being confirmed."""
+    box = box_at(5.0, 5.0, 60.0, side_px=10.0)
+    cx, cy = int((box[0] + box[2]) / 2), int((box[1] + box[3]) / 2)
+
+    def frame(k: int, swinging: bool) -> np.ndarray:
+        image = np.full((H, W, 3), 90, np.uint8)
+        cv2.circle(image, (cx, cy), 3, (40, 120, 230), -1)
+        angle = 2 * np.pi * k / 45 if swinging else 0.0
+        tip = (int(cx + 6 * np.cos(angle)), int(cy + 6 * np.sin(angle)))
+        cv2.line(image, (cx, cy), tip, (200, 200, 210), 2)
+        return image
+
+    script = [[(box, 0.9, 0)]] * 90
+    for swinging, rule, confirmed in ((False, 0.15, False), (True, 0.15, True), (False, 0.0, True)):
+        mission.confirm.min_look_change = rule
+        with AlertStore(tmp_path / f"l{swinging}{rule}.db") as store:
+            ctl = controller(mission, ScriptedDetector(script), flight(6.0), store)
+            alerts = [a for i in range(90) for a in ctl.process(i, i / FPS, frame(i, swinging))]
+            assert bool(alerts) == confirmed, (swinging, rule)
+            (candidate,) = ctl.stats.candidates
+            looks = [
+                s.look_change
+                for s in ctl.candidates.evidence[candidate.target_id].sightings
+                if s.look_change is not None
+            ]
+            if rule:  # without the rule this mission confirms within a second: no look yet
+                assert (np.median(looks) > 0.15) == swinging, np.median(looks)

@@ -6,7 +6,8 @@ thresholds from.
 
 For each candidate: whether a person was under it at its lock, its sightings, the time they
 span, the share of frames it was seen in over that span, the head's scores (mean, better half,
-lowest), its size across the line of sight (median, quartiles) and its drift over the ground,
+lowest), its size across the line of sight (median, quartiles), its drift over the ground, how
+much its look changed over a second (median over its sightings, :mod:`sarmission.perception.look`)
 and the verdict the current rule gave it. Printed: the quantiles of each feature for people, for
 clutter and for the clutter confirmed (the false alerts), with what lay under the clutter.
 """
@@ -28,7 +29,7 @@ from sarmission.commands.sim_score import fly
 from sarmission.evaluation.alert_scoring import nearest
 from sarmission.mission import candidates as candidate_book
 from sarmission.mission.config import load_mission
-from sarmission.mission.confirmation import TargetEvidence, drift_speed
+from sarmission.mission.confirmation import MIN_LOOKS, TargetEvidence, drift_speed
 from sim.suite import DEVELOPMENT, suite
 
 FEATURES = (
@@ -46,6 +47,7 @@ FEATURES = (
     "size_p75",
     "speed_m_s",
     "speed_sigma",
+    "look_change",
 )
 
 
@@ -58,6 +60,7 @@ def features(evidence, fps: float) -> dict[str, float]:
     scores = sorted((x.score for x in s), reverse=True)
     sizes = [x.size_m for x in s if x.size_m is not None]
     speed, sigma = drift_speed(s) if len(s) >= 3 else (math.nan, math.nan)
+    looks = [x.look_change for x in s if x.look_change is not None]
     return {
         "decided_s": decided,
         "sightings": len(s),
@@ -73,6 +76,7 @@ def features(evidence, fps: float) -> dict[str, float]:
         "size_p75": float(np.percentile(sizes, 75)) if sizes else math.nan,
         "speed_m_s": speed,
         "speed_sigma": sigma,
+        "look_change": float(np.median(looks)) if len(looks) >= MIN_LOOKS else math.nan,
     }
 
 

@@ -84,15 +84,21 @@ class CandidateBook:
         label: str = "",
         track_id: int | None = None,
         extent_m: float | None = None,
+        look_change: float | None = None,
     ) -> None:
         """One frame's sighting of a target (``lat`` None: no fix this frame; ``label`` the
         head's class for it, empty when unknown; ``track_id`` the track that saw it;
-        ``extent_m`` the object's size against its surroundings, None when not measured)."""
+        ``extent_m`` the object's size against its surroundings and ``look_change`` how much
+        its look changed over about a second, None when not measured)."""
         evidence = self.evidence.setdefault(target_id, TargetEvidence())
         if lat is None or lon is None or error_m is None:
             evidence.note_unplaced(t)
         else:
-            evidence.add(Sighting(t, lat, lon, error_m, size_m, score, label, track_id, extent_m))
+            evidence.add(
+                Sighting(
+                    t, lat, lon, error_m, size_m, score, label, track_id, extent_m, look_change
+                )
+            )
 
     def wants_extent(self, target_id: int) -> bool:
         """Whether this sighting of ``target_id`` should measure the object's extent: only

@@ -244,7 +244,9 @@ class ConfirmConfig:
     not measured), its scores' mean at least ``min_score``; discarded if not confirmed within
     ``give_up_s``. ``score_window_s`` > 0 judges the score over the latest seconds only and
     lets a low one wait for a better view instead of discarding it (0: the mean of all
-    sightings, decided once). The defaults were chosen on the development scenarios
+    sightings, decided once). ``min_look_change`` > 0 keeps a candidate whose look stays the
+    same over a second (:mod:`sarmission.perception.look`) waiting (0: not asked). The
+    defaults were chosen on the development scenarios
     (``tools/candidate_features.py``, ``tools/confirmation_rules.py``), ``min_seen_s``,
     ``min_seen_share`` and ``min_score`` on held-out validation clips (``tools/heldout_alerts.py
     --split validation``), never on the scored suite or a test clip. ``max_extent_m`` was 3 m
@@ -264,6 +266,7 @@ class ConfirmConfig:
     min_score: float = CONFIRM_MIN_SCORE[DEFAULT_HEAD]
     give_up_s: float = 20.0
     score_window_s: float = 0.0
+    min_look_change: float = 0.0
 
 
 @dataclass

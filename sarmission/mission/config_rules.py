@@ -182,6 +182,8 @@ def confirm_problem(c: ConfirmConfig) -> Problem:
         return "max_extent_m", "expected 0 (not measured) or at least max_size_m"
     if not 0 <= c.score_window_s <= c.give_up_s:
         return "score_window_s", "expected 0 (all sightings) up to give_up_s"
+    if not 0 <= c.min_look_change < 1:
+        return "min_look_change", "expected 0 (not asked) up to below 1"
     return None
 
 

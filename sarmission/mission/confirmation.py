@@ -27,7 +27,12 @@ the frames processed since its first sighting (a person stays in view; clutter f
   gets the score of the better view that follows;
 - the head calls it a person (or a life-saving appliance) in most of its sightings: a target
   called a boat, jetski or buoy in at least half of them is discarded
-  (:mod:`sarmission.class_roles`).
+  (:mod:`sarmission.class_roles`);
+- with ``min_look_change`` > 0, its look changes over a second (:mod:`sarmission.perception.look`:
+  a swimmer's arms and head move, a floating object's look stays): the median over the
+  sightings that measured it, once at least :data:`MIN_LOOKS` did, is at least
+  ``min_look_change``; a steadier one, or one not yet measured, waits (its look may change
+  later) until ``give_up_s``.
 
 A candidate that clearly fails (too large, too fast or too faint over ``min_sightings``) is
 discarded with the reason; one not confirmed within ``give_up_s`` of its first sighting is
@@ -57,6 +62,8 @@ Verdict = Literal["confirm", "wait", "discard"]
 
 #: Sightings that must have measured a candidate's extent for it to count.
 MIN_EXTENTS = 3
+#: Sightings that must have measured a candidate's look change for it to count.
+MIN_LOOKS = 3
 
 
 @dataclass(frozen=True)
@@ -64,7 +71,9 @@ class Sighting:
     """One frame's evidence of a target: capture time, fix, its 1-sigma error, the object's size
     across the line of sight (metres; None when it could not be measured), the head's score and
     its class name (empty: unknown, taken for a person), the track that saw it (None:
-    not known) and the object's extent against its surroundings (metres; None: not measured)."""
+    not known), the object's extent against its surroundings (metres; None: not measured) and
+    how much its look changed over about a second (:mod:`sarmission.perception.look`; None:
+    not measured)."""
 
     t: float
     lat: float
@@ -75,6 +84,7 @@ class Sighting:
     label: str = ""
     track_id: int | None = None
     extent_m: float | None = None
+    look_change: float | None = None
 
 
 @dataclass(frozen=True)
@@ -91,6 +101,7 @@ class Assessment:
     size_m: float | None = None
     score: float | None = None
     extent_m: float | None = None
+    look_change: float | None = None
 
     def summary(self) -> str:
         """One line of the evidence, e.g. ``1.3 s, 9 sightings, drift 0.2 m/s, 0.6 m, 0.84``."""
@@ -103,6 +114,8 @@ class Assessment:
             parts.append(f"{self.size_m:.1f} m")
         if self.extent_m is not None:
             parts.append(f"extent {self.extent_m:.1f} m")
+        if self.look_change is not None:
+            parts.append(f"look change {self.look_change:.2f}")
         if self.score is not None:
             parts.append(f"score {self.score:.2f}")
         return ", ".join(parts)
@@ -111,13 +124,14 @@ class Assessment:
 @dataclass(frozen=True)
 class SightingFigures:
     """What a candidate's sightings say, whatever the time or the frames since: the span they
-    cover, the median size and extent (None: unmeasured), the mean score (over the latest
-    ``score_window_s`` when > 0), the drift speed and its standard error (None: under three
-    sightings) and the object classes the head named."""
+    cover, the median size, extent and look change (None: unmeasured), the mean score (over
+    the latest ``score_window_s`` when > 0), the drift speed and its standard error (None:
+    under three sightings) and the object classes the head named."""
 
     seen_s: float
     size_m: float | None
     extent_m: float | None
+    look_change: float | None
     score: float
     speed_m_s: float | None
     spread_m_s: float | None
@@ -128,6 +142,7 @@ def sighting_figures(sightings: list[Sighting], score_window_s: float) -> Sighti
     """The figures of ``sightings`` (non-empty, in time order)."""
     sizes = [s.size_m for s in sightings if s.size_m is not None]
     extents = [s.extent_m for s in sightings if s.extent_m is not None]
+    looks = [s.look_change for s in sightings if s.look_change is not None]
     speed = spread = None
     if len(sightings) >= 3:
         speed, spread = drift_speed(sightings)
@@ -135,6 +150,7 @@ def sighting_figures(sightings: list[Sighting], score_window_s: float) -> Sighti
         seen_s=sightings[-1].t - sightings[0].t,
         size_m=float(np.median(sizes)) if sizes else None,
         extent_m=float(np.median(extents)) if len(extents) >= MIN_EXTENTS else None,
+        look_change=float(np.median(looks)) if len(looks) >= MIN_LOOKS else None,
         score=track_score(sightings, score_window_s),
         speed_m_s=speed,
         spread_m_s=spread,
@@ -229,6 +245,7 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
         size_m=size,
         score=score,
         extent_m=extent,
+        look_change=measured.look_change,
     )
     enough = len(sightings) >= rule.min_sightings
     late = f"not confirmed within {rule.give_up_s:g} s"
@@ -282,7 +299,13 @@ def assess(evidence: TargetEvidence, now: float, rule: ConfirmConfig) -> Assessm
             )
         if score < rule.min_score:
             return Assessment("wait", low, **figures)
-        pending = "size unknown" if size is None else unsure
+        look = measured.look_change
+        steady = ""
+        if rule.min_look_change > 0 and look is None:
+            steady = "look change not measured yet"
+        elif look is not None and look < rule.min_look_change:
+            steady = f"look steady over a second (change {look:.2f} < {rule.min_look_change:g})"
+        pending = "size unknown" if size is None else unsure or steady
         if pending:
             if age > rule.give_up_s:
                 return Assessment("discard", f"{late} ({pending})", **figures)

@@ -72,6 +72,7 @@ from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception import extent as object_extents
 from sarmission.perception.extent import object_extent
+from sarmission.perception.look import LookMemory, grey_patch
 from sarmission.perception.types import FrameResult
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
@@ -212,6 +213,7 @@ class MissionController:
         self.candidates = CandidateBook(store, self.mission_id, mission.confirm, confidence)
         if mission.confirm.max_extent_m > 0:
             object_extents.prepare()  # not a stall at the first candidate's measurement
+        self._looks = LookMemory()  # cheap (a 16 px patch a sighting): always measured
         self.console = console
         self.stats = ControllerStats()
         self.ground_alt = mission.area.ground_alt_m
@@ -311,6 +313,7 @@ class MissionController:
         tracks = self.tracker.update(result.detections, frame_index, timestamp, camera_shift=shift)
         if shift is not None:
             self._scene_offset += shift
+        self._looks.keep_only({t.track_id for t in tracks})
         self.stats.frames += 1
         self.stats.detections += len(result.detections)
         self.stats.stage_ms.update(self.detector.per_stage_ms)
@@ -536,7 +539,8 @@ class MissionController:
         fix: GeoFix | None,
     ) -> None:
         """This frame's evidence of ``target``: the track's fix, the size of its box and of
-        the object under it, the head's score of the detection it took and the track's class."""
+        the object under it, how much its look changed over a second (while undecided),
+        the head's score of the detection it took and the track's class."""
         if fix is None or not fix.ok or not isinstance(pose, PlatformPose):
             self.candidates.sighting(
                 target.target_id, timestamp, None, None, None, None, track.last_score
@@ -552,6 +556,10 @@ class MissionController:
             self.stats.stage_ms["extent"] += (time.perf_counter() - started) * 1e3
             if box is not None:
                 extent = apparent_size_m(box, self._intrinsics, pose, ground)
+        look = None
+        if target.target_id not in self.candidates.decided:
+            patch = grey_patch(frame, track.raw_box) if track.misses == 0 else None
+            look = self._looks.change(track.track_id, timestamp, patch)
         label = class_name(self.detector.classes, track.class_id)
         self.candidates.sighting(
             target.target_id,
@@ -564,6 +572,7 @@ class MissionController:
             label,
             track.track_id,
             extent,
+            look,
         )
 
     def _check_continuity(self, target: Target, track_id: int) -> None:
