@@ -62,7 +62,7 @@ def test_a_decoded_frame_gives_its_luma():
     assert patch is not None and patch.min() == pytest.approx(180, abs=1)
 
 
-def test_each_sighting_is_compared_with_its_track_a_second_earlier():
+def test_each_sighting_is_compared_with_its_object_a_second_earlier():
     rng = np.random.default_rng(3)
     memory = LookMemory(lag_s=1.0, tolerance_s=0.25)
     changes = []
@@ -71,7 +71,7 @@ def test_each_sighting_is_compared_with_its_track_a_second_earlier():
         changes.append(memory.change(7, t, blob(8, 8, 2 * np.pi * t / 1.5, rng)))
     assert all(c is None for c in changes[:30])  # nothing a second old yet
     assert all(c is not None and c > 0.15 for c in changes[30:])
-    # another track has its own memory; a missed frame (no patch) neither counts nor breaks it
+    # another object has its own memory; a missed frame (no patch) neither counts nor breaks it
     assert memory.change(8, 2.0, blob(8, 8, 0.0, rng)) is None
     assert memory.change(7, 2.04, None) is None
     steady = LookMemory()
@@ -79,14 +79,19 @@ def test_each_sighting_is_compared_with_its_track_a_second_earlier():
     assert all(c < 0.05 for c in looks[30:])
 
 
-def test_old_patches_and_ended_tracks_are_forgotten():
+def test_old_patches_and_objects_out_of_sight_are_forgotten():
     rng = np.random.default_rng(4)
     memory = LookMemory(lag_s=1.0, tolerance_s=0.25)
     for k in range(300):
         memory.change(1, k / 30, blob(8, 8, 0.0, rng))
     assert len(memory._patches[1]) <= 1.25 * 30 + 2
     memory.change(2, 10.0, blob(8, 8, 0.0, rng))
-    memory.keep_only({2})
+    memory.forget_before(10.5)  # object 1 last seen at 9.97 s, object 2 at 10 s: both kept
+    assert set(memory._patches) == {1, 2}
+    memory.forget_before(11.23)
     assert set(memory._patches) == {2}
+    memory.forget_before(11.26)
+    assert memory._patches == {}
+    memory.change(2, 10.0, blob(8, 8, 0.0, rng))
     # a gap longer than the tolerance: the old patch is no comparison
     assert memory.change(2, 12.0, blob(8, 8, 1.0, rng)) is None

@@ -313,7 +313,7 @@ class MissionController:
         tracks = self.tracker.update(result.detections, frame_index, timestamp, camera_shift=shift)
         if shift is not None:
             self._scene_offset += shift
-        self._looks.keep_only({t.track_id for t in tracks})
+        self._looks.forget_before(timestamp)
         self.stats.frames += 1
         self.stats.detections += len(result.detections)
         self.stats.stage_ms.update(self.detector.per_stage_ms)
@@ -559,7 +559,7 @@ class MissionController:
         look = None
         if target.target_id not in self.candidates.decided:
             patch = grey_patch(frame, track.raw_box) if track.misses == 0 else None
-            look = self._looks.change(track.track_id, timestamp, patch)
+            look = self._looks.change(target.target_id, timestamp, patch)
         label = class_name(self.detector.classes, track.class_id)
         self.candidates.sighting(
             target.target_id,

@@ -3,8 +3,9 @@
 A swimmer's arms and head move against the water; a floating object's look stays the same
 while it bobs and drifts. Each sighting keeps a small grey patch around its detection
 (:func:`grey_patch`, resampled to :data:`PATCH_PX` px square so that a 4K frame and a small one
-compare alike); :class:`LookMemory` compares it with the same track's patch about ``lag_s``
-earlier (:func:`look_change`: 1 - the best normalised correlation over a few pixels of
+compare alike); :class:`LookMemory` compares it with the same object's patch about ``lag_s``
+earlier (kept per target, not per track: a faint object's tracks break and re-form within a
+second) (:func:`look_change`: 1 - the best normalised correlation over a few pixels of
 shift, so that the detection's jitter is not taken for a change). The confirmation takes the
 median over a candidate's sightings (``[confirm] min_look_change``).
 """
@@ -66,18 +67,19 @@ def look_change(first: np.ndarray, second: np.ndarray, shift: int = SHIFT_PX) ->
 
 
 class LookMemory:
-    """Each track's patches of the last ``lag_s`` + ``tolerance_s`` seconds, so that a new
-    sighting is compared with the one ``lag_s`` (up to ``tolerance_s`` more) before it."""
+    """Each object's patches (by any key: the controller's target id) of the last ``lag_s`` +
+    ``tolerance_s`` seconds, so that a new sighting is compared with the one ``lag_s`` (up to
+    ``tolerance_s`` more) before it."""
 
     def __init__(self, lag_s: float = 1.0, tolerance_s: float = 0.25) -> None:
         self.lag_s = lag_s
         self.tolerance_s = tolerance_s
         self._patches: dict[int, deque[tuple[float, np.ndarray]]] = {}
 
-    def change(self, track_id: int, t: float, patch: np.ndarray | None) -> float | None:
-        """Keep ``patch`` (seen at ``t``) for ``track_id``; the look change against the
-        track's patch closest to ``lag_s`` earlier (None: none that old, or a flat patch)."""
-        kept = self._patches.setdefault(track_id, deque())
+    def change(self, key: int, t: float, patch: np.ndarray | None) -> float | None:
+        """Keep ``patch`` (seen at ``t``) for ``key``; the look change against its patch
+        closest to ``lag_s`` earlier (None: none that old, or a flat patch)."""
+        kept = self._patches.setdefault(key, deque())
         while kept and kept[0][0] < t - self.lag_s - self.tolerance_s:
             kept.popleft()
         change = None
@@ -88,7 +90,9 @@ class LookMemory:
             kept.append((t, patch))
         return change
 
-    def keep_only(self, track_ids: set[int]) -> None:
-        """Forget the tracks not in ``track_ids`` (ended or no longer watched)."""
-        for track_id in [k for k in self._patches if k not in track_ids]:
-            del self._patches[track_id]
+    def forget_before(self, t: float) -> None:
+        """Forget the objects with no patch since ``t`` - ``lag_s`` - ``tolerance_s`` (out of
+        sight, decided or gone): nothing they kept can be compared any more."""
+        since = t - self.lag_s - self.tolerance_s
+        for key in [k for k, kept in self._patches.items() if not kept or kept[-1][0] < since]:
+            del self._patches[key]
