@@ -558,8 +558,10 @@ class MissionController:
                 extent = apparent_size_m(box, self._intrinsics, pose, ground)
         look = None
         if target.target_id not in self.candidates.decided:
+            started = time.perf_counter()
             patch = grey_patch(frame, track.raw_box) if track.misses == 0 else None
             look = self._looks.change(target.target_id, timestamp, patch)
+            self.stats.stage_ms["look"] += (time.perf_counter() - started) * 1e3
         label = class_name(self.detector.classes, track.class_id)
         self.candidates.sighting(
             target.target_id,
