@@ -3,6 +3,7 @@ give the verdict the rule gives live, and a variant's verdicts follow its own se
 
 import dataclasses
 import json
+import math
 
 import pytest
 from conftest import load_tool
@@ -154,3 +155,20 @@ def test_variants_replayed_at_once_give_the_rows_one_at_a_time_gives():
     assert json.dumps(rules.compare(flown, variants, jobs=2)) == json.dumps(alone)
     assert [r["variant"] for r in alone] == ["defaults", "low", "window"]
     assert [r["clutter confirmed"] for r in alone] == [0, 1, 0]
+
+
+def test_a_candidates_look_change_is_the_median_of_its_measured_sightings():
+    from sarmission.mission.confirmation import TargetEvidence
+
+    features = load_tool("candidate_features")
+
+    def evidence(looks):
+        sightings = [
+            Sighting(100 + k / 30, 54.0, 7.0, 1.0, 0.6, 0.9, "", 1, None, look)
+            for k, look in enumerate(looks)
+        ]
+        return TargetEvidence(sightings, 100.0, len(sightings))
+
+    measured = features.features(evidence([None] * 30 + [0.1, 0.5, 0.3, 0.2]), 30.0)
+    assert measured["look_change"] == pytest.approx(0.25)
+    assert math.isnan(features.features(evidence([None] * 30 + [0.1, 0.5]), 30.0)["look_change"])
