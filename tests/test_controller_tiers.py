@@ -272,20 +272,25 @@ def test_the_extent_is_ready_before_the_first_candidate_when_it_is_measured(
         assert prepared == expected
 
 
+LOOK_BOX = box_at(5.0, 5.0, 60.0, side_px=10.0)
+
+
+def look_frame(k: int, swinging: bool) -> np.ndarray:
+    """A body with an arm: swinging once in 4.5 s, or held still."""
+    cx, cy = int((LOOK_BOX[0] + LOOK_BOX[2]) / 2), int((LOOK_BOX[1] + LOOK_BOX[3]) / 2)
+    image = np.full((H, W, 3), 90, np.uint8)
+    cv2.circle(image, (cx, cy), 3, (40, 120, 230), -1)
+    angle = 2 * np.pi * k / 45 if swinging else 0.0
+    tip = (int(cx + 6 * np.cos(angle)), int(cy + 6 * np.sin(angle)))
+    cv2.line(image, (cx, cy), tip, (200, 200, 210), 2)
+    return image
+
+
 def test_a_steady_object_waits_when_the_rule_asks_for_a_changing_look(tmp_path, mission):
     """A floating object's look stays the same from frame to frame; a swimmer's arm swings.
     Only with ``min_look_change`` does the steady one wait (and stay a candidate for the
     operator) instead of being confirmed."""
-    box = box_at(5.0, 5.0, 60.0, side_px=10.0)
-    cx, cy = int((box[0] + box[2]) / 2), int((box[1] + box[3]) / 2)
-
-    def frame(k: int, swinging: bool) -> np.ndarray:
-        image = np.full((H, W, 3), 90, np.uint8)
-        cv2.circle(image, (cx, cy), 3, (40, 120, 230), -1)
-        angle = 2 * np.pi * k / 45 if swinging else 0.0
-        tip = (int(cx + 6 * np.cos(angle)), int(cy + 6 * np.sin(angle)))
-        cv2.line(image, (cx, cy), tip, (200, 200, 210), 2)
-        return image
+    box, frame = LOOK_BOX, look_frame
 
     script = [[(box, 0.9, 0)]] * 90
     for swinging, rule, confirmed in ((False, 0.15, False), (True, 0.15, True), (False, 0.0, True)):
@@ -302,3 +307,20 @@ def test_a_steady_object_waits_when_the_rule_asks_for_a_changing_look(tmp_path, 
             ]
             if rule:  # without the rule this mission confirms within a second: no look yet
                 assert (np.median(looks) > 0.15) == swinging, np.median(looks)
+
+
+def test_the_look_follows_the_target_across_its_broken_tracks(tmp_path, mission):
+    """A faint swimmer's tracks break and re-form within a second: its look is compared with
+    its own patch a second earlier whatever track took it, so it is measured and confirmed."""
+    from sarmission.tracking.tracker import Tracker
+
+    mission.confirm.min_look_change = 0.15
+    script = [[(LOOK_BOX, 0.9, 0)] if k % 8 != 7 else [] for k in range(120)]
+    with AlertStore(tmp_path / "broken.db") as store:
+        ctl = controller(mission, ScriptedDetector(script), flight(13.0), store)
+        ctl.tracker = Tracker(max_age=0)  # one missed frame ends a track
+        alerts = [a for i in range(120) for a in ctl.process(i, i / FPS, look_frame(i, True))]
+        (candidate,) = ctl.stats.candidates
+        tracks = {s.track_id for s in ctl.candidates.evidence[candidate.target_id].sightings}
+        assert len(tracks) > 3, tracks  # several tracks, each under a second
+        assert alerts, store.get(candidate.alert_id).discarded
