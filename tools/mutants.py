@@ -864,8 +864,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "confirmation.size_mean_not_median",
         _CONFIRMATION,
-        "size = float(np.median(sizes)) if sizes else None",
-        "size = float(np.mean(sizes)) if sizes else None",
+        "size_m=float(np.median(sizes)) if sizes else None,",
+        "size_m=float(np.mean(sizes)) if sizes else None,",
         _T_CONFIRM,
         "lock",
         "the size is the mean of the sightings (one odd box decides)",
@@ -927,8 +927,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "confirmation.score_window_ignored",
         _CONFIRMATION,
-        "    score = track_score(sightings, rule.score_window_s)",
-        "    score = track_score(sightings)",
+        "score=track_score(sightings, score_window_s),",
+        "score=track_score(sightings),",
         _T_CONFIRM,
         "lock",
         "a person first seen poorly stays below the score for good (window ignored)",
@@ -1782,9 +1782,9 @@ MUTANTS: list[Mutant] = [
     ),
     Mutant(
         "refinement.loose_tracks_used",
-        _CONTROLLER,
-        "if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)",
-        "if True",
+        "sarmission/mission/continuity.py",
+        "if s.track_id is None or (s.track_id in shares and continues(shares[s.track_id]))",
+        "if s.track_id is None or s.track_id in shares",
         _T_REFINE,
         "position",
         "a track joined only by the re-find radius (maybe something else where the person "
@@ -1792,9 +1792,9 @@ MUTANTS: list[Mutant] = [
     ),
     Mutant(
         "refinement.detached_tracks_used",
-        _CONTROLLER,
-        "if x.track_id is None or (x.track_id in shares and not shares[x.track_id].loose)",
-        "if x.track_id is None or x.track_id not in shares or not shares[x.track_id].loose",
+        "sarmission/mission/continuity.py",
+        "if s.track_id is None or (s.track_id in shares and continues(shares[s.track_id]))",
+        "if s.track_id is None or s.track_id not in shares or continues(shares[s.track_id])",
         ("tests/test_position_refinement.py", "tests/test_controller.py"),
         "position",
         "a glint taken back out of a person's target still moves the person's alert to it",
@@ -1996,8 +1996,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "confirmation.extent_one_more_measurement",
         _CONFIRMATION,
-        "extent = float(np.median(extents)) if len(extents) >= MIN_EXTENTS else None",
-        "extent = float(np.median(extents)) if len(extents) > MIN_EXTENTS else None",
+        "extent_m=float(np.median(extents)) if len(extents) >= MIN_EXTENTS else None,",
+        "extent_m=float(np.median(extents)) if len(extents) > MIN_EXTENTS else None,",
         _T_CONFIRM,
         "lock",
         "the extent is judged only after one measurement more than MIN_EXTENTS",
