@@ -29,7 +29,7 @@ from sarmission.commands.sim_score import fly
 from sarmission.evaluation.alert_scoring import nearest
 from sarmission.mission import candidates as candidate_book
 from sarmission.mission.config import load_mission
-from sarmission.mission.confirmation import MIN_LOOKS, TargetEvidence, drift_speed
+from sarmission.mission.confirmation import TargetEvidence, drift_speed
 from sim.suite import DEVELOPMENT, suite
 
 FEATURES = (
@@ -60,7 +60,7 @@ def features(evidence, fps: float) -> dict[str, float]:
     scores = sorted((x.score for x in s), reverse=True)
     sizes = [x.size_m for x in s if x.size_m is not None]
     speed, sigma = drift_speed(s) if len(s) >= 3 else (math.nan, math.nan)
-    looks = [x.look_change for x in s if x.look_change is not None]
+    look = evidence.figures(0.0).look_change  # the rule's own figure
     return {
         "decided_s": decided,
         "sightings": len(s),
@@ -76,7 +76,7 @@ def features(evidence, fps: float) -> dict[str, float]:
         "size_p75": float(np.percentile(sizes, 75)) if sizes else math.nan,
         "speed_m_s": speed,
         "speed_sigma": sigma,
-        "look_change": float(np.median(looks)) if len(looks) >= MIN_LOOKS else math.nan,
+        "look_change": math.nan if look is None else look,
     }
 
 

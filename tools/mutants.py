@@ -2149,8 +2149,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "look.newest_patch_compared",
         "sarmission/perception/look.py",
-        "                change = look_change(old[-1][1], patch)",
-        "                change = look_change(kept[-1][1], patch)",
+        "before = next((p for t0, p in reversed(kept) if t0 <= t - self.lag_s), None)",
+        "before = kept[-1][1] if kept else None",
         ("tests/test_look.py",),
         "lock",
         "a sighting is compared with the previous frame's patch, not the one a second earlier",

@@ -4,10 +4,10 @@ A swimmer's arms and head move against the water; a floating object's look stays
 while it bobs and drifts. Each sighting keeps a small grey patch around its detection
 (:func:`grey_patch`, resampled to :data:`PATCH_PX` px square so that a 4K frame and a small one
 compare alike); :class:`LookMemory` compares it with the same object's patch about ``lag_s``
-earlier (kept per target, not per track: a faint object's tracks break and re-form within a
-second) (:func:`look_change`: 1 - the best normalised correlation over a few pixels of
-shift, so that the detection's jitter is not taken for a change). The confirmation takes the
-median over a candidate's sightings (``[confirm] min_look_change``).
+earlier, kept per target rather than per track, since a faint object's tracks break and
+re-form within a second. :func:`look_change` is 1 - the best normalised correlation over a few
+pixels of shift, so that the detection's jitter is not taken for a change. The confirmation
+takes the median over a candidate's sightings (``[confirm] min_look_change``).
 """
 
 from __future__ import annotations
@@ -82,13 +82,11 @@ class LookMemory:
         kept = self._patches.setdefault(key, deque())
         while kept and kept[0][0] < t - self.lag_s - self.tolerance_s:
             kept.popleft()
-        change = None
-        if patch is not None:
-            old = [(t0, p) for t0, p in kept if t0 <= t - self.lag_s]
-            if old:
-                change = look_change(old[-1][1], patch)
-            kept.append((t, patch))
-        return change
+        if patch is None:
+            return None
+        before = next((p for t0, p in reversed(kept) if t0 <= t - self.lag_s), None)
+        kept.append((t, patch))
+        return None if before is None else look_change(before, patch)
 
     def forget_before(self, t: float) -> None:
         """Forget the objects with no patch since ``t`` - ``lag_s`` - ``tolerance_s`` (out of
