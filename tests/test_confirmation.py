@@ -176,15 +176,18 @@ def test_a_score_window_still_gives_up_and_still_drops_flicker():
     assert found.verdict == "discard" and "seen in 26 % of frames" in found.reason, found
 
 
-def measured(extent, count: int | None = None):
-    """The standing person's sightings (box 0.6 m), the object's extent measured in the first
-    ``count`` of them (None: all)."""
+def measured_in_first(count: int | None, **figure):
+    """The standing person's sightings (box 0.6 m), ``figure`` (a :class:`Sighting` field and
+    its value) measured in the first ``count`` of them (None: all)."""
     return [
-        Sighting(s.t, s.lat, s.lon, s.error_m, s.size_m, s.score, "", None, extent)
-        if count is None or i < count
-        else s
+        dataclasses.replace(s, **figure) if count is None or i < count else s
         for i, s in enumerate(sightings())
     ]
+
+
+def measured(extent, count: int | None = None):
+    """The object's extent measured in the first ``count`` sightings (None: all)."""
+    return measured_in_first(count, extent_m=extent)
 
 
 def test_an_object_larger_than_its_box_is_discarded_by_its_extent():
@@ -205,12 +208,8 @@ def test_an_object_larger_than_its_box_is_discarded_by_its_extent():
 
 
 def looked(change, count: int | None = None):
-    """The standing person's sightings, the look change measured in the first ``count`` of
-    them (None: all)."""
-    return [
-        dataclasses.replace(s, look_change=change) if count is None or i < count else s
-        for i, s in enumerate(sightings())
-    ]
+    """The look change measured in the first ``count`` sightings (None: all)."""
+    return measured_in_first(count, look_change=change)
 
 
 def test_a_steady_look_waits_when_the_rule_asks_for_a_changing_one():
