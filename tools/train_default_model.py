@@ -565,13 +565,15 @@ def train_command(
 
 def training_record(command: list[str]) -> dict:
     """What a head trained by ``command`` was made from: the arguments and the SHA-256 of
-    every input file they name (the annotation files and the head it starts from, the
-    shipped head for ``--init default``), so that a re-rendered training set or another
-    starting head is not mistaken for the same training."""
+    every input file they name (the annotation files and the heads it starts from or keeps
+    the scores of, the shipped head for ``--init default`` or ``--keep-scores default``), so
+    that a re-rendered training set or another starting head is not mistaken for the same
+    training."""
     out = command[command.index("--out") + 1]
     files = [arg for arg in command if arg != out and Path(arg).is_file()]
-    if "--init" in command and is_head_name(init := command[command.index("--init") + 1]):
-        files.append(str(shipped_head_path(init, "torch")))
+    for flag in ("--init", "--keep-scores"):
+        if flag in command and is_head_name(head := command[command.index(flag) + 1]):
+            files.append(str(shipped_head_path(head, "torch")))
     digests = {name: hashlib.sha256(Path(name).read_bytes()).hexdigest() for name in files}
     return {"arguments": command, "inputs": digests}
 

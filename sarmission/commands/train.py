@@ -199,6 +199,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "(e.g. person=swimmer); repeatable",
     )
     parser.add_argument(
+        "--keep-scores",
+        default=None,
+        metavar="CHECKPOINT",
+        help="keep this trained head's person scores while learning other classes: a "
+        "shipped head ('default', 'maritime', 'land') or a .pt file; its person "
+        "probabilities on every crop not labelled one of the other classes are taught "
+        "beside the labels, so one confirmation threshold still fits",
+    )
+    parser.add_argument(
+        "--kept-scores-weight",
+        type=float,
+        default=4.0,
+        help="weight of the kept person scores beside the head's own loss",
+    )
+    parser.add_argument(
         "--resume",
         action="store_true",
         help="continue from <out stem>.last.pt with the same settings",
@@ -235,6 +250,13 @@ def config_from_args(args: argparse.Namespace):
 
         if not init_path(args.init).is_file():
             raise FileNotFoundError(f"--init checkpoint not found: {init_path(args.init)}")
+    if args.keep_scores is not None:
+        from sarmission.training.init_weights import init_path
+
+        if not init_path(args.keep_scores).is_file():
+            raise FileNotFoundError(
+                f"--keep-scores checkpoint not found: {init_path(args.keep_scores)}"
+            )
     if args.out.suffix.lower() not in (".pt", ".pth"):
         raise ValueError(f"--out must be a .pt or .pth file, got {args.out}")
     crops = CropSettings(
@@ -274,6 +296,8 @@ def config_from_args(args: argparse.Namespace):
         cache_dir=args.cache_dir,
         init=args.init,
         init_classes=parse_pairs(args.init_class, "--init-class"),
+        keep_scores=args.keep_scores,
+        kept_scores_weight=args.kept_scores_weight,
         resume=args.resume,
         num_threads=args.threads,
         progress=bars_wanted(args),

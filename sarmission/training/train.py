@@ -19,6 +19,10 @@ With ``still_share`` above 0, that share of a batch's crops then takes the motio
 negative of the batch (:func:`~sarmission.training.still_motion.borrow_background_motion`,
 drawn from ``numpy.random.default_rng([seed, epoch, 4])``): a still person under a hovering
 camera has no motion of its own.
+With ``keep_scores`` naming a trained head, that head's person probabilities on each batch's
+crops (those not labelled one of the head's other classes) are taught too, weighted by
+``kept_scores_weight`` (:mod:`sarmission.training.kept_scores`): a head learning boats and
+buoys keeps the trained head's level for people.
 The loss is :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
 With ``rounding_consistency`` above 0, each batch also goes through the head as another
 decoder's rounding would give it (:func:`~sarmission.training.consistency.rounding_perturbation`,
@@ -82,6 +86,7 @@ from sarmission.perception.orientations import MIRROR_LTRB, ROT90_LTRB
 from sarmission.perception.runtime import save_head_checkpoint
 from sarmission.training.consistency import consistency_loss, rounding_perturbation
 from sarmission.training.dataset import CropSet, CropSettings, load_crop_set
+from sarmission.training.kept_scores import ScoreKeeper, load_keeper
 from sarmission.training.losses import LossWeights, head_loss
 from sarmission.training.randomise import Randomisation, randomise_crops
 from sarmission.training.still_motion import borrow_background_motion
@@ -145,6 +150,11 @@ class TrainConfig:
     init: str | None = None
     #: New class -> the class of the ``init`` head its weights start from.
     init_classes: dict[str, str] = field(default_factory=dict)
+    #: Keep this trained head's person scores (``"default"``, a shipped head's name or a .pt;
+    #: None: off); :mod:`sarmission.training.kept_scores`.
+    keep_scores: str | None = None
+    #: Weight of the kept-scores term beside the head's own loss.
+    kept_scores_weight: float = 4.0
     resume: bool = False
     num_threads: int = 2
     progress: bool = True
@@ -175,6 +185,10 @@ class TrainConfig:
             raise ValueError(f"crop_norm must be in [0, 1], got {self.crop_norm}")
         if not 0.0 <= self.still_share <= 1.0:
             raise ValueError(f"still_share must be in [0, 1], got {self.still_share}")
+        if not 0.0 < self.kept_scores_weight <= 100.0:
+            raise ValueError(
+                f"kept_scores_weight must be in (0, 100], got {self.kept_scores_weight}"
+            )
         if not 0.0 <= self.ema_decay < 1.0:
             raise ValueError(f"ema_decay must be in [0, 1), got {self.ema_decay}")
         self.randomise.validate()
@@ -191,10 +205,13 @@ class TrainConfig:
             "rounding_consistency",
             "crop_norm",
             "still_share",
+            "keep_scores",
         )
         for key in optional:
             if not d[key]:
                 d.pop(key)  # states written before the setting existed still resume
+        if "keep_scores" not in d:
+            d.pop("kept_scores_weight")
         d["crops"] = self.crops.to_dict()
         if not d["crops"]["motion_floor"]:
             d["crops"].pop("motion_floor")  # likewise
@@ -382,9 +399,11 @@ def _train_epoch(
     bar,
     average: WeightAverage | None = None,
     textures: Tensor | None = None,
+    keeper: ScoreKeeper | None = None,
 ) -> dict[str, float]:
     """One pass over the training crops; mean loss terms per batch. ``textures``: the bank
-    texture negatives are drawn from (module docstring)."""
+    texture negatives are drawn from; ``keeper``: the head whose person scores are kept
+    (module docstring)."""
     model.train()
     n = len(data)
     rng = np.random.default_rng([config.seed, epoch])
@@ -396,7 +415,7 @@ def _train_epoch(
     stilling = np.random.default_rng([config.seed, epoch, 4])
     steps = math.ceil(n / config.batch_size)
     scale_all = data.scale
-    sums = dict.fromkeys(("loss", "cls", "nwd", "dfl", "rounding"), 0.0)
+    sums = dict.fromkeys(("loss", "cls", "nwd", "dfl", "rounding", "kept"), 0.0)
     for b in range(steps):
         idx = order[b * config.batch_size : (b + 1) * config.batch_size]
         lr = lr_at(epoch * steps + b, config.epochs * steps, steps, config.lr, config.min_lr_ratio)
@@ -437,6 +456,10 @@ def _train_epoch(
         if steady is not None:
             total = total + config.rounding_consistency * steady
             sums["rounding"] += float(steady.detach())
+        if keeper is not None:
+            kept = keeper.loss(cls_logits, crops, labels)
+            total = total + config.kept_scores_weight * kept
+            sums["kept"] += float(kept.detach())
         optimizer.zero_grad(set_to_none=True)
         total.backward()
         optimizer.step()
@@ -555,6 +578,10 @@ def train(config: TrainConfig) -> TrainResult:
 
         report = initialise_from(model, config.init, config.init_classes)
         print(report.summary(), file=sys.stderr)
+    keeper = None
+    if config.keep_scores is not None:
+        keeper = load_keeper(config.keep_scores, tuple(config.crops.classes))
+        keeper.check_fits(model, config.keep_scores)
     if config.resume:
         state = _load_state(config, model, optimizer, average)
         start, best_f2, best_epoch = state["epoch"], state["best_f2"], state["best_epoch"]
@@ -574,7 +601,7 @@ def train(config: TrainConfig) -> TrainResult:
         for epoch in range(start, config.epochs):
             t_epoch = time.perf_counter()
             record = _train_epoch(
-                model, optimizer, train_set, config, epoch, bar, average, textures
+                model, optimizer, train_set, config, epoch, bar, average, textures, keeper
             )
             record |= validate_f2(evaluated, val_set, config.score_threshold, config.nms_iou)
             record |= {"epoch": epoch + 1, "seconds": time.perf_counter() - t_epoch}
@@ -586,6 +613,7 @@ def train(config: TrainConfig) -> TrainResult:
                 f"epoch {epoch + 1}/{config.epochs}: loss {record['loss']:.4f} "
                 f"(cls {record['cls']:.3f} nwd {record['nwd']:.3f} dfl {record['dfl']:.3f}"
                 + (f" rounding {record['rounding']:.4f}" if config.rounding_consistency else "")
+                + (f" kept {record['kept']:.4f}" if keeper is not None else "")
                 + f") val F2 {record['f2']:.4f} P {record['precision']:.3f} "
                 f"R {record['recall']:.3f} best {best_f2:.4f}@{best_epoch}"
             )

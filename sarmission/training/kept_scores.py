@@ -1,0 +1,95 @@
+"""Keep a trained head's person scores while a new head learns other classes.
+
+A head that learns boats, buoys and life rings as classes of their own (``--classes
+maritime``) also moves its person scores: on the simulator's flights it scores people higher
+than the shipped head, on footage it never saw lower, so no one confirmation threshold serves
+both (docs/mooring_buoys.md). Here the trained head (the *keeper*, frozen) teaches the new one
+its person probabilities on every crop that is not one of the new head's non-person classes
+(learning without forgetting): the new head's level for people stays the keeper's, and only
+where the labels say "buoy" or "boat" does it learn otherwise.
+
+For a batch's crops ``i`` outside those classes and the person classes ``c`` both heads name::
+
+    L_kept = mean_{i, c} BCE(z_ic, sigmoid(k_ic))
+
+with ``z`` the new head's logits and ``k`` the keeper's on the same (augmented) crops.
+``TrainConfig.kept_scores_weight`` weights it beside the head's own loss. The new head
+learns in batch statistics and the keeper answers in its running ones, as it runs in the
+mission. (Holding the new head's batch norms at their running statistics instead kept it no
+nearer the keeper on a small synthetic set and diverged at a high rate and weight.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor
+
+from sarmission.class_roles import normalise_class, person_class_ids
+from sarmission.perception.head import MiteHead
+
+
+class ScoreKeeper:
+    """The frozen keeper head and which of its classes the new head's person classes are."""
+
+    def __init__(self, keeper: MiteHead, classes: tuple[str, ...], source: Path | str) -> None:
+        mine = {k: v for k, v in asdict(keeper.config).items() if k != "classes"}
+        own = person_class_ids(classes)
+        theirs = {normalise_class(c): i for i, c in enumerate(keeper.config.classes)}
+        missing = [classes[i] for i in own if normalise_class(classes[i]) not in theirs]
+        if missing:
+            raise ValueError(
+                f"--keep-scores {source}: it names no class {', '.join(missing)} "
+                f"(it has {', '.join(keeper.config.classes)})"
+            )
+        self.keeper = keeper.eval()
+        for p in self.keeper.parameters():
+            p.requires_grad_(False)
+        self.settings = mine
+        self.student_ids = torch.as_tensor(own, dtype=torch.long)
+        self.keeper_ids = torch.as_tensor(
+            [theirs[normalise_class(classes[i])] for i in own], dtype=torch.long
+        )
+        #: Label ids that are classes of the new head's own other than people.
+        self.other_ids = torch.as_tensor(
+            [i for i in range(len(classes)) if i not in set(own.tolist())], dtype=torch.long
+        )
+
+    def check_fits(self, model: MiteHead, source: Path | str) -> None:
+        """Raise ``ValueError`` when ``model`` cuts or sees crops otherwise than the keeper."""
+        mine = {k: v for k, v in asdict(model.config).items() if k != "classes"}
+        differ = sorted(k for k in mine if mine[k] != self.settings.get(k))
+        if differ:
+            raise ValueError(
+                f"--keep-scores {source}: it differs from the head being trained in "
+                + ", ".join(f"{k} ({self.settings.get(k)} vs {mine[k]})" for k in differ)
+            )
+
+    def loss(self, logits: Tensor, crops: Tensor, labels: Tensor) -> Tensor:
+        """``L_kept`` (module docstring) of the new head's ``logits`` ``[N, C]`` on ``crops``
+        with ``labels`` ``[N]`` (-1 for nothing); 0 when every crop is of another class."""
+        kept = ~torch.isin(labels, self.other_ids)
+        if not bool(kept.any()):
+            return logits.sum() * 0.0
+        with torch.no_grad():
+            keeper_logits, _ = self.keeper(crops[kept])
+            target = torch.sigmoid(keeper_logits[:, self.keeper_ids])
+        return F.binary_cross_entropy_with_logits(logits[kept][:, self.student_ids], target)
+
+
+def load_keeper(source: str | Path, classes: tuple[str, ...]) -> ScoreKeeper:
+    """The :class:`ScoreKeeper` of the checkpoint ``source`` (``default``, ``maritime``,
+    ``land`` or a ``.pt`` file) for a head naming ``classes``.
+
+    Raises :class:`~sarmission.perception.runtime.ModelLoadError` for an unreadable file and
+    ``ValueError`` when it does not name the new head's person classes."""
+    from sarmission.models import is_head_name, shipped_head_path
+    from sarmission.perception.runtime import load_head_checkpoint
+
+    path = shipped_head_path(str(source), "torch") if is_head_name(source) else Path(source)
+    if path.suffix.lower() not in (".pt", ".pth"):
+        raise ValueError(f"--keep-scores needs a .pt checkpoint (a trained head), got {path}")
+    return ScoreKeeper(load_head_checkpoint(path), classes, path)
