@@ -51,6 +51,21 @@ def test_a_head_with_the_keepers_scores_gets_no_push():
     assert moved.grad[:, 2:].abs().max() == 0.0  # only the person classes are taught
 
 
+def test_classes_are_matched_by_name_whatever_their_order():
+    """A new head naming its people in another order than the keeper is taught each person
+    class's own score: with the keeper's logits in its own order, nothing pushes."""
+    classes = ("buoy", "swimmer_with_life_jacket", "swimmer")
+    keeper = load_keeper("default", classes)
+    crops, labels = _crops(), torch.full((12,), -1)
+    with torch.no_grad():
+        theirs = keeper.keeper(crops)[0]
+    named = keeper.keeper.config.classes
+    columns = [torch.zeros(12)] + [theirs[:, named.index(c)] for c in classes[1:]]
+    logits = torch.stack(columns, dim=1).requires_grad_(True)
+    keeper.loss(logits, crops, labels).backward()
+    assert logits.grad.abs().max() < 1e-7
+
+
 def test_crops_of_the_new_heads_other_classes_are_left_to_their_labels():
     keeper = load_keeper("default", MARITIME_CLASSES)
     crops = _crops()

@@ -2191,4 +2191,33 @@ MUTANTS: list[Mutant] = [
         "lock",
         "the look is judged only after one measurement more than MIN_LOOKS",
     ),
+    Mutant(
+        "kept_scores.object_crops_taught",
+        "sarmission/training/kept_scores.py",
+        "        kept = ~torch.isin(labels, self.other_ids)",
+        "        kept = torch.ones_like(labels, dtype=torch.bool)",
+        ("tests/test_kept_scores.py",),
+        "lock",
+        "the keeper's person scores are taught on buoys and boats too: the new head never learns "
+        "they are no person",
+    ),
+    Mutant(
+        "kept_scores.keeper_class_by_index",
+        "sarmission/training/kept_scores.py",
+        "            [theirs[normalise_class(classes[i])] for i in own], dtype=torch.long",
+        "            list(range(len(own))), dtype=torch.long",
+        ("tests/test_kept_scores.py",),
+        "lock",
+        "the keeper's classes are matched by position, not by name: a head naming its people "
+        "in another order is taught the wrong class's score",
+    ),
+    Mutant(
+        "kept_scores.term_not_added",
+        "sarmission/training/train.py",
+        "            total = total + config.kept_scores_weight * kept",
+        "            total = total + 0.0 * kept",
+        ("tests/test_kept_scores.py",),
+        "lock",
+        "the kept scores are measured but never taught",
+    ),
 ]

@@ -39,6 +39,30 @@ _BODY = """<body data-live="0">
     <div id="alerts"></div>
     <div class="empty" id="empty">No alerts yet. Candidates and alerts appear here as soon as
       they are found.</div>
+    <details class="help" id="help">
+      <summary>What a card's evidence means</summary>
+      <dl>
+        <dt>2.1 s, 20 sightings</dt><dd>how long, and in how many frames, the target was
+          seen and placed on the ground before the system decided</dd>
+        <dt>in 80 % of frames</dt><dd>of the frames since it was first seen: a person stays
+          in view, glint and foam flicker</dd>
+        <dt>drift 0.2 m/s</dt><dd>its speed over the ground from a line through its positions:
+          water and people drift slowly, glint and birds move fast</dd>
+        <dt>0.6 m</dt><dd>its size on the ground across the line of sight: a person is
+          between about 0.2 and 2.5 m, a boat larger</dd>
+        <dt>extent 1.2 m</dt><dd>the object under the box measured against its surroundings
+          (splash and shadow count with it): a boat the head boxed as a person is larger</dd>
+        <dt>look change 0.08</dt><dd>how much its look changed over about a second, 0 the same
+          to 1 unlike: a swimmer's arms and head move, a buoy or debris stays the same, and so
+          does a person lying still</dd>
+        <dt>score 0.84</dt><dd>the detector's mean score over the sightings: how much each
+          crop looked like a person to it, not the chance that it is one</dd>
+        <dt>20 % likely a person</dt><dd>how often alerts like it turned out to be people,
+          learnt from your confirmations and dismissals on this mission; a range while there
+          are still few</dd>
+      </dl>
+      <p>Every alert is for your eyes first: search within twice its &plusmn;.</p>
+    </details>
   </section>
 </main>
 """

@@ -38,6 +38,10 @@ PAGE_CSS = """
          user-select: none; -webkit-user-select: none; }
   .list { min-height: 0; overflow-y: auto; padding: 16px 20px 40px; }
   .empty { color: var(--muted); text-align: center; padding: 48px 0; font-size: 18px; }
+  .help { color: var(--muted); font-size: 14px; margin-top: 24px; }
+  .help summary { cursor: pointer; }
+  .help dt { font-weight: 600; margin-top: 8px; }
+  .help dd { margin: 2px 0 0 16px; }
   .alert { display: grid; grid-template-columns: 136px 1fr auto; gap: 6px 18px;
            align-items: center; background: #fff; border: 1px solid var(--line);
            border-left: 8px solid var(--red); border-radius: 6px; padding: 12px 16px;
