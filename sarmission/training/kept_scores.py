@@ -5,8 +5,9 @@ maritime``) also moves its person scores: on the simulator's flights it scores p
 than the shipped head, on footage it never saw lower, so no one confirmation threshold serves
 both (docs/mooring_buoys.md). Here the trained head (the *keeper*, frozen) teaches the new one
 its person probabilities on every crop that is not one of the new head's non-person classes
-(learning without forgetting): the new head's level for people stays the keeper's, and only
-where the labels say "buoy" or "boat" does it learn otherwise.
+(learning without forgetting), so that only where the labels say "buoy" or "boat" does it
+learn otherwise. That holds on crops like the training set's; on footage unlike it the new
+head's scores for people may still move (docs/mooring_buoys.md, 2026-12-02).
 
 For a batch's crops ``i`` outside those classes and the person classes ``c`` both heads name::
 
@@ -15,8 +16,7 @@ For a batch's crops ``i`` outside those classes and the person classes ``c`` bot
 with ``z`` the new head's logits and ``k`` the keeper's on the same (augmented) crops.
 ``TrainConfig.kept_scores_weight`` weights it beside the head's own loss. The new head
 learns in batch statistics and the keeper answers in its running ones, as it runs in the
-mission. (Holding the new head's batch norms at their running statistics instead kept it no
-nearer the keeper on a small synthetic set and diverged at a high rate and weight.)
+mission.
 """
 
 from __future__ import annotations
