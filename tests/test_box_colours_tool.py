@@ -58,6 +58,9 @@ def test_the_standing_out_colour_and_size_of_each_box(tool, tmp_path):
     for hue, sat, val, side in rows:
         assert abs(hue - ORANGE[0]) <= 1 and abs(sat - ORANGE[1]) <= 3
         assert abs(val - ORANGE[2]) <= 3 and side == 20.0
+    with_specks = tool.measure(_dataset(tmp_path / "b"), {"buoy"}, 1, 1.0)
+    assert sorted(with_specks["buoy"][:, 3]) == [3.0, 3.0, 20.0, 20.0]
+    assert "| 3 / 12 / 20 | 50 % |" in tool.table({"s": with_specks}, ["buoy"])
 
 
 def test_the_page_names_each_source_and_class(tool, tmp_path, capsys):
@@ -66,6 +69,7 @@ def test_the_page_names_each_source_and_class(tool, tmp_path, capsys):
     assert tool.main([f"sim={path}", f"other={path}", "--every", "1", "--doc", str(doc)]) == 0
     text = doc.read_text()
     assert text.count("| buoy | 2 | 15 / 15 / 15 |") == 2
+    assert text.count("| 20 / 20 / 20 | 0 % |") == 2  # longer side, none under 16 px
     assert "| sim | buoy |" in text and "| other | buoy |" in text
     assert "swimmer |" not in text.split(tool.BEGIN)[1]  # no swimmer boxes: no row
     assert "| sim | buoy |" in capsys.readouterr().out
