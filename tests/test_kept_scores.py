@@ -145,3 +145,13 @@ def test_the_setting_is_validated_resumes_and_reaches_the_cli(data, tmp_path):
     args = parser.parse_args(base + ["--keep-scores", str(tmp_path / "none.pt")])
     with pytest.raises(FileNotFoundError, match="--keep-scores checkpoint not found"):
         train_command.config_from_args(args)
+
+
+def test_a_bad_keeper_fails_before_any_crop_is_cut(data, tmp_path):
+    garbage = tmp_path / "garbage.pt"
+    garbage.write_bytes(b"not a head")
+    cache = tmp_path / "cache"
+    config = small_config(data, tmp_path / "o.pt", keep_scores=str(garbage), cache_dir=cache)
+    with pytest.raises(ValueError, match="not a torch checkpoint"):
+        train(config)
+    assert not cache.exists()

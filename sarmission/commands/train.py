@@ -205,7 +205,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="keep this trained head's person scores while learning other classes: a "
         "shipped head ('default', 'maritime', 'land') or a .pt file; its person "
         "probabilities on every crop not labelled one of the other classes are taught "
-        "beside the labels, so one confirmation threshold still fits",
+        "beside the labels (docs/datasets.md: on footage unlike the training set's the "
+        "scores may still move)",
     )
     parser.add_argument(
         "--kept-scores-weight",

@@ -22,7 +22,7 @@ camera has no motion of its own.
 With ``keep_scores`` naming a trained head, that head's person probabilities on each batch's
 crops (those not labelled one of the head's other classes) are taught too, weighted by
 ``kept_scores_weight`` (:mod:`sarmission.training.kept_scores`): a head learning boats and
-buoys keeps the trained head's level for people.
+buoys stays nearer the trained head's scores for people, on crops like the training set's.
 The loss is :func:`~sarmission.training.losses.head_loss` (hard negatives mined per batch).
 With ``rounding_consistency`` above 0, each batch also goes through the head as another
 decoder's rounding would give it (:func:`~sarmission.training.consistency.rounding_perturbation`,
@@ -544,6 +544,9 @@ def train(config: TrainConfig) -> TrainResult:
     config.validate()
     torch.set_num_threads(max(1, config.num_threads))
     cache_dir = Path(config.cache_dir) if config.cache_dir else config.out.parent / ".crop_cache"
+    keeper = None  # read before the crops are cut: a bad file fails at once
+    if config.keep_scores is not None:
+        keeper = load_keeper(config.keep_scores, tuple(config.crops.classes))
     t0 = time.perf_counter()
     train_set, _ = load_crop_set(
         config.train, config.crops, cache_dir, config.progress, "train crops"
@@ -578,9 +581,7 @@ def train(config: TrainConfig) -> TrainResult:
 
         report = initialise_from(model, config.init, config.init_classes)
         print(report.summary(), file=sys.stderr)
-    keeper = None
-    if config.keep_scores is not None:
-        keeper = load_keeper(config.keep_scores, tuple(config.crops.classes))
+    if keeper is not None:
         keeper.check_fits(model, config.keep_scores)
     if config.resume:
         state = _load_state(config, model, optimizer, average)
