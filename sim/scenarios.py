@@ -320,6 +320,16 @@ def maritime_buoys_train() -> Preset:
     return Preset(base.name, scenario, base.mission)
 
 
+def maritime_buoys_high_train() -> Preset:
+    """Training only: :func:`maritime_buoys_train`'s calm sea at 150 m, where buoys and people
+    in life jackets are blobs of 10-20 px, too small to show the shapes that tell them apart
+    from 80 m (docs/box_colours.md)."""
+    base = _maritime("maritime_buoys_high_train", 1307, 150.0, 75.0, 2, 6.0, (140.0, 45.0))
+    sc = base.scenario
+    scenario = replace(sc, n_mooring_buoys=sc.n_swimmers + sc.n_life_jacket)
+    return Preset(base.name, scenario, base.mission)
+
+
 def urban_train() -> Preset:
     """City blocks at 60 m, about 6 pedestrians per frame."""
     return _urban("urban_train", 4004, 60.0, 70.0, 6.0, (160.0, 40.0))
@@ -410,6 +420,7 @@ PRESETS: dict[str, Callable[[], Preset]] = {
         maritime_objects_train,
         maritime_floats_train,
         maritime_buoys_train,
+        maritime_buoys_high_train,
         urban_train,
         urban_val,
         urban_test,

@@ -121,3 +121,21 @@ def test_the_buoys_preset_shows_buoys_beside_people() -> None:
     renderer = SceneRenderer(chosen.scenario, intr)
     seen = [a.category for a in renderer.render(30.0, flight.state_at(30.0).camera_pose())[1]]
     assert seen.count("buoy") >= 2 and sum(c in PEOPLE for c in seen) >= 2, seen
+
+
+def test_the_high_buoys_preset_shows_the_same_sea_from_higher_up() -> None:
+    """From 150 m instead of 80 the buoys are about half as large in the image (80 / 150)."""
+    sides = {}
+    for name in ("maritime_buoys_train", "maritime_buoys_high_train"):
+        chosen = preset(name)
+        flight = Flight(chosen.mission, seed=chosen.scenario.seed)
+        intr = chosen.mission.camera.intrinsics().scaled(960, 540)
+        renderer = SceneRenderer(chosen.scenario, intr)
+        seen = renderer.render(30.0, flight.state_at(30.0).camera_pose())[1]
+        buoys = [a.bbox_xyxy for a in seen if a.category == "buoy"]
+        assert len(buoys) >= 2, name
+        sides[name] = np.median([max(x1 - x0, y1 - y0) for x0, y0, x1, y1 in buoys])
+    seeds = [make().scenario.seed for make in PRESETS.values()]
+    assert seeds.count(preset("maritime_buoys_high_train").scenario.seed) == 1
+    ratio = sides["maritime_buoys_high_train"] / sides["maritime_buoys_train"]
+    assert 0.4 < ratio < 0.7, sides

@@ -30,7 +30,8 @@ land``, its land clips alone, people as ``person``).
 ``--texture-negatives 0.25``, go to ``sarmission train``.
 ``--presets floats`` adds ``maritime_floats_train`` (:data:`FLOAT_SPLITS`, people floating on
 their back) to the wild recipe, ``--presets buoys`` ``maritime_buoys_train`` (round mooring
-buoys, :data:`BUOY_SPLITS`); ``--presets objects`` adds ``maritime_objects_train``
+buoys, :data:`BUOY_SPLITS`), ``--presets buoys_high`` that and the same sea from 150 m
+(:data:`BUOY_HIGH_SPLITS`); ``--presets objects`` adds ``maritime_objects_train``
 (:data:`OBJECT_SPLITS`); ``--classes
 maritime`` (an option of ``sarmission train``) trains the boats, jetskis, buoys and
 life-saving appliances as classes of their own (:mod:`sarmission.class_roles`); ``--seed N``
@@ -104,6 +105,9 @@ FLOAT_SPLITS = (("maritime_floats_train", 4, 90, "3840x2160"),)
 #: Added to the wild recipe by ``--presets buoys``: a calm sea with a round mooring buoy for
 #: every person in the water (docs/mooring_buoys.md).
 BUOY_SPLITS = (("maritime_buoys_train", 4, 90, "3840x2160"),)
+#: Added to the buoy recipe by ``--presets buoys_high``: the same sea from 150 m, buoys and
+#: jacket wearers as small blobs (docs/box_colours.md).
+BUOY_HIGH_SPLITS = (("maritime_buoys_high_train", 4, 90, "3840x2160"),)
 #: Added to :data:`BROAD_SPLITS` by ``--presets wild``: the simulator's wild land (meadow,
 #: forest, rock, snow, sand; people trained as ``swimmer``).
 WILD_SPLITS = tuple(
@@ -118,6 +122,7 @@ EXTRA_SPLITS = {
     "wild": BROAD_SPLITS + WILD_SPLITS,
     "floats": BROAD_SPLITS + WILD_SPLITS + FLOAT_SPLITS,
     "buoys": BROAD_SPLITS + WILD_SPLITS + BUOY_SPLITS,
+    "buoys_high": BROAD_SPLITS + WILD_SPLITS + BUOY_SPLITS + BUOY_HIGH_SPLITS,
 }
 #: ``--altworld``: clips of the alternative training world (:mod:`altworld`, its own renderer):
 #: (world, clips, frames per clip), 1920x1080 with a 4K camera's ground sampling.
@@ -374,7 +379,8 @@ def main() -> int:
         help="training presets: the maritime ones, those plus urban_train and the oblique "
         "maritime presets, or those plus maritime_objects_train or the wild land presets "
         "(the shipped head's recipe; default: wild), or the wild recipe plus "
-        "maritime_floats_train or maritime_buoys_train",
+        "maritime_floats_train or maritime_buoys_train (buoys_high: and "
+        "maritime_buoys_high_train)",
     )
     parser.add_argument(
         "--altworld",
