@@ -254,10 +254,9 @@ def config_from_args(args: argparse.Namespace):
     if args.keep_scores is not None:
         from sarmission.training.init_weights import init_path
 
-        if not init_path(args.keep_scores).is_file():
-            raise FileNotFoundError(
-                f"--keep-scores checkpoint not found: {init_path(args.keep_scores)}"
-            )
+        keeper = init_path(args.keep_scores, "--keep-scores")
+        if not keeper.is_file():
+            raise FileNotFoundError(f"--keep-scores checkpoint not found: {keeper}")
     if args.out.suffix.lower() not in (".pt", ".pth"):
         raise ValueError(f"--out must be a .pt or .pth file, got {args.out}")
     crops = CropSettings(

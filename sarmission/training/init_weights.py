@@ -17,7 +17,7 @@ from pathlib import Path
 import torch
 
 from sarmission.class_roles import normalise_class
-from sarmission.perception.head import MiteHead
+from sarmission.perception.head import HeadConfig, MiteHead
 from sarmission.perception.runtime import load_head_checkpoint
 
 
@@ -37,8 +37,8 @@ class InitReport:
         return f"initialised from {self.source}: {'; '.join(parts)}"
 
 
-def init_path(value: str | Path) -> Path:
-    """The checkpoint ``--init`` names (``default``: the shipped default head's ``.pt``;
+def init_path(value: str | Path, flag: str = "--init") -> Path:
+    """The checkpoint ``flag`` names (``default``: the shipped default head's ``.pt``;
     ``maritime``, ``land``: that shipped head's)."""
     from sarmission.models import is_head_name, shipped_head_path
 
@@ -46,8 +46,16 @@ def init_path(value: str | Path) -> Path:
         return shipped_head_path(str(value), "torch")
     path = Path(value)
     if path.suffix.lower() not in (".pt", ".pth"):
-        raise ValueError(f"--init needs a .pt checkpoint (the trained head), got {path}")
+        raise ValueError(f"{flag} needs a .pt checkpoint (the trained head), got {path}")
     return path
+
+
+def architecture_differences(mine: HeadConfig, theirs: HeadConfig) -> list[str]:
+    """``"name theirs vs mine"`` for every setting but the classes in which two heads differ
+    (empty when one's weights fit the other)."""
+    a = {k: v for k, v in asdict(mine).items() if k != "classes"}
+    b = {k: v for k, v in asdict(theirs).items() if k != "classes"}
+    return [f"{k} {b.get(k)} vs {a[k]}" for k in sorted(a) if a[k] != b.get(k)]
 
 
 def initialise_from(
@@ -60,13 +68,11 @@ def initialise_from(
     ``ValueError`` when the architectures differ."""
     path = init_path(source)
     trained = load_head_checkpoint(path)
-    mine = {k: v for k, v in asdict(model.config).items() if k != "classes"}
-    theirs = {k: v for k, v in asdict(trained.config).items() if k != "classes"}
-    if mine != theirs:
-        differ = sorted(k for k in mine if mine[k] != theirs.get(k))
+    differ = architecture_differences(model.config, trained.config)
+    if differ:
         raise ValueError(
             f"--init {path}: its architecture differs from the head being trained "
-            f"({', '.join(f'{k} {theirs.get(k)} vs {mine[k]}' for k in differ)})"
+            f"({', '.join(differ)})"
         )
     layer = model.cls_branch.fc[-1]
     old_layer = trained.cls_branch.fc[-1]

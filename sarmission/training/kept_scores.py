@@ -21,7 +21,6 @@ mission.
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 
 import torch
@@ -30,14 +29,14 @@ from torch import Tensor
 
 from sarmission.class_roles import normalise_class, person_class_ids
 from sarmission.perception.head import MiteHead
+from sarmission.training.init_weights import architecture_differences, init_path
 
 
 class ScoreKeeper:
     """The frozen keeper head and which of its classes the new head's person classes are."""
 
     def __init__(self, keeper: MiteHead, classes: tuple[str, ...], source: Path | str) -> None:
-        mine = {k: v for k, v in asdict(keeper.config).items() if k != "classes"}
-        own = person_class_ids(classes)
+        own = person_class_ids(classes).tolist()
         theirs = {normalise_class(c): i for i, c in enumerate(keeper.config.classes)}
         missing = [classes[i] for i in own if normalise_class(classes[i]) not in theirs]
         if missing:
@@ -48,24 +47,22 @@ class ScoreKeeper:
         self.keeper = keeper.eval()
         for p in self.keeper.parameters():
             p.requires_grad_(False)
-        self.settings = mine
         self.student_ids = torch.as_tensor(own, dtype=torch.long)
         self.keeper_ids = torch.as_tensor(
             [theirs[normalise_class(classes[i])] for i in own], dtype=torch.long
         )
         #: Label ids that are classes of the new head's own other than people.
         self.other_ids = torch.as_tensor(
-            [i for i in range(len(classes)) if i not in set(own.tolist())], dtype=torch.long
+            [i for i in range(len(classes)) if i not in own], dtype=torch.long
         )
 
     def check_fits(self, model: MiteHead, source: Path | str) -> None:
         """Raise ``ValueError`` when ``model`` cuts or sees crops otherwise than the keeper."""
-        mine = {k: v for k, v in asdict(model.config).items() if k != "classes"}
-        differ = sorted(k for k in mine if mine[k] != self.settings.get(k))
+        differ = architecture_differences(model.config, self.keeper.config)
         if differ:
             raise ValueError(
                 f"--keep-scores {source}: it differs from the head being trained in "
-                + ", ".join(f"{k} ({self.settings.get(k)} vs {mine[k]})" for k in differ)
+                + ", ".join(differ)
             )
 
     def loss(self, logits: Tensor, crops: Tensor, labels: Tensor) -> Tensor:
@@ -86,10 +83,7 @@ def load_keeper(source: str | Path, classes: tuple[str, ...]) -> ScoreKeeper:
 
     Raises :class:`~sarmission.perception.runtime.ModelLoadError` for an unreadable file and
     ``ValueError`` when it does not name the new head's person classes."""
-    from sarmission.models import is_head_name, shipped_head_path
     from sarmission.perception.runtime import load_head_checkpoint
 
-    path = shipped_head_path(str(source), "torch") if is_head_name(source) else Path(source)
-    if path.suffix.lower() not in (".pt", ".pth"):
-        raise ValueError(f"--keep-scores needs a .pt checkpoint (a trained head), got {path}")
+    path = init_path(source, "--keep-scores")
     return ScoreKeeper(load_head_checkpoint(path), classes, path)
