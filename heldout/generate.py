@@ -12,7 +12,9 @@ SeaDronesSee telemetry in ``meta``, an annotation per visible object with ``trac
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -62,17 +64,25 @@ def render_world(
     images: bool = False,
     first_clip: int = 0,
     progress: bool = False,
+    altitude_m: tuple[float, float] | None = None,
 ) -> Path:
     """Render ``clips`` clips of ``frames`` frames of the world ``name``; returns the JSON path.
 
     Clip ``i`` is drawn from the world's seed and ``first_clip + i``: the same arguments render
-    the same pixels and boxes.
+    the same pixels and boxes. ``altitude_m`` (low, high) replaces the world's altitude range,
+    for studies of the same world seen from nearer or farther (every other draw of a clip is
+    the same; its objects are placed anew over the footprint the new altitude sees).
     """
     if clips < 1 or frames < 1:
         raise ValueError(f"need at least one clip and one frame, got {clips} x {frames}")
     if not fps > 0:
         raise ValueError(f"fps must be positive, got {fps}")
     preset = world(name)
+    if altitude_m is not None:
+        low, high = altitude_m
+        if not (math.isfinite(low) and math.isfinite(high) and 5.0 <= low <= high <= 1000.0):
+            raise ValueError(f"altitude range must be 5 <= LOW <= HIGH <= 1000 m, got {low}-{high}")
+        preset = replace(preset, altitude_m=(float(low), float(high)))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     videos: list[Video] = []
@@ -147,6 +157,7 @@ def render_world(
             "clips": clips,
             "first_clip": first_clip,
             "fps": fps,
+            "altitude_m": list(preset.altitude_m),
         },
     )
     path = out / f"{name}.json"
@@ -162,6 +173,15 @@ def _size(text: str) -> tuple[int, int]:
     if w < 16 or h < 16 or w % 2 or h % 2:
         raise argparse.ArgumentTypeError(f"size must be even and at least 16x16, got {text!r}")
     return w, h
+
+
+def altitude_range(text: str) -> tuple[float, float]:
+    """``LOW,HIGH`` metres, as ``--altitude`` takes it."""
+    try:
+        low, high = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LOW,HIGH in metres, got {text!r}") from None
+    return low, high
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -183,6 +203,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--images", action="store_true", help="JPEG folders instead of MP4")
     parser.add_argument("--out", required=True)
     parser.add_argument("--progress", action="store_true")
+    parser.add_argument(
+        "--altitude",
+        type=altitude_range,
+        default=None,
+        help="LOW,HIGH: fly the clips at this altitude range (m) instead of the world's, to "
+        "see the same world from nearer or farther (default: the world's)",
+    )
     args = parser.parse_args(argv)
     try:
         path = render_world(
@@ -195,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
             args.images,
             args.first_clip,
             args.progress,
+            args.altitude,
         )
     except (ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -137,6 +137,42 @@ def test_same_seed_renders_the_same_clip_and_another_clip_differs(tmp_path: Path
     assert first_a != first_c
 
 
+def test_a_lower_altitude_flies_the_same_clip_nearer_and_people_cover_more_pixels(
+    tmp_path: Path,
+) -> None:
+    """``altitude_m`` replaces the world's range: the clip's altitude lies in it and its
+    people's boxes grow as the altitude falls (the footprint shrinks, the density stays)."""
+
+    def people_widths(altitude: tuple[float, float]) -> tuple[float, list[float]]:
+        path = render_world(
+            "heldout_maritime",
+            1,
+            1,
+            tmp_path / f"{altitude[0]:g}",
+            size=(640, 360),
+            altitude_m=altitude,
+        )
+        dataset = read_coco_video(path)
+        assert json.loads(path.read_text())["info"]["altitude_m"] == list(altitude)
+        widths = [a.bbox[2] for a in dataset.annotations if a.extra["is_target"]]
+        return float(dataset.videos[0].extra["altitude_m"]), widths
+
+    high, high_widths = people_widths((110.0, 120.0))
+    low, low_widths = people_widths((25.0, 30.0))
+    assert 110.0 <= high <= 120.0 and 25.0 <= low <= 30.0
+    assert high_widths and low_widths
+    assert np.median(low_widths) > 3 * np.median(high_widths)
+
+
+def test_command_line_rejects_a_bad_altitude_range_with_one_line(capsys) -> None:
+    with pytest.raises(SystemExit):
+        generate_main(["--altitude", "high", "--out", "/tmp/never-written"])
+    assert "expected LOW,HIGH" in capsys.readouterr().err
+    assert generate_main(["--altitude", "60,30", "--out", "/tmp/never-written"]) == 2
+    assert "altitude range must be" in capsys.readouterr().err
+    assert not Path("/tmp/never-written").exists()
+
+
 def test_command_line_rejects_an_unknown_world_with_one_line(capsys) -> None:
     with pytest.raises(SystemExit):
         generate_main(["--world", "atlantis", "--out", "/tmp/never"])

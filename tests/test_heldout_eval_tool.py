@@ -207,6 +207,21 @@ def test_a_render_of_other_clips_is_not_reused(tool, tmp_path) -> None:
     assert not tool._rendered(tmp_path / "missing.json", 2, 3)
 
 
+def test_clips_flown_at_another_altitude_render_apart_and_say_so(tool, tmp_path, monkeypatch):
+    """A render at another altitude has the same clip and frame counts as the world's own: it
+    goes to a folder of its own, so neither is ever scored as the other."""
+    commands: list[list[str]] = []
+    monkeypatch.setattr(tool, "_run", lambda cmd: commands.append(cmd) or "")
+    reused: list[str] = []
+    plain = tool.render_heldout(tmp_path, "heldout_maritime", 2, 3, reused, 150)
+    low = tool.render_heldout(tmp_path, "heldout_maritime", 2, 3, reused, 150, (35.0, 55.0))
+    assert plain == tmp_path / "heldout_maritime" / "heldout_maritime.json"
+    assert low == tmp_path / "heldout_maritime_alt35-55" / "heldout_maritime.json"
+    assert "--altitude" not in commands[0]
+    assert commands[1][commands[1].index("--altitude") + 1] == "35,55"
+    assert commands[1][commands[1].index("--out") + 1] == str(low.parent)
+
+
 def test_a_buoy_the_head_names_a_buoy_is_not_taken_for_a_person(tool) -> None:
     """With the head's person classes given, only their detections count: a buoy detected as
     ``buoy`` is not taken, one detected as ``swimmer`` is."""
