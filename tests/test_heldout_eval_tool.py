@@ -3,6 +3,7 @@ false detections per frame, counted from a run and its annotations."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -220,6 +221,16 @@ def test_clips_flown_at_another_altitude_render_apart_and_say_so(tool, tmp_path,
     assert "--altitude" not in commands[0]
     assert commands[1][commands[1].index("--altitude") + 1] == "35,55"
     assert commands[1][commands[1].index("--out") + 1] == str(low.parent)
+
+
+def test_a_split_is_evaluated_and_studied_at_the_down_sampling_asked(tool, monkeypatch):
+    seen: list[tuple] = []
+    monkeypatch.setattr(tool, "evaluate", lambda path, model, extra=(): seen.append(extra) or {})
+    monkeypatch.setattr(tool, "box_study", lambda path, model, ds=2: seen.append(ds) or {})
+    monkeypatch.setattr(tool, "clip_conditions", lambda path: [])
+    tool.heldout_split(Path("a.json"), None)
+    tool.heldout_split(Path("a.json"), None, ds=4)
+    assert seen == [(), 2, ("--ds", "4"), 4]
 
 
 def test_a_buoy_the_head_names_a_buoy_is_not_taken_for_a_person(tool) -> None:

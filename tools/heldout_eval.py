@@ -183,15 +183,16 @@ def evaluate(annotations: Path, model: str | None, extra: Sequence[str] = ()) ->
 STILL_M_S = 0.05
 
 
-def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
+def box_study(annotations: Path, model: str | None, ds: int = 2) -> dict[str, Any]:
     """Per-box figures the report does not break down: how large the head draws the people it
     finds, and (held-out files) recall split by whether the person and the camera move.
 
-    Runs MITE-Net with the ``sarmission eval`` defaults (ds 2, N 25, conf 0.3) through the
-    library. A box is proposed when a proposal lies within NWD 0.1 of it; found when a detection
-    of any class with score > 0.5 does; detected when one lies within NWD 0.5 (greedy, not
-    one-to-one: an upper bound of the report's matching). For each found box, the ratio of the
-    nearest such detection's longer side to the box's longer side.
+    Runs MITE-Net with the ``sarmission eval`` defaults (N 25, conf 0.3; vSTMD down-sampling
+    ``ds``, 2 by default) through the library. A box is proposed when a proposal lies within
+    NWD 0.1 of it; found when a detection of any class with score > 0.5 does; detected when
+    one lies within NWD 0.5 (greedy, not one-to-one: an upper bound of the report's matching).
+    For each found box, the ratio of the nearest such detection's longer side to the box's
+    longer side.
     """
     import numpy as np
 
@@ -208,7 +209,7 @@ def box_study(annotations: Path, model: str | None) -> dict[str, Any]:
         if c.name in ("person", "swimmer", "swimmer_with_life_jacket")
     }
     print(f"box study on {annotations.name}", file=sys.stderr)
-    net = MiteNet(build_head_runtime(model, "onnx"), ds=2, topn=25, score_threshold=0.3)
+    net = MiteNet(build_head_runtime(model, "onnx"), ds=ds, topn=25, score_threshold=0.3)
     run = run_mitenet(net, dataset, progress=False)
     # matched once, read at the confirmation's score and along the curve
     objects = object_scores(dataset, run, person_class_ids(net.classes).tolist())
@@ -498,15 +499,19 @@ def head_classes(model: str | None) -> tuple[str, ...]:
     return tuple(build_head_runtime(model, "onnx").config.classes)
 
 
-def heldout_split(annotations: Path, model: str | None, scored: Path | None = None) -> dict:
+def heldout_split(
+    annotations: Path, model: str | None, scored: Path | None = None, ds: int = 2
+) -> dict:
     """One held-out split's results: the report on ``scored`` (an annotation copy with people
-    renamed to the head's class) or on ``annotations`` themselves, its clips and its study."""
+    renamed to the head's class) or on ``annotations`` themselves, its clips and its study,
+    with the vSTMD down-sampling ``ds``."""
+    extra = () if ds == 2 else ("--ds", str(ds))
     return {
         "renderer": "heldout",
         "scored_as": None if scored is None else "person -> swimmer",
-        "report": evaluate(scored or annotations, model),
+        "report": evaluate(scored or annotations, model, extra),
         "clips": clip_conditions(annotations),
-        "study": box_study(annotations, model),
+        "study": box_study(annotations, model, ds),
     }
 
 
@@ -525,9 +530,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         splits["maritime_test"] = {
             "renderer": "sim (own)",
             "scored_as": None,
-            "report": evaluate(own, args.model),
+            "report": evaluate(own, args.model, () if args.ds == 2 else ("--ds", str(args.ds))),
             "clips": None,
-            "study": box_study(own, args.model),
+            "study": box_study(own, args.model, args.ds),
         }
     if args.maritime_clips:
         sea = render_heldout(
@@ -539,7 +544,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             args.first_clip,
             args.altitude,
         )
-        splits["heldout_maritime"] = heldout_split(sea, args.model)
+        splits["heldout_maritime"] = heldout_split(sea, args.model, ds=args.ds)
     if args.clutter_clips:
         clutter = render_heldout(
             work,
@@ -550,7 +555,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             args.first_clip,
             args.altitude,
         )
-        splits[CLUTTER_WORLD] = heldout_split(clutter, args.model)
+        splits[CLUTTER_WORLD] = heldout_split(clutter, args.model, ds=args.ds)
     if args.land_clips:
         land = render_heldout(
             work,
@@ -564,7 +569,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         # a head with a person class (the land head) is scored on people as they are
         person_head = "person" in head_classes(args.model)
         splits["heldout_land"] = heldout_split(
-            land, args.model, None if person_head else persons_as_swimmers(land)
+            land, args.model, None if person_head else persons_as_swimmers(land), args.ds
         )
     return {
         "command": "python tools/heldout_eval.py " + shlex.join(sys.argv[1:]),
@@ -584,6 +589,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "clutter_clips": args.clutter_clips,
             "first_clip": args.first_clip,
             "altitude_m": list(args.altitude) if args.altitude else None,
+            "ds": args.ds,
             "model": args.model or "shipped default",
         },
         "splits": splits,
@@ -622,7 +628,7 @@ def render_section(results: Mapping[str, Any]) -> str:
             if results.get("renders_reused")
             else ""
         )
-        + "). Detector: `sarmission eval` defaults (ds 2, N 25, conf 0.3; match at "
+        + f"). Detector: `sarmission eval` defaults (ds {s.get('ds', 2)}, N 25, conf 0.3; match at "
         f"score > 0.5, NWD > 0.5; lock 3 of 5), model: {s['model']}.",
         "",
         f"- `maritime_test`: the simulator's own test split, {s['own_sequences']} clips x "
@@ -956,6 +962,14 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="LOW,HIGH: fly the held-out clips at this altitude range (m) instead of their "
         "world's, to see the same worlds from nearer or farther (default: the worlds')",
+    )
+    parser.add_argument(
+        "--ds",
+        type=int,
+        choices=(1, 2, 4, 8),
+        default=2,
+        help="vSTMD down-sampling of every split, e.g. 4 for clips flown at half the "
+        "altitude, so that people cover as many down-sampled pixels (default: 2)",
     )
     parser.add_argument("--model", default=None, help="head weights (default: the shipped one)")
     parser.add_argument("--doc", default=str(DEFAULT_DOC), help="Markdown file to update")
