@@ -46,6 +46,20 @@ def test_mp4_video(tmp_path):
     assert len(list(source)) == 7  # iterable again
 
 
+def test_a_video_whose_container_states_no_frame_count_is_still_a_source(tmp_path):
+    """Matroska and MPEG-TS (stream recordings) do not state a frame count: the source says
+    ``length`` None, and is still true in a condition (``if source`` once called ``len()``,
+    which raises for an unknown count, and ended a replay after its last frame)."""
+    path = tmp_path / "clip.mkv"
+    write_video(path, "MJPG", 5)
+    source = open_frame_source(path, yuv=True)
+    assert source.length is None
+    with pytest.raises(TypeError, match="frame count unknown"):
+        len(source)
+    assert source and bool(source) is True
+    assert [f.index for f in source] == list(range(5))
+
+
 def test_video_with_corrupt_frame_is_skipped(tmp_path, caplog):
     path = tmp_path / "clip.avi"
     write_video(path, "MJPG", 6, make=noise)  # noise: each JPEG is a few kB

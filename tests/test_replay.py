@@ -172,6 +172,34 @@ def test_replay_without_telemetry_invents_no_position(tmp_path, capsys):
     assert all(",,," in r and "position unknown: no telemetry" in r for r in rows[1:])
 
 
+def test_replay_of_a_video_without_a_frame_count_ends_with_its_summary(tmp_path, capsys):
+    """A Matroska recording (no frame count in the container) is replayed to the end, its
+    summary printed and the report written, with no traceback."""
+    frames = [cv2.imread(str(p)) for p in write_clip(tmp_path / "clip")]
+    path = tmp_path / "clip.mkv"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10.0, (320, 180))
+    for frame in frames:
+        writer.write(frame)
+    writer.release()
+    code = main(
+        [
+            "replay",
+            str(path),
+            "--mission",
+            str(MISSION),
+            "--ds",
+            "1",
+            "--no-progress",
+            "--report",
+            str(tmp_path / "report"),
+        ]
+    )
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "clip.mkv (? frames)" in out
+    assert (tmp_path / "report" / "alerts.csv").is_file()
+
+
 def test_replay_with_a_tlog_aligned_by_offset_writes_the_report(tmp_path, capsys):
     write_clip(tmp_path / "clip")
     write_tlog(tmp_path / "flight.tlog", seconds=10.0, pitch_deg=-90.0)

@@ -309,7 +309,9 @@ def run(args: argparse.Namespace) -> int:
             if recorder is not None:
                 recorder.close()
             store.close()
-        unreadable = counters.get("skipped", 0) + (file_source.skipped if file_source else 0)
+        unreadable = counters.get("skipped", 0) + (
+            file_source.skipped if file_source is not None else 0
+        )
         _print_outcome(controller.summary(wall), unreadable, recorder, args.alerts_db)
         if args.report:
             _write_report(args, db_path, controller, source, frame_times, path)

@@ -110,6 +110,12 @@ class FrameSource(ABC):
     def length(self) -> int | None:
         """Number of frames in the source, or ``None`` when the container does not say."""
 
+    def __bool__(self) -> bool:
+        """A source is a source, whatever its count: without this, ``if source`` would call
+        :meth:`__len__`, which raises for a container that does not state its frame count
+        (Matroska, MPEG-TS)."""
+        return True
+
     def __len__(self) -> int:
         """The frame count; ``TypeError`` when unknown (check :attr:`length` first)."""
         if self.length is None:
