@@ -104,6 +104,20 @@ def test_dji_srt_positions_gimbal_signs_and_missing_lines(tmp_path: Path) -> Non
     assert axis == pytest.approx([-0.5, 0.0, math.sin(math.radians(60))], abs=1e-6)
 
 
+def test_dji_srt_in_the_firmwares_own_spelling_and_without_colons(tmp_path: Path) -> None:
+    """DJI firmwares write ``longtitude`` (sic) and, on older models, pairs without a colon;
+    a reader of ``longitude:`` alone found no position in any of their blocks."""
+    text = dji_srt_text(frames=6).replace("[longitude:", "[longtitude:")
+    text = text.replace("[rel_alt: 60.000 abs_alt: 180.000]", "[rel_alt 60.000 abs_alt 180.000]")
+    path = tmp_path / "DJI_0003.SRT"
+    path.write_text(text)
+    log = open_flight_log(path)
+    assert len(log.positions) == 6 and not log.rejected
+    assert log.home == (LAT0, LON0, pytest.approx(120.0))
+    assert [p.lon for p in log.positions] == pytest.approx([LON0] * 6)
+    assert log.gimbal
+
+
 def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:
     path = tmp_path / "DJI_0002.SRT"
     path.write_text(dji_srt_text(frames=10, gimbal=False))

@@ -5,7 +5,9 @@ An SRT is text: numbered blocks, each a ``start --> end`` time in the video
 
 - bracketed (Mavic 2/3, Air 2S, Mini 2/3/4, M30 ...): ``[latitude: 43.1] [longitude: 10.2]
   [rel_alt: 50.0 abs_alt: 120.0]`` (or ``[altitude: 50.0]``), gimbal as
-  ``[gb_yaw: 90.1 gb_pitch: -90.0 gb_roll: 0.0]`` where the model writes it;
+  ``[gb_yaw: 90.1 gb_pitch: -90.0 gb_roll: 0.0]`` where the model writes it. Several
+  firmwares (Mavic 2 Enterprise, Mini 2, Air 2S) spell it ``longtitude``, and older ones drop
+  the colons (``[rel_alt 57.2 abs_alt 204.6]``): both are read;
 - parenthesised (Phantom 4, Mavic Pro, Inspire): ``GPS(10.2,43.1,16)`` (longitude first!),
   ``BAROMETER:50.3`` or ``H 50.3m`` the height above take-off.
 
@@ -31,7 +33,7 @@ _NUM = r"([-+]?\d+(?:\.\d+)?)"
 
 def _field(text: str, *names: str) -> float | None:
     for name in names:
-        m = re.search(rf"\b{name}\s*[:=]\s*{_NUM}", text)
+        m = re.search(rf"\b{name}\s*[:=]?\s*{_NUM}", text)
         if m:
             return float(m.group(1))
     return None
@@ -47,7 +49,7 @@ def _values(text: str) -> dict[str, float | None]:
     if gps:  # GPS(lon, lat, satellites or altitude)
         lon, lat = float(gps.group(1)), float(gps.group(2))
     else:
-        lat, lon = _field(text, "latitude"), _field(text, "longitude")
+        lat, lon = _field(text, "latitude"), _field(text, "longitude", "longtitude")
     height = _field(text, "rel_alt", "altitude", "BAROMETER")
     if height is None:
         m = re.search(rf"\bH\s*{_NUM}\s*m", text)
