@@ -223,14 +223,27 @@ def test_clips_flown_at_another_altitude_render_apart_and_say_so(tool, tmp_path,
     assert commands[1][commands[1].index("--out") + 1] == str(low.parent)
 
 
-def test_a_split_is_evaluated_and_studied_at_the_down_sampling_asked(tool, monkeypatch):
+def test_a_split_is_evaluated_and_studied_with_the_detector_settings_asked(tool, monkeypatch):
     seen: list[tuple] = []
     monkeypatch.setattr(tool, "evaluate", lambda path, model, extra=(): seen.append(extra) or {})
-    monkeypatch.setattr(tool, "box_study", lambda path, model, ds=2: seen.append(ds) or {})
+    monkeypatch.setattr(
+        tool, "box_study", lambda path, model, ds=2, scales=(1.0,): seen.append((ds, scales)) or {}
+    )
     monkeypatch.setattr(tool, "clip_conditions", lambda path: [])
     tool.heldout_split(Path("a.json"), None)
     tool.heldout_split(Path("a.json"), None, ds=4)
-    assert seen == [(), 2, ("--ds", "4"), 4]
+    tool.heldout_split(Path("a.json"), None, crop_scales=(4.0,))
+    tool.heldout_split(Path("a.json"), None, ds=8, crop_scales=(1.0, 2.5))
+    assert seen == [
+        (),
+        (2, (1.0,)),
+        ("--ds", "4"),
+        (4, (1.0,)),
+        ("--crop-scales", "4"),
+        (2, (4.0,)),
+        ("--ds", "8", "--crop-scales", "1,2.5"),
+        (8, (1.0, 2.5)),
+    ]
 
 
 def test_a_buoy_the_head_names_a_buoy_is_not_taken_for_a_person(tool) -> None:
