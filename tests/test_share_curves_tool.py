@@ -94,7 +94,7 @@ def test_the_page_compares_each_render_with_the_reference_at_equal_people(tool, 
     ref_row = next(line for line in text.splitlines() if line.startswith("| `ref`"))
     low_row = next(line for line in text.splitlines() if line.startswith("| `low`"))
     assert ref_row.endswith("| 40 % (0.7, 60 %) |")
-    assert low_row.endswith("| 20 % (0.5, 60 %) |") and "| 35-55 |" in low_row
+    assert low_row.endswith("| 20 % (0.5, 60 %) |") and "| 35-55 | 2 | 1 S |" in low_row
     assert tool.main(["--doc", str(doc), f"ref={ref}"]) == 0
     assert text.count(tool.BEGIN) == 1 and doc.read_text().count(tool.BEGIN) == 1
 

@@ -84,10 +84,10 @@ def render(labelled: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
         + "; ".join(f"`{label}`: `{result['command']}`" for label, result, _ in curves)
         + ".",
         "",
-        "| render | altitude m | ds | people / jacket wearers / distractors | front-end recall "
-        f"(NWD 0.1) | at {REFERENCE_SCORE:g}: people / jacket wearers / distractors / buoys / "
-        f"debris | distractors at {_pct(ref_people)} of people (threshold, people) |",
-        "|---|---|---|---|---|---|---|",
+        "| render | altitude m | ds | crop | people / jacket wearers / distractors | front-end "
+        f"recall (NWD 0.1) | at {REFERENCE_SCORE:g}: people / jacket wearers / distractors / "
+        f"buoys / debris | distractors at {_pct(ref_people)} of people (threshold, people) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for label, result, curve in curves:
         settings = result.get("settings", {})
@@ -100,8 +100,9 @@ def render(labelled: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
             _pct(groups[g][1][i]) for g in ("people", "jackets", "distractors", "buoys", "debris")
         )
         flown = f"{altitude[0]:g}-{altitude[1]:g}" if altitude else "the worlds' own"
+        crop = ", ".join(f"{c:g}" for c in settings.get("crop_scales", [1.0]))
         lines.append(
-            f"| `{label}` | {flown} | {settings.get('ds', 2)} | {groups['people'][0]} / "
+            f"| `{label}` | {flown} | {settings.get('ds', 2)} | {crop} S | {groups['people'][0]} / "
             f"{groups['jackets'][0]} / {groups['distractors'][0]} | {recall:.2f} | {at_score} | "
             f"{_pct(distractors)} ({threshold:g}, {_pct(people)}) |"
         )
