@@ -23,7 +23,7 @@ from flightlog_fixtures import (
 from sarmission.flightlog.align import AlignmentError, align_images, align_video
 from sarmission.flightlog.detect import open_flight_log, sniff
 from sarmission.flightlog.feed import LogFeeder
-from sarmission.flightlog.model import FlightLog, FlightLogError
+from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
 from sarmission.geo.frames import rotation_ned_from_camera
 from sarmission.geo.geolocate import PlatformPose
 from sarmission.mavlink.telemetry import TelemetryBuffer
@@ -116,6 +116,50 @@ def test_dji_srt_in_the_firmwares_own_spelling_and_without_colons(tmp_path: Path
     assert log.home == (LAT0, LON0, pytest.approx(120.0))
     assert [p.lon for p in log.positions] == pytest.approx([LON0] * 6)
     assert log.gimbal
+
+
+def _track(glitches: dict[int, tuple[float, float]], n: int = 60) -> FlightLog:
+    """``n`` positions a second apart along a line at 10 m/s; ``glitches`` replaces samples
+    by index with (lat, lon) far away."""
+    builder = LogBuilder("test", Path("t.log"), "test clock", ACCURACY["autopilot"])
+    for i in range(n):
+        lat, lon = glitches.get(i, (LAT0 + i * 10 / 111_320, LON0))
+        builder.position(float(i), lat, lon, 50.0, 150.0)
+    return builder.build()
+
+
+@pytest.mark.parametrize(
+    ("glitches", "kept"),
+    [
+        ({0: (LAT0 + 0.27, LON0)}, 59),  # a stale first fix 30 km away
+        ({i: (LAT0 + 0.27, LON0 + 0.01 * (i % 3)) for i in range(30)}, 30),  # 30 stale fixes
+        ({25: (0.5, 0.5)}, 59),  # one glitch in flight
+        ({i: (LAT0 - 0.5, LON0) for i in range(10, 20)}, 50),  # a burst of ten in flight
+        ({}, 60),
+    ],
+)
+def test_positions_are_judged_by_the_track_most_of_them_agree_on(glitches, kept) -> None:
+    """A fix is a jump against the track the log's other fixes make, not against the previous
+    believed one: a stale first fix once made every true position after it a jump, and the
+    log's one 'believed' position was 30 km from the aircraft."""
+    log = _track(glitches)
+    assert len(log.positions) == kept
+    assert all(abs(p.lat - LAT0) < 0.01 and p.lon == LON0 for p in log.positions)
+    assert log.rejected["position jump faster than an aircraft"] == 60 - kept
+    assert log.home == (pytest.approx(log.positions[0].lat), LON0, pytest.approx(100.0))
+
+
+def test_an_srt_whose_first_block_is_stale_keeps_the_flight_and_its_home(tmp_path: Path) -> None:
+    text = dji_srt_text(frames=20)
+    first = f"[latitude: {LAT0:.6f}]"
+    assert first in text
+    text = text.replace(first, f"[latitude: {LAT0 + 0.27:.6f}]", 1)
+    path = tmp_path / "DJI_0004.SRT"
+    path.write_text(text)
+    log = open_flight_log(path)
+    assert len(log.positions) == 19
+    assert log.home == (pytest.approx(LAT0 + 1e-6), LON0, pytest.approx(120.0))
+    assert log.home_note == "home altitude from the first block (abs_alt - rel_alt)"
 
 
 def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:

@@ -130,7 +130,11 @@ def read_dji_images(folder: str | Path) -> FlightLog:
         else []
     )
     builder = LogBuilder(
-        "DJI image EXIF/XMP", folder, "capture time (DateTimeOriginal)", ACCURACY["dji"]
+        "DJI image EXIF/XMP",
+        folder,
+        "capture time (DateTimeOriginal)",
+        ACCURACY["dji"],
+        home_note="home altitude from the first image (AbsoluteAltitude - RelativeAltitude)",
     )
     log = builder.log
     placed: list[tuple[str, dict[str, Any]]] = []
@@ -177,9 +181,6 @@ def _add(builder: LogBuilder, name: str, info: dict[str, Any], t: float) -> None
     if not builder.position(t, lat, lon, info["rel_alt"], abs_alt):
         return
     log.image_times[name] = t
-    if log.home is None and math.isfinite(abs_alt):
-        log.home = (lat, lon, abs_alt - info["rel_alt"])
-        log.home_note = "home altitude from the first image (AbsoluteAltitude - RelativeAltitude)"
     g_roll, g_pitch, g_yaw = info["gimbal"]
     f_roll, f_pitch, f_yaw = info["flight"]
     if g_pitch is None or g_yaw is None:

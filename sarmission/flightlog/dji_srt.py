@@ -72,7 +72,13 @@ def read_dji_srt(path: str | Path) -> FlightLog:
         text = path.read_bytes().decode("utf-8", errors="replace")
     except OSError as exc:
         raise FlightLogError(f"{path.name}: cannot read ({exc.strerror})") from exc
-    builder = LogBuilder("DJI SRT", path, "the video's own time", ACCURACY["dji"])
+    builder = LogBuilder(
+        "DJI SRT",
+        path,
+        "the video's own time",
+        ACCURACY["dji"],
+        home_note="home altitude from the first block (abs_alt - rel_alt)",
+    )
     log = builder.log
     log.per_frame = True
     blocks = re.split(r"\r?\n\s*\r?\n", text.replace("\ufeff", ""))
@@ -92,9 +98,6 @@ def read_dji_srt(path: str | Path) -> FlightLog:
         abs_alt = v["abs_alt"] if v["abs_alt"] is not None else math.nan
         if not builder.position(t, v["lat"], v["lon"], v["rel_alt"], abs_alt):
             continue
-        if log.home is None and math.isfinite(abs_alt):
-            log.home = (v["lat"], v["lon"], abs_alt - v["rel_alt"])
-            log.home_note = "home altitude from the first block (abs_alt - rel_alt)"
         if v["gb_pitch"] is not None and v["gb_yaw"] is not None:
             yaw = math.radians(v["gb_yaw"])
             builder.attitude_euler(t, 0.0, 0.0, yaw)  # vehicle yaw unknown; earth-frame gimbal

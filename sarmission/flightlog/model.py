@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sarmission.geo.wgs84 import geodetic_to_ned
 from sarmission.mavlink.telemetry_checks import MAX_SPEED_MPS, lat_lon_problem, quaternion_problem
 
 #: Seconds between the POSIX and GPS epochs (1970-01-01 to 1980-01-06).
@@ -158,8 +157,18 @@ def _finite(*values: float) -> bool:
 class LogBuilder:
     """Collects a reader's samples, checking each (see the module docstring)."""
 
-    def __init__(self, fmt: str, path: Path, clock: str, accuracy: Accuracy) -> None:
+    def __init__(
+        self,
+        fmt: str,
+        path: Path,
+        clock: str,
+        accuracy: Accuracy,
+        home_note: str = "home altitude from the first position (AMSL - height above home)",
+    ) -> None:
         self.log = FlightLog(fmt, Path(path), clock, accuracy)
+        #: What :meth:`build` says of a home taken from the first believed position (when the
+        #: reader found none of its own).
+        self.home_note = home_note
 
     def reject(self, reason: str) -> None:
         """Count one sample not believed."""
@@ -202,17 +211,8 @@ class LogBuilder:
         if positions and t < positions[-1].t:
             self.reject("position time going backwards")
             return False
-        if positions and self._jump(positions[-1], sample):
-            self.reject("position jump faster than an aircraft")
-            return False
-        positions.append(sample)
+        positions.append(sample)  # jumps are judged over the whole track in build()
         return True
-
-    @staticmethod
-    def _jump(prev: PositionSample, cur: PositionSample) -> bool:
-        dt = cur.t - prev.t
-        n, e, _ = geodetic_to_ned(cur.lat, cur.lon, 0.0, prev.lat, prev.lon, 0.0)
-        return math.hypot(float(n), float(e)) > MAX_SPEED_MPS * max(dt, 0.1) + JUMP_SLACK_M
 
     def attitude_euler(self, t: float, roll: float, pitch: float, yaw: float) -> bool:
         """Add a vehicle attitude from ZYX Euler radians."""
@@ -258,6 +258,10 @@ class LogBuilder:
     def build(self) -> FlightLog:
         """The log; :class:`FlightLogError` when it has no believable position."""
         log = self.log
+        kept = consistent_track(log.positions)
+        if len(kept) < len(log.positions):
+            log.rejected["position jump faster than an aircraft"] += len(log.positions) - len(kept)
+            log.positions = kept
         if not log.positions:
             why = (
                 f" ({', '.join(f'{n} {r}' for r, n in log.rejected.most_common(2))})"
@@ -272,11 +276,56 @@ class LogBuilder:
             first = next((p for p in log.positions if math.isfinite(p.alt_m)), None)
             if first is not None:
                 log.home = (first.lat, first.lon, first.alt_m - first.rel_alt_m)
-                log.home_note = "home altitude from the first position (AMSL - height above home)"
+                log.home_note = self.home_note
             else:  # heights above home are all a flat-ground fix needs
                 log.home = (log.positions[0].lat, log.positions[0].lon, math.nan)
                 log.home_note = "home altitude AMSL not in the log (heights are above take-off)"
         return log
+
+
+def consistent_track(positions: list[PositionSample]) -> list[PositionSample]:
+    """The largest set of ``positions`` (in time order) an aircraft could have flown: each
+    sample joins the longest chain whose latest sample it can be reached from at
+    :data:`MAX_SPEED_MPS` (plus :data:`JUMP_SLACK_M`), else starts a chain of its own; the
+    longest chain is kept. Judged against the previous believed sample only, one stale first
+    fix (a previous flight's, a glitch) made every true position after it a jump."""
+    if len(positions) < 2:
+        return list(positions)
+    # metres on a plane about the first sample: exact enough at the distances that decide
+    # (an aircraft's reach in a few seconds); far glitches stay far on it
+    lat0, lon0 = positions[0].lat, positions[0].lon
+    scale = 111_320.0
+    north = np.array([(p.lat - lat0) * scale for p in positions])
+    east = np.array(
+        [
+            ((p.lon - lon0 + 180.0) % 360.0 - 180.0) * scale * math.cos(math.radians(lat0))
+            for p in positions
+        ]
+    )
+    times = np.array([p.t for p in positions])
+    # chain ends: index of the latest sample, and the chain's length
+    ends = np.zeros(len(positions), dtype=np.int64)
+    lengths = np.zeros(len(positions), dtype=np.int64)
+    member = np.zeros(len(positions), dtype=np.int64)
+    chains = 0
+    for i in range(len(positions)):
+        if chains:
+            last = ends[:chains]
+            reach = MAX_SPEED_MPS * np.maximum(times[i] - times[last], 0.1) + JUMP_SLACK_M
+            gap = np.hypot(north[i] - north[last], east[i] - east[last])
+            able = np.flatnonzero(gap <= reach)
+            if able.size:
+                best = able[np.argmax(lengths[able] * len(positions) + last[able])]
+                ends[best] = i
+                lengths[best] += 1
+                member[i] = best
+                continue
+        ends[chains] = i
+        lengths[chains] = 1
+        member[i] = chains
+        chains += 1
+    keep = int(np.argmax(lengths[:chains]))
+    return [p for p, m in zip(positions, member, strict=True) if m == keep]
 
 
 def _unit(q: tuple[float, ...]) -> tuple[float, float, float, float]:
