@@ -162,6 +162,26 @@ def test_an_srt_whose_first_block_is_stale_keeps_the_flight_and_its_home(tmp_pat
     assert log.home_note == "home altitude from the first block (abs_alt - rel_alt)"
 
 
+@pytest.mark.parametrize(("height", "believed"), [(55.0, True), (1429.7, False)])
+def test_dji_srt_altitude_without_rel_alt_is_believed_only_as_a_flying_height(
+    tmp_path: Path, height: float, believed: bool
+) -> None:
+    """``[altitude: x]`` is above take-off on some firmwares and above sea level on others
+    (1429.7 m over Kigali): taken as a height above take-off it put alerts 1.6 km off."""
+    text = dji_srt_text(frames=5).replace(
+        "[rel_alt: 60.000 abs_alt: 180.000]", f"[altitude: {height}]"
+    )
+    path = tmp_path / "DJI_0005.SRT"
+    path.write_text(text)
+    if believed:
+        log = open_flight_log(path)
+        assert [p.rel_alt_m for p in log.positions] == [height] * 5
+        assert any("above sea level" in n for n in log.notes)
+    else:
+        with pytest.raises(FlightLogError, match="reach 1430 m: above sea level"):
+            open_flight_log(path)
+
+
 def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:
     path = tmp_path / "DJI_0002.SRT"
     path.write_text(dji_srt_text(frames=10, gimbal=False))

@@ -235,6 +235,26 @@ def test_replay_with_a_tlog_aligned_by_offset_writes_the_report(tmp_path, capsys
     assert all(f["properties"]["error_m"] >= 1.5 for f in placed)
 
 
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--telemetry", "flight.tlg"], "--telemetry flight.tlg: no such file"),
+        (["--time-offset", "nan"], "--time-offset must be a number of seconds, got nan"),
+    ],
+)
+def test_replay_refuses_a_missing_log_or_a_bad_offset_before_any_frame(
+    tmp_path, capsys, monkeypatch, extra, message
+):
+    """A typo in the log's name once cost a whole replay without positions (exit 0)."""
+    write_clip(tmp_path / "clip")
+    monkeypatch.chdir(tmp_path)
+    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), *extra])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert message in captured.err and len(captured.err.strip().splitlines()) == 1
+    assert "frames processed" not in captured.out
+
+
 def test_replay_refuses_a_log_of_another_day(tmp_path, capsys):
     write_mp4(tmp_path / "clip.mp4", frames=8, created=START_UTC + 3 * 86400)
     write_tlog(tmp_path / "flight.tlog", seconds=10.0)

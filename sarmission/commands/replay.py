@@ -7,6 +7,7 @@ pixels on terrain, ``--report DIR`` writes the post-flight report."""
 from __future__ import annotations
 
 import argparse
+import math
 import tempfile
 import time
 from collections.abc import Iterator
@@ -221,6 +222,24 @@ def _print_outcome(summary: str, unreadable: int, recorder: Any, alerts_db: str 
         print(f"alerts in {alerts_db}")
 
 
+#: ``--telemetry`` values that name no file.
+TELEMETRY_KEYWORDS = ("auto", "none", "meta", "sim")
+
+
+def check_telemetry_args(telemetry: str, time_offset: float | None) -> None:
+    """ValueError, before any frame is read, for a ``--telemetry`` file that is not there (a
+    typo would otherwise cost a whole replay without positions) or an offset that is no
+    number of seconds. A log that is there but cannot be believed is refused later, with its
+    reason, and the replay goes on without positions."""
+    if telemetry not in TELEMETRY_KEYWORDS and not Path(telemetry).exists():
+        raise ValueError(
+            f"--telemetry {telemetry}: no such file (a flight log, or one of "
+            f"{', '.join(TELEMETRY_KEYWORDS)})"
+        )
+    if time_offset is not None and not math.isfinite(time_offset):
+        raise ValueError(f"--time-offset must be a number of seconds, got {time_offset}")
+
+
 def run(args: argparse.Namespace) -> int:
     from sarmission.alerts.store import AlertStore
     from sarmission.data.frames import Frame
@@ -233,6 +252,7 @@ def run(args: argparse.Namespace) -> int:
     path = Path(args.input)
     if args.fps <= 0:
         raise ValueError(f"--fps must be positive, got {args.fps}")
+    check_telemetry_args(args.telemetry, args.time_offset)
     counters: dict[str, int] = {}
     frames, total, with_meta, conventions, file_source = _footage(args, path, counters)
     names = _image_names(file_source)

@@ -4,7 +4,8 @@ An SRT is text: numbered blocks, each a ``start --> end`` time in the video
 (``HH:MM:SS,mmm``) and lines of values. Two layouts are read:
 
 - bracketed (Mavic 2/3, Air 2S, Mini 2/3/4, M30 ...): ``[latitude: 43.1] [longitude: 10.2]
-  [rel_alt: 50.0 abs_alt: 120.0]`` (or ``[altitude: 50.0]``), gimbal as
+  [rel_alt: 50.0 abs_alt: 120.0]`` (or ``[altitude: 50.0]``: some firmwares write it above
+  sea level, so it is believed only up to :data:`MAX_BARE_HEIGHT_M`), gimbal as
   ``[gb_yaw: 90.1 gb_pitch: -90.0 gb_roll: 0.0]`` where the model writes it. Several
   firmwares (Mavic 2 Enterprise, Mini 2, Air 2S) spell it ``longtitude``, and older ones drop
   the colons (``[rel_alt 57.2 abs_alt 204.6]``): both are read;
@@ -27,6 +28,10 @@ from pathlib import Path
 
 from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
 
+#: Largest ``altitude`` (without ``rel_alt``) believed to be a height above take-off: drones
+#: fly at most 120-150 m above the ground where they are flown legally; a larger one is a
+#: height above sea level, which the file gives no take-off altitude to turn into a height.
+MAX_BARE_HEIGHT_M = 150.0
 _TIME = re.compile(r"(\d+):(\d{2}):(\d{2})[,.](\d{1,3})\s*-->")
 _NUM = r"([-+]?\d+(?:\.\d+)?)"
 
@@ -50,14 +55,16 @@ def _values(text: str) -> dict[str, float | None]:
         lon, lat = float(gps.group(1)), float(gps.group(2))
     else:
         lat, lon = _field(text, "latitude"), _field(text, "longitude", "longtitude")
-    height = _field(text, "rel_alt", "altitude", "BAROMETER")
+    height = _field(text, "rel_alt", "BAROMETER")
     if height is None:
         m = re.search(rf"\bH\s*{_NUM}\s*m", text)
         height = float(m.group(1)) if m else None
+    bare = _field(text, "altitude") if height is None else None
     return {
         "lat": lat,
         "lon": lon,
-        "rel_alt": height,
+        "rel_alt": height if bare is None else bare,
+        "bare_altitude": bare,
         "abs_alt": _field(text, "abs_alt"),
         "gb_yaw": _field(text, "gb_yaw"),
         "gb_pitch": _field(text, "gb_pitch"),
@@ -83,6 +90,7 @@ def read_dji_srt(path: str | Path) -> FlightLog:
     log.per_frame = True
     blocks = re.split(r"\r?\n\s*\r?\n", text.replace("\ufeff", ""))
     missing = 0
+    bare_heights: list[float] = []
     for block in blocks:
         if not block.strip():
             continue
@@ -95,6 +103,8 @@ def read_dji_srt(path: str | Path) -> FlightLog:
             missing += 1
             continue
         t = _seconds(m)
+        if v["bare_altitude"] is not None:
+            bare_heights.append(v["bare_altitude"])
         abs_alt = v["abs_alt"] if v["abs_alt"] is not None else math.nan
         if not builder.position(t, v["lat"], v["lon"], v["rel_alt"], abs_alt):
             continue
@@ -104,6 +114,18 @@ def read_dji_srt(path: str | Path) -> FlightLog:
             builder.gimbal_euler(
                 t, math.radians(v["gb_roll"] or 0.0), math.radians(v["gb_pitch"]), yaw, "earth"
             )
+    if bare_heights and max(bare_heights) > MAX_BARE_HEIGHT_M:
+        raise FlightLogError(
+            f"{path.name}: heights given as 'altitude' (no rel_alt) reach "
+            f"{max(bare_heights):.0f} m: above sea level on this model, not above take-off, "
+            "and the file has no height above take-off; no position from it"
+        )
+    if bare_heights:
+        log.notes.append(
+            f"{path.name}: heights given as 'altitude' (no rel_alt) taken as above take-off "
+            f"(at most {max(bare_heights):.0f} m); some firmwares write it above sea level, "
+            "which misplaces every alert inland"
+        )
     if missing:
         log.rejected["subtitle block without a time or position"] += missing
         log.notes.append(
