@@ -176,9 +176,11 @@ def px4_ulog(
     yaw_deg: float = 90.0,
     fix: int = 3,
     with_home: bool = True,
+    homes: Sequence[tuple[int, float, float, float]] = ((0, LAT0, LON0, 100.0),),
 ) -> None:
     """A PX4 hover 40 m above a home 100 m AMSL, yaw ``yaw_deg``, gimbal in the vehicle frame
-    pitched ``gimbal_pitch_deg``, a camera capture at 2 s, GNSS UTC from START_UTC."""
+    pitched ``gimbal_pitch_deg``, a camera capture at 2 s, GNSS UTC from START_UTC.
+    ``homes``: home_position rows as (sample index, lat, lon, alt)."""
     from sarmission.geo.frames import euler_to_quaternion
 
     n = int(seconds * 10)
@@ -204,7 +206,7 @@ def px4_ulog(
     if with_home:
         topics["home_position"] = (
             "uint64_t timestamp;double lat;double lon;float alt;",
-            [(ts[0], LAT0, LON0, 100.0)],
+            [(ts[k], lat, lon, alt) for k, lat, lon, alt in homes],
         )
     write_ulog(path, topics)
 

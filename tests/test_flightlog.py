@@ -93,6 +93,25 @@ def test_ulog_without_home_or_fix_gives_no_positions(tmp_path: Path) -> None:
         open_flight_log(tmp_path / "b.ulg")
 
 
+def test_ulog_home_at_zero_is_no_home_and_a_home_set_again_counts_from_its_time(
+    tmp_path: Path,
+) -> None:
+    """A home_position row at 0, 0 (sent before the estimator had one) was believed as the
+    last row: the ground 100 m off and fixes 240 m from the drone instead of 70."""
+    path = tmp_path / "zero.ulg"
+    px4_ulog(path, homes=[(0, LAT0, LON0, 100.0), (5, 0.0, 0.0, 0.0)])
+    log = open_flight_log(path)
+    assert log.home == (LAT0, LON0, pytest.approx(100.0))
+    assert [p.rel_alt_m for p in log.positions] == pytest.approx([40.0] * 100)
+    assert log.rejected["home_position not a place (0, 0 or not finite)"] == 1
+    path = tmp_path / "again.ulg"
+    px4_ulog(path, homes=[(0, LAT0, LON0, 100.0), (50, LAT0, LON0, 135.0)])
+    log = open_flight_log(path)
+    heights = [round(p.rel_alt_m, 3) for p in log.positions]
+    assert heights == [40.0] * 50 + [5.0] * 50
+    assert any("moved 35.0 m in height" in n for n in log.notes)
+
+
 def test_dji_srt_positions_gimbal_signs_and_missing_lines(tmp_path: Path) -> None:
     path = tmp_path / "DJI_0001.SRT"
     path.write_text(dji_srt_text(frames=30, drop=(3, 4)))

@@ -15,12 +15,16 @@ Topics (instance 0) and conventions:
 - gimbal_device_attitude_status: ``q[0..3]`` in the frame ``device_flags`` say (MAVLink
   GIMBAL_DEVICE_FLAGS: yaw in the earth frame with YAW_LOCK or YAW_IN_EARTH_FRAME, else in
   the vehicle frame); pitch -90 deg straight down.
-- home_position: home (without it, no height above home: the log gives no positions).
+- home_position: home (without it, no height above home: the log gives no positions). Rows
+  at 0, 0 or not finite are left out; when home is set again during the log (armed again),
+  each position's height is above the home of its time.
 - camera_capture, camera_trigger: camera triggers (``timestamp``).
 """
 
 from __future__ import annotations
 
+import bisect
+import math
 import statistics
 from pathlib import Path
 from typing import Any
@@ -29,8 +33,11 @@ import numpy as np
 
 from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
 from sarmission.geo.frames import gimbal_frame_from_flags
+from sarmission.mavlink.telemetry_checks import lat_lon_problem
 
 GPS_FIX_MAX_AGE_S = 5.0
+#: A home that moves more than this in height during a log is worth a note (metres).
+HOME_MOVED_NOTE_M = 2.0
 _TOPICS = [
     "vehicle_global_position",
     "vehicle_gps_position",
@@ -72,13 +79,19 @@ def read_ulog(path: str | Path) -> FlightLog:
     if "_corrupt" in topics:
         log.notes.append(f"{path.name}: pyulog found corrupt data; read what it could")
     gps = topics.get("sensor_gps") or topics.get("vehicle_gps_position")
-    home = topics.get("home_position")
-    if home is not None and len(home["timestamp"]):
-        log.home = (float(home["lat"][-1]), float(home["lon"][-1]), float(home["alt"][-1]))
+    homes = _valid_homes(builder, topics.get("home_position"))
+    if homes:
+        log.home = homes[0][1]
         log.home_note = "home from home_position"
+        moved = max(h[2] for _, h in homes) - min(h[2] for _, h in homes)
+        if moved > HOME_MOVED_NOTE_M:
+            log.notes.append(
+                f"{path.name}: home_position moved {moved:.1f} m in height during the log "
+                "(set again, e.g. when armed again); heights use the home of their time"
+            )
     if gps is not None:
         _utc(log, gps)
-    _positions(builder, topics.get("vehicle_global_position"), gps)
+    _positions(builder, topics.get("vehicle_global_position"), gps, homes)
     att = topics.get("vehicle_attitude")
     if att is not None:
         for t, *q in zip(_seconds(att), *(att[f"q[{i}]"] for i in range(4)), strict=True):
@@ -106,13 +119,39 @@ def _utc(log: FlightLog, gps: dict[str, np.ndarray]) -> None:
         log.clock += ", UTC from GNSS time"
 
 
+def _valid_homes(
+    builder: LogBuilder, home: dict[str, np.ndarray] | None
+) -> list[tuple[float, tuple[float, float, float]]]:
+    """The ``home_position`` rows that are a place (``(t, (lat, lon, alt))`` in time order):
+    a home at 0, 0 or not finite (sent before the estimator had one) is counted and left out;
+    believed, it put the ground 100 m off and every fix hundreds of metres away."""
+    if home is None:
+        return []
+    rows = []
+    for t, lat, lon, alt in zip(_seconds(home), home["lat"], home["lon"], home["alt"], strict=True):
+        lat, lon, alt = float(lat), float(lon), float(alt)
+        if (lat == 0 and lon == 0) or lat_lon_problem(lat, lon) or not math.isfinite(alt):
+            builder.reject("home_position not a place (0, 0 or not finite)")
+            continue
+        rows.append((float(t), (lat, lon, alt)))
+    return rows
+
+
+def _home_at(homes: list[tuple[float, tuple[float, float, float]]], t: float) -> float:
+    """Altitude of the home in effect at ``t`` (the first one before any)."""
+    i = bisect.bisect_right([h[0] for h in homes], t) - 1
+    return homes[max(i, 0)][1][2]
+
+
 def _positions(
-    builder: LogBuilder, pos: dict[str, np.ndarray] | None, gps: dict[str, np.ndarray] | None
+    builder: LogBuilder,
+    pos: dict[str, np.ndarray] | None,
+    gps: dict[str, np.ndarray] | None,
+    homes: list[tuple[float, tuple[float, float, float]]],
 ) -> None:
-    log = builder.log
     if pos is None or not len(pos["timestamp"]):
         return
-    if log.home is None:
+    if not homes:
         builder.reject("vehicle_global_position without home_position (height unknown)")
         return
     if gps is None:
@@ -132,5 +171,10 @@ def _positions(
         alt = float(pos["alt"][k])
         sigma: Any = float(eph[k]) if eph is not None else None
         builder.position(
-            float(t), float(pos["lat"][k]), float(pos["lon"][k]), alt - log.home[2], alt, sigma
+            float(t),
+            float(pos["lat"][k]),
+            float(pos["lon"][k]),
+            alt - _home_at(homes, float(t)),
+            alt,
+            sigma,
         )
