@@ -102,6 +102,18 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ('[alerts]\ncot = "udp://tak:6969"', "[alerts] cot: expected array of string"),
         ('[alerts]\ncot = ["udp://tak:6969", "tak:8087"]', "[alerts] cot[1]: CoT destination"),
         ('[alerts]\ncot = ["tcp://tak:8087?ca=ca.pem"]', "only tls:// takes"),
+        ("[actions]\nloiter_altitude_m = -20", "[actions] loiter_altitude_m: expected a height"),
+        ("[actions]\nloiter_altitude_m = 0", "[actions] loiter_altitude_m"),
+        ("[actions]\nloiter_altitude_m = nan", "[actions] loiter_altitude_m"),
+        # longitude first (GeoJSON order): 5,000 km away, once a planner that never returned
+        (
+            "[area]\nhome_lat = 54.17\nhome_lon = 7.89\n"
+            "polygon_latlon = [[7.89, 54.17], [7.9, 54.17], [7.9, 54.18]]",
+            "within 50 km of home is expected (polygon_latlon: latitude first?)",
+        ),
+        ("[area]\npolygon_latlon = [[95, 7.9], [54.2, 7.9], [54.2, 8]]", "latitude first"),
+        ("[area]\nrectangle_m = [0, 0, 10000, 10000]\nleg_spacing_m = 1", "legs across"),
+        ("[area]\nleg_spacing_m = 0.001", "[area] leg_spacing_m: expected at least 1 m"),
     ],
 )
 def test_bad_files_give_clear_errors(tmp_path, text, expected):

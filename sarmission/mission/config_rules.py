@@ -9,6 +9,7 @@ command line accept the same values. Comparisons are written so that NaN fails t
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -59,8 +60,43 @@ def area_problem(a: AreaConfig) -> Problem:
         poly = getattr(a, s)
         if poly is not None and (len(poly) < 3 or any(len(p) != 2 for p in poly)):
             return s, "expected at least 3 points of 2 numbers each"
-    if a.leg_spacing_m <= 0:
-        return "leg_spacing_m", "expected a positive number"
+    if a.polygon_latlon is not None and any(
+        not (-90.0 <= p[0] <= 90.0 and -180.0 <= p[1] <= 180.0) for p in a.polygon_latlon
+    ):
+        return "polygon_latlon", "expected [latitude, longitude] points (latitude first)"
+    if not a.leg_spacing_m >= MIN_LEG_SPACING_M:
+        return "leg_spacing_m", f"expected at least {MIN_LEG_SPACING_M:g} m"
+    return _area_extent_problem(a)
+
+
+#: Farthest an area's corner may lie from home (metres): a search a multicopter flies from
+#: its home, and a bound that catches a polygon given longitude first (GeoJSON order).
+MAX_AREA_RADIUS_M = 50_000.0
+#: Closest legs of a survey (metres), and most legs of one (a lawnmower of more would take
+#: days and, planned, hang the planner).
+MIN_LEG_SPACING_M = 1.0
+MAX_LEGS = 2000
+
+
+def _area_extent_problem(a: AreaConfig) -> Problem:
+    corners = a.polygon_ne()
+    far = max(math.hypot(n, e) for n, e in corners)
+    shape = next(
+        (s for s in ("polygon_latlon", "polygon_m", "rectangle_m") if getattr(a, s) is not None),
+        "rectangle_m",
+    )
+    if not far <= MAX_AREA_RADIUS_M:
+        hint = " (polygon_latlon: latitude first?)" if shape == "polygon_latlon" else ""
+        return shape, (
+            f"a corner lies {far / 1000:,.0f} km from home; an area within "
+            f"{MAX_AREA_RADIUS_M / 1000:g} km of home is expected{hint}"
+        )
+    across = max(math.hypot(n1 - n0, e1 - e0) for n0, e0 in corners for n1, e1 in corners)
+    if across / a.leg_spacing_m > MAX_LEGS:
+        return "leg_spacing_m", (
+            f"{across / a.leg_spacing_m:,.0f} legs across an area {across:,.0f} m wide; "
+            f"at most {MAX_LEGS} (a wider spacing or a smaller area)"
+        )
     return None
 
 
@@ -150,7 +186,16 @@ def _action_limits_problem(a: ActionsConfig) -> Problem:
             return key, "expected a number >= 0"
     if not 0 <= a.min_confidence < 1:
         return "min_confidence", "expected a probability from 0 (every target) up to below 1"
+    if a.loiter_altitude_m is not None and not 0 < a.loiter_altitude_m <= MAX_LOITER_ALTITUDE_M:
+        return "loiter_altitude_m", (
+            f"expected a height above home above 0 and at most {MAX_LOITER_ALTITUDE_M:g} m "
+            "(sent to the autopilot as the visit's altitude)"
+        )
     return None
+
+
+#: Highest visit altitude sent to the autopilot (metres above home).
+MAX_LOITER_ALTITUDE_M = 1000.0
 
 
 def telemetry_problem(t: TelemetryConfig) -> Problem:
