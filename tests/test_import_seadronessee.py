@@ -110,3 +110,60 @@ def test_mot_layout_with_floaters_ignored_regions_and_images(tmp_path):
     assert len(both.images) == 4
     with pytest.raises(ValueError, match="no instances_test"):
         import_dataset("seadronessee", root, split="test", progress=False)
+
+
+def _pitched(path: Path, pitches: list[float], info: dict | None = None) -> Path:
+    """A one-video SeaDronesSee file whose frames have ``pitches`` (no images needed)."""
+    images = [
+        {
+            "id": i + 1,
+            "file_name": f"{i}.png",
+            "height": 30,
+            "width": 40,
+            "video_id": 1,
+            "frame_index": i,
+            "meta": {
+                "gps_latitude": 47.6,
+                "gps_longitude": 9.2,
+                "altitude": 30.0,
+                "gimbal_pitch": p,
+            },
+        }
+        for i, p in enumerate(pitches)
+    ]
+    doc = {
+        "videos": [{"id": 1, "name": "DJI_0001"}],
+        "images": images,
+        "annotations": [],
+        "categories": [{"id": 1, "name": "swimmer"}],
+        "info": info or {},
+    }
+    path.write_text(json.dumps(doc))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("pitches", "info", "stated"),
+    [
+        ([45.0, 60.0], None, "depression"),  # the dataset's own convention
+        ([-31.0, -34.0], None, "elevation"),  # as replay reads the raw file
+        ([-31.0, -34.0], {"meta_conventions": {"gimbal_pitch": "elevation"}}, "elevation"),
+        ([0.0, 0.0], None, "depression"),  # nothing to tell apart: the dataset's
+    ],
+)
+def test_the_pitch_convention_stated_is_the_file_s_own(tmp_path, pitches, info, stated):
+    """The import once stated 'depression' whatever the file said: a file stating elevation
+    became one whose every frame looks above the horizon."""
+    source = _pitched(tmp_path / "instances_val.json", pitches, info)
+    data = import_dataset("seadronessee", source, progress=False)
+    assert data.info["meta_conventions"] == {"gimbal_pitch": stated}
+    assert dataset_conventions(data).pitch == stated
+    if any(pitches):  # all 0 is the horizon either way: no convention to keep
+        raw = dataset_conventions(read_coco_video(source)).pitch
+        assert dataset_conventions(data).pitch == raw
+
+
+def test_a_file_with_both_pitch_signs_is_refused_not_half_placed(tmp_path):
+    source = _pitched(tmp_path / "instances_val.json", [45.0, 60.0, -45.0])
+    with pytest.raises(ValueError, match="instances_val.json: gimbal pitch has both signs"):
+        import_dataset("seadronessee", source, progress=False)

@@ -7,7 +7,10 @@ The release keeps ``annotations/instances_<split>.json`` (COCO, read by
 adds:
 
 - the pitch convention stated in ``info.meta_conventions`` (SeaDronesSee stores the gimbal
-  pitch as a positive angle below the horizon: docs/datasets.md), so no reader has to guess it;
+  pitch as a positive angle below the horizon: docs/datasets.md), so no reader has to guess it:
+  the file's own statement where it has one, else what its pitches' signs say (as ``replay``
+  reads a file: :func:`~sarmission.data.meta_conventions.dataset_conventions`), else the
+  dataset's; a file with both signs, or files that disagree, are refused;
 - images grouped into the videos they were cut from (``source.video``, frame
   ``source.frame_no``; object detection v2 samples them sparsely);
 - category names as the project spells them (``floater`` is a swimmer with a life jacket);
@@ -24,7 +27,12 @@ from pathlib import Path
 from sarmission.class_roles import CATEGORY_ALIASES, normalise_class
 from sarmission.data.coco_video import DatasetFormatError, VideoDataset, read_coco_video
 from sarmission.data.importers.builder import IGNORED, DatasetBuilder
-from sarmission.data.meta_conventions import DEPRESSION, INFO_KEY
+from sarmission.data.meta_conventions import (
+    DEPRESSION,
+    INFO_KEY,
+    ConventionError,
+    dataset_conventions,
+)
 
 log = logging.getLogger(__name__)
 
@@ -68,16 +76,40 @@ def _split_of(json_path: Path) -> str:
     return stem.removeprefix("instances_").split("_")[0] if stem.startswith("instances_") else ""
 
 
+def pitch_convention(part: VideoDataset, json_path: Path) -> str | None:
+    """How ``part`` gives its gimbal pitch: as it states, else as its pitches' signs say;
+    None when it has no pitch off the horizon (nothing to tell apart). A file with both
+    signs is a :class:`DatasetFormatError`: a pitch of 45 and one of -45 cannot both be
+    below the horizon, and importing it under one statement would place half its frames."""
+    try:
+        found = dataset_conventions(part)
+    except ConventionError as exc:
+        raise DatasetFormatError(f"{json_path.name}: {exc}") from None
+    stated = found.how.startswith("as stated")
+    if stated or any(im.telemetry.gimbal_pitch for im in part.images):
+        return found.pitch
+    return None
+
+
 def import_seadronessee(
     root: Path, split: str | None = None, progress: bool = True
 ) -> VideoDataset:
     """The SeaDronesSee folder or annotation file ``root`` as the project's dataset (module
     docstring)."""
     out = DatasetBuilder(SOURCE, LICENCE)
-    out.info[INFO_KEY] = {"gimbal_pitch": DEPRESSION}
     missing: list[str] = []
+    pitch: tuple[str, Path] | None = None
     for json_path in annotation_files(root, split):
         part = read_coco_video(json_path)
+        convention = pitch_convention(part, json_path)
+        if convention is not None:
+            if pitch is not None and pitch[0] != convention:
+                raise DatasetFormatError(
+                    f"{json_path.name} gives the gimbal pitch as {convention}, "
+                    f"{pitch[1].name} as {pitch[0]}: mixed conventions in one import"
+                )
+            pitch = (convention, json_path)
+        out.info[INFO_KEY] = {"gimbal_pitch": pitch[0] if pitch else DEPRESSION}
         part_split = _split_of(json_path)
         names = {c.id: normalise_class(c.name) for c in part.categories}
         by_image = part.annotations_by_image()
