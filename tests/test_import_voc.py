@@ -147,3 +147,28 @@ def test_heridal_folders_are_splits_and_missing_images_are_counted(tmp_path, cap
     assert (
         sarmission(["data", "import", "heridal", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
     )
+
+
+def test_an_image_name_in_two_splits_pairs_with_the_one_beside_its_xml(tmp_path):
+    """``trainImages/IMG_0001.xml`` was paired with ``testImages/IMG_0001.JPG`` (the first of
+    the name found anywhere): wrong labels, a test image in the training split."""
+    root = tmp_path / "HERIDAL"
+    _image(root / "testImages" / "IMG_0001.JPG", 200, 150)
+    _image(root / "trainImages" / "IMG_0001.JPG", 120, 90)
+    (root / "trainImages" / "IMG_0001.xml").write_text(
+        _voc("IMG_0001.JPG", None, [("human", 5, 6, 15, 26, 0)])
+    )
+    train = import_dataset("heridal", root, split="train", progress=False)
+    assert [Path(im.file_name).parent.name for im in train.images] == ["trainImages"]
+    assert [(im.width, im.height) for im in train.images] == [(120, 90)]
+    # equally near (neither beside the XML, in two other folders): no pairing by chance
+    other = tmp_path / "LADD"
+    _image(other / "a" / "x.jpg")
+    _image(other / "b" / "x.jpg")
+    (other / "labels").mkdir(parents=True)
+    (other / "labels" / "x.xml").write_text(_voc("x.jpg", (80, 60), [("human", 5, 6, 15, 26, 0)]))
+    (other / "labels" / "y.xml").write_text(_voc("y.jpg", (80, 60), [("human", 5, 6, 15, 26, 0)]))
+    _image(other / "a" / "y.jpg")
+    data = import_dataset("heridal", other, progress=False)
+    assert [Path(im.file_name).name for im in data.images] == ["y.jpg"]
+    assert data.info["skipped"] == {"image name ambiguous": 1}

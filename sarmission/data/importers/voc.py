@@ -4,7 +4,9 @@ Each ``*.xml`` under the dataset folder describes one image: ``<filename>``, ``<
 height; read from the image when missing or zero) and ``<object>`` entries with ``<name>``,
 ``<bndbox>`` (``xmin ymin xmax ymax``, 1-based pixels in the VOC convention) and
 ``<difficult>`` (1: stored as an ignore region). The image is looked up by its file name
-anywhere under the folder, else by the XML's stem with an image extension. A split is chosen
+anywhere under the folder, else by the XML's stem with an image extension; of several images
+of that name (``trainImages/IMG_1.JPG`` and ``testImages/IMG_1.JPG``) the one nearest the XML
+in the folder tree, and none (skipped, counted) when two are equally near. A split is chosen
 by ``ImageSets/Main/<split>.txt`` where the dataset has one, else by a folder whose name starts
 with the split's name (``train`` picks ``trainImages/``).
 """
@@ -25,14 +27,36 @@ log = logging.getLogger(__name__)
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff")
 
 
-def image_index(root: Path) -> dict[str, Path]:
+def image_index(root: Path) -> dict[str, list[Path]]:
     """Image files under ``root`` by lower-case file name and by lower-case stem."""
-    index: dict[str, Path] = {}
+    index: dict[str, list[Path]] = {}
     for path in sorted(root.rglob("*")):
         if path.suffix.lower() in IMAGE_SUFFIXES and path.is_file():
-            index.setdefault(path.name.lower(), path)
-            index.setdefault(path.stem.lower(), path)
+            index.setdefault(path.name.lower(), []).append(path)
+            if path.stem.lower() != path.name.lower():
+                index.setdefault(path.stem.lower(), []).append(path)
     return index
+
+
+def nearest_image(candidates: list[Path], xml: Path) -> tuple[Path | None, str]:
+    """``(image, "")``: the candidate sharing the longest folder prefix with ``xml`` (the
+    image beside it, or under the same split's folder); ``(None, why)`` when there is none or
+    two are equally near: a name that exists in two splits is never paired by chance."""
+    if not candidates:
+        return None, "not found"
+
+    def shared(path: Path) -> int:
+        n = 0
+        for a, b in zip(path.parent.parts, xml.parent.parts, strict=False):
+            if a != b:
+                break
+            n += 1
+        return n
+
+    ranked = sorted(candidates, key=shared, reverse=True)
+    if len(ranked) > 1 and shared(ranked[0]) == shared(ranked[1]):
+        return None, f"ambiguous: {ranked[0]} and {ranked[1]}"
+    return ranked[0], ""
 
 
 def _split_files(root: Path, xmls: list[Path], split: str | None) -> list[Path]:
@@ -91,11 +115,11 @@ def import_voc(
         except ET.ParseError as exc:
             raise DatasetFormatError(f"{xml}: not valid XML ({exc})") from None
         name = (doc.findtext("filename") or "").strip()
-        path = images.get(Path(name).name.lower()) if name else None
-        path = path or images.get(xml.stem.lower())
+        found = images.get(Path(name).name.lower(), []) if name else []
+        path, why = nearest_image(found or images.get(xml.stem.lower(), []), xml)
         if path is None:
-            out.skipped["no image file"] += 1
-            log.warning("%s: its image %s was not found under %s", xml, name or xml.stem, root)
+            out.skipped["no image file" if why == "not found" else "image name ambiguous"] += 1
+            log.warning("%s: its image %s: %s under %s", xml, name or xml.stem, why, root)
             continue
         size = doc.find("size")
         width = _number(size, "width", str(xml)) if size is not None else 0.0
