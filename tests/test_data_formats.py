@@ -148,6 +148,11 @@ def test_invalid_json_and_missing_file(tmp_path):
     with pytest.raises(DatasetFormatError, match="cannot read"):
         read_coco_video(tmp_path / "none.json")
     assert issubclass(DatasetFormatError, ValueError)
+    null_width = tmp_path / "null_width.json"
+    image = {"id": 1, "file_name": "a.jpg", "height": 30, "width": None}
+    null_width.write_text(json.dumps({"images": [image], "annotations": [], "categories": []}))
+    with pytest.raises(DatasetFormatError, match=r"'width' must be an integer, got null"):
+        read_coco_video(null_width)  # once a TypeError in the importers
 
 
 def test_mot_round_trip(tmp_path):

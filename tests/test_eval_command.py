@@ -269,6 +269,17 @@ def test_bad_inputs_are_clear_errors(annotations, tmp_path):
     )
     with pytest.raises(ValueError, match="category_id 7"):
         eval_cmd.run(_args("--annotations", str(annotations), "--detections", str(bad_class)))
+    for records, message in (
+        ([1, 2, 3], "record 0 is a int, not an object"),  # once a TypeError
+        (
+            [{"image_id": 100, "bbox": [1, 2, 3, 4], "score": float("nan"), "category_id": 1}],
+            "bbox and score must be finite",  # once "ECE nan"
+        ),
+    ):
+        odd = tmp_path / "odd.json"
+        odd.write_text(json.dumps(records))
+        with pytest.raises(ValueError, match=message):
+            eval_cmd.run(_args("--annotations", str(annotations), "--detections", str(odd)))
     with pytest.raises(ValueError, match="cannot be combined"):
         eval_cmd.run(
             _args("--annotations", str(annotations), "--detections", str(bad_class), "--sweep")

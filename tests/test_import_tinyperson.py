@@ -238,6 +238,9 @@ def test_invalid_json_names_the_file(tmp_path):
         (lambda doc: doc["annotations"][0].update(category_id=7), r"unknown category 7"),
         (lambda doc: doc["annotations"][0].update(image_id=9), r"unknown image 9"),
         (lambda doc: doc["annotations"][0].update(bbox=[1, 2]), r"bbox \[1, 2\] is not 4 numbers"),
+        # once a traceback, and boxes copied onto another image
+        (lambda doc: doc["annotations"][0].update(image_id=[0]), r"unknown image \[0\]"),
+        (lambda doc: doc["images"][1].update(id=0), r"image id 0 is used twice"),
     ],
 )
 def test_missing_keys_name_the_file(tmp_path, change, message):

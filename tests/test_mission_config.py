@@ -114,6 +114,7 @@ def test_calibrated_camera_and_polygon_latlon(tmp_path):
         ("[area]\npolygon_latlon = [[95, 7.9], [54.2, 7.9], [54.2, 8]]", "latitude first"),
         ("[area]\nrectangle_m = [0, 0, 10000, 10000]\nleg_spacing_m = 1", "legs across"),
         ("[area]\nleg_spacing_m = 0.001", "[area] leg_spacing_m: expected at least 1 m"),
+        ("[explicit]\nfoo = 1", "unknown section [explicit]"),  # once a TypeError
     ],
 )
 def test_bad_files_give_clear_errors(tmp_path, text, expected):

@@ -42,6 +42,8 @@ def read_coco_results(path: str | Path) -> list[dict]:
     if not isinstance(records, list):
         raise ValueError(f"{path}: expected a JSON list of detection records")
     for i, rec in enumerate(records):
+        if not isinstance(rec, dict):
+            raise ValueError(f"{path}: record {i} is a {type(rec).__name__}, not an object")
         missing = {"image_id", "bbox", "score", "category_id"} - set(rec)
         if missing:
             raise ValueError(f"{path}: record {i} lacks {sorted(missing)}")

@@ -361,6 +361,13 @@ class _Reader:
             raise self.fail(f"{where}: {key!r} must be an integer, got {value!r}")
         return value
 
+    def required_integer(self, item: dict[str, Any], key: str, where: str) -> int:
+        """The integer at ``key``, which must be there and not null."""
+        value = self.integer(item, key, where)
+        if value is None:
+            raise self.fail(f"{where}: {key!r} must be an integer, got null")
+        return value
+
     def number(self, item: dict[str, Any], key: str, where: str) -> float | None:
         value = item.get(key)
         if value is None:
@@ -467,10 +474,10 @@ def _read_image(reader: _Reader, index: int, item: dict[str, Any]) -> ImageRecor
     if frame_index is None and "frame_id" in item:
         frame_index = reader.integer(item, "frame_id", where)
     return ImageRecord(
-        id=reader.integer(item, "id", where),
+        id=reader.required_integer(item, "id", where),
         file_name=str(item["file_name"]),
-        height=reader.integer(item, "height", where),
-        width=reader.integer(item, "width", where),
+        height=reader.required_integer(item, "height", where),
+        width=reader.required_integer(item, "width", where),
         video_id=reader.integer(item, "video_id", where),
         frame_index=frame_index,
         meta=meta,

@@ -141,6 +141,10 @@ def detections_from_results(
             ) from None
         if len(bbox) != 4:
             raise ValueError(f"detection record {i}: bbox must be [x, y, w, h], got {bbox}")
+        if not np.isfinite([*bbox, score]).all():
+            raise ValueError(
+                f"detection record {i}: bbox and score must be finite, got {bbox}, {score}"
+            )
         grouped.setdefault(record["image_id"], []).append((bbox, score, category - 1))
     return {
         image_id: FrameBoxes.of(

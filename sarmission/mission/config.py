@@ -328,7 +328,9 @@ class MissionConfig:
 
 
 _SECTIONS: dict[str, type] = {
-    k: v for k, v in typing.get_type_hints(MissionConfig).items() if k not in ("name", "source")
+    k: v
+    for k, v in typing.get_type_hints(MissionConfig).items()
+    if k not in ("name", "source", "explicit")
 }
 
 

@@ -80,11 +80,19 @@ def _import_split(folder: Path, split: str, out: DatasetBuilder, progress: bool)
 
     path = folder / "annotations" / f"tiny_set_{split}.json"
     images, annotations, names = _load(path)
-    by_image: dict[Any, list[dict]] = {image["id"]: [] for image in images}
+    by_image: dict[Any, list[dict]] = {}
+    for image in images:
+        key = image["id"]
+        if not isinstance(key, int | str) or isinstance(key, bool):
+            raise DatasetFormatError(f"{path}: image id {key!r} is not an integer or a string")
+        if key in by_image:  # its boxes would land on both images
+            raise DatasetFormatError(f"{path}: image id {key!r} is used twice")
+        by_image[key] = []
     for ann in annotations:
-        if ann["image_id"] not in by_image:
-            raise DatasetFormatError(f"{path}: an annotation of unknown image {ann['image_id']!r}")
-        by_image[ann["image_id"]].append(ann)
+        key = ann["image_id"]
+        if not isinstance(key, int | str) or isinstance(key, bool) or key not in by_image:
+            raise DatasetFormatError(f"{path}: an annotation of unknown image {key!r}")
+        by_image[key].append(ann)
     missing: list[Path] = []
     for image in tqdm(
         images, desc=f"TinyPerson {split}", unit="image", file=sys.stderr, disable=not progress
