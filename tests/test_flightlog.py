@@ -14,6 +14,7 @@ from flightlog_fixtures import (
     LON0,
     SITL_BIN,
     START_UTC,
+    TlogWriter,
     dji_srt_text,
     px4_ulog,
     write_dji_jpeg,
@@ -52,6 +53,45 @@ def test_tlog_positions_home_accuracy_trigger_and_mount_signs(tmp_path: Path) ->
     # MOUNT_ORIENTATION pitch -45 (below the horizon), yaw_absolute 90 (east)
     axis = optical_axis(log, 110.0)
     assert axis == pytest.approx([0.0, math.sqrt(0.5), math.sqrt(0.5)], abs=1e-6)
+
+
+def test_tlog_takes_no_camera_for_the_autopilot_and_reads_its_gimbal(tmp_path: Path) -> None:
+    """A camera's HEARTBEAT (MAV_AUTOPILOT_GENERIC) heard first was adopted as the autopilot,
+    and the log had 'no usable GNSS position'. The live link's rule now decides, and the
+    gimbal component of the autopilot's system gives the camera's angles, as live."""
+    from pymavlink.dialects.v20 import ardupilotmega as M
+
+    from sarmission.geo.frames import euler_to_quaternion
+
+    flight = tmp_path / "flight.tlog"
+    write_tlog(flight, seconds=5.0, pitch_deg=-45.0, gimbal_yaw_deg=90.0, yaw_deg=30.0)
+    camera = TlogWriter(tmp_path / "camera.tlog", component=M.MAV_COMP_ID_CAMERA)
+    camera.send(
+        START_UTC - 1.0,
+        M.MAVLink_heartbeat_message(M.MAV_TYPE_CAMERA, M.MAV_AUTOPILOT_GENERIC, 0, 0, 4, 3),
+    )
+    camera.close()
+    gimbal = TlogWriter(tmp_path / "gimbal.tlog", component=M.MAV_COMP_ID_GIMBAL)
+    q = euler_to_quaternion(0.0, math.radians(-70.0), math.radians(180.0))
+    for k in range(50):  # later than the flight's mount angles: the newest sample wins
+        gimbal.send(
+            START_UTC + 4.0 + k / 100,
+            M.MAVLink_gimbal_device_attitude_status_message(
+                0, 0, int((104.0 + k / 100) * 1000), 8 | 16, q, 0.0, 0.0, 0.0, 0
+            ),
+        )
+    gimbal.close()
+    path = tmp_path / "camera_first.tlog"
+    path.write_bytes(
+        (tmp_path / "camera.tlog").read_bytes()
+        + flight.read_bytes()
+        + (tmp_path / "gimbal.tlog").read_bytes()
+    )
+    log = open_flight_log(path)
+    assert len(log.positions) == 50 and log.home == (LAT0, LON0, 120.0)
+    axis = optical_axis(log, 104.3)  # 70 deg below the horizon, looking south
+    expected = [-math.cos(math.radians(70)), 0.0, math.sin(math.radians(70))]
+    assert axis == pytest.approx(expected, abs=1e-3)
 
 
 def test_dataflash_from_sitl_servo_mount_is_in_the_body_frame() -> None:

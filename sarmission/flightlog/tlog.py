@@ -2,7 +2,8 @@
 
 A tlog is every MAVLink packet the ground station received, each after an 8-byte big-endian
 microsecond POSIX timestamp of its arrival. Only the autopilot is believed: the first sender
-of an autopilot-type HEARTBEAT (MAV_AUTOPILOT not INVALID, MAV_TYPE not GCS); every message
+of an autopilot-type HEARTBEAT (:func:`~sarmission.mavlink.adoption.is_autopilot_heartbeat`:
+not a ground station, camera or gimbal), and its system's gimbal for its angles; every message
 goes through the same field checks as live telemetry
 (:func:`~sarmission.mavlink.telemetry_checks.message_problem`).
 
@@ -37,6 +38,7 @@ from pymavlink import mavutil
 
 from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
 from sarmission.geo.frames import gimbal_frame_from_flags
+from sarmission.mavlink.adoption import GIMBAL_TYPES, is_autopilot_heartbeat, source_kind
 from sarmission.mavlink.telemetry_checks import GPS_FIX_3D, message_problem
 
 #: A GPS_RAW_INT older than this says nothing about the current fix (seconds).
@@ -53,8 +55,6 @@ _TYPES = [
     "SYSTEM_TIME",
     "CAMERA_FEEDBACK",
 ]
-_MAV_AUTOPILOT_INVALID = 8
-_MAV_TYPE_GCS = 6
 
 
 class _State:
@@ -128,15 +128,13 @@ def _take(builder: LogBuilder, state: _State, msg: Any) -> None:
     mtype = msg.get_type()
     source = (msg.get_srcSystem(), msg.get_srcComponent())
     if mtype == "HEARTBEAT":
-        if (
-            state.autopilot is None
-            and msg.autopilot != _MAV_AUTOPILOT_INVALID
-            and msg.type != _MAV_TYPE_GCS
-        ):
+        # the live link's rule: a camera, gimbal or ground station heard first is no autopilot
+        if state.autopilot is None and is_autopilot_heartbeat(msg):
             state.autopilot = source
         return
-    if source != state.autopilot:
-        return
+    kind = source_kind(source, state.autopilot)
+    if kind != "autopilot" and not (kind == "gimbal" and mtype in GIMBAL_TYPES):
+        return  # the live link's rule: the autopilot, and its system's gimbal for its angles
     problem = message_problem(msg)
     if problem:
         builder.reject(f"{mtype} implausible")
