@@ -255,6 +255,18 @@ def test_replay_refuses_a_missing_log_or_a_bad_offset_before_any_frame(
     assert "frames processed" not in captured.out
 
 
+def test_replay_of_nothing_readable_is_an_error_not_a_success(tmp_path, capsys):
+    """Every frame unreadable once ended 'frames processed: 0' with exit 0, as a replay that
+    found nothing would."""
+    (tmp_path / "clip").mkdir()
+    (tmp_path / "clip" / "f000.png").write_bytes(b"not a png")
+    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--no-progress"])
+    captured = capsys.readouterr()
+    assert code == 2
+    assert "frames processed: 0" in captured.out
+    assert "no frame could be processed (all 1 unreadable)" in captured.err
+
+
 def test_replay_refuses_a_log_of_another_day(tmp_path, capsys):
     write_mp4(tmp_path / "clip.mp4", frames=8, created=START_UTC + 3 * 86400)
     write_tlog(tmp_path / "flight.tlog", seconds=10.0)

@@ -335,6 +335,9 @@ def run(args: argparse.Namespace) -> int:
         _print_outcome(controller.summary(wall), unreadable, recorder, args.alerts_db)
         if args.report:
             _write_report(args, db_path, controller, source, frame_times, path)
+    if controller.stats.frames == 0:
+        what = f"all {unreadable} unreadable" if unreadable else "none found"
+        raise ValueError(f"{path}: no frame could be processed ({what})")
     return 0
 
 
