@@ -108,6 +108,15 @@ def test_mot_layout_with_floaters_ignored_regions_and_images(tmp_path):
     assert data.images[0].telemetry.altitude == 20.0
     both = import_dataset("seadronessee", root, progress=False)
     assert len(both.images) == 4
+    # the MOT release labels the same frames twice (objects in water; swimmers alone):
+    # imported together every frame came twice, with its swimmers' boxes doubled
+    (root / "annotations" / "instances_train_swimmer.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"annotate the same images \(2 shared"):
+        import_dataset("seadronessee", root, split="train", progress=False)
+    one = import_dataset(
+        "seadronessee", root / "annotations" / "instances_train_swimmer.json", progress=False
+    )
+    assert len(one.images) == 2
     with pytest.raises(ValueError, match="no instances_test"):
         import_dataset("seadronessee", root, split="test", progress=False)
 

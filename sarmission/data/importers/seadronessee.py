@@ -99,8 +99,19 @@ def import_seadronessee(
     out = DatasetBuilder(SOURCE, LICENCE)
     missing: list[str] = []
     pitch: tuple[str, Path] | None = None
+    # (split, image file name) -> the annotation file that had it first
+    seen: dict[tuple[str, str], Path] = {}
     for json_path in annotation_files(root, split):
         part = read_coco_video(json_path)
+        part_split = _split_of(json_path)
+        shared = [im.file_name for im in part.images if (part_split, im.file_name) in seen]
+        if shared:  # MOT: objects_in_water and swimmer label the same frames
+            raise DatasetFormatError(
+                f"{json_path.name} and {seen[(part_split, shared[0])].name} annotate the same "
+                f"images ({len(shared)} shared, e.g. {shared[0]}): import one of them (give "
+                "its path instead of the folder)"
+            )
+        seen.update(((part_split, im.file_name), json_path) for im in part.images)
         convention = pitch_convention(part, json_path)
         if convention is not None:
             if pitch is not None and pitch[0] != convention:
@@ -110,7 +121,6 @@ def import_seadronessee(
                 )
             pitch = (convention, json_path)
         out.info[INFO_KEY] = {"gimbal_pitch": pitch[0] if pitch else DEPRESSION}
-        part_split = _split_of(json_path)
         names = {c.id: normalise_class(c.name) for c in part.categories}
         by_image = part.annotations_by_image()
         videos = {v.id: v.name for v in part.videos}
