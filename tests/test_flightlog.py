@@ -111,6 +111,22 @@ def test_dataflash_from_sitl_servo_mount_is_in_the_body_frame() -> None:
     assert gps_position.gnss_sigma_m == pytest.approx(0.3)
 
 
+def test_dataflash_without_the_mount_type_says_how_unsure_its_pointing_is(tmp_path: Path) -> None:
+    """Without MNT1_TYPE the servo mount's -48 deg (airframe) was read as earth-frame with the
+    format's 1 deg error: a fix 12.6 m off at an error of 1.8 m. The angles are still read
+    as earth-frame, but the pointing error widens to cover the vehicle's tilt."""
+    path = tmp_path / "no_mount_type.BIN"
+    raw = SITL_BIN.read_bytes()
+    assert raw.count(b"MNT1_TYPE") == 1
+    path.write_bytes(raw.replace(b"MNT1_TYPE", b"MNT9_TYPE"))
+    log = open_flight_log(path)
+    axis = optical_axis(log, log.triggers[0])
+    assert math.degrees(math.asin(axis[2])) == pytest.approx(48.0, abs=2.0)  # as logged
+    assert log.accuracy.attitude_sigma_deg >= 6.0  # twice it covers the 12 deg nose-down
+    assert any("no MNT1_TYPE parameter" in n for n in log.notes)
+    assert open_flight_log(SITL_BIN).accuracy.attitude_sigma_deg == 1.0
+
+
 def test_ulog_attitude_quaternion_and_vehicle_frame_gimbal(tmp_path: Path) -> None:
     path = tmp_path / "flight.ulg"
     px4_ulog(path, gimbal_pitch_deg=-30.0, yaw_deg=90.0)
