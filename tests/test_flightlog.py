@@ -354,6 +354,12 @@ def test_video_alignment_order_and_refusals(tmp_path: Path) -> None:
         align_video(plain, created=START_UTC + 3600, duration_s=5.0)
     with pytest.raises(AlignmentError, match="outside the log"):
         align_video(plain, created=None, duration_s=5.0, offset_s=500.0)
+    # a trigger and a creation time that agree (whole seconds, stamped late) align on it;
+    # 10 s or more apart they contradict each other: no alignment rather than a silent one
+    near = align_video(log, created=START_UTC + 6.0, duration_s=5.0)
+    assert near.offset_s == pytest.approx(105.0) and "-1.0 s from the video's" in near.method
+    with pytest.raises(AlignmentError, match="the nearest, at 105.0 s, is 13 s away"):
+        align_video(log, created=START_UTC + 18.0, duration_s=2.0)
 
 
 def test_image_alignment_pairs_triggers_one_to_one(tmp_path: Path) -> None:

@@ -4,8 +4,11 @@ For a video, ``log time = video time + offset``, the offset from, in this order:
 
 1. ``--time-offset S`` (the log time, in the log's clock, at which the video starts);
 2. a subtitle sidecar (DJI SRT): the log is in the video's own clock, offset 0;
-3. the log's first camera trigger (CAM/TRIG, CAMERA_FEEDBACK, camera_capture): the camera
-   started recording on it;
+3. a camera trigger of the log (CAM/TRIG, CAMERA_FEEDBACK, camera_capture): the camera
+   started recording on it. The first one, or, where the video's creation time is on the
+   log's UTC clock, the one nearest it; when none lies within :data:`TRIGGER_SLACK_S` of the
+   creation time the two disagree and there is no alignment (a wrong one would misplace
+   every alert by the aircraft's travel in the gap);
 4. the video's creation time (MP4 ``mvhd``) on the log's UTC clock, when it falls inside the
    log.
 
@@ -30,6 +33,10 @@ from sarmission.flightlog.model import FlightLog
 
 #: How far a camera clock may be from UTC (local time stored as UTC): 14 hours.
 CLOCK_SLACK_S = 14 * 3600.0
+#: How far a camera trigger may be from the video's creation time (on the log's UTC clock)
+#: to be taken as the recording's start: creation times have whole seconds, and some cameras
+#: stamp the file a few seconds after recording began.
+TRIGGER_SLACK_S = 10.0
 
 
 class AlignmentError(ValueError):
@@ -98,12 +105,7 @@ def align_video(
     elif log.per_frame:
         result = Alignment("the subtitle file's own times (the video's clock)", 0.0)
     elif log.triggers:
-        t = log.triggers[0]
-        result = Alignment(
-            f"camera trigger 1 of {len(log.triggers)} at log time {t:.3f} s "
-            "(the recording started on it)",
-            t,
-        )
+        result = _trigger_alignment(log, created)
     elif created is not None and log.utc_offset_s is not None:
         t = created - log.utc_offset_s
         t0, t1 = log.span
@@ -124,6 +126,31 @@ def align_video(
         )
     _check_overlap(log, result.offset_s, duration_s)
     return result
+
+
+def _trigger_alignment(log: FlightLog, created: float | None) -> Alignment:
+    """The camera trigger the recording started on (module docstring, 3)."""
+    if created is None or log.utc_offset_s is None:
+        t = log.triggers[0]
+        return Alignment(
+            f"camera trigger 1 of {len(log.triggers)} at log time {t:.3f} s "
+            "(the recording started on it)",
+            t,
+        )
+    at = created - log.utc_offset_s
+    k = int(np.argmin([abs(t - at) for t in log.triggers]))
+    t = log.triggers[k]
+    if abs(t - at) > TRIGGER_SLACK_S:
+        raise AlignmentError(
+            f"the video's creation time {_utc(created)} (log time {at:.1f} s) and the camera "
+            f"triggers of {log.path.name} disagree: the nearest, at {t:.1f} s, is "
+            f"{abs(t - at):.0f} s away; give --time-offset; no positions"
+        )
+    return Alignment(
+        f"camera trigger {k + 1} of {len(log.triggers)} at log time {t:.3f} s (the recording "
+        f"started on it; {t - at:+.1f} s from the video's creation time)",
+        t,
+    )
 
 
 def align_images(
