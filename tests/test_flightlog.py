@@ -257,6 +257,25 @@ def test_dji_srt_altitude_without_rel_alt_is_believed_only_as_a_flying_height(
             open_flight_log(path)
 
 
+@pytest.mark.parametrize(
+    ("name", "encode"),
+    [
+        ("no blank lines", lambda t: t.replace("\n\n", "\n").encode()),
+        ("CR line ends", lambda t: t.replace("\n", "\r").encode()),
+        ("UTF-16", lambda t: t.encode("utf-16")),
+        ("BOM and CRLF", lambda t: t.replace("\n", "\r\n").encode("utf-8-sig")),
+    ],
+)
+def test_dji_srt_as_editors_and_converters_save_it(tmp_path: Path, name, encode) -> None:
+    """Without blank lines or with CR-only line ends the whole file was one block (one
+    position, nothing said); UTF-16 was 'not a flight log'."""
+    path = tmp_path / "DJI_0006.SRT"
+    path.write_bytes(encode(dji_srt_text(frames=12)))
+    log = open_flight_log(path)
+    assert len(log.positions) == 12 and not log.rejected, name
+    assert [p.t for p in log.positions] == pytest.approx([k / 30 for k in range(12)], abs=1e-3)
+
+
 def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:
     path = tmp_path / "DJI_0002.SRT"
     path.write_text(dji_srt_text(frames=10, gimbal=False))

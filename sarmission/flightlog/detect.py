@@ -15,9 +15,11 @@ import struct
 from collections.abc import Callable
 from pathlib import Path
 
+from sarmission.flightlog.dji_srt import srt_text
 from sarmission.flightlog.model import FlightLog, FlightLogError
 
 _SRT_TIME = re.compile(rb"\d+:\d{2}:\d{2}[,.]\d{1,3}\s*-->")
+_SRT_TIME_TEXT = re.compile(_SRT_TIME.pattern.decode())
 #: Timestamps a tlog may start with: 2000-01-01 to 2100-01-01 in microseconds.
 _TLOG_RANGE_US = (946_684_800 * 10**6, 4_102_444_800 * 10**6)
 
@@ -45,8 +47,8 @@ def sniff(path: str | Path) -> str:
         (stamp,) = struct.unpack(">Q", head[:8])
         if _TLOG_RANGE_US[0] <= stamp <= _TLOG_RANGE_US[1]:
             return "tlog"
-    if _SRT_TIME.search(head):
-        return "srt"
+    if _SRT_TIME.search(head) or _SRT_TIME_TEXT.search(srt_text(head[: len(head) & ~1])):
+        return "srt"  # UTF-8, or UTF-16 with its byte-order mark (an even number of bytes)
     raise FlightLogError(
         f"{path.name}: not a flight log this program reads (tlog, DataFlash "
         ".bin/.log, PX4 .ulg, DJI .SRT or a folder of DJI JPEGs)"

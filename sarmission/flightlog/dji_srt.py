@@ -72,11 +72,21 @@ def _values(text: str) -> dict[str, float | None]:
     }
 
 
+def srt_text(raw: bytes) -> str:
+    """An SRT's text: UTF-16 where it starts with that byte-order mark (Windows editors save
+    it so), else UTF-8 (a bad byte replaced); line ends as ``\n``."""
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        text = raw.decode("utf-16", errors="replace")
+    else:
+        text = raw.decode("utf-8", errors="replace")
+    return text.replace("\ufeff", "").replace("\r\n", "\n").replace("\r", "\n")
+
+
 def read_dji_srt(path: str | Path) -> FlightLog:
     """Read a DJI SRT (see the module docstring)."""
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8", errors="replace")
+        text = srt_text(path.read_bytes())
     except OSError as exc:
         raise FlightLogError(f"{path.name}: cannot read ({exc.strerror})") from exc
     builder = LogBuilder(
@@ -88,7 +98,10 @@ def read_dji_srt(path: str | Path) -> FlightLog:
     )
     log = builder.log
     log.per_frame = True
-    blocks = re.split(r"\r?\n\s*\r?\n", text.replace("\ufeff", ""))
+    # a block runs from its time line to the next one: editors and converters drop the blank
+    # lines between blocks (or write CR-only line ends), which once left one block
+    starts = [m.start() for m in _TIME.finditer(text)]
+    blocks = [text[a:b] for a, b in zip(starts, [*starts[1:], len(text)], strict=True)]
     missing = 0
     bare_heights: list[float] = []
     for block in blocks:
