@@ -153,3 +153,25 @@ def test_mission_file_model_and_command_line_accept_the_same_ds(ds: int) -> None
     by_model = accepted(lambda: VSTMD(ds=ds))
     by_cli = accepted(lambda: parser.parse_args(["--ds", str(ds)]))
     assert by_file == by_model == by_cli == (ds in (1, 2, 4, 8))
+
+
+def test_a_command_line_value_is_blamed_on_the_command_line_not_the_file(tmp_path):
+    """`--set detector.ds=3` with a valid mission file was reported as the file's error."""
+    p = write(tmp_path, "[detector]\nds = 2\n")
+    with pytest.raises(MissionConfigError) as exc:
+        load_mission(p, ["detector.ds=3"])
+    assert str(exc.value).startswith("command line (an option or --set): [detector] ds")
+    bad = write(tmp_path, "[detector]\nds = 3\n")
+    with pytest.raises(MissionConfigError, match=str(bad)):
+        load_mission(bad, ["flight.altitude_m=80"])  # the file's own error stays the file's
+    assert load_mission(bad, ["detector.ds=4"]).detector.ds == 4  # a value the command fixes
+
+
+def test_a_byte_order_mark_is_read_and_other_encodings_are_named(tmp_path):
+    p = tmp_path / "bom.toml"
+    p.write_bytes("\ufeff[flight]\naltitude_m = 80\n".encode())
+    assert load_mission(p).flight.altitude_m == 80
+    p = tmp_path / "latin1.toml"
+    p.write_bytes('name = "Küste"\n'.encode("latin-1"))
+    with pytest.raises(MissionConfigError, match=rf"{p}: not UTF-8 text"):
+        load_mission(p)

@@ -26,6 +26,7 @@ Example::
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import tomllib
@@ -493,9 +494,13 @@ def load_mission(
         p = Path(path)
         origin = str(p)
         try:
-            text = p.read_text(encoding="utf-8")
+            text = p.read_text(encoding="utf-8-sig")  # a byte-order mark is no TOML error
         except OSError as exc:
             raise MissionConfigError(f"{p}: cannot read mission file ({exc.strerror})") from exc
+        except UnicodeDecodeError as exc:
+            raise MissionConfigError(
+                f"{p}: not UTF-8 text (byte {exc.start}: {exc.reason}); save it as UTF-8"
+            ) from None
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
@@ -507,6 +512,18 @@ def load_mission(
         if not is_head_name(model) and not Path(model).is_absolute():
             cfg.detector.model = str(p.parent / model)
     if overrides:
+        before = copy.deepcopy(cfg)
         _apply(cfg, _nest(overrides), f"{origin} (override)")
+        try:
+            _validate(cfg, origin)
+        except MissionConfigError as exc:
+            try:  # the file alone passes: the command line's value broke the rule
+                _validate(before, origin)
+            except MissionConfigError:
+                raise exc from None
+            raise MissionConfigError(
+                str(exc).replace(f"{origin}: ", "command line (an option or --set): ", 1)
+            ) from None
+        return cfg
     _validate(cfg, origin)
     return cfg
