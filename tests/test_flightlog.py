@@ -127,6 +127,25 @@ def test_dataflash_without_the_mount_type_says_how_unsure_its_pointing_is(tmp_pa
     assert open_flight_log(SITL_BIN).accuracy.attitude_sigma_deg == 1.0
 
 
+def test_a_log_is_read_by_its_content_whatever_its_name(tmp_path: Path) -> None:
+    """pymavlink picks its reader by the file name: a DataFlash log saved as .tlog read as
+    'without a usable GNSS position', a tlog saved as .BIN printed 'bad header' lines."""
+    write_tlog(tmp_path / "flight.tlog", seconds=3.0)
+    renamed = {
+        tmp_path / "flight.BIN": (tmp_path / "flight.tlog").read_bytes(),
+        tmp_path / "sitl.tlog": SITL_BIN.read_bytes(),
+        tmp_path / "sitl:copy.dat": SITL_BIN.read_bytes(),  # a colon once meant a UDP socket
+    }
+    for path, data in renamed.items():
+        path.write_bytes(data)
+    assert open_flight_log(tmp_path / "flight.BIN").fmt == "MAVLink tlog"
+    assert len(open_flight_log(tmp_path / "flight.BIN").positions) == 30
+    for name in ("sitl.tlog", "sitl:copy.dat"):
+        log = open_flight_log(tmp_path / name)
+        assert log.fmt == "ArduPilot DataFlash log"
+        assert len(log.positions) == len(open_flight_log(SITL_BIN).positions) > 0
+
+
 def test_ulog_attitude_quaternion_and_vehicle_frame_gimbal(tmp_path: Path) -> None:
     path = tmp_path / "flight.ulg"
     px4_ulog(path, gimbal_pitch_deg=-30.0, yaw_deg=90.0)

@@ -33,7 +33,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pymavlink import mavutil
 
 from sarmission.flightlog.model import (
     ACCURACY,
@@ -60,6 +59,16 @@ class _State:
         self.mounts: list[Any] = []
 
 
+def _open_dataflash(path: Path) -> Any:
+    """pymavlink's binary or text reader, chosen by the content (``mavlink_connection`` picks
+    by the file name: a .BIN renamed .tlog, or a name with a colon, went astray)."""
+    from pymavlink import DFReader
+
+    with path.open("rb") as f:
+        binary = f.read(2) == b"\xa3\x95"
+    return DFReader.DFReader_binary(str(path)) if binary else DFReader.DFReader_text(str(path))
+
+
 def read_dataflash(path: str | Path) -> FlightLog:
     """Read a DataFlash log (see the module docstring)."""
     path = Path(path)
@@ -67,7 +76,7 @@ def read_dataflash(path: str | Path) -> FlightLog:
         "ArduPilot DataFlash log", path, "autopilot boot time (TimeUS)", ACCURACY["autopilot"]
     )
     try:
-        reader = mavutil.mavlink_connection(str(path))
+        reader = _open_dataflash(path)
     except Exception as exc:  # noqa: BLE001 - DFReader raises anything on a bad header
         raise FlightLogError(f"{path.name}: not readable as a DataFlash log ({exc})") from exc
     state = _State()

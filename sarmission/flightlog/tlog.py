@@ -75,7 +75,9 @@ def read_tlog(path: str | Path) -> FlightLog:
     path = Path(path)
     builder = LogBuilder("MAVLink tlog", path, "autopilot boot time", ACCURACY["autopilot"])
     try:
-        conn = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
+        # a tlog whatever its name (mavlink_connection picks the reader by the file name)
+        mavutil.set_dialect("ardupilotmega")
+        conn = mavutil.mavlogfile(str(path), robust_parsing=True)
     except Exception as exc:  # noqa: BLE001 - pymavlink raises anything on a bad file
         raise FlightLogError(f"{path.name}: not readable as a MAVLink tlog ({exc})") from exc
     state = _State()
