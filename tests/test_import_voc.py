@@ -80,6 +80,11 @@ def test_ladd_boxes_classes_and_split(ladd, tmp_path):
     ]
     train = import_dataset("ladd", ladd, split="train", progress=False)
     assert [Path(im.file_name).stem for im in train.images] == ["1_000", "2_000"]
+    # the list saved on Windows (a byte-order mark, CRLF), an entry written as a file name:
+    # the first id once read as "\ufeff1_000" and the image was dropped without a word
+    (ladd / "ImageSets" / "Main" / "train.txt").write_bytes(b"\xef\xbb\xbf1_000\r\n2_000.jpg\r\n")
+    train = import_dataset("ladd", ladd, split="train", progress=False)
+    assert [Path(im.file_name).stem for im in train.images] == ["1_000", "2_000"]
     out = tmp_path / "ladd.json"
     write_coco_video(data, out)
     back = read_coco_video(out)
@@ -172,3 +177,18 @@ def test_an_image_name_in_two_splits_pairs_with_the_one_beside_its_xml(tmp_path)
     data = import_dataset("heridal", other, progress=False)
     assert [Path(im.file_name).name for im in data.images] == ["y.jpg"]
     assert data.info["skipped"] == {"image name ambiguous": 1}
+
+
+def test_an_import_never_writes_over_what_it_reads(ladd, tmp_path, capsys):
+    """`--out` naming an annotation file of the source (or the source file itself) wrote the
+    import over it; a folder gave '[Errno 21] ... .partial'."""
+    xml = next(ladd.rglob("*.xml"))
+    before = xml.read_bytes()
+    args = ["data", "import", "ladd", str(ladd), "--no-progress", "--out"]
+    assert sarmission([*args, str(xml)]) == 2
+    assert "a file of the dataset being imported" in capsys.readouterr().err
+    assert xml.read_bytes() == before
+    assert sarmission([*args, str(tmp_path)]) == 2
+    assert "a folder; give the JSON file to write" in capsys.readouterr().err
+    again = ladd / "imported.json"  # an earlier import's output in the folder: written again
+    assert sarmission([*args, str(again)]) == 0 and sarmission([*args, str(again)]) == 0

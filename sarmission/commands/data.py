@@ -39,6 +39,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     imp.set_defaults(func=run_import)
 
 
+#: Names of the annotation files the importers read (SeaDronesSee, TinyPerson, VOC XML,
+#: VisDrone text): an import's ``--out`` under the source folder may not be one of them.
+ANNOTATION_PATTERNS = ("instances_*.json", "tiny_set_*.json", "*.xml", "*.txt")
+
+
+def check_import_output(source: Path, out: Path) -> None:
+    """ValueError for an ``--out`` that is a folder, or an existing file the import reads (the
+    source file itself, or an annotation file under the source folder): an import never
+    writes over what it reads. An earlier import's output there may be written again."""
+    if out.is_dir():
+        raise ValueError(f"--out {out}: a folder; give the JSON file to write")
+    if not out.exists():
+        return
+    target, root = out.resolve(), source.resolve()
+    read = root.is_dir() and root in target.parents
+    if target == root or (read and any(target.match(p) for p in ANNOTATION_PATTERNS)):
+        raise ValueError(
+            f"--out {out}: a file of the dataset being imported ({source}); "
+            "write the import elsewhere"
+        )
+
+
 def run_import(args: argparse.Namespace) -> int:
     """Import, write, and print what the file holds."""
     from sarmission.data.coco_video import write_coco_video
@@ -46,6 +68,7 @@ def run_import(args: argparse.Namespace) -> int:
 
     if not args.source.exists():
         raise FileNotFoundError(f"{args.source}: no such file or folder")
+    check_import_output(args.source, args.out)
     dataset = import_dataset(args.format, args.source, args.split, progress=bars_wanted(args))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     write_coco_video(dataset, args.out)

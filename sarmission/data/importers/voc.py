@@ -59,12 +59,20 @@ def nearest_image(candidates: list[Path], xml: Path) -> tuple[Path | None, str]:
     return ranked[0], ""
 
 
+def _list_id(entry: str) -> str:
+    """A split list's entry as an id: ``a.jpg`` -> ``a``; ``a`` and ``a.b`` as they are."""
+    path = Path(entry)
+    return path.stem if path.suffix.lower() in IMAGE_SUFFIXES else entry
+
+
 def _split_files(root: Path, xmls: list[Path], split: str | None) -> list[Path]:
     if split is None:
         return xmls
     listed = root / "ImageSets" / "Main" / f"{split}.txt"
     if listed.is_file():
-        wanted = {line.split()[0] for line in listed.read_text().splitlines() if line.strip()}
+        lines = listed.read_text(encoding="utf-8-sig").splitlines()  # saved on Windows: BOM
+        # ids, as VOC lists them; an image's file name (a.jpg) is taken for its id
+        wanted = {_list_id(line.split()[0]) for line in lines if line.strip()}
         return [x for x in xmls if x.stem in wanted]
     chosen = [
         x
