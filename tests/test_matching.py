@@ -81,3 +81,26 @@ def test_ground_truth_from_dataset():
     assert gt[11].ids.tolist() == [1, 2] and gt[11].class_ids.tolist() == [1, 2]
     only_swimmers = ground_truth_by_image(read_coco_video(FIXTURE), category_ids=[1])
     assert len(only_swimmers[11]) == 1
+
+
+def test_ground_truth_is_clipped_to_its_image_and_empty_boxes_are_not_scored(caplog):
+    """A raw file's box over the image edge turned the detection of what is visible into a
+    false one; a box outside the image (or of no width) counted as a missed target."""
+    from sarmission.data.coco_video import Annotation, Category, ImageRecord, VideoDataset
+
+    dataset = VideoDataset(
+        videos=[],
+        images=[ImageRecord(id=1, file_name="a.jpg", height=50, width=100)],
+        annotations=[
+            Annotation(id=1, image_id=1, category_id=1, bbox=(94.0, 10.0, 12.0, 8.0)),  # over
+            Annotation(id=2, image_id=1, category_id=1, bbox=(120.0, 10.0, 5.0, 5.0)),  # out
+            Annotation(id=3, image_id=1, category_id=1, bbox=(20.0, 10.0, 0.0, 5.0)),  # empty
+            Annotation(id=4, image_id=1, category_id=1, bbox=(40.0, 20.0, 8.0, 8.0)),
+        ],
+        categories=[Category(1, "swimmer")],
+    )
+    gt = ground_truth_by_image(dataset)[1]
+    assert gt.boxes.tolist() == [[94.0, 10.0, 100.0, 18.0], [40.0, 20.0, 48.0, 28.0]]
+    assert "2 ground-truth boxes lie outside their image" in caplog.text
+    visible = FrameBoxes.of(np.array([[94.0, 10.0, 100.0, 18.0]]), scores=[0.9])
+    assert match_frame(visible, gt, 0.5).det_indices.tolist() == [0]

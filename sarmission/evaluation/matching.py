@@ -11,6 +11,7 @@ below ``score_thr`` are neither matched nor unmatched: they are not reported at 
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -19,6 +20,8 @@ from scipy.optimize import linear_sum_assignment
 
 from sarmission.boxes import NWD_CONSTANT, nwd_matrix, xywh_to_xyxy
 from sarmission.data.coco_video import VideoDataset
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -133,15 +136,35 @@ def ground_truth_by_image(
     """GT boxes of every image (xyxy; class = category id; id = track id or -1).
 
     ``category_ids`` keeps only those categories. Crowd annotations (``iscrowd``) are left out.
+    Boxes are clipped to their image, and those with nothing left inside it (outside, or of no
+    width or height) are left out with one warning: a raw dataset file's box hanging over the
+    edge turned a correct detection into a false one, one outside the image into a miss.
     Every image gets an entry, empty when it has no boxes.
     """
     keep = None if category_ids is None else set(category_ids)
+    sizes = {im.id: (im.width, im.height) for im in dataset.images}
     result = {}
+    dropped = 0
     for image_id, anns in dataset.annotations_by_image().items():
         chosen = [a for a in anns if not a.iscrowd and (keep is None or a.category_id in keep)]
+        boxes = xywh_to_xyxy(np.array([a.bbox for a in chosen], dtype=np.float64).reshape(-1, 4))
+        width, height = sizes.get(image_id, (None, None))
+        if width and height:
+            boxes[:, 0::2] = boxes[:, 0::2].clip(0.0, float(width))
+            boxes[:, 1::2] = boxes[:, 1::2].clip(0.0, float(height))
+        inside = (boxes[:, 2] > boxes[:, 0]) & (boxes[:, 3] > boxes[:, 1])
+        dropped += int((~inside).sum())
         result[image_id] = FrameBoxes.of(
-            xywh_to_xyxy(np.array([a.bbox for a in chosen], dtype=np.float64).reshape(-1, 4)),
-            class_ids=[a.category_id for a in chosen],
-            ids=[-1 if a.track_id is None else a.track_id for a in chosen],
+            boxes[inside],
+            class_ids=[a.category_id for a, ok in zip(chosen, inside, strict=True) if ok],
+            ids=[
+                -1 if a.track_id is None else a.track_id
+                for a, ok in zip(chosen, inside, strict=True)
+                if ok
+            ],
+        )
+    if dropped:
+        log.warning(
+            "%d ground-truth boxes lie outside their image or have no size: not scored", dropped
         )
     return result
