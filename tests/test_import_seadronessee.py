@@ -176,3 +176,31 @@ def test_a_file_with_both_pitch_signs_is_refused_not_half_placed(tmp_path):
     source = _pitched(tmp_path / "instances_val.json", [45.0, 60.0, -45.0])
     with pytest.raises(ValueError, match="instances_val.json: gimbal pitch has both signs"):
         import_dataset("seadronessee", source, progress=False)
+
+
+def test_frame_numbers_as_strings_are_kept_and_a_lost_one_is_said(tmp_path, caplog):
+    """One frame_no given as "400" once renumbered the whole video 0, 1, 2, 3 in list order,
+    without a word: the real frame numbers (the frames' times) were lost."""
+
+    def doc(numbers):
+        images = [
+            {
+                "id": i + 1,
+                "file_name": f"{i}.jpg",
+                "height": 30,
+                "width": 40,
+                "source": {"video": "DJI_0001.MP4", "frame_no": n},
+            }
+            for i, n in enumerate(numbers)
+        ]
+        return {"images": images, "annotations": [], "categories": [{"id": 1, "name": "swimmer"}]}
+
+    path = tmp_path / "instances_val.json"
+    path.write_text(json.dumps(doc([300, 100, 200, "400"])))
+    data = import_dataset("seadronessee", path, progress=False)
+    assert [im.frame_index for im in data.images] == [300, 100, 200, 400]
+    assert "no frame number" not in caplog.text
+    path.write_text(json.dumps(doc([300, 100, "last", 400])))
+    data = import_dataset("seadronessee", path, progress=False)
+    assert [im.frame_index for im in data.images] == [0, 1, 2, 3]
+    assert "video DJI_0001.MP4: 1 of 4 frames have no frame number" in caplog.text

@@ -11,6 +11,7 @@ never count it as a target nor as background.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import Counter
 from dataclasses import dataclass, field
@@ -29,6 +30,8 @@ from sarmission.data.coco_video import (
     VideoDataset,
     parse_telemetry,
 )
+
+log = logging.getLogger(__name__)
 
 #: Category of regions a dataset marks to be ignored (no class of its own).
 IGNORED = "ignored"
@@ -151,8 +154,19 @@ class DatasetBuilder:
         for image in self.images:
             if image.video_id is not None:
                 by_video.setdefault(image.video_id, []).append(image)
-        for frames in by_video.values():  # frames without an index: numbered in order
-            if any(im.frame_index is None for im in frames):
+        names = {v.id: v.name for v in self.videos}
+        for video_id, frames in by_video.items():  # frames without an index: numbered in order
+            unnumbered = sum(im.frame_index is None for im in frames)
+            if unnumbered:
+                if unnumbered < len(frames):  # the numbers the others had are lost: say so
+                    log.warning(
+                        "%s: video %s: %d of %d frames have no frame number; all its frames "
+                        "are numbered in file order",
+                        self.source,
+                        names.get(video_id, video_id),
+                        unnumbered,
+                        len(frames),
+                    )
                 for index, im in enumerate(frames):
                     im.frame_index = index
         info = {"description": f"imported from {self.source}", **self.info}

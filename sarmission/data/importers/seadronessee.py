@@ -76,6 +76,17 @@ def _split_of(json_path: Path) -> str:
     return stem.removeprefix("instances_").split("_")[0] if stem.startswith("instances_") else ""
 
 
+def _frame_number(value: object) -> int | None:
+    """A frame number as the files give it (300, 300.0 or "300"); None for anything else."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, str) and value.strip().isdigit():
+        return int(value.strip())
+    if isinstance(value, int | float) and float(value).is_integer():
+        return int(value)
+    return None
+
+
 def pitch_convention(part: VideoDataset, json_path: Path) -> str | None:
     """How ``part`` gives its gimbal pitch: as it states, else as its pitches' signs say;
     None when it has no pitch off the horizon (nothing to tell apart). A file with both
@@ -142,7 +153,7 @@ def import_seadronessee(
                 image.width,
                 image.height,
                 video=video,
-                frame_index=int(frame) if isinstance(frame, int | float) else None,
+                frame_index=_frame_number(frame),
                 meta=image.meta,
                 extra={"seadronessee_id": image.id},
             )
