@@ -295,6 +295,19 @@ def test_dji_srt_as_editors_and_converters_save_it(tmp_path: Path, name, encode)
     assert [p.t for p in log.positions] == pytest.approx([k / 30 for k in range(12)], abs=1e-3)
 
 
+def test_an_srt_of_another_day_is_not_paired_with_the_video(tmp_path: Path) -> None:
+    """The SRT's date lines (the drone's clock, 2024-05-01 12:00 local) were ignored, so a
+    video recorded days later was placed with its positions."""
+    path = tmp_path / "DJI_0007.SRT"
+    path.write_text(dji_srt_text(frames=10))
+    log = open_flight_log(path)
+    assert log.stated_start_posix == pytest.approx(START_UTC + 2 * 3600)  # local, as UTC
+    same = align_video(log, created=START_UTC + 5.0, duration_s=0.3)  # UTC+2: within a zone
+    assert same.offset_s == 0.0
+    with pytest.raises(AlignmentError, match="not the same recording"):
+        align_video(log, created=START_UTC + 3 * 86400, duration_s=0.3)
+
+
 def test_dji_srt_without_gimbal_angles_places_no_pixel(tmp_path: Path) -> None:
     path = tmp_path / "DJI_0002.SRT"
     path.write_text(dji_srt_text(frames=10, gimbal=False))

@@ -103,6 +103,13 @@ def align_video(
     if offset_s is not None:
         result = Alignment(f"given offset: the video starts at log time {offset_s:.3f} s", offset_s)
     elif log.per_frame:
+        stated = log.stated_start_posix
+        if created is not None and stated is not None and abs(created - stated) > CLOCK_SLACK_S:
+            raise AlignmentError(
+                f"the video was recorded {_utc(created)} but its subtitle file "
+                f"{log.path.name} was written {_utc(stated)[:-4]} (its own clock): not the "
+                "same recording; no positions"
+            )
         result = Alignment("the subtitle file's own times (the video's clock)", 0.0)
     elif log.triggers:
         result = _trigger_alignment(log, created)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import re
+from datetime import UTC, datetime
 from pathlib import Path
 
 from sarmission.flightlog.model import ACCURACY, FlightLog, FlightLogError, LogBuilder
@@ -72,6 +73,22 @@ def _values(text: str) -> dict[str, float | None]:
     }
 
 
+_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})[ T](\d{2}):(\d{2}):(\d{2})")
+
+
+def _stated_posix(block: str) -> float | None:
+    """The block's date line (``2024-05-01 12:00:00.000``, the drone's clock) as POSIX
+    seconds read as UTC; None without one."""
+    m = _DATE.search(block)
+    if m is None:
+        return None
+    try:
+        when = datetime(*(int(g) for g in m.groups()), tzinfo=UTC)
+    except ValueError:
+        return None
+    return when.timestamp()
+
+
 def srt_text(raw: bytes) -> str:
     """An SRT's text: UTF-16 where it starts with that byte-order mark (Windows editors save
     it so), else UTF-8 (a bad byte replaced); line ends as ``\n``."""
@@ -116,6 +133,8 @@ def read_dji_srt(path: str | Path) -> FlightLog:
             missing += 1
             continue
         t = _seconds(m)
+        if log.stated_start_posix is None and (stated := _stated_posix(block)) is not None:
+            log.stated_start_posix = stated - t
         if v["bare_altitude"] is not None:
             bare_heights.append(v["bare_altitude"])
         abs_alt = v["abs_alt"] if v["abs_alt"] is not None else math.nan

@@ -108,6 +108,9 @@ class FlightLog:
     utc_offset_s: float | None = None
     image_times: dict[str, float] = field(default_factory=dict)
     per_frame: bool = False
+    #: When the log says it began (POSIX seconds, its own clock's time zone, often local):
+    #: only to tell a log of another day, not a time base.
+    stated_start_posix: float | None = None
     rejected: Counter[str] = field(default_factory=Counter)
     notes: list[str] = field(default_factory=list)
 
