@@ -115,6 +115,48 @@ def test_export_writes_onnx_that_loads_with_a_dynamic_proposal_axis(
     assert model.opset_import[0].version == 17
 
 
+def test_export_and_detect_never_write_over_what_they_read(
+    checkpoint: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`export --average a.pt b.pt --out a.onnx` wrote the mean over a.pt; `--out b.pt`
+    wrote ONNX over the checkpoint; `detect --out` over its model or annotations. Exit 0."""
+    import shutil
+
+    import cv2
+    import numpy as np
+    import torch
+
+    a, b = tmp_path / "a.pt", tmp_path / "b.pt"
+    shutil.copy(checkpoint, a)
+    shutil.copy(checkpoint, b)
+    before = a.read_bytes()
+    cases = [
+        (["export", "--average", str(a), str(b), "--out", str(tmp_path / "a.onnx")], "one of"),
+        (["export", "--model", str(b), "--out", str(b)], "expected a .onnx file"),
+        (["export", "--model", str(b), "--out", str(tmp_path)], "a folder"),
+        (["export", "--model", str(b), "--opset", "5", "--out", str(tmp_path / "x.onnx")], "9 to"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2, argv
+        assert message in capsys.readouterr().err
+    assert a.read_bytes() == before and b.read_bytes() == before
+    # a diverged head (NaN weights) is not exported: it would detect nothing, silently
+    state = torch.load(b, weights_only=True)
+    state["state_dict"] = {k: v.float() * float("nan") for k, v in state["state_dict"].items()}
+    torch.save(state, tmp_path / "nan.pt")
+    out = tmp_path / "nan.onnx"
+    assert main(["export", "--model", str(tmp_path / "nan.pt"), "--out", str(out)]) == 2
+    assert "weights are not finite" in capsys.readouterr().err and not out.exists()
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for name in ("f0.png", "f1.png"):
+        cv2.imwrite(str(frames / name), np.full((64, 96, 3), 90, np.uint8))
+    model = tmp_path / "head.onnx"
+    assert main(["export", "--model", str(b), "--out", str(model)]) == 0
+    assert main(["detect", str(frames), "--model", str(model), "--out", str(model)]) == 2
+    assert "the same file as --model" in capsys.readouterr().err
+
+
 def test_info_reports_head_parameters_and_stage_flops(capsys: pytest.CaptureFixture) -> None:
     assert main(["info", "--size", "1920x1080", "--ds", "2", "--topn", "25", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)

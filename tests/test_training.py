@@ -544,3 +544,30 @@ def test_settings_are_validated():
         replace(SETTINGS, pos_nwd=0.0).validate()
     with pytest.raises(ValueError, match="motion_floor"):
         replace(SETTINGS, motion_floor=-0.01).validate()
+    # once accepted: inf trained to NaN weights and wrote them; NaN overflowed mid-cutting
+    for lr in (float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="lr must be a positive number"):
+            TrainConfig(Path("a"), Path("b"), Path("c"), lr=lr).validate()
+    with pytest.raises(ValueError, match="jitter_shift"):
+        replace(SETTINGS, jitter_shift=float("nan")).validate()
+    with pytest.raises(ValueError, match="is a folder"):  # found before training, not after
+        TrainConfig(Path("a"), Path("b"), Path(".")).validate()
+
+
+def test_a_diverged_training_stops_and_a_broken_state_is_named(data, tmp_path, monkeypatch):
+    """A loss of NaN went on to save a head of NaN weights, exit 0; a truncated resume state
+    gave a torch traceback."""
+    out = tmp_path / "head.pt"
+    real_epoch = train_module._train_epoch
+
+    def diverging(*args, **kwargs):
+        return real_epoch(*args, **kwargs) | {"loss": float("nan")}
+
+    monkeypatch.setattr(train_module, "_train_epoch", diverging)
+    with pytest.raises(ValueError, match="training diverged in epoch 1 \\(loss nan\\)"):
+        train(_config(data, out, epochs=1))
+    assert not out.exists()
+    monkeypatch.setattr(train_module, "_train_epoch", real_epoch)
+    state_path(out).write_bytes(b"PK\x03\x04 not a whole zip")
+    with pytest.raises(ValueError, match="cannot resume: .* is not readable .*delete it"):
+        train(_config(data, out, resume=True))

@@ -1,5 +1,5 @@
-"""Small helpers several sub-commands share: the frame-size option, ``NAME=NAME`` pairs and a
-free loopback port.
+"""Small helpers several sub-commands share: the frame-size option, ``NAME=NAME`` pairs, a
+free loopback port and the check that an output is not an input.
 
 One parser for every ``--size`` style option, so each command accepts the same sizes and says
 the same thing about a wrong one.
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import socket
+from pathlib import Path
 
 #: Smallest frame side the pipeline accepts (two 16 px proposal boxes).
 MIN_FRAME_SIDE = 32
@@ -54,3 +55,21 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
+
+
+def check_output_path(
+    out: str | Path, inputs: dict[str, str | Path | None], suffix: str | None = None
+) -> Path:
+    """``out`` as a Path, or ValueError when it is a folder, lacks ``suffix`` or is one of
+    ``inputs`` (flag -> path): a command never writes over what it reads (an export over its
+    checkpoint, detections over the annotations)."""
+    path = Path(out)
+    if path.is_dir():
+        raise ValueError(f"--out {out}: a folder; give the file to write")
+    if suffix is not None and path.suffix.lower() != suffix:
+        raise ValueError(f"--out {out}: expected a {suffix} file")
+    target = path.resolve()
+    for flag, given in inputs.items():
+        if given is not None and Path(given).resolve() == target:
+            raise ValueError(f"--out {out}: the same file as {flag}; write elsewhere")
+    return path

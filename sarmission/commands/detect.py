@@ -47,6 +47,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Detect over the input and write the results file."""
+    from sarmission.commands.cli_helpers import check_output_path
     from sarmission.data.coco_results import detections_to_coco
     from sarmission.data.frames import open_frame_source
     from sarmission.data.prefetch import Prefetcher
@@ -54,6 +55,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be at least 1, got {args.max_frames}")
+    check_output_path(
+        args.out,
+        {"the input": args.input, "--annotations": args.annotations, "--model": args.model},
+    )
     image_ids = _image_ids_by_frame(args.annotations) if args.annotations else None
     source = open_frame_source(args.input, yuv=True)
     live = isinstance(source, StreamSource)

@@ -9,6 +9,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sarmission.commands.cli_helpers import check_output_path
+
+#: ONNX opsets the export is known to write and onnxruntime to run (checked 9-23).
+MIN_OPSET, MAX_OPSET = 9, 23
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register the ``export`` sub-command."""
@@ -63,19 +68,29 @@ def run(args: argparse.Namespace) -> int:
 
     if args.weights is not None and args.average is None:
         raise ValueError("--weights needs --average")
+    if not MIN_OPSET <= args.opset <= MAX_OPSET:
+        raise ValueError(f"--opset must be {MIN_OPSET} to {MAX_OPSET}, got {args.opset}")
+    inputs = {"--model": args.model} | {
+        f"--average ({i + 1})": path for i, path in enumerate(args.average or [])
+    }
+    out = check_output_path(args.out, inputs, ".onnx")
     if args.average is not None:
         from sarmission.perception.runtime import save_head_checkpoint
         from sarmission.training.average import average_heads
 
         if args.model is not None:
             raise ValueError("--model and --average exclude each other")
-        model = save_head_checkpoint(
-            average_heads(args.average, _weights(args.weights)), Path(args.out).with_suffix(".pt")
-        )
+        mean = out.with_suffix(".pt")  # the mean's checkpoint, written beside the ONNX
+        if any(mean.resolve() == Path(path).resolve() for path in args.average):
+            raise ValueError(
+                f"--out {out}: the mean's checkpoint would go to {mean}, one of the heads "
+                "averaged; write elsewhere"
+            )
+        model = save_head_checkpoint(average_heads(args.average, _weights(args.weights)), mean)
         print(f"wrote {model}: the mean of {len(args.average)} heads")
     else:
         model = args.model or default_model_path("torch")
         if is_head_name(model):
             model = shipped_head_path(model, "torch")
-    print(export_head_onnx(model, args.out, opset=args.opset).summary())
+    print(export_head_onnx(model, out, opset=args.opset).summary())
     return 0

@@ -99,6 +99,9 @@ def export_head_onnx(
         model = checkpoint_or_module
     else:
         model = load_head_checkpoint(checkpoint_or_module)
+    bad = [name for name, value in model.state_dict().items() if not value.isfinite().all()]
+    if bad:  # a diverged training writes such a head: it would detect nothing, silently
+        raise ValueError(f"the head's weights are not finite ({bad[0]} ...): not exported")
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     data = head_onnx_bytes(model, opset)
@@ -112,6 +115,7 @@ def export_head_onnx(
     ref = TorchHeadRuntime(copy.deepcopy(model)).predict(crops)
     got = OnnxHeadRuntime(out_path).predict(crops)
     diff = float(max(np.abs(a - b).max() for a, b in zip(ref, got, strict=True)))
-    if diff > atol:
+    if not diff <= atol:  # NaN too
+        out_path.unlink(missing_ok=True)
         raise RuntimeError(f"ONNX export {out_path} differs from torch by {diff:.3g} > {atol:g}")
     return ExportReport(out_path, opset, count_parameters(model), diff)

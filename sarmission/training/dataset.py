@@ -147,6 +147,8 @@ class CropSettings:
                 "frame_stride must be >= 1, warmup_frames, jitters_per_gt, "
                 "background_negatives, object_negatives and object_context >= 0"
             )
+        if not 0.0 <= self.jitter_shift <= 4.0:  # NaN too: checked before any crop is cut
+            raise ValueError(f"jitter_shift must be in [0, 4], got {self.jitter_shift}")
         if not 0.0 <= self.colour_share <= 1.0:
             raise ValueError(f"colour_share must be in [0, 1], got {self.colour_share}")
         if not 0.0 < self.pos_nwd <= 1.0:

@@ -23,6 +23,7 @@ batch, the ``min_negatives`` hardest do.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,8 +60,8 @@ def jitter_boxes(
         raise ValueError(f"copies must be non-negative, got {copies}")
     if not 0.0 <= scale < 1.0:
         raise ValueError(f"scale must be in [0, 1), got {scale}")
-    if shift < 0.0:
-        raise ValueError(f"shift must be non-negative, got {shift}")
+    if not (0.0 <= shift and math.isfinite(shift)):
+        raise ValueError(f"shift must be a finite number >= 0, got {shift}")
     if side is not None and not side > 0:
         raise ValueError(f"side must be positive, got {side}")
     gt = xyxy_to_cxcywh(np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4))

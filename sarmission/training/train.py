@@ -163,12 +163,14 @@ class TrainConfig:
         """Raise ``ValueError`` for impossible settings."""
         if self.epochs < 1 or self.batch_size < 1:
             raise ValueError("epochs and batch_size must be at least 1")
+        if Path(self.out).is_dir():  # found before the crops are cut, not after training
+            raise ValueError(f"out {self.out} is a folder; give the head file to write")
         if not 1 <= self.select_from <= self.epochs:
             raise ValueError(
                 f"select_from must be in [1, epochs = {self.epochs}], got {self.select_from}"
             )
-        if not self.lr > 0:
-            raise ValueError(f"lr must be positive, got {self.lr}")
+        if not (self.lr > 0 and math.isfinite(self.lr)):
+            raise ValueError(f"lr must be a positive number, got {self.lr}")
         if self.optimizer not in ("sgd", "adamw"):
             raise ValueError(f"optimizer must be 'sgd' or 'adamw', got {self.optimizer!r}")
         if not 0.0 <= self.min_lr_ratio <= 1.0:
@@ -368,7 +370,13 @@ def _load_state(
     path = state_path(config.out)
     if not path.is_file():
         raise FileNotFoundError(f"cannot resume: no training state at {path}")
-    state = torch.load(path, map_location="cpu", weights_only=True)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - torch raises anything on a truncated file
+        raise ValueError(
+            f"cannot resume: {path} is not readable ({type(exc).__name__}: "
+            f"{str(exc).splitlines()[0][:120] if str(exc) else ''}); delete it to start afresh"
+        ) from None
     if not isinstance(state, dict) or state.get("format") != STATE_FORMAT:
         raise ValueError(f"cannot resume: {path} is not a sarmission training state")
     if state.get("version") != STATE_VERSION:
@@ -604,6 +612,12 @@ def train(config: TrainConfig) -> TrainResult:
             record = _train_epoch(
                 model, optimizer, train_set, config, epoch, bar, average, textures, keeper
             )
+            if not math.isfinite(record["loss"]):  # a head of NaN weights detects nothing
+                kept = f"; {config.out} holds epoch {best_epoch}" if best_epoch else ""
+                raise ValueError(
+                    f"training diverged in epoch {epoch + 1} (loss {record['loss']}): lower "
+                    f"--lr (now {config.lr:g}){kept}"
+                )
             record |= validate_f2(evaluated, val_set, config.score_threshold, config.nms_iou)
             record |= {"epoch": epoch + 1, "seconds": time.perf_counter() - t_epoch}
             history.append(record)
