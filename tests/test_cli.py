@@ -227,6 +227,31 @@ def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> Non
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        # nan once flew for ever, 0 the whole survey, a negative duration nothing with exit 0
+        (["demo", "--duration", "nan"], "expected seconds above 0, got 'nan'"),
+        (["demo", "--duration", "0"], "expected seconds above 0, got '0'"),
+        (["sim", "score", "--seconds", "-5"], "expected seconds above 0"),
+        (["replay", "x.mp4", "--duration", "inf"], "expected seconds above 0"),
+        (["sim", "vehicle", "--duration", "nan"], "expected seconds above 0"),
+        # fps 0 divided by zero, a negative one ran time backwards, a negative seed or start
+        # came out as numpy's message after a stray clip was written
+        (["sim", "generate", "--fps", "0", "--out", "never"], "frames per second above 0"),
+        (["sim", "generate", "--start", "-100", "--out", "never"], "0 or more"),
+        (["sim", "generate", "--seed", "-1", "--out", "never"], "whole number, 0 or more"),
+    ],
+)
+def test_durations_rates_and_seeds_are_numbers_that_make_sense(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture
+) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    assert message in capsys.readouterr().err
+
+
 def test_detect_rejects_a_colour_share_outside_0_1(
     clip: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:

@@ -8,6 +8,7 @@ the same thing about a wrong one.
 from __future__ import annotations
 
 import argparse
+import math
 import socket
 from pathlib import Path
 
@@ -73,3 +74,48 @@ def check_output_path(
         if given is not None and Path(given).resolve() == target:
             raise ValueError(f"--out {out}: the same file as {flag}; write elsewhere")
     return path
+
+
+def positive_seconds(text: str) -> float:
+    """A duration option: a finite number of seconds above 0 (``nan`` once ran for ever, ``0``
+    the whole flight, a negative one nothing with exit 0)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected seconds above 0, got {text!r}")
+    return value
+
+
+def positive_rate(text: str) -> float:
+    """A frame rate option: a finite number of frames per second above 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected frames per second above 0, got {text!r}")
+    return value
+
+
+def non_negative_seconds(text: str) -> float:
+    """A time option that may be 0: finite seconds, 0 or more."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected seconds, 0 or more, got {text!r}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """A seed or count option: a whole number, 0 or more."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number, 0 or more, got {text!r}")
+    return value

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from sarmission.commands.cli_helpers import free_udp_port, parse_frame_size
+from sarmission.commands.cli_helpers import free_udp_port, parse_frame_size, positive_seconds
 from sarmission.commands.detector_options import add_detector_options
 from sarmission.commands.truth_score import score
 
@@ -44,7 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--duration",
-        type=float,
+        type=positive_seconds,
         default=None,
         help="seconds of flight (default: the whole shortened survey)",
     )

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from sarmission.commands.cli_helpers import positive_seconds
 from sarmission.commands.detector_options import add_detector_options
 
 if TYPE_CHECKING:
@@ -46,7 +47,9 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
         help="log to rerun: 'spawn' a viewer or 'save FILE.rrd'",
     )
     group.add_argument("--max-frames", type=int, default=None, help="stop after this many frames")
-    group.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    group.add_argument(
+        "--duration", type=positive_seconds, default=None, help="stop after this many seconds"
+    )
     add_detector_options(parser)
     # None = the mission file's [detector] value (the file overrides code, the CLI the file).
     parser.set_defaults(

@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from sarmission.commands.cli_helpers import parse_frame_size
+from sarmission.commands.cli_helpers import (
+    non_negative_int,
+    non_negative_seconds,
+    parse_frame_size,
+    positive_rate,
+    positive_seconds,
+)
 from sarmission.commands.progress import add_progress_option, bars_wanted
 
 if TYPE_CHECKING:
@@ -46,7 +52,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     vehicle.add_argument("--seed", type=int, default=0)
     vehicle.add_argument(
         "--duration",
-        type=float,
+        type=positive_seconds,
         default=None,
         help="stop after this many wall-clock seconds (default: run until Ctrl-C)",
     )
@@ -92,12 +98,15 @@ def add_generate_parser(sim_sub: argparse._SubParsersAction) -> None:
         help="WIDTHxHEIGHT (default: %(default)s)",
     )
     gen.add_argument(
-        "--seed", type=int, default=None, help="world and flight seed (default: the preset's own)"
+        "--seed",
+        type=non_negative_int,
+        default=None,
+        help="world and flight seed (default: the preset's own)",
     )
-    gen.add_argument("--fps", type=float, default=30.0)
+    gen.add_argument("--fps", type=positive_rate, default=30.0)
     gen.add_argument(
         "--start",
-        type=float,
+        type=non_negative_seconds,
         default=5.0,
         help="seconds into the flight of the first clip (default: %(default)s)",
     )

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sarmission.commands.cli_helpers import positive_seconds
 from sarmission.commands.mission_options import add_mission_options
 
 if TYPE_CHECKING:
@@ -55,7 +56,7 @@ def add_score_parser(sim_sub: argparse._SubParsersAction) -> None:
     )
     score.add_argument(
         "--seconds",
-        type=float,
+        type=positive_seconds,
         default=None,
         help="fly each scenario this long instead of its own duration",
     )
