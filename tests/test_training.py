@@ -568,6 +568,10 @@ def test_a_diverged_training_stops_and_a_broken_state_is_named(data, tmp_path, m
         train(_config(data, out, epochs=1))
     assert not out.exists()
     monkeypatch.setattr(train_module, "_train_epoch", real_epoch)
+    # a head of boats alone, validated on F2 over people: 0 at every epoch, so epoch 1 was
+    # kept without a word
+    with pytest.raises(ValueError, match="no person box in the validation frames"):
+        train(_config(data, out, epochs=1, crops=replace(SETTINGS, classes=("boat",))))
     state_path(out).write_bytes(b"PK\x03\x04 not a whole zip")
     with pytest.raises(ValueError, match="cannot resume: .* is not readable .*delete it"):
         train(_config(data, out, resume=True))

@@ -566,6 +566,12 @@ def train(config: TrainConfig) -> TrainResult:
         raise ValueError(
             f"{config.train}: no positive training crop (no target GT boxes in the sampled frames)"
         )
+    people = person_class_ids(tuple(config.crops.classes))
+    if not np.isin(val_set.gt_classes.numpy(), people).any():  # F2 0 at every epoch
+        raise ValueError(
+            f"{config.val}: no person box in the validation frames (or no person class among "
+            f"{', '.join(config.crops.classes)}): the validation F2 could not choose an epoch"
+        )
     print(
         f"train: {train_set.summary()}\nval: {val_set.summary()} "
         f"({time.perf_counter() - t0:.1f} s)",
