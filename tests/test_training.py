@@ -271,6 +271,25 @@ def test_crop_cache_key_follows_the_recipe_source(tmp_path, monkeypatch):
     assert cache_key(annotations, SETTINGS) != key
 
 
+def test_crops_cut_with_frames_missing_are_not_cached(tmp_path):
+    """A set cut while images were missing was cached under the file's key, so the frames
+    put back later were never read: '41 training crops from 1 frames' again."""
+    annotations = write_dataset(tmp_path / "d", n_videos=1, n_frames=14, seed=3)
+    images = sorted((tmp_path / "d").rglob("*.png"))
+    hidden = {path: path.read_bytes() for path in images[6:10]}
+    for path in hidden:
+        path.unlink()
+    partial, cached = load_crop_set(annotations, SETTINGS, tmp_path / "cache", progress=False)
+    assert not cached and partial.frames_unread == 4
+    assert not list((tmp_path / "cache").glob("crops-*.pt"))
+    for path, data in hidden.items():
+        path.write_bytes(data)
+    whole, cached = load_crop_set(annotations, SETTINGS, tmp_path / "cache", progress=False)
+    assert not cached and whole.frames_unread == 0 and len(whole.frame_ids) > len(partial.frame_ids)
+    again, cached = load_crop_set(annotations, SETTINGS, tmp_path / "cache", progress=False)
+    assert cached and torch.equal(again.crops, whole.crops)
+
+
 def test_crop_cache_matches_inference_and_is_reused(data):
     crop_set, cached = load_crop_set(data["train"], SETTINGS, data["cache"], progress=False)
     assert not cached

@@ -187,6 +187,9 @@ class CropSet:
     gt_classes: Tensor
     gt_image_ids: Tensor
     settings: dict = field(default_factory=dict)
+    #: Frames that could not be read when the set was cut (missing or broken images); such a
+    #: set is not cached, so the frames are read again once they are there.
+    frames_unread: int = 0
 
     def __len__(self) -> int:
         return int(self.labels.shape[0])
@@ -601,6 +604,7 @@ def build_crop_set(
         gt_classes=torch.from_numpy(np.concatenate(gt_classes)),
         gt_image_ids=torch.from_numpy(np.concatenate(gt_images)),
         settings=settings.to_dict(),
+        frames_unread=int(counters.get("skipped", 0)),
     )
 
 
@@ -670,6 +674,13 @@ def load_crop_set(
         except Exception as exc:  # a damaged cache is rebuilt, not fatal
             log.warning("ignoring unreadable crop cache %s (%s)", cache, exc)
     crop_set = build_crop_set(read_coco_video(annotations), settings, progress, desc)
+    if crop_set.frames_unread:  # cached, the set would stand for the file once they are there
+        log.warning(
+            "crops of %s not cached: %d frames could not be read",
+            annotations,
+            crop_set.frames_unread,
+        )
+        return crop_set, False
     cache.parent.mkdir(parents=True, exist_ok=True)
     tmp = cache.with_name(cache.name + f".{os.getpid()}.tmp")
     torch.save(crop_set.to_state(), tmp)
