@@ -519,6 +519,24 @@ def test_cli_errors_are_clear(data, tmp_path):
     )
     with pytest.raises(ValueError, match="not valid JSON"):
         broken.func(broken)
+    # once accepted: a head with two outputs for one class; a folder said "not found"
+    for extra, message in (
+        (["--classes", "swimmer,Swimmer,boat"], "names Swimmer, swimmer more than once"),
+        (["--train", str(tmp_path)], "a folder; give its annotation file"),
+    ):
+        args = _parse(
+            [
+                "--train",
+                str(data["train"]),
+                "--val",
+                str(data["val"]),
+                "--out",
+                str(tmp_path / "m.pt"),
+                *extra,
+            ]
+        )
+        with pytest.raises(ValueError, match=message):
+            args.func(args)
     foreign = _parse(
         [
             "--train",

@@ -229,7 +229,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def config_from_args(args: argparse.Namespace):
     """The :class:`~sarmission.training.train.TrainConfig` the arguments describe."""
-    from sarmission.class_roles import MARITIME_CLASSES
+    from sarmission.class_roles import MARITIME_CLASSES, normalise_class
     from sarmission.training.dataset import CropSettings
     from sarmission.training.randomise import Randomisation
     from sarmission.training.train import TrainConfig
@@ -241,7 +241,13 @@ def config_from_args(args: argparse.Namespace):
     )
     if not classes:
         raise ValueError("--classes must name at least one class")
+    names = [normalise_class(c) for c in classes]
+    twice = sorted({c for c, n in zip(classes, names, strict=True) if names.count(n) > 1})
+    if twice:  # two outputs for one class: its scores split between them
+        raise ValueError(f"--classes names {', '.join(twice)} more than once")
     for flag, path in (("--train", args.train), ("--val", args.val)):
+        if path.is_dir():
+            raise ValueError(f"{flag} {path}: a folder; give its annotation file (.json)")
         if not path.is_file():
             raise FileNotFoundError(f"{flag} annotation file not found: {path}")
     if args.init_class and args.init is None:
