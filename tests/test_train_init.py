@@ -117,6 +117,9 @@ def test_a_new_class_may_start_from_a_trained_one():
     )
     with pytest.raises(ValueError, match="has no class boat"):
         initialise_from(MiteHead(HeadConfig(classes=("person",))), "default", {"person": "boat"})
+    # a typo in the new class's name was ignored: the class started from scratch, silently
+    with pytest.raises(ValueError, match="the head being trained has no class persn"):
+        initialise_from(MiteHead(HeadConfig(classes=("person",))), "default", {"persn": "swimmer"})
 
 
 def test_evaluate_an_imported_land_set_with_the_shipped_head(tmp_path, capsys):

@@ -87,6 +87,13 @@ def initialise_from(
             f"--init-class: {path} has no class {', '.join(unknown)} "
             f"(it has {', '.join(trained.config.classes)})"
         )
+    own = {normalise_class(c) for c in model.config.classes}
+    stray = sorted(set(renamed) - own)
+    if stray:  # a typo would leave the class it meant to start from scratch, silently
+        raise ValueError(
+            f"--init-class: the head being trained has no class {', '.join(stray)} "
+            f"(it has {', '.join(model.config.classes)})"
+        )
     carried, new = [], []
     with torch.no_grad():
         for row, name in enumerate(model.config.classes):
