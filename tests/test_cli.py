@@ -157,6 +157,29 @@ def test_export_and_detect_never_write_over_what_they_read(
     assert "the same file as --model" in capsys.readouterr().err
 
 
+def test_a_mission_refuses_a_head_that_names_no_person(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A head of boats alone ran a whole replay, demo or suite and reported 0 alerts."""
+    import cv2
+    import numpy as np
+    import torch
+
+    from sarmission.perception.head import HeadConfig
+
+    torch.manual_seed(0)
+    boats = save_head_checkpoint(MiteHead(HeadConfig(classes=("boat",))), tmp_path / "b.pt")
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cv2.imwrite(str(frames / "f0.png"), np.full((64, 96, 3), 90, np.uint8))
+    for argv in (
+        ["replay", str(frames), "--model", str(boats)],
+        ["demo", "--model", str(boats), "--duration", "1"],
+    ):
+        assert main(argv) == 2, argv
+        assert "the head names no person (boat)" in capsys.readouterr().err
+
+
 def test_info_reports_head_parameters_and_stage_flops(capsys: pytest.CaptureFixture) -> None:
     assert main(["info", "--size", "1920x1080", "--ds", "2", "--topn", "25", "--json"]) == 0
     report = json.loads(capsys.readouterr().out)

@@ -109,6 +109,13 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
     if model is None and mission.detector.model != DEFAULT_MODEL:
         model, origin = mission.detector.model, " (the mission's [detector] model)"
     head = build_head_runtime(model, args.runtime)
+    from sarmission.class_roles import person_class_ids
+
+    if not person_class_ids(head.classes).size:  # it would never alert, and say nothing
+        raise ValueError(
+            f"{model}{origin}: the head names no person ({', '.join(head.classes)}); "
+            "a mission needs a head that finds people"
+        )
     if model is not None:
         note = f"model: {model}{origin}"
     elif DEFAULT_ONNX_MODEL.is_file() or DEFAULT_TORCH_MODEL.is_file():
