@@ -204,3 +204,11 @@ def test_frame_numbers_as_strings_are_kept_and_a_lost_one_is_said(tmp_path, capl
     data = import_dataset("seadronessee", path, progress=False)
     assert [im.frame_index for im in data.images] == [0, 1, 2, 3]
     assert "video DJI_0001.MP4: 1 of 4 frames have no frame number" in caplog.text
+
+
+def test_a_file_of_one_split_is_not_imported_as_another(tmp_path):
+    """`--split train` with instances_val.json imported the validation split as training."""
+    source = _pitched(tmp_path / "instances_val.json", [45.0])
+    with pytest.raises(ValueError, match="instances_val.json is the val split, not train"):
+        import_dataset("seadronessee", source, split="train", progress=False)
+    assert len(import_dataset("seadronessee", source, split="val", progress=False).images) == 1

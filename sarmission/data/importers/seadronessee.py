@@ -44,6 +44,9 @@ def annotation_files(root: Path, split: str | None) -> list[Path]:
     """The annotation file(s) to read: ``root`` itself, or its
     ``annotations/instances_<split>*.json`` (every ``instances_*.json`` without a split)."""
     if root.is_file():
+        named = _split_of(root)
+        if split and named and named != split:  # the file itself says which split it is
+            raise DatasetFormatError(f"{root.name} is the {named} split, not {split}")
         return [root]
     folder = root / "annotations" if (root / "annotations").is_dir() else root
     pattern = f"instances_{split}*.json" if split else "instances_*.json"
