@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 import socket
+from collections.abc import Callable
 from pathlib import Path
 
 #: Smallest frame side the pipeline accepts (two 16 px proposal boxes).
@@ -76,38 +77,28 @@ def check_output_path(
     return path
 
 
-def positive_seconds(text: str) -> float:
-    """A duration option: a finite number of seconds above 0 (``nan`` once ran for ever, ``0``
-    the whole flight, a negative one nothing with exit 0)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected seconds above 0, got {text!r}")
-    return value
+def _finite_option(at_least_zero: bool, wanted: str) -> Callable[[str], float]:
+    """An argparse type for a finite number above 0 (or 0 and above), else ``wanted``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and (value >= 0 if at_least_zero else value > 0)):
+            raise argparse.ArgumentTypeError(f"expected {wanted}, got {text!r}")
+        return value
+
+    return parse
 
 
-def positive_rate(text: str) -> float:
-    """A frame rate option: a finite number of frames per second above 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected frames per second above 0, got {text!r}")
-    return value
-
-
-def non_negative_seconds(text: str) -> float:
-    """A time option that may be 0: finite seconds, 0 or more."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected seconds, 0 or more, got {text!r}")
-    return value
+#: A duration option: seconds above 0 (``nan`` once ran for ever, ``0`` the whole flight, a
+#: negative one nothing with exit 0).
+positive_seconds = _finite_option(False, "seconds above 0")
+#: A frame rate option: frames per second above 0.
+positive_rate = _finite_option(False, "frames per second above 0")
+#: A time option that may be 0: seconds, 0 or more.
+non_negative_seconds = _finite_option(True, "seconds, 0 or more")
 
 
 def non_negative_int(text: str) -> int:

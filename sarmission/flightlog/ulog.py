@@ -139,7 +139,7 @@ def _valid_homes(
 
 def _home_at(homes: list[tuple[float, tuple[float, float, float]]], t: float) -> float:
     """Altitude of the home in effect at ``t`` (the first one before any)."""
-    i = bisect.bisect_right([h[0] for h in homes], t) - 1
+    i = bisect.bisect_right(homes, t, key=lambda home: home[0]) - 1
     return homes[max(i, 0)][1][2]
 
 
