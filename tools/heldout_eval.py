@@ -185,17 +185,22 @@ STILL_M_S = 0.05
 
 
 def box_study(
-    annotations: Path, model: str | None, ds: int = 2, crop_scales: tuple[float, ...] = (1.0,)
+    annotations: Path,
+    model: str | None,
+    ds: int = 2,
+    crop_scales: tuple[float, ...] = (1.0,),
+    range_crops: tuple[float, float] = (0.0, 0.0),
 ) -> dict[str, Any]:
     """Per-box figures the report does not break down: how large the head draws the people it
     finds, and (held-out files) recall split by whether the person and the camera move.
 
     Runs MITE-Net with the ``sarmission eval`` defaults (N 25, conf 0.3; vSTMD down-sampling
-    ``ds``, 2 by default; crops of ``crop_scales`` times the proposal box) through the
-    library. A box is proposed when a proposal lies within NWD 0.1 of it; found when a
-    detection of any class with score > 0.5 does; detected when one lies within NWD 0.5
-    (greedy, not one-to-one: an upper bound of the report's matching). For each found box, the
-    ratio of the nearest such detection's longer side to the box's longer side.
+    ``ds``, 2 by default; crops of ``crop_scales`` times the proposal box, sized to the
+    person by ``range_crops``: ``(person_m, range_shift)`` as ``sarmission eval`` takes them,
+    0 for off) through the library. A box is proposed when a proposal lies within NWD 0.1 of
+    it; found when a detection of any class with score > 0.5 does; detected when one lies
+    within NWD 0.5 (greedy, not one-to-one: an upper bound of the report's matching). For each
+    found box, the ratio of the nearest such detection's longer side to the box's longer side.
     """
     import numpy as np
 
@@ -203,6 +208,7 @@ def box_study(
     from sarmission.class_roles import person_class_ids
     from sarmission.data.coco_video import read_coco_video
     from sarmission.evaluation.run_model import run_mitenet
+    from sarmission.mission.range_crops import dataset_person_px
     from sarmission.perception.mitenet import MiteNet, build_head_runtime
 
     dataset = read_coco_video(annotations)
@@ -218,8 +224,10 @@ def box_study(
         topn=25,
         score_threshold=0.3,
         crop_scales=crop_scales,
+        range_shift_per_octave=range_crops[1],
     )
-    run = run_mitenet(net, dataset, progress=False)
+    person_px_of = dataset_person_px(dataset, range_crops[0]) if range_crops[0] else None
+    run = run_mitenet(net, dataset, progress=False, person_px_of=person_px_of)
     # matched once, read at the confirmation's score and along the curve
     objects = object_scores(dataset, run, person_class_ids(net.classes).tolist())
     hovering = {v.id for v in dataset.videos if not v.extra.get("speed_m_s")}
@@ -508,12 +516,18 @@ def head_classes(model: str | None) -> tuple[str, ...]:
     return tuple(build_head_runtime(model, "onnx").config.classes)
 
 
-def detector_options(ds: int = 2, crop_scales: tuple[float, ...] = (1.0,)) -> tuple[str, ...]:
-    """``sarmission eval`` options for a down-sampling and crop scales other than the
-    defaults (ds 2, the single crop)."""
+def detector_options(
+    ds: int = 2,
+    crop_scales: tuple[float, ...] = (1.0,),
+    range_crops: tuple[float, float] = (0.0, 0.0),
+) -> tuple[str, ...]:
+    """``sarmission eval`` options for a down-sampling, crop scales and crops sized to the
+    person (``person_m, range_shift``) other than the defaults (ds 2, the single crop, off)."""
     options: tuple[str, ...] = () if ds == 2 else ("--ds", str(ds))
     if tuple(crop_scales) != (1.0,):
         options += ("--crop-scales", ",".join(f"{s:g}" for s in crop_scales))
+    if range_crops[0]:
+        options += ("--person-m", f"{range_crops[0]:g}", "--range-shift", f"{range_crops[1]:g}")
     return options
 
 
@@ -523,6 +537,7 @@ def heldout_split(
     scored: Path | None = None,
     ds: int = 2,
     crop_scales: tuple[float, ...] = (1.0,),
+    range_crops: tuple[float, float] = (0.0, 0.0),
 ) -> dict:
     """One held-out split's results: the report on ``scored`` (an annotation copy with people
     renamed to the head's class) or on ``annotations`` themselves, its clips and its study,
@@ -530,9 +545,11 @@ def heldout_split(
     return {
         "renderer": "heldout",
         "scored_as": None if scored is None else "person -> swimmer",
-        "report": evaluate(scored or annotations, model, detector_options(ds, crop_scales)),
+        "report": evaluate(
+            scored or annotations, model, detector_options(ds, crop_scales, range_crops)
+        ),
         "clips": clip_conditions(annotations),
-        "study": box_study(annotations, model, ds, crop_scales),
+        "study": box_study(annotations, model, ds, crop_scales, range_crops),
     }
 
 
@@ -546,14 +563,17 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     started = time.monotonic()
     splits: dict[str, Any] = {}
     reused: list[str] = []
+    range_crops = (args.person_m, args.range_shift)
     if args.own_sequences:
         own = render_own(work, args.own_sequences, args.frames, reused)
         splits["maritime_test"] = {
             "renderer": "sim (own)",
             "scored_as": None,
-            "report": evaluate(own, args.model, detector_options(args.ds, args.crop_scales)),
+            "report": evaluate(
+                own, args.model, detector_options(args.ds, args.crop_scales, range_crops)
+            ),
             "clips": None,
-            "study": box_study(own, args.model, args.ds, args.crop_scales),
+            "study": box_study(own, args.model, args.ds, args.crop_scales, range_crops),
         }
     if args.maritime_clips:
         sea = render_heldout(
@@ -566,7 +586,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             args.altitude,
         )
         splits["heldout_maritime"] = heldout_split(
-            sea, args.model, ds=args.ds, crop_scales=args.crop_scales
+            sea, args.model, ds=args.ds, crop_scales=args.crop_scales, range_crops=range_crops
         )
     if args.clutter_clips:
         clutter = render_heldout(
@@ -579,7 +599,11 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             args.altitude,
         )
         splits[CLUTTER_WORLD] = heldout_split(
-            clutter, args.model, ds=args.ds, crop_scales=args.crop_scales
+            clutter,
+            args.model,
+            ds=args.ds,
+            crop_scales=args.crop_scales,
+            range_crops=range_crops,
         )
     if args.land_clips:
         land = render_heldout(
@@ -599,6 +623,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             None if person_head else persons_as_swimmers(land),
             args.ds,
             args.crop_scales,
+            range_crops,
         )
     return {
         "command": "python tools/heldout_eval.py " + shlex.join(sys.argv[1:]),
@@ -620,6 +645,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "altitude_m": list(args.altitude) if args.altitude else None,
             "ds": args.ds,
             "crop_scales": list(args.crop_scales),
+            "person_m": args.person_m,
+            "range_shift": args.range_shift,
             "model": args.model or "shipped default",
         },
         "splits": splits,
@@ -1007,6 +1034,19 @@ def main(argv: list[str] | None = None) -> int:
         default=(1.0,),
         help="S[,S...]: the head's crops as multiples of the proposal box, as sarmission eval "
         "takes them, e.g. 4 for clips flown at a quarter of the altitude (default: 1)",
+    )
+    parser.add_argument(
+        "--person-m",
+        type=float,
+        default=0.0,
+        help="crops sized to a person this wide from each frame's meta, as sarmission eval "
+        "takes it; 0 = off (default: 0)",
+    )
+    parser.add_argument(
+        "--range-shift",
+        type=float,
+        default=0.0,
+        help="with --person-m: logits taken off a grown crop per doubling (default: 0)",
     )
     parser.add_argument("--model", default=None, help="head weights (default: the shipped one)")
     parser.add_argument("--doc", default=str(DEFAULT_DOC), help="Markdown file to update")

@@ -108,9 +108,11 @@ def render(labelled: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
             _pct(groups[g][1][i]) for g in ("people", "jackets", "distractors", "buoys", "debris")
         )
         flown = f"{altitude[0]:g}-{altitude[1]:g}" if altitude else "the worlds' own"
-        crop = ", ".join(f"{c:g}" for c in settings.get("crop_scales", [1.0]))
+        crop = ", ".join(f"{c:g}" for c in settings.get("crop_scales", [1.0])) + " S"
+        if settings.get("person_m"):
+            crop += f", sized to {settings['person_m']:g} m, shift {settings['range_shift']:g}"
         lines.append(
-            f"| `{label}` | {flown} | {settings.get('ds', 2)} | {crop} S | {groups['people'][0]} / "
+            f"| `{label}` | {flown} | {settings.get('ds', 2)} | {crop} | {groups['people'][0]} / "
             f"{groups['jackets'][0]} / {groups['distractors'][0]} | {recall:.2f} | {at_score} | "
             f"{_pct(distractors)} ({threshold:g}, {_pct(people)}) |"
         )

@@ -170,3 +170,46 @@ def check_colour_share(value: float) -> None:
     """Raise ``ValueError`` unless ``--colour-share`` is in [0, 1]."""
     if not 0.0 <= value <= 1.0:
         raise ValueError(f"--colour-share must be in [0, 1], got {value}")
+
+
+def add_range_crop_options(parser: argparse.ArgumentParser) -> None:
+    """``--person-m --range-shift --hfov``: crops sized to the person from each frame's meta
+    (:mod:`sarmission.mission.range_crops`), for commands that run MITE-Net over a dataset."""
+    group = parser.add_argument_group("crops sized to the person (from each frame's meta)")
+    group.add_argument(
+        "--person-m",
+        type=float,
+        default=0.0,
+        metavar="METRES",
+        help="grow a proposal's crops where a person this wide (across the line of sight) "
+        "would span more than the proposal box, from the frame's meta and the lens; "
+        "0 = off, crops as at the survey's ranges (default: %(default)s)",
+    )
+    group.add_argument(
+        "--range-shift",
+        type=float,
+        default=0.0,
+        metavar="LOGITS",
+        help="with --person-m: lower a grown crop's class logits by this much per doubling "
+        "(docs/range_crops.md; default: %(default)s)",
+    )
+    group.add_argument(
+        "--hfov",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="with --person-m: the lens's horizontal field of view (default: each video's "
+        "hfov_deg; frames without one are cropped as at the survey's ranges)",
+    )
+
+
+def check_range_crop_options(args: argparse.Namespace) -> None:
+    """``ValueError`` for a ``--person-m``, ``--range-shift`` or ``--hfov`` out of range."""
+    import math
+
+    if not (math.isfinite(args.person_m) and 0.0 <= args.person_m <= 10.0):
+        raise ValueError(f"--person-m must be in [0, 10] metres, got {args.person_m}")
+    if not (math.isfinite(args.range_shift) and 0.0 <= args.range_shift <= 10.0):
+        raise ValueError(f"--range-shift must be in [0, 10], got {args.range_shift}")
+    if args.hfov is not None and not (math.isfinite(args.hfov) and 0.0 < args.hfov < 180.0):
+        raise ValueError(f"--hfov must be in (0, 180) degrees, got {args.hfov}")

@@ -26,7 +26,9 @@ from typing import Any
 from sarmission.commands.cli_helpers import parse_pairs
 from sarmission.commands.detector_options import (
     add_detector_options,
+    add_range_crop_options,
     check_colour_share,
+    check_range_crop_options,
     check_refine_threshold,
     detector_settings,
 )
@@ -114,6 +116,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
     add_progress_option(parser)
     add_detector_options(parser)
+    add_range_crop_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -136,6 +139,11 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ValueError(f"proposal counts must be at least 1, got {topn}")
     check_colour_share(args.colour_share)
     check_refine_threshold(args.refine_threshold)
+    check_range_crop_options(args)
+    if args.person_m and (args.detections is not None or args.sweep):
+        raise ValueError(
+            "--person-m sizes the detector's crops; it needs neither --detections nor --sweep"
+        )
     bad = [d for d in args.sweep_ds if d not in DS_CHOICES]
     if args.sweep and bad:
         raise ValueError(f"--sweep-ds accepts {', '.join(map(str, DS_CHOICES))}, got {bad}")
@@ -262,11 +270,21 @@ def _evaluate_model(
 ) -> dict[str, Any]:
     from sarmission.evaluation.report import evaluate_detections, person_category_map
     from sarmission.evaluation.run_model import run_mitenet
+    from sarmission.mission.range_crops import dataset_person_px
     from sarmission.perception.mitenet import MiteNet
 
-    net = MiteNet(head, ds=args.ds, topn=args.topn, **detector_settings(args))
+    net = MiteNet(
+        head,
+        ds=args.ds,
+        topn=args.topn,
+        range_shift_per_octave=args.range_shift,
+        **detector_settings(args),
+    )
     person_category_map(dataset.categories, net.classes)  # fail before running, not after
-    run = run_mitenet(net, dataset, args.max_frames, progress=bars_wanted(args))
+    person_px_of = dataset_person_px(dataset, args.person_m, args.hfov) if args.person_m else None
+    run = run_mitenet(
+        net, dataset, args.max_frames, progress=bars_wanted(args), person_px_of=person_px_of
+    )
     if not run.frame_ms:
         raise ValueError(f"{args.annotations}: none of the {run.skipped} frames could be read")
     report = evaluate_detections(
@@ -287,6 +305,8 @@ def _evaluate_model(
             "topn": args.topn,
             "colour_share": args.colour_share,
             "crop_scales": list(args.crop_scales),
+            "person_m": args.person_m,
+            "range_shift": args.range_shift,
             "refine_threshold": net.refine_threshold,
             "recentre": net.recentre,
             "orientations": net.orientations,

@@ -10,9 +10,11 @@ from __future__ import annotations
 import statistics
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from sarmission.data.coco_video import VideoDataset
 from sarmission.data.sequence import iter_sequence, sequence_ids, sequence_images
@@ -66,8 +68,11 @@ def run_mitenet(
     max_frames: int | None = None,
     progress: bool = True,
     desc: str = "eval",
+    person_px_of: Callable[[Any], Callable[[np.ndarray], np.ndarray] | None] | None = None,
 ) -> ModelRun:
-    """Run ``net`` over every video of ``dataset`` (at most ``max_frames`` frames per video).
+    """Run ``net`` over every video of ``dataset`` (at most ``max_frames`` frames per video);
+    ``person_px_of`` gives, per image record, the pixels a person spans at its points (crops
+    sized to the person: :meth:`MiteNet.process`), or None.
 
     The net is reset before each video. A tqdm bar on stderr shows progress unless
     ``progress`` is false.
@@ -92,7 +97,8 @@ def run_mitenet(
                     break
                 frame = item.frame_bgr
                 start = time.perf_counter()
-                result = net.process(frame, position / NOMINAL_FPS)
+                person_px = None if person_px_of is None else person_px_of(item.image)
+                result = net.process(frame, position / NOMINAL_FPS, person_px=person_px)
                 run.frame_ms.append((time.perf_counter() - start) * 1e3)
                 for stage, ms in net.per_stage_ms.items():
                     run.stage_ms.setdefault(stage, []).append(ms)

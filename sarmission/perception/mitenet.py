@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +63,10 @@ FIT_MIN_SCORE = 0.5
 #: With ``fit_boxes``: at most this many boxes are fitted per frame, the best-scored first: the
 #: fitting's cost stays bounded on a frame full of confident detections.
 FIT_MAX_PER_FRAME = 8
+#: With a person's expected size (``process(person_px=...)``): the largest factor a crop grows
+#: by, as a multiple of its side at the survey's ranges (a person of 8 S, 128 px at S 16, is
+#: seen from a few metres; a wider crop would hold the drone's own surroundings).
+MAX_RANGE_FACTOR = 8.0
 
 
 def _sigmoid(logits: np.ndarray) -> np.ndarray:
@@ -69,12 +74,20 @@ def _sigmoid(logits: np.ndarray) -> np.ndarray:
     return 1.0 / (1.0 + np.exp(-logits.astype(np.float64)))
 
 
-def scaled_boxes(boxes: np.ndarray, scale: float) -> np.ndarray:
-    """``xyxy`` boxes scaled by ``scale`` about their centres (float32; a copy, exact at 1)."""
-    if scale == 1.0:
+def _shifted(logits: np.ndarray, shift: np.ndarray | None) -> np.ndarray:
+    """``logits`` ``[N, C]`` each row lowered by its ``shift`` ``[N]`` (none: unchanged)."""
+    if shift is None or not np.any(shift):
+        return logits
+    return logits.astype(np.float64) - np.asarray(shift, dtype=np.float64).reshape(-1, 1)
+
+
+def scaled_boxes(boxes: np.ndarray, scale: float | np.ndarray) -> np.ndarray:
+    """``xyxy`` boxes scaled by ``scale`` (one number, or one per box) about their centres
+    (float32; a copy, exact at 1)."""
+    if np.all(np.asarray(scale) == 1.0):
         return np.array(boxes, dtype=np.float32)
     centre = (boxes[:, :2] + boxes[:, 2:]) / 2
-    half = (boxes[:, 2:] - boxes[:, :2]) / 2 * scale
+    half = (boxes[:, 2:] - boxes[:, :2]) / 2 * np.asarray(scale, dtype=np.float64).reshape(-1, 1)
     return np.concatenate([centre - half, centre + half], axis=1).astype(np.float32)
 
 
@@ -184,6 +197,12 @@ class MiteNet:
             than the head's box and at most :data:`FIT_MAX_SIDE_S` x S: the head boxes what its
             16 px crop shows, a torso for a person lying 30-50 px long. Scores and classes are
             the head's. Measured: docs/box_fit.md.
+        range_shift_per_octave: with a person's expected size at each proposal
+            (``process(person_px=...)``), every crop of a proposal where a person spans more
+            than S grows by that factor ``k`` (at most :data:`MAX_RANGE_FACTOR`), and its class
+            logits are lowered by this much per doubling of ``k``: the head scores a whole
+            person in a wider crop higher, and clutter too, so a scaled crop's score is brought
+            back to the survey's meaning. Measured: docs/range_crops.md.
     """
 
     def __init__(
@@ -203,6 +222,7 @@ class MiteNet:
         recentre: bool = False,
         orientations: int = 1,
         fit_boxes: bool = True,
+        range_shift_per_octave: float = 0.0,
     ) -> None:
         if classes is not None and tuple(classes) != tuple(head_runtime.classes):
             raise ValueError(
@@ -214,6 +234,11 @@ class MiteNet:
             raise ValueError(f"crop_scales must be positive numbers, got {crop_scales!r}")
         if refine_threshold is not None and not 0.0 <= refine_threshold <= 1.0:
             raise ValueError(f"refine_threshold must be in [0, 1], got {refine_threshold}")
+        if not (math.isfinite(range_shift_per_octave) and range_shift_per_octave >= 0.0):
+            raise ValueError(
+                f"range_shift_per_octave must be a number >= 0, got {range_shift_per_octave!r}"
+            )
+        self.range_shift_per_octave = float(range_shift_per_octave)
         self.crop_scales = tuple(float(s) for s in crop_scales)
         self.refine_threshold = score_threshold if refine_threshold is None else refine_threshold
         self.recentre = bool(recentre)
@@ -275,6 +300,7 @@ class MiteNet:
         frame_bgr: np.ndarray | YuvImage,
         timestamp: float,
         shift_px: tuple[float, float] | None = None,
+        person_px: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> FrameResult:
         """Run the cascade on the next frame of the stream: BGR uint8 ``[H, W, 3]``, or the
         decoder's YUV planes (:class:`~sarmission.yuv.YuvImage`), of which vSTMD reads the Y
@@ -283,6 +309,11 @@ class MiteNet:
 
         ``shift_px`` is the image motion since the previous frame in full-resolution pixels, when
         it is known (e.g. from telemetry); it overrides vSTMD's own ego-motion estimate.
+
+        ``person_px``, when the camera's pose is known, maps proposal centres ``[N, 2]`` to the
+        pixels a person would span there (NaN where unknown): the crops of a proposal where that
+        is more than S grow to hold the person (``range_shift_per_octave``); without it every
+        crop is cut as at the survey's ranges.
 
         Detections are full-resolution ``xyxy`` boxes with the best class's probability and id;
         ``per_stage_ms`` holds this frame's wall time per stage (``vstmd``, ``rpn``, ``crops``,
@@ -309,12 +340,14 @@ class MiteNet:
         t2 = time.perf_counter()
         proposals = self.rpn.propose(motion, chroma)
         t3 = time.perf_counter()
-        first = scaled_boxes(proposals.boxes, self.crop_scales[0])
+        factors = self.range_factors(proposals.boxes, person_px)
+        first = scaled_boxes(proposals.boxes, self.crop_scales[0] * factors)
         crops = motion_enhanced_crops(
             frame, motion, first, proposals.polarity, motion_floor=self.motion_floor
         )
         t4 = time.perf_counter()
-        detections = self._detect(frame, motion, proposals, crops, first)
+        shift = self.range_shift_per_octave * np.log2(factors)
+        detections = self._detect(frame, motion, proposals, crops, first, factors, shift)
         t5 = time.perf_counter()
         detections = self.fitted(frame, detections)
         t6 = time.perf_counter()
@@ -333,6 +366,22 @@ class MiteNet:
             motion=motion,
             camera_shift=self.vstmd.last_shift,
         )
+
+    def range_factors(
+        self, boxes: np.ndarray, person_px: Callable[[np.ndarray], np.ndarray] | None
+    ) -> np.ndarray:
+        """How much each proposal's crops grow: the pixels a person spans at its centre over
+        S, within ``[1, MAX_RANGE_FACTOR]``; 1 where unknown or without ``person_px``."""
+        factors = np.ones(len(boxes))
+        if person_px is None or not len(boxes):
+            return factors
+        centres = (np.asarray(boxes[:, :2], float) + np.asarray(boxes[:, 2:], float)) / 2
+        pixels = np.asarray(person_px(centres), dtype=float).reshape(-1)
+        if pixels.shape != factors.shape:
+            raise ValueError(f"person_px gave {pixels.shape[0]} sizes for {len(boxes)} centres")
+        known = np.isfinite(pixels)
+        factors[known] = np.clip(pixels[known] / self.box_size, 1.0, MAX_RANGE_FACTOR)
+        return factors
 
     def fitted(self, frame: np.ndarray | YuvImage, detections: Detections) -> Detections:
         """``detections`` of ``frame`` with their boxes fitted to the object as ``fit_boxes``
@@ -357,16 +406,25 @@ class MiteNet:
         half = image.to_gray(half_resolution(image.y))
         return self.vstmd.step(image.y, shift_px=shift_px, half=half)
 
-    def _classify(self, crops: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Best class probability, its class id and the box bins of every crop."""
+    def _classify(
+        self, crops: np.ndarray, logit_shift: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Best class probability, its class id and the box bins of every crop; each crop's
+        class logits lowered by its ``logit_shift`` (none: 0)."""
         logits, ltrb = self.head.predict(crops)
-        probs = _sigmoid(logits)
+        probs = _sigmoid(_shifted(logits, logit_shift))
         if self.orientations > 1:
-            self._average_orientations(crops, probs, ltrb)
+            self._average_orientations(crops, probs, ltrb, logit_shift)
         class_ids = probs.argmax(axis=1)
         return probs[np.arange(len(probs)), class_ids], class_ids, ltrb
 
-    def _average_orientations(self, crops: np.ndarray, probs: np.ndarray, ltrb: np.ndarray) -> None:
+    def _average_orientations(
+        self,
+        crops: np.ndarray,
+        probs: np.ndarray,
+        ltrb: np.ndarray,
+        logit_shift: np.ndarray | None = None,
+    ) -> None:
         """Replace, in place, the probabilities and boxes of the crops scoring at least the
         detection threshold by their means over :attr:`orientations` orientations."""
         sure = np.flatnonzero(probs.max(axis=1) >= self.score_threshold)
@@ -380,7 +438,9 @@ class MiteNet:
         prob_sum, ltrb_sum = probs[sure].copy(), ltrb[sure].astype(np.float64)
         for i, op in enumerate(ops):
             view = slice(i * sure.size, (i + 1) * sure.size)
-            prob_sum += _sigmoid(logits[view])
+            prob_sum += _sigmoid(
+                _shifted(logits[view], None if logit_shift is None else logit_shift[sure])
+            )
             ltrb_sum += ltrb_from_orientation(turned[view], op)
         probs[sure] = prob_sum / self.orientations
         ltrb[sure] = ltrb_sum / self.orientations
@@ -394,6 +454,7 @@ class MiteNet:
         class_ids: np.ndarray,
         ltrb: np.ndarray,
         boxes: np.ndarray,
+        logit_shift: np.ndarray,
     ) -> None:
         """Classify again the crops whose target the head placed off their centre, cut around
         the head's box centre; the results replace the first crop's in place."""
@@ -410,7 +471,8 @@ class MiteNet:
         again_scores, again_ids, again_ltrb = self._classify(
             motion_enhanced_crops(
                 frame, motion, again, polarity[moved], motion_floor=self.motion_floor
-            )
+            ),
+            logit_shift[moved],
         )
         scores[moved], class_ids[moved], ltrb[moved] = again_scores, again_ids, again_ltrb
         boxes[moved] = again
@@ -422,18 +484,22 @@ class MiteNet:
         proposals: Proposals,
         crops: np.ndarray,
         boxes: np.ndarray,
+        factors: np.ndarray,
+        shift: np.ndarray,
     ) -> Detections:
-        """Detections from the first-scale ``crops`` of ``boxes``, refined at the other scales."""
+        """Detections from the first-scale ``crops`` of ``boxes``, refined at the other scales;
+        ``factors`` how much each proposal's crops grew, ``shift`` its logits' shift."""
         if len(boxes) == 0:
             return Detections()
-        scores, class_ids, ltrb = self._classify(crops)
+        scores, class_ids, ltrb = self._classify(crops, shift)
         if self.recentre:
-            self._recentre(frame, motion, proposals.polarity, scores, class_ids, ltrb, boxes)
+            self._recentre(frame, motion, proposals.polarity, scores, class_ids, ltrb, boxes, shift)
         refine = np.flatnonzero(scores >= self.refine_threshold)
         if self.nms_iou is not None and refine.size > 1 and len(self.crop_scales) > 1:
             first = ltrb_to_boxes(ltrb[refine], boxes[refine], self.head.config.crop_size)
             refine = refine[nms_xyxy(first, scores[refine], self.nms_iou)]
-        first_side = self.crop_scales[0] * self.box_size  # every proposal box is S x S
+        # every proposal box is S x S, its crops grown by its factor
+        first_side = self.crop_scales[0] * self.box_size * factors
         for scale in self.crop_scales[1:]:
             if refine.size == 0:
                 break
@@ -448,10 +514,12 @@ class MiteNet:
                     proposals.polarity[refine],
                     sampling_ratio=1,
                     motion_floor=self.motion_floor,
-                )
+                ),
+                shift[refine],
             )
             seen = ltrb_to_boxes(wide_ltrb, wide, self.head.config.crop_size)
-            larger = np.maximum(seen[:, 2] - seen[:, 0], seen[:, 3] - seen[:, 1]) >= first_side
+            larger = np.maximum(seen[:, 2] - seen[:, 0], seen[:, 3] - seen[:, 1])
+            larger = larger >= first_side[refine]
             better = (wide_scores > scores[refine]) & larger
             chosen = refine[better]
             scores[chosen], class_ids[chosen] = wide_scores[better], wide_ids[better]

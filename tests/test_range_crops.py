@@ -1,0 +1,186 @@
+"""Crops sized to the person from the camera's pose: the geometry, the detector, a dataset."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from conftest import render_narrow_sea
+
+from sarmission.data.coco_video import FrameTelemetry, ImageRecord, Video, VideoDataset
+from sarmission.geo.camera import CameraIntrinsics
+from sarmission.geo.geolocate import PlatformPose
+from sarmission.geo.person_pixels import person_pixels
+from sarmission.mission.range_crops import dataset_person_px, pose_person_px
+from sarmission.perception.crops import motion_enhanced_crops
+from sarmission.perception.mitenet import (
+    MAX_RANGE_FACTOR,
+    MiteNet,
+    build_head_runtime,
+    scaled_boxes,
+)
+
+LENS = CameraIntrinsics.from_hfov(3840, 2160, 75.0)
+
+
+def _nadir(height_m: float = 50.0) -> PlatformPose:
+    return PlatformPose(lat=54.0, lon=10.0, rel_alt_m=height_m, roll=0.0, pitch=0.0, yaw=0.3)
+
+
+def test_a_person_spans_focal_times_size_over_the_slant_range():
+    centre = np.array([[LENS.cx, LENS.cy]])
+    np.testing.assert_allclose(
+        person_pixels(centre, LENS, _nadir(50.0), 0.45), 0.45 * LENS.fx / 50.0, rtol=1e-9
+    )
+    # halfway to the corner: the ray is longer by 1 / cos of its angle from the axis
+    u, v = LENS.cx + 900.0, LENS.cy - 500.0
+    x, y = (u - LENS.cx) / LENS.fx, (v - LENS.cy) / LENS.fy
+    slant = 50.0 * math.sqrt(1.0 + x * x + y * y)
+    np.testing.assert_allclose(
+        person_pixels(np.array([[u, v]]), LENS, _nadir(50.0), 0.45),
+        0.45 * LENS.fx / slant,
+        rtol=1e-9,
+    )
+    # the ground plane 20 m below home: 70 m of range
+    np.testing.assert_allclose(
+        person_pixels(centre, LENS, _nadir(50.0), 0.45, ground_below_home_m=20.0),
+        0.45 * LENS.fx / 70.0,
+        rtol=1e-9,
+    )
+
+
+def test_no_size_where_the_pixel_sees_no_ground():
+    level = PlatformPose(
+        lat=54.0,
+        lon=10.0,
+        rel_alt_m=50.0,
+        roll=0.0,
+        pitch=0.0,
+        yaw=0.0,
+        gimbal_rpy=(0.0, math.radians(-10.0), 0.0),
+    )
+    rows = np.array([[LENS.cx, 0.0], [LENS.cx, LENS.height - 1.0]])
+    sky, sea = person_pixels(rows, LENS, level, 0.45)
+    assert math.isnan(sky) and sea > 0.0  # top row above the horizon, bottom row on the sea
+    for pose, below in ((_nadir(0.0), 0.0), (_nadir(10.0), -12.0), (_nadir(math.nan), 0.0)):
+        assert np.isnan(person_pixels(rows, LENS, pose, 0.45, below)).all()
+    assert person_pixels(np.zeros((0, 2)), LENS, _nadir(), 0.45).shape == (0,)
+
+
+def test_only_a_current_pose_sizes_crops():
+    assert pose_person_px(LENS, _nadir(), 0.0) is None  # off
+    assert pose_person_px(LENS, None, 0.45) is None
+    assert pose_person_px(LENS, "stale", 0.45) is None
+    assert pose_person_px(LENS, _nadir(), 0.45, ground_below_home_m=None) is None
+    sized = pose_person_px(LENS, _nadir(40.0), 0.45)
+    assert sized is not None
+    np.testing.assert_allclose(
+        sized(np.array([[LENS.cx, LENS.cy]])), 0.45 * LENS.fx / 40.0, rtol=1e-9
+    )
+
+
+@pytest.fixture(scope="module")
+def sea_frames(tmp_path_factory: pytest.TempPathFactory) -> list[np.ndarray]:
+    folder = render_narrow_sea(tmp_path_factory.mktemp("sea"), frames=8)
+    return [cv2.imread(str(path)) for path in sorted(folder.glob("*.jpg"))]
+
+
+def _scores(net: MiteNet, frame: np.ndarray, result, factor: float, shift: float) -> np.ndarray:
+    """Best-class probability of every proposal's crop grown by ``factor``, logits less
+    ``shift``."""
+    boxes = scaled_boxes(result.proposals.boxes, factor)
+    logits, _ = net.head.predict(
+        motion_enhanced_crops(frame, result.motion, boxes, result.proposals.polarity)
+    )
+    return (1.0 / (1.0 + np.exp(-(logits.astype(np.float64) - shift)))).max(axis=1)
+
+
+def test_sized_crops_are_the_grown_boxes_scored_with_their_shift(sea_frames):
+    """Every proposal where a person spans 2 S is cropped at 2 S and scored with its logits
+    lowered by one doubling's shift; where they span less than S, or nothing is known, the
+    crop is the proposal's box and its score the head's."""
+    options = {"ds": 2, "topn": 25, "score_threshold": 0.0, "nms_iou": None, "fit_boxes": False}
+    shipped = build_head_runtime(None, "onnx")
+    net = MiteNet(shipped, crop_scales=(1.0,), range_shift_per_octave=0.5, **options)
+
+    def twice(centres: np.ndarray) -> np.ndarray:
+        return np.full(len(centres), 2.0 * net.box_size)
+
+    def mixed(centres: np.ndarray) -> np.ndarray:  # unknown on the left half, small on the right
+        return np.where(centres[:, 0] < 480.0, np.nan, 0.5 * net.box_size)
+
+    grown_seen = 0
+    for people, factor, shift in ((twice, 2.0, 0.5), (mixed, 1.0, 0.0), (None, 1.0, 0.0)):
+        net.reset()
+        for i, frame in enumerate(sea_frames):
+            result = net.process(frame, i / 30.0, person_px=people)
+            if i < 3:
+                continue
+            expected = _scores(net, frame, result, factor, shift)
+            np.testing.assert_allclose(result.detections.scores, expected, atol=1e-5)
+            side = result.detections.boxes[:, 2:] - result.detections.boxes[:, :2]
+            grown_seen += int(factor == 2.0 and (side.max(axis=1) > net.box_size).any())
+    assert grown_seen  # the grown crops box what they hold, larger than S somewhere
+
+
+def test_crop_factors_are_bounded_and_checked():
+    net = MiteNet(build_head_runtime(None, "onnx"), crop_scales=(1.0,))
+    boxes = np.array([[0, 0, 16, 16], [10, 10, 26, 26], [5, 5, 21, 21], [0, 0, 16, 16]], float)
+    sizes = np.array([4.0, 48.0, 1e6, np.inf])
+    np.testing.assert_allclose(
+        net.range_factors(boxes, lambda c: sizes), [1.0, 3.0, MAX_RANGE_FACTOR, 1.0]
+    )
+    np.testing.assert_allclose(net.range_factors(boxes, None), 1.0)
+    with pytest.raises(ValueError, match="person_px gave 2 sizes for 4 centres"):
+        net.range_factors(boxes, lambda c: sizes[:2])
+    for bad in (-0.1, math.nan, math.inf):
+        with pytest.raises(ValueError, match="range_shift_per_octave"):
+            MiteNet(build_head_runtime(None, "onnx"), range_shift_per_octave=bad)
+
+
+def _dataset(meta: list[dict | None], hfov: float | None) -> VideoDataset:
+    extra = {} if hfov is None else {"hfov_deg": hfov}
+    images = []
+    for i, m in enumerate(meta):
+        telemetry = FrameTelemetry() if m is None else FrameTelemetry(**m)
+        images.append(
+            ImageRecord(
+                id=i + 1,
+                file_name=f"{i}.jpg",
+                height=2160,
+                width=3840,
+                video_id=1,
+                frame_index=i,
+                meta=m,
+                telemetry=telemetry,
+            )
+        )
+    return VideoDataset(
+        images=images, annotations=[], categories=[], videos=[Video(1, "clip", extra)]
+    )
+
+
+def test_a_dataset_frame_sizes_crops_from_its_meta_and_lens():
+    down = {
+        "latitude": 54.0,
+        "longitude": 10.0,
+        "altitude": 40.0,
+        "gimbal_pitch": 90.0,  # SeaDronesSee's depression: straight down
+        "compass_heading": 30.0,
+    }
+    data = _dataset([down, None, {**down, "altitude": 0.0}], hfov=75.0)
+    of = dataset_person_px(data, 0.45)
+    sized = of(data.images[0])
+    assert sized is not None
+    np.testing.assert_allclose(
+        sized(np.array([[LENS.cx, LENS.cy]])), 0.45 * LENS.fx / 40.0, rtol=1e-6
+    )
+    assert of(data.images[1]) is None  # no meta
+    assert of(data.images[2]) is None  # not in the air
+    assert dataset_person_px(data, 0.0)(data.images[0]) is None  # off
+    no_lens = _dataset([down], hfov=None)
+    assert dataset_person_px(no_lens, 0.45)(no_lens.images[0]) is None
+    given = dataset_person_px(no_lens, 0.45, hfov_deg=75.0)(no_lens.images[0])
+    assert given is not None
