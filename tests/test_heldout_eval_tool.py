@@ -227,22 +227,29 @@ def test_a_split_is_evaluated_and_studied_with_the_detector_settings_asked(tool,
     seen: list[tuple] = []
     monkeypatch.setattr(tool, "evaluate", lambda path, model, extra=(): seen.append(extra) or {})
     monkeypatch.setattr(
-        tool, "box_study", lambda path, model, ds=2, scales=(1.0,): seen.append((ds, scales)) or {}
+        tool,
+        "box_study",
+        lambda path, model, ds=2, scales=(1.0,), sized=(0.0, 0.0): (
+            seen.append((ds, scales, sized)) or {}
+        ),
     )
     monkeypatch.setattr(tool, "clip_conditions", lambda path: [])
     tool.heldout_split(Path("a.json"), None)
     tool.heldout_split(Path("a.json"), None, ds=4)
     tool.heldout_split(Path("a.json"), None, crop_scales=(4.0,))
     tool.heldout_split(Path("a.json"), None, ds=8, crop_scales=(1.0, 2.5))
+    tool.heldout_split(Path("a.json"), None, range_crops=(0.45, 0.5))
     assert seen == [
         (),
-        (2, (1.0,)),
+        (2, (1.0,), (0.0, 0.0)),
         ("--ds", "4"),
-        (4, (1.0,)),
+        (4, (1.0,), (0.0, 0.0)),
         ("--crop-scales", "4"),
-        (2, (4.0,)),
+        (2, (4.0,), (0.0, 0.0)),
         ("--ds", "8", "--crop-scales", "1,2.5"),
-        (8, (1.0, 2.5)),
+        (8, (1.0, 2.5), (0.0, 0.0)),
+        ("--person-m", "0.45", "--range-shift", "0.5"),
+        (2, (1.0,), (0.45, 0.5)),
     ]
 
 

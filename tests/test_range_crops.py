@@ -184,3 +184,63 @@ def test_a_dataset_frame_sizes_crops_from_its_meta_and_lens():
     assert dataset_person_px(no_lens, 0.45)(no_lens.images[0]) is None
     given = dataset_person_px(no_lens, 0.45, hfov_deg=75.0)(no_lens.images[0])
     assert given is not None
+
+
+class _RecordingDetector:
+    """A detector that finds nothing and keeps the person sizes it was asked to crop for."""
+
+    classes = ("swimmer",)
+
+    def __init__(self) -> None:
+        self.asked: list[float | None] = []
+        self.per_stage_ms: dict[str, float] = {}
+
+    def process(self, frame, timestamp: float, person_px=None):
+        from sarmission.perception.types import Detections, FrameResult, Proposals
+
+        size = None if person_px is None else float(person_px(np.array([[480.0, 270.0]]))[0])
+        self.asked.append(size)
+        return FrameResult(timestamp, Detections(), Proposals(), None)
+
+    def reset(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("person_m", [0.0, 0.45])
+def test_live_crops_are_sized_from_the_adopted_autopilot_s_current_pose(tmp_path, person_m):
+    """With ``[detector] person_m`` the controller hands the detector the person's size at the
+    camera's current pose (a nadir camera 60 m up: ``person_m * f / 60`` at the centre); before
+    home and position are known, once telemetry is stale, or with it off: nothing."""
+    from sarmission.alerts.store import AlertStore
+    from sarmission.mavlink.telemetry import TelemetryBuffer
+    from sarmission.mission.config import load_mission
+    from sarmission.mission.controller import MissionController
+
+    mission = load_mission(
+        overrides={
+            "camera.width": 960,
+            "camera.height": 540,
+            "camera.hfov_deg": 30.0,
+            "detector.person_m": person_m,
+            "name": "sized",
+        }
+    )
+    buffer = TelemetryBuffer(stale_after_s=mission.telemetry.stale_after_s)
+    detector = _RecordingDetector()
+    ctl = MissionController(
+        mission, detector, buffer, AlertStore(tmp_path / "a.db"), console=lambda s: None
+    )
+    frame = np.full((540, 960, 3), 90, np.uint8)
+    ctl.process(0, 0.0, frame)  # no home, no position
+    buffer.set_home(*mission.area.home)
+    for t in np.arange(0.0, 2.0, 0.05):
+        buffer.push_position(float(t), *mission.area.home[:2], 60.0)
+        buffer.push_attitude(float(t), 0.0, 0.0, 0.0)
+    ctl.process(1, 1.0, frame)
+    ctl.process(2, 1.0 + 10.0 * mission.telemetry.stale_after_s, frame)  # stale by then
+    if not person_m:
+        assert detector.asked == [None, None, None]
+        return
+    focal = mission.camera.intrinsics().fx
+    assert detector.asked[0] is None and detector.asked[2] is None
+    assert detector.asked[1] == pytest.approx(person_m * focal / 60.0, rel=1e-3)

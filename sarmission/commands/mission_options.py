@@ -149,6 +149,7 @@ def build_detector(args: argparse.Namespace, mission: MissionConfig) -> tuple[Mi
         recentre=d.recentre,
         orientations=d.orientations,
         fit_boxes=d.fit_boxes,
+        range_shift_per_octave=d.range_shift,
     )
     return detector, note
 

@@ -160,6 +160,8 @@ class DetectorConfig:
     docs/recentring.md), in how many ``orientations`` each would-be detection is scored (1, 4
     or 8, averaged; off: docs/experiments.md), whether each box is fitted to the object
     against its surroundings, ``fit_boxes`` (docs/box_fit.md), the detection threshold;
+    crops sized to a person ``person_m`` across from the autopilot's pose, their logits lowered
+    by ``range_shift`` per doubling (0: off; docs/range_crops.md);
     ``model`` the head: a
     shipped one by name (``"default"`` or ``"maritime"``, ``"land"``: :mod:`sarmission.models`) or a
     ``.pt``/``.pth``/``.onnx`` file, relative to the mission file's folder when written there (a
@@ -175,6 +177,8 @@ class DetectorConfig:
     orientations: int = 1
     fit_boxes: bool = True
     score_threshold: float = 0.3
+    person_m: float = 0.0
+    range_shift: float = 0.0
 
 
 @dataclass

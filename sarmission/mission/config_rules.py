@@ -145,6 +145,10 @@ def detector_problem(d: DetectorConfig) -> Problem:
         return "orientations", f"expected one of {', '.join(map(str, ORIENTATION_COUNTS))}"
     if d.refine_threshold is not None and not 0.0 <= d.refine_threshold <= 1.0:
         return "refine_threshold", "expected a number in [0, 1]"
+    if not 0.0 <= d.person_m <= 10.0:
+        return "person_m", "expected metres in [0, 10] (0: crops as at the survey's ranges)"
+    if not 0.0 <= d.range_shift <= 10.0:
+        return "range_shift", "expected a number in [0, 10]"
     return None
 
 

@@ -68,6 +68,7 @@ from sarmission.mission.candidates import CandidateBook, Promotion
 from sarmission.mission.confidence import ConfidenceModel, confidence_of_head
 from sarmission.mission.config import MissionConfig
 from sarmission.mission.position_estimate import WINDOW_S, latest_position
+from sarmission.mission.range_crops import PersonPixels, pose_person_px
 from sarmission.mission.refinement import PositionRefiner, Refinement
 from sarmission.mission.targets import KnownTarget, Target, TargetRegistry
 from sarmission.perception import extent as object_extents
@@ -308,7 +309,11 @@ class MissionController:
     ) -> tuple[FrameResult, list[TrackState], np.ndarray]:
         """Detections of the frame, the tracks they update, and the scene offset (the camera's
         accumulated shift, as a box offset)."""
-        result = self.detector.process(frame, timestamp)
+        person_px = self._person_px(timestamp)
+        if person_px is None:
+            result = self.detector.process(frame, timestamp)
+        else:
+            result = self.detector.process(frame, timestamp, person_px=person_px)
         shift = result.camera_shift
         tracks = self.tracker.update(result.detections, frame_index, timestamp, camera_shift=shift)
         if shift is not None:
@@ -318,6 +323,16 @@ class MissionController:
         self.stats.detections += len(result.detections)
         self.stats.stage_ms.update(self.detector.per_stage_ms)
         return result, tracks, np.tile(self._scene_offset, 2)
+
+    def _person_px(self, timestamp: float) -> PersonPixels | None:
+        """The pixels a person spans at image points, from the adopted autopilot's current
+        pose, for crops sized to the person (``[detector] person_m``); None when that is off or
+        the pose, home or lens is not known (crops as at the survey's ranges)."""
+        person_m = self.mission.detector.person_m
+        if not person_m or self._intrinsics is None:
+            return None
+        pose = self.telemetry.lookup(timestamp)
+        return pose_person_px(self._intrinsics, pose, person_m, self._ground_below_home())
 
     def _observe_locked(
         self,
