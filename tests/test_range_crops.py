@@ -244,3 +244,89 @@ def test_live_crops_are_sized_from_the_adopted_autopilot_s_current_pose(tmp_path
     focal = mission.camera.intrinsics().fx
     assert detector.asked[0] is None and detector.asked[2] is None
     assert detector.asked[1] == pytest.approx(person_m * focal / 60.0, rel=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--person-m", "-1"], "--person-m must be in"),
+        (["--person-m", "nan"], "--person-m must be in"),
+        (["--person-m", "0.45", "--range-shift", "-0.5"], "--range-shift must be in"),
+        (["--person-m", "0.45", "--hfov", "180"], "--hfov must be in"),
+        (["--person-m", "0.45", "--detections", "d.json"], "--person-m sizes the detector"),
+        (["--person-m", "0.45", "--sweep"], "--person-m sizes the detector"),
+    ],
+)
+def test_eval_refuses_sizing_options_it_cannot_honour(extra, message):
+    from sarmission.cli import build_parser
+    from sarmission.commands.eval import _check_args
+
+    args = build_parser().parse_args(["eval", "--annotations", "a.json", *extra])
+    with pytest.raises(ValueError, match=message):
+        _check_args(args)
+
+
+def test_eval_sizes_crops_from_the_meta_of_frames_that_have_it(tmp_path, monkeypatch, capsys):
+    """``sarmission eval --person-m``: frames of a video with meta and a lens are run with the
+    person's size from their pose (40 m straight down: ``0.45 f / 40`` at the centre); frames
+    without meta as before; the settings are in the report."""
+    import json
+
+    from sarmission.cli import build_parser
+    from sarmission.commands import eval as eval_cmd
+    from sarmission.data.coco_video import Category, write_coco_video
+    from sarmission.evaluation import run_model
+
+    rng = np.random.default_rng(3)
+    down = {
+        "latitude": 54.0,
+        "longitude": 10.0,
+        "altitude": 40.0,
+        "gimbal_pitch": 90.0,
+        "compass_heading": 0.0,
+    }
+    images = []
+    for i in range(6):
+        name = f"{i}.png"
+        cv2.imwrite(str(tmp_path / name), rng.integers(0, 255, (240, 320, 3), dtype=np.uint8))
+        meta = down if i < 3 else None
+        images.append(
+            ImageRecord(
+                id=i + 1,
+                file_name=name,
+                height=240,
+                width=320,
+                video_id=1 if i < 3 else 2,
+                frame_index=i % 3,
+                meta=meta,
+            )
+        )
+    dataset = VideoDataset(
+        videos=[Video(1, "low", {"hfov_deg": 60.0}), Video(2, "no meta")],
+        images=images,
+        annotations=[],
+        categories=[Category(1, "swimmer")],
+    )
+    path = tmp_path / "a.json"
+    write_coco_video(dataset, path)
+    asked: dict[str, float | None] = {}
+    real = run_model.run_mitenet
+
+    def spy(net, data, *args, person_px_of=None, **kwargs):
+        for image in data.images:
+            sized = None if person_px_of is None else person_px_of(image)
+            asked[image.file_name] = (
+                None if sized is None else float(sized(np.array([[160, 120]]))[0])
+            )
+        return real(net, data, *args, person_px_of=person_px_of, **kwargs)
+
+    monkeypatch.setattr(run_model, "run_mitenet", spy)
+    argv = ["eval", "--annotations", str(path), "--json", "--no-progress", "--topn", "5"]
+    args = build_parser().parse_args([*argv, "--person-m", "0.45", "--range-shift", "0.5"])
+    assert eval_cmd.run(args) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["detector"]["person_m"] == 0.45 and report["detector"]["range_shift"] == 0.5
+    focal = CameraIntrinsics.from_hfov(320, 240, 60.0).fx
+    for i in range(3):
+        assert asked[f"{i}.png"] == pytest.approx(0.45 * focal / 40.0, rel=1e-4)
+    assert [asked[f"{i}.png"] for i in range(3, 6)] == [None, None, None]
