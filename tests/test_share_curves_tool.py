@@ -106,3 +106,26 @@ def test_bad_arguments_get_one_line(tool, tmp_path, capsys) -> None:
     assert tool.main(["--doc", str(doc), f"a={tmp_path / 'missing.json'}"]) == 2
     assert "not readable" in capsys.readouterr().err
     assert not doc.exists()
+
+
+def test_a_whole_results_file_is_read_and_kept_stripped(tool, tmp_path) -> None:
+    """A ``heldout_results.json`` as the evaluation writes it (the front-end's recall inside
+    each split's report, more keys beside) reads as its stripped form; ``--keep`` writes that
+    form, which reads back to the same page, and a sized crop's settings name it."""
+    stripped = _result((10, [9, 8, 6, 1]), (0, [0] * 4), (10, [9, 6, 4, 0]), (0, [0] * 4))
+    stripped["settings"] = {"ds": 2, "crop_scales": [1.0], "person_m": 0.45, "range_shift": 0.5}
+    whole = json.loads(json.dumps(stripped))
+    whole["renders_reused"] = []
+    for split in whole["splits"].values():
+        split["report"] = {"module_recall": split.pop("module_recall"), "sar": {}}
+        split["study"]["scores"] = {}
+    full = tmp_path / "full.json"
+    full.write_text(json.dumps(whole))
+    assert tool.stripped(whole) == stripped
+    doc, kept = tmp_path / "page.md", tmp_path / "kept"
+    assert tool.main(["--doc", str(doc), "--keep", str(kept), f"sized={full}"]) == 0
+    assert json.loads((kept / "sized.json").read_text()) == stripped
+    page = doc.read_text()
+    assert "| 1 S, sized to 0.45 m, shift 0.5 |" in page
+    assert tool.main(["--doc", str(doc), f"sized={kept / 'sized.json'}"]) == 0
+    assert doc.read_text() == page

@@ -134,6 +134,21 @@ def render(labelled: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def stripped(result: Mapping[str, Any]) -> dict[str, Any]:
+    """What this page reads of a ``heldout_results.json`` (``command``, ``generated``,
+    ``settings``, per split the front-end's recall and the object curve): a few kB to keep in
+    docs/ beside the page, read as the whole file is."""
+    splits = {}
+    for name in (PEOPLE_SPLIT, CLUTTER_SPLIT):
+        split = result["splits"][name]
+        recall = split["report"]["module_recall"] if "report" in split else split["module_recall"]
+        splits[name] = {
+            "module_recall": recall,
+            "study": {"object_curve": split["study"]["object_curve"]},
+        }
+    return {**{k: result[k] for k in ("command", "generated", "settings")}, "splits": splits}
+
+
 def _labelled(items: Sequence[str]) -> list[tuple[str, Mapping[str, Any]]]:
     out = []
     for item in items:
@@ -141,7 +156,7 @@ def _labelled(items: Sequence[str]) -> list[tuple[str, Mapping[str, Any]]]:
         if not sep or not label or not path:
             raise ValueError(f"expected LABEL=FILE.json, got {item!r}")
         try:
-            out.append((label, json.loads(Path(path).read_text())))
+            out.append((label, stripped(json.loads(Path(path).read_text()))))
         except (OSError, json.JSONDecodeError) as exc:
             raise ValueError(f"{path}: not readable as a results JSON ({exc})") from None
     return out
@@ -153,12 +168,23 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("results", nargs="+", help="LABEL=FILE.json, the reference first")
     parser.add_argument("--doc", type=Path, required=True, help="Markdown page to update")
+    parser.add_argument(
+        "--keep",
+        type=Path,
+        default=None,
+        help="also write each result, stripped to what the page reads, as FOLDER/LABEL.json",
+    )
     args = parser.parse_args(argv)
     try:
-        section = render(_labelled(args.results))
+        labelled = _labelled(args.results)
+        section = render(labelled)
     except (ValueError, KeyError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
+        for label, result in labelled:
+            (args.keep / f"{label}.json").write_text(json.dumps(result, indent=1) + "\n")
     write_doc(f"{BEGIN}\n\n{section}\n{END}", args.doc, "# Object curves", BEGIN, END)
     print(f"wrote {args.doc}", file=sys.stderr)
     return 0
