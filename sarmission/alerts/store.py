@@ -339,8 +339,9 @@ class OperatorDecision(NamedTuple):
 
 
 class Decided(NamedTuple):
-    """What :meth:`AlertStore.record_decision` did: the alert as it is now, and whether the
-    decision changed anything (False: the alert already had this decision)."""
+    """What :meth:`AlertStore.record_decision` did: the alert as this decision left it (read
+    in its own transaction, so a racing decision committed after it does not show), and
+    whether the decision changed anything (False: the alert already had this decision)."""
 
     alert: Alert
     changed: bool
@@ -537,10 +538,9 @@ class AlertStore:
             )
             if cur.rowcount:
                 self._log(conn, "ack", alert_id)
+            alert = self._committed(alert_id)
         if cur.rowcount:
             self._notify()
-        alert = self.get(alert_id)
-        assert alert is not None
         return alert
 
     def record_ack(
@@ -717,9 +717,10 @@ class AlertStore:
                     (evidence, t, *rated, z, alert_id),
                 )
                 self._log(conn, "confirmed", alert_id, detail=evidence)
+            alert = self._committed(alert_id)
         if changed:
             self._notify()
-        return self.get(alert_id)
+        return alert
 
     def discard(self, alert_id: str, reason: str, when: float | None = None) -> Alert | None:
         """The system gives up on a candidate: ``discarded`` = ``reason`` (also its
@@ -742,9 +743,10 @@ class AlertStore:
                     (reason, t, reason, alert_id),
                 )
                 self._log(conn, "discarded", alert_id, detail=reason)
+            alert = self._committed(alert_id)
         if changed:
             self._notify()
-        return self.get(alert_id)
+        return alert
 
     def decide(
         self, alert_id: str, decision: Decision, by: str, when: float | None = None
@@ -765,7 +767,8 @@ class AlertStore:
         The alert's current decision repeated changes nothing (``changed`` False, no event).
         A contradicting one (dismiss after confirm, or back) replaces it: operators change their
         minds, and both stay in the log (:meth:`decisions`). Of two racing decisions the one
-        committed last is the state; the log has both, in commit order.
+        committed last is the state; the log has both, in commit order; each caller gets the
+        alert as its own decision left it.
 
         ``decided_at`` is the store's clock: ``when`` is for in-process callers only (tools,
         tests) and must be finite; the feed never passes a client's time. No ordering ever
@@ -798,10 +801,9 @@ class AlertStore:
                     )
                 if state.evidence_logit is not None:
                     self._rerate(conn, state.mission_id)
+            alert = self._committed(alert_id)
         if changed:
             self._notify()
-        alert = self.get(alert_id)
-        assert alert is not None
         return Decided(alert, changed)
 
     # ------------------------------------------------------------------ calibration
@@ -935,6 +937,13 @@ class AlertStore:
         if row is None:
             raise KeyError(alert_id)
         return _TierState(*row)
+
+    def _committed(self, alert_id: str) -> Alert:
+        """The alert as the open write transaction leaves it: what a change returns must be
+        what it committed, not what another connection committed right after."""
+        alert = self.get(alert_id)
+        assert alert is not None, alert_id
+        return alert
 
     @staticmethod
     def _require(conn: sqlite3.Connection, alert_id: str) -> None:
