@@ -71,6 +71,9 @@ from sarmission.errors import SarmissionError
 APPLICATION_ID = 0x53415241
 SCHEMA_VERSION = 8
 
+#: Seconds a change waits for another connection's write lock before giving up.
+BUSY_TIMEOUT_S = 10.0
+
 #: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
 DRONE_POINTS_KEPT = 20_000
 #: The track is trimmed every this many points, so it holds at most KEPT + this many.
@@ -288,6 +291,33 @@ ALTER TABLE events_8 RENAME TO events
 }
 
 
+def is_busy(exc: sqlite3.Error) -> bool:
+    """Whether ``exc`` is SQLite giving up waiting for a lock another connection holds (e.g.
+    another process in the middle of a write, or holding the file exclusively)."""
+    code = getattr(exc, "sqlite_errorcode", None)
+    if code is None:
+        return "locked" in str(exc) or "busy" in str(exc)
+    return code & 0xFF in (sqlite3.SQLITE_BUSY, sqlite3.SQLITE_LOCKED)
+
+
+def is_read_only(exc: sqlite3.Error) -> bool:
+    """Whether ``exc`` is SQLite refusing to write the file (permissions, an immutable file,
+    a read-only mount)."""
+    code = getattr(exc, "sqlite_errorcode", None)
+    if code is None:
+        return "readonly" in str(exc)
+    return code & 0xFF == sqlite3.SQLITE_READONLY
+
+
+def describe_failure(exc: sqlite3.Error) -> str:
+    """What went wrong with the store, in words for an operator or a log line."""
+    if is_busy(exc):
+        return "is busy: another process holds a lock on it"
+    if is_read_only(exc):
+        return f"cannot be written ({exc})"
+    return f"failed ({exc})"
+
+
 def _execute_script(conn: sqlite3.Connection, script: str) -> None:
     """Run ``;``-separated statements inside the open transaction (``executescript`` would
     commit it first)."""
@@ -374,7 +404,7 @@ class AlertStore:
         self._closed = False
         try:
             self._conn = sqlite3.connect(
-                self.path, check_same_thread=False, isolation_level=None, timeout=10.0
+                self.path, check_same_thread=False, isolation_level=None, timeout=BUSY_TIMEOUT_S
             )
         except sqlite3.Error as exc:
             raise SarmissionError(f"cannot open alert store {self.path}: {exc}") from exc
@@ -382,6 +412,16 @@ class AlertStore:
             self._open_schema()
         except sqlite3.DatabaseError as exc:
             self._conn.close()
+            if is_busy(exc):
+                raise SarmissionError(
+                    f"alert store {self.path} is busy: another process holds a lock on it "
+                    f"({exc}); try again once that process is done or has released it"
+                ) from exc
+            if is_read_only(exc):
+                raise SarmissionError(
+                    f"alert store {self.path} cannot be written ({exc}); check the permissions "
+                    "and attributes of the file and its folder, and that the disk is writable"
+                ) from exc
             raise SarmissionError(
                 f"{self.path} is not a usable sarmission alert store ({exc}); "
                 "it was left untouched - move it away or choose another path"
@@ -414,6 +454,7 @@ class AlertStore:
             check = conn.execute("PRAGMA quick_check").fetchone()[0]
             if check != "ok":
                 raise SarmissionError(f"{self.path} is damaged: {check}")
+        self._check_writable(version)
         mode = conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
         if mode.lower() != "wal":
             raise SarmissionError(f"{self.path}: cannot enable WAL journaling (got {mode!r})")
@@ -434,17 +475,39 @@ class AlertStore:
                     _execute_script(conn, _UPGRADES[step])
                 conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
 
+    def _check_writable(self, version: int) -> None:
+        """Refuse a file SQLite can open but not write (read-only permissions, an immutable
+        file, a read-only mount), which would otherwise fail at the first alert: rewrite its
+        ``user_version`` unchanged and roll back, so nothing is modified. A file another
+        process is writing right now is writable; its lock is not waited for."""
+        conn = self._conn
+        conn.execute("PRAGMA busy_timeout=0")
+        try:
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                conn.execute(f"PRAGMA user_version={int(version)}")
+            finally:
+                conn.execute("ROLLBACK")
+        except sqlite3.OperationalError as exc:
+            if not is_busy(exc):
+                raise
+        finally:
+            conn.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
+
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
-        """A write transaction (``BEGIN IMMEDIATE``); committed, hence durable, on exit."""
+        """A write transaction (``BEGIN IMMEDIATE``); committed, hence durable, on exit. If
+        the commit fails, the transaction is rolled back (nothing of it is recorded) and the
+        error raised, so the connection is left ready for the next one."""
         with self._lock:
             self._conn.execute("BEGIN IMMEDIATE")
             try:
                 yield self._conn
+                self._conn.execute("COMMIT")
             except BaseException:
-                self._conn.execute("ROLLBACK")
+                if self._conn.in_transaction:
+                    self._conn.execute("ROLLBACK")
                 raise
-            self._conn.execute("COMMIT")
 
     def _notify(self) -> None:
         with self._changed:
