@@ -563,6 +563,36 @@ def test_a_store_locked_by_another_process_is_called_busy_not_unusable(
     AlertStore(db).close()
 
 
+def test_readers_do_not_wait_behind_a_change_waiting_for_another_process(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another process holds the write lock: a change through the store waits for it, while
+    reads (the feed's pages, /healthz) go on at once with what is committed."""
+    monkeypatch.setattr(store_module, "BUSY_TIMEOUT_S", 3.0)
+    db = tmp_path / "a.db"
+    with AlertStore(db) as store:
+        alert = make_alert(1)
+        store.add(alert)
+        holder = sqlite3.connect(db, isolation_level=None)
+        holder.execute("BEGIN IMMEDIATE")
+        results: list[object] = []
+        writer = threading.Thread(
+            target=lambda: results.append(store.acknowledge(alert.alert_id, "ana"))
+        )
+        writer.start()
+        time.sleep(0.3)  # the acknowledgement is now waiting for the holder's lock
+        started = time.monotonic()
+        assert store.count() == 1 and store.get(alert.alert_id).ack_by is None
+        assert [a.alert_id for a in store.list()] == [alert.alert_id]
+        assert store.last_event_seq() == 1
+        assert time.monotonic() - started < 1.0
+        assert writer.is_alive()
+        holder.execute("ROLLBACK")
+        holder.close()
+        writer.join(5.0)
+        assert results[0].ack_by == "ana" and store.get(alert.alert_id).ack_by == "ana"
+
+
 def _make_read_only(path: Path) -> Callable[[], None]:
     """Make ``path`` unwritable (immutable as root, read-only permissions otherwise); returns
     the undo. Skips the test where neither works."""
