@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import json
 import math
 import socket
@@ -282,3 +283,30 @@ def test_cot_carries_a_drifting_swimmer_s_course_and_speed() -> None:
     still = ET.fromstring(alert_to_cot(make_alert(1, drift_ne=(0.0, 0.0)), now=1.0))
     assert float(still.find("detail/track").get("speed")) == 0.0
     assert ET.fromstring(alert_to_cot(make_alert(1), now=1.0)).find("detail/track") is None
+
+
+def test_kml_descriptions_keep_names_and_notes_as_inert_text() -> None:
+    """Google Earth renders a description as HTML: markup in an operator's name, a note or
+    a reason is escaped there, so it shows as the text it is."""
+    markup = '<img src=x onerror="alert(1)"> & <script>'
+    acked = make_alert(
+        1,
+        decision="dismissed",
+        decided_by=markup,
+        decided_at=1_700_000_000.0,
+        ack_by="<b>bo</b>",
+        ack_time=1_700_000_000.0,
+        evidence=markup,
+    )
+    lost = make_alert(2, positioned=False, position_note=markup)
+    ns = {"k": KML_NS}
+    root = ET.fromstring(alerts_kml([acked, lost]))
+    for description in (
+        root.find("k:Document/k:Placemark/k:description", ns).text,
+        root.find("k:Document/k:description", ns).text,
+    ):
+        assert "<" not in description and ">" not in description and '"' not in description
+        assert html.escape(markup) in description
+        assert markup in html.unescape(description)
+    placemark = root.find("k:Document/k:Placemark/k:description", ns).text
+    assert "acknowledged by &lt;b&gt;bo&lt;/b&gt; at" in placemark

@@ -10,11 +10,14 @@ import subprocess
 import sys
 import textwrap
 import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 from alert_samples import make_alert
 
+import sarmission.alerts.store as store_module
 from sarmission.alerts.model import CHANNEL_MAVLINK, Refusal, Sends
 from sarmission.alerts.store import SCHEMA_VERSION, AlertStore, _events_table
 from sarmission.errors import SarmissionError
@@ -533,6 +536,89 @@ def test_newer_schema_is_refused(tmp_path: Path) -> None:
     conn.close()
     with pytest.raises(SarmissionError, match="newer"):
         AlertStore(db)
+
+
+def test_a_store_locked_by_another_process_is_called_busy_not_unusable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A store another connection holds exclusively is busy, and said so (not "move it
+    away"); one another connection is merely writing opens at once (reads go on in WAL)."""
+    monkeypatch.setattr(store_module, "BUSY_TIMEOUT_S", 0.3)
+    db = tmp_path / "a.db"
+    AlertStore(db).close()
+    holder = sqlite3.connect(db, isolation_level=None)
+    holder.execute("BEGIN IMMEDIATE")  # another process in the middle of a write
+    started = time.monotonic()
+    AlertStore(db).close()
+    assert time.monotonic() - started < 0.3  # its write lock is not waited for
+    holder.execute("ROLLBACK")
+    holder.execute("PRAGMA locking_mode=EXCLUSIVE")
+    holder.execute("BEGIN EXCLUSIVE")
+    holder.execute("COMMIT")  # the lock stays with the holder until it closes
+    with pytest.raises(SarmissionError) as refused:
+        AlertStore(db)
+    assert "is busy: another process holds a lock on it" in str(refused.value)
+    assert "not a usable" not in str(refused.value) and "move it away" not in str(refused.value)
+    holder.close()
+    AlertStore(db).close()
+
+
+def test_readers_do_not_wait_behind_a_change_waiting_for_another_process(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another process holds the write lock: a change through the store waits for it, while
+    reads (the feed's pages, /healthz) go on at once with what is committed."""
+    monkeypatch.setattr(store_module, "BUSY_TIMEOUT_S", 3.0)
+    db = tmp_path / "a.db"
+    with AlertStore(db) as store:
+        alert = make_alert(1)
+        store.add(alert)
+        holder = sqlite3.connect(db, isolation_level=None)
+        holder.execute("BEGIN IMMEDIATE")
+        results: list[object] = []
+        writer = threading.Thread(
+            target=lambda: results.append(store.acknowledge(alert.alert_id, "ana"))
+        )
+        writer.start()
+        time.sleep(0.3)  # the acknowledgement is now waiting for the holder's lock
+        started = time.monotonic()
+        assert store.count() == 1 and store.get(alert.alert_id).ack_by is None
+        assert [a.alert_id for a in store.list()] == [alert.alert_id]
+        assert store.last_event_seq() == 1
+        assert time.monotonic() - started < 1.0
+        assert writer.is_alive()
+        holder.execute("ROLLBACK")
+        holder.close()
+        writer.join(5.0)
+        assert results[0].ack_by == "ana" and store.get(alert.alert_id).ack_by == "ana"
+
+
+def _make_read_only(path: Path) -> Callable[[], None]:
+    """Make ``path`` unwritable (immutable as root, read-only permissions otherwise); returns
+    the undo. Skips the test where neither works."""
+    if os.geteuid() != 0:
+        path.chmod(0o444)
+        return lambda: path.chmod(0o644)
+    if subprocess.run(["chattr", "+i", str(path)], capture_output=True).returncode != 0:
+        pytest.skip("chattr +i is not available here")
+    return lambda: subprocess.run(["chattr", "-i", str(path)], check=True)
+
+
+def test_a_store_that_cannot_be_written_is_refused_when_opened(tmp_path: Path) -> None:
+    """Not at the first alert of the mission: at open, in words, and left untouched."""
+    db = tmp_path / "a.db"
+    with AlertStore(db) as store:
+        store.add(make_alert(1))
+    before = db.read_bytes()
+    undo = _make_read_only(db)
+    try:
+        with pytest.raises(SarmissionError, match=r"alert store .*a\.db cannot be written"):
+            AlertStore(db)
+        assert db.read_bytes() == before
+    finally:
+        undo()
+    with AlertStore(db) as store:
+        assert store.count() == 1
 
 
 def test_directory_is_refused(tmp_path: Path) -> None:

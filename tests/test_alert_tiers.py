@@ -397,3 +397,41 @@ def test_fresh_and_upgraded_stores_have_the_same_tables(tmp_path: Path) -> None:
     conn.close()
     AlertStore(old).close()
     assert columns(tmp_path / "fresh.db") == columns(old)
+
+
+def test_a_change_returns_the_alert_as_its_own_commit_left_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another operator's dismissal commits (from another connection) right after this
+    store's confirmation or acknowledgement: the caller gets the alert as its own change left
+    it, never a card contradicting what it just did."""
+    db = tmp_path / "a.db"
+    with AlertStore(db) as feed_side, AlertStore(db) as other_feed:
+        alert = candidate(1)
+        feed_side.add(alert)
+        notify = feed_side._notify
+
+        def dismissal_right_after_commit() -> None:
+            notify()
+            if other_feed.get(alert.alert_id).decision != "dismissed":
+                other_feed.record_decision(alert.alert_id, "dismissed", "bo")
+
+        monkeypatch.setattr(feed_side, "_notify", dismissal_right_after_commit)
+        decided = feed_side.record_decision(alert.alert_id, "confirmed", "ana")
+        assert decided.changed
+        assert (decided.alert.decision, decided.alert.decided_by) == ("confirmed", "ana")
+        assert decided.alert.tier == "confirmed"
+        assert feed_side.get(alert.alert_id).decision == "dismissed"  # bo's came after
+
+        monkeypatch.setattr(feed_side, "_notify", notify)
+        second = candidate(2)
+        feed_side.add(second)
+        monkeypatch.setattr(
+            feed_side,
+            "_notify",
+            lambda: (notify(), other_feed.record_decision(second.alert_id, "dismissed", "bo")),
+        )
+        acked = feed_side.acknowledge(second.alert_id, "ana")
+        assert acked.ack_by == "ana" and acked.decision is None
+        assert feed_side.get(second.alert_id).dismissed
+        monkeypatch.setattr(feed_side, "_notify", notify)

@@ -163,7 +163,7 @@ def test_a_tak_server_that_is_down_costs_warnings_then_gets_the_marker(tmp_path,
         try:
             assert relay.failures.total >= 1 and relay.sent == 0
             assert any("CoT to tcp://127.0.0.1:" in r.getMessage() for r in caplog.records)
-            # the relay only refreshes what went out once; a store change makes it try again
+            # the next change (or refresh) makes the relay try again
             server = socket.socket()
             server.bind(("127.0.0.1", port))
             server.listen()
@@ -180,6 +180,93 @@ def test_a_tak_server_that_is_down_costs_warnings_then_gets_the_marker(tmp_path,
         finally:
             relay.stop()
         assert "sends failed" in relay.summary()
+
+
+class FlakySender(CotSender):
+    """A UDP sender whose sends fail while ``down`` (a TAK Server unreachable)."""
+
+    def __init__(self, url: str) -> None:
+        super().__init__(url)
+        self.down = False
+        self.failed = 0
+
+    def send(self, event: bytes) -> None:
+        if self.down:
+            self.failed += 1
+            raise ConnectionRefusedError("TAK Server down")
+        super().send(event)
+
+
+def test_a_dismissal_while_tak_is_down_deletes_the_marker_once_it_is_back(tmp_path, tak):
+    """The delete that failed is tried again at the refresh, and the dismissed marker is
+    never sent again."""
+    with AlertStore(tmp_path / "alerts.db") as store:
+        alert = make_alert(1)
+        store.add(alert)
+        sender = FlakySender(tak.url)
+        relay = CotRelay(store, [sender], "test-mission", refresh_s=0.3).start()
+        try:
+            assert wait_until(lambda: tak.of(alert.cot_uid), 5.0)
+            sender.down = True
+            store.record_decision(alert.alert_id, "dismissed", "op")
+            assert wait_until(lambda: sender.failed >= 2, 5.0)  # the delete and its retry
+            markers = len(tak.of(alert.cot_uid))
+            sender.down = False
+            assert wait_until(lambda: tak.of(f"{alert.cot_uid}.delete"), 5.0)
+            sends = store.get(alert.alert_id).sent["cot"].count
+            assert (
+                wait_until(lambda: store.get(alert.alert_id).sent["cot"].count > sends, 1.0)
+                is False
+            )
+        finally:
+            relay.stop()
+        assert len(tak.of(alert.cot_uid)) == markers
+        assert len(tak.of(f"{alert.cot_uid}.delete")) == 1
+        assert relay.deleted == 1 and "0 live" in relay.summary()
+
+
+def test_a_position_refined_while_tak_is_down_goes_out_at_the_next_refresh(tmp_path, tak):
+    """A refresh sends the alert as the store holds it now, not as it was last sent."""
+    with AlertStore(tmp_path / "alerts.db") as store:
+        alert = make_alert(1)
+        store.add(alert)
+        sender = FlakySender(tak.url)
+        relay = CotRelay(store, [sender], "test-mission", refresh_s=0.3).start()
+        try:
+            assert wait_until(lambda: tak.of(alert.cot_uid), 5.0)
+            sender.down = True
+            before = len(tak.of(alert.cot_uid))
+            moved = (alert.position[0] + 1e-4, alert.position[1])
+            store.refine_position(alert.alert_id, moved, 1.5, "ground plane", "refined")
+            assert wait_until(lambda: sender.failed >= 1, 5.0)
+            sender.down = False
+            assert wait_until(lambda: len(tak.of(alert.cot_uid)) > before + 1, 5.0)
+            assert all(point(e) == (*moved, 1.5) for e in tak.of(alert.cot_uid)[before:])
+        finally:
+            relay.stop()
+
+
+def test_a_relay_started_after_a_dismissal_deletes_the_marker_sent_before(tmp_path, tak):
+    """The relay stopped (a restart) between an alert's marker and its dismissal: the next
+    one deletes the marker the store says went out; a dismissed alert never sent is left
+    alone."""
+    with AlertStore(tmp_path / "alerts.db") as store:
+        sent, never_sent = make_alert(1), make_alert(2)
+        store.add(sent)
+        relay = CotRelay(store, [CotSender(tak.url)], "test-mission").start()
+        assert wait_until(lambda: tak.of(sent.cot_uid), 5.0)
+        relay.stop()
+        store.add(never_sent)
+        store.record_decision(sent.alert_id, "dismissed", "op")
+        store.record_decision(never_sent.alert_id, "dismissed", "op")
+        relay = CotRelay(store, [CotSender(tak.url)], "test-mission").start()
+        try:
+            assert wait_until(lambda: tak.of(f"{sent.cot_uid}.delete"), 5.0)
+        finally:
+            relay.stop()
+        assert len(tak.of(sent.cot_uid)) == 1
+        assert tak.of(never_sent.cot_uid) == tak.of(f"{never_sent.cot_uid}.delete") == []
+        assert relay.deleted == 1
 
 
 @pytest.mark.parametrize(

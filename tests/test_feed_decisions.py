@@ -5,6 +5,7 @@ stream's ``map`` / ``track`` / ``area`` events."""
 from __future__ import annotations
 
 import json
+import sqlite3
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -13,6 +14,7 @@ import pytest
 from alert_samples import make_alert
 from test_feed_server import get, open_stream, post_json, read_sse
 
+import sarmission.alerts.store as store_module
 from sarmission.alerts.feed import FeedServer
 from sarmission.alerts.feed_map import MapFollower, thin
 from sarmission.alerts.store import AlertStore, DronePoint
@@ -65,6 +67,44 @@ def test_confirm_and_dismiss_through_the_feed(store: AlertStore, feed: FeedServe
         assert status == 400 and "who decides" in doc["error"]
         assert get(feed, f"/api/alerts/{cand.alert_id}/{verb}")[0] == 405
     assert len(store.decisions(cand.alert_id)) == 2  # the refusals changed nothing
+
+
+def test_a_change_the_store_cannot_record_is_a_503_to_retry(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Another process holds the store's write lock past the store's wait (or the file cannot
+    be written): the operator gets one line of JSON saying nothing was recorded and to retry,
+    the log one warning without a traceback; once the lock is released the retry records."""
+    monkeypatch.setattr(store_module, "BUSY_TIMEOUT_S", 0.3)
+    db = tmp_path / "alerts.db"
+    with AlertStore(db) as store, FeedServer(store, port=0) as feed:
+        alert = make_alert(1, tier="candidate")
+        store.add(alert)
+        holder = sqlite3.connect(db, isolation_level=None)
+        holder.execute("BEGIN IMMEDIATE")
+        with caplog.at_level("INFO", logger="sarmission.alerts.feed"):
+            status, doc = decide(feed, alert.alert_id, "dismiss")
+            assert status == 503
+            assert "decision was not recorded" in doc["error"] and "retry" in doc["error"]
+            assert "busy: another process holds a lock" in doc["error"]
+            status, doc = post_json(feed, f"/api/alerts/{alert.alert_id}/ack", {"by": "ana"})
+            assert status == 503 and "acknowledgement was not recorded" in doc["error"]
+        holder.execute("ROLLBACK")
+        holder.close()
+        failed = [r for r in caplog.records if r.levelname != "INFO"]
+        assert [r.levelname for r in failed] == ["WARNING", "WARNING"]
+        assert all(r.exc_info is None and "\n" not in r.getMessage() for r in failed)
+        assert "not recorded" in failed[0].getMessage()
+        assert store.get(alert.alert_id).decision is None  # nothing of it stands
+        status, doc = decide(feed, alert.alert_id, "dismiss")
+        assert status == 200 and doc["decision"] == "dismissed"
+
+        def read_only(*args: object) -> None:
+            raise sqlite3.OperationalError("attempt to write a readonly database")
+
+        monkeypatch.setattr(store, "record_decision", read_only)
+        status, doc = decide(feed, alert.alert_id, "confirm")
+        assert status == 503 and "cannot be written" in doc["error"]
 
 
 def test_decisions_racing_over_http(store: AlertStore, feed: FeedServer) -> None:

@@ -6,6 +6,7 @@ from pathlib import Path
 import pytest
 
 from sarmission.commands.detector_options import add_detector_options
+from sarmission.commands.mission_options import add_mission_options
 from sarmission.errors import SarmissionError
 from sarmission.mission.config import MissionConfigError, load_mission, parse_override
 from sarmission.perception.vstmd import VSTMD
@@ -175,3 +176,24 @@ def test_a_byte_order_mark_is_read_and_other_encodings_are_named(tmp_path):
     p.write_bytes('name = "Küste"\n'.encode("latin-1"))
     with pytest.raises(MissionConfigError, match=rf"{p}: not UTF-8 text"):
         load_mission(p)
+
+
+@pytest.mark.parametrize("name", ["sea\\u0007search", "sea\\nsearch", "sea\\u0085search"])
+def test_a_mission_name_or_id_with_control_characters_is_refused(tmp_path, name):
+    """The name is the alerts' mission id, written into CoT and KML (XML, where a control
+    character makes the document invalid): refused with one line when the mission loads,
+    from the file, a --set override or --mission-id; printable names of any script pass."""
+    p = write(tmp_path, f'name = "{name}"\n')
+    with pytest.raises(MissionConfigError) as exc:
+        load_mission(p)
+    assert str(exc.value).startswith(f"{p}: name: expected printable characters only")
+    assert "\n" not in str(exc.value)
+    decoded = name.encode().decode("unicode_escape")
+    with pytest.raises(MissionConfigError, match="command line .*name: expected printable"):
+        load_mission(None, {"name": decoded})
+    parser = argparse.ArgumentParser(exit_on_error=False)
+    add_mission_options(parser)
+    with pytest.raises(argparse.ArgumentError, match="expected printable characters only"):
+        parser.parse_args(["--mission-id", decoded])
+    assert parser.parse_args(["--mission-id", "Küste Nord 2"]).mission_id == "Küste Nord 2"
+    assert load_mission(write(tmp_path, 'name = "Küste Nord – 2"\n')).name == "Küste Nord – 2"

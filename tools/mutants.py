@@ -1702,8 +1702,8 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "cot_relay.dismissed_kept",
         _COT_RELAY,
-        "elif alert.alert_id in self._live and alert.dismissed:",
-        "elif False:",
+        "if alert.alert_id in self._shown and alert.dismissed:",
+        "if False:",
         _T_COT,
         "delivery",
         "a dismissed alert stays on the team's maps",

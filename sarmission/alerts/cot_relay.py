@@ -9,16 +9,18 @@ TAK Server's TCP input):
   rated again (the operator's decisions on other alerts changed how likely it is a person, which
   its remarks say): the event's uid is per target
   (:attr:`~sarmission.alerts.model.Alert.cot_uid`), so the marker moves rather than multiplies;
-- every ``refresh_s`` again, so that a TAK client that joins late sees it and its stale time
-  (``stale_after_s``) is renewed;
+- every ``refresh_s`` again, as the store holds it then, so that a TAK client that joins late
+  sees it and its stale time (``stale_after_s``) is renewed;
 - once an operator dismisses it: a delete event (:func:`~sarmission.alerts.cot.cot_delete`)
   takes the marker off the team's maps.
 
 At start, what the mission's alerts in the store already hold is sent (a restarted run keeps
-the team's markers). Each successful send is recorded on the alert's ``cot`` channel (count,
-first, last), which the feed shows. CoT has no acknowledgement: "sent" is all that is known. A
-destination that fails (a TAK Server down) is tried again at the next change or refresh; its
-failures are warned about at most every few seconds and never stop the mission.
+the team's markers), and the marker of each dismissed alert sent before is deleted (the
+dismissal may have come while no relay ran). Each successful send is recorded on the alert's
+``cot`` channel (count, first, last), which the feed shows. CoT has no acknowledgement: "sent"
+is all that is known. A send that fails everywhere (a TAK Server down), marker or delete, is
+tried again at the next change or refresh; its failures are warned about at most every few
+seconds and never stop the mission.
 """
 
 from __future__ import annotations
@@ -81,15 +83,22 @@ class CotRelay:
         self.sent = 0
         self.deleted = 0
         self.failures = RateLimitedLog(log)
-        self._live: dict[str, Alert] = {}  # alert id -> as last sent
+        self._live: set[str] = set()  # ids of the alerts the team should see
+        self._shown: set[str] = set()  # ids whose marker went out and was not deleted since
+        self._state_lock = threading.Lock()  # publish runs on the relay's and callers' threads
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> CotRelay:
-        """Send what the store holds for the mission, then follow it on a thread."""
+        """Send what the store holds for the mission, then follow it on a thread. A marker the
+        store says went out before (its ``cot`` sends) counts as shown: if its alert was
+        dismissed meanwhile (no relay running), its delete goes out now."""
         subscription = self.store.subscribe()
-        self.publish(self.store.list(mission_id=self.mission_id))
+        alerts = self.store.list(mission_id=self.mission_id)
+        with self._state_lock:
+            self._shown.update(a.alert_id for a in alerts if CHANNEL_COT in a.sent)
+        self.publish(alerts)
         self._thread = threading.Thread(
             target=self._follow, args=(subscription,), name="cot-relay", daemon=True
         )
@@ -110,7 +119,7 @@ class CotRelay:
         failed = self.failures.total
         return (
             f"TAK (CoT) to {', '.join(s.url for s in self.senders)}: {self.sent} events sent, "
-            f"{self.deleted} markers deleted, {len(self._live)} live"
+            f"{self.deleted} markers deleted, {len(self._live & self._shown)} live"
             + (f", {failed} sends failed" if failed else "")
         )
 
@@ -133,20 +142,31 @@ class CotRelay:
 
     def publish(self, alerts: Sequence[Alert]) -> None:
         """Send each of ``alerts`` the team should see; delete the marker of each one sent
-        before that the team should no longer see (dismissed)."""
-        for alert in alerts:
-            if alert.mission_id != self.mission_id:
-                continue
-            if for_the_team(alert):
-                self._send(alert, alert_to_cot(alert, self.clock(), self.stale_after_s))
-            elif alert.alert_id in self._live and alert.dismissed:
-                if self._send(alert, cot_delete(alert.cot_uid, self.clock())):
-                    del self._live[alert.alert_id]
-                    self.deleted += 1
+        before that the team should no longer see (dismissed). A marker counts as shown until
+        its delete goes out: a delete that failed is tried again at the next refresh."""
+        with self._state_lock:
+            for alert in alerts:
+                if alert.mission_id != self.mission_id:
+                    continue
+                if for_the_team(alert):
+                    self._live.add(alert.alert_id)
+                    if self._send(alert, alert_to_cot(alert, self.clock(), self.stale_after_s)):
+                        self._shown.add(alert.alert_id)
+                    continue
+                self._live.discard(alert.alert_id)
+                if alert.alert_id in self._shown and alert.dismissed:
+                    if self._send(alert, cot_delete(alert.cot_uid, self.clock())):
+                        self._shown.discard(alert.alert_id)
+                        self.deleted += 1
 
     def refresh(self) -> None:
-        """Send every live marker again (renewing its stale time)."""
-        self.publish(list(self._live.values()))
+        """Send every marker the team should see again, as the store holds it now (renewing
+        its stale time; a change whose send failed goes out now), and retry the deletes that
+        failed."""
+        with self._state_lock:
+            ids = sorted(self._live | self._shown)
+        current = [self.store.get(alert_id) for alert_id in ids]
+        self.publish([alert for alert in current if alert is not None])
 
     def _send(self, alert: Alert, event: bytes) -> bool:
         """``event`` to every destination; recorded once if any took it."""
@@ -160,8 +180,6 @@ class CotRelay:
         if not went:
             return False
         self.sent += 1
-        if for_the_team(alert):
-            self._live[alert.alert_id] = alert
         try:
             self.store.record_sent(alert.alert_id, CHANNEL_COT)
         except KeyError:  # not in this store (cannot happen for alerts read from it)

@@ -3,6 +3,9 @@
 Every alert is exported, candidates and dismissed ones included, each saying which it is (the
 ``tier`` and ``decision`` properties; in KML also the placemark's name and description).
 
+A KML description is shown as HTML (Google Earth renders it in the placemark's balloon), so
+its text is HTML-escaped: operator names, notes and reasons in it stay inert text.
+
 Coordinates keep full float precision. Alerts without a position are never drawn as points:
 in GeoJSON they are Features with ``"geometry": null`` (RFC 7946 section 3.2, "unlocated"),
 in KML they are listed in the document's description.
@@ -10,6 +13,7 @@ in KML they are listed in the document's description.
 
 from __future__ import annotations
 
+import html
 import json
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable
@@ -100,7 +104,8 @@ def alerts_kml(alerts: Iterable[Alert], name: str = "sarmission alerts") -> byte
     alerts = list(alerts)
     unlocated = [_describe(a).replace("\n", "; ") for a in alerts if a.position is None]
     if unlocated:  # KML wants the description before the placemarks
-        sub(document, "description", "Alerts without a position:\n" + "\n".join(unlocated))
+        text = "Alerts without a position:\n" + "\n".join(unlocated)
+        sub(document, "description", html.escape(text))
     for alert in alerts:
         if alert.position is None:
             continue
@@ -111,7 +116,7 @@ def alerts_kml(alerts: Iterable[Alert], name: str = "sarmission alerts") -> byte
         if alert.dismissed:
             state = " (dismissed)"
         sub(placemark, "name", f"T{alert.target_id} {alert.class_name} {alert.score:.2f}{state}")
-        sub(placemark, "description", _describe(alert))
+        sub(placemark, "description", html.escape(_describe(alert)))
         sub(sub(placemark, "TimeStamp"), "when", utc_iso(alert.lock_time))
         extended = sub(placemark, "ExtendedData")
         for key, value in _properties(alert).items():

@@ -21,6 +21,8 @@ Routes (every error is one line of JSON, ``{"error": ..., "status": ...}``):
   body ``{"by": "name"}`` (required), same rules as ``/ack``. Returns the alert with
   ``"unchanged": true`` when it already had that decision; the newer of two contradicting
   decisions wins (:meth:`~sarmission.alerts.store.AlertStore.record_decision`). Unknown id: 404.
+  A change the store could not record (locked by another process too long, not writable): 503,
+  nothing recorded, retry.
 - ``GET /api/map[?mission=ID][&since=T]``: ``{"mission_id", "area", "track", "alerts",
   "dismissed"}`` of the mission (default: the one the store heard of last); see
   :func:`~sarmission.alerts.feed_map.map_document`.
@@ -58,6 +60,7 @@ import logging
 import re
 import select
 import socket
+import sqlite3
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -83,7 +86,7 @@ from sarmission.alerts.feed_limits import BusyRejecter, DeadlineReader, Slots, t
 from sarmission.alerts.feed_map import MapFollower, map_document
 from sarmission.alerts.model import Alert
 from sarmission.alerts.page import PAGE_HTML
-from sarmission.alerts.store import AlertEvent, AlertStore
+from sarmission.alerts.store import AlertEvent, AlertStore, describe_failure
 from sarmission.errors import SarmissionError
 
 log = logging.getLogger(__name__)
@@ -586,6 +589,9 @@ class _Handler(BaseHTTPRequestHandler):
         except KeyError:
             self._error(HTTPStatus.NOT_FOUND, f"no alert {alert_id}")
             return
+        except sqlite3.Error as exc:
+            self._store_failed(alert_id, verb, by, exc)
+            return
         log.info(
             "alert %s: %s by %s",
             alert_id,
@@ -593,6 +599,26 @@ class _Handler(BaseHTTPRequestHandler):
             by,
         )
         self._json(HTTPStatus.OK, doc)
+
+    def _store_failed(self, alert_id: str, verb: str, by: str, exc: sqlite3.Error) -> None:
+        """Answer 503 for a change the store failed to record (e.g. locked by another process
+        past its wait, or not writable): the transaction was rolled back, so nothing of it
+        stands and the operator must retry. One warning line, no traceback: it is the
+        store's condition, not a fault of the feed."""
+        what = "acknowledgement" if verb == "ack" else "decision"
+        failure = describe_failure(exc)
+        log.warning(
+            "feed: %s of alert %s by %s not recorded: the alert store %s",
+            what,
+            alert_id,
+            by,
+            failure,
+        )
+        self._error(
+            HTTPStatus.SERVICE_UNAVAILABLE,
+            f"the {what} was not recorded: the alert store {failure}; retry",
+            {"Retry-After": "2"},
+        )
 
     # ------------------------------------------------------------------ streams
 

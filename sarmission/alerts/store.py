@@ -71,6 +71,9 @@ from sarmission.errors import SarmissionError
 APPLICATION_ID = 0x53415241
 SCHEMA_VERSION = 8
 
+#: Seconds a change waits for another connection's write lock before giving up.
+BUSY_TIMEOUT_S = 10.0
+
 #: Drone track points kept per mission (older ones are dropped): 5.5 hours at 1 Hz.
 DRONE_POINTS_KEPT = 20_000
 #: The track is trimmed every this many points, so it holds at most KEPT + this many.
@@ -288,6 +291,33 @@ ALTER TABLE events_8 RENAME TO events
 }
 
 
+def is_busy(exc: sqlite3.Error) -> bool:
+    """Whether ``exc`` is SQLite giving up waiting for a lock another connection holds (e.g.
+    another process in the middle of a write, or holding the file exclusively)."""
+    code = getattr(exc, "sqlite_errorcode", None)
+    if code is None:
+        return "locked" in str(exc) or "busy" in str(exc)
+    return code & 0xFF in (sqlite3.SQLITE_BUSY, sqlite3.SQLITE_LOCKED)
+
+
+def is_read_only(exc: sqlite3.Error) -> bool:
+    """Whether ``exc`` is SQLite refusing to write the file (permissions, an immutable file,
+    a read-only mount)."""
+    code = getattr(exc, "sqlite_errorcode", None)
+    if code is None:
+        return "readonly" in str(exc)
+    return code & 0xFF == sqlite3.SQLITE_READONLY
+
+
+def describe_failure(exc: sqlite3.Error) -> str:
+    """What went wrong with the store, in words for an operator or a log line."""
+    if is_busy(exc):
+        return "is busy: another process holds a lock on it"
+    if is_read_only(exc):
+        return f"cannot be written ({exc})"
+    return f"failed ({exc})"
+
+
 def _execute_script(conn: sqlite3.Connection, script: str) -> None:
     """Run ``;``-separated statements inside the open transaction (``executescript`` would
     commit it first)."""
@@ -339,8 +369,9 @@ class OperatorDecision(NamedTuple):
 
 
 class Decided(NamedTuple):
-    """What :meth:`AlertStore.record_decision` did: the alert as it is now, and whether the
-    decision changed anything (False: the alert already had this decision)."""
+    """What :meth:`AlertStore.record_decision` did: the alert as this decision left it (read
+    in its own transaction, so a racing decision committed after it does not show), and
+    whether the decision changed anything (False: the alert already had this decision)."""
 
     alert: Alert
     changed: bool
@@ -357,9 +388,12 @@ class DronePoint(NamedTuple):
 
 
 class AlertStore:
-    """Alerts in an SQLite file at ``path`` (created if missing). Thread-safe: one connection,
-    serialised by a lock. ``poll_interval_s`` bounds how late subscribers see changes written by
-    another process (changes made through this object wake them at once)."""
+    """Alerts in an SQLite file at ``path`` (created if missing). Thread-safe: one connection
+    for changes and one for reads, each serialised by its own lock, so that a change waiting
+    for another process's write lock (up to :data:`BUSY_TIMEOUT_S`) does not hold up readers
+    (WAL lets them read what is committed meanwhile). ``poll_interval_s`` bounds how late
+    subscribers see changes written by another process (changes made through this object wake
+    them at once)."""
 
     def __init__(self, path: str | Path, poll_interval_s: float = 0.25) -> None:
         self.path = Path(path)
@@ -367,13 +401,15 @@ class AlertStore:
         if self.path.is_dir():
             raise SarmissionError(f"alert store {self.path} is a directory, not a database file")
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._lock = threading.RLock()
+        self._lock = threading.RLock()  # the writing connection, ``_conn``
+        self._read_lock = threading.RLock()  # the reading connection, ``_reader``
+        self._writer: int | None = None  # the thread in a write transaction, if any
         self._changed = threading.Condition()
         self._generation = 0
         self._closed = False
         try:
             self._conn = sqlite3.connect(
-                self.path, check_same_thread=False, isolation_level=None, timeout=10.0
+                self.path, check_same_thread=False, isolation_level=None, timeout=BUSY_TIMEOUT_S
             )
         except sqlite3.Error as exc:
             raise SarmissionError(f"cannot open alert store {self.path}: {exc}") from exc
@@ -381,6 +417,16 @@ class AlertStore:
             self._open_schema()
         except sqlite3.DatabaseError as exc:
             self._conn.close()
+            if is_busy(exc):
+                raise SarmissionError(
+                    f"alert store {self.path} is busy: another process holds a lock on it "
+                    f"({exc}); try again once that process is done or has released it"
+                ) from exc
+            if is_read_only(exc):
+                raise SarmissionError(
+                    f"alert store {self.path} cannot be written ({exc}); check the permissions "
+                    "and attributes of the file and its folder, and that the disk is writable"
+                ) from exc
             raise SarmissionError(
                 f"{self.path} is not a usable sarmission alert store ({exc}); "
                 "it was left untouched - move it away or choose another path"
@@ -388,6 +434,14 @@ class AlertStore:
         except SarmissionError:
             self._conn.close()
             raise
+        try:
+            self._reader = sqlite3.connect(
+                self.path, check_same_thread=False, isolation_level=None, timeout=BUSY_TIMEOUT_S
+            )
+            self._reader.execute("PRAGMA query_only=ON")
+        except sqlite3.Error as exc:
+            self._conn.close()
+            raise SarmissionError(f"cannot open alert store {self.path}: {exc}") from exc
 
     # ------------------------------------------------------------------ opening
 
@@ -413,6 +467,7 @@ class AlertStore:
             check = conn.execute("PRAGMA quick_check").fetchone()[0]
             if check != "ok":
                 raise SarmissionError(f"{self.path} is damaged: {check}")
+        self._check_writable(version)
         mode = conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
         if mode.lower() != "wal":
             raise SarmissionError(f"{self.path}: cannot enable WAL journaling (got {mode!r})")
@@ -433,17 +488,53 @@ class AlertStore:
                     _execute_script(conn, _UPGRADES[step])
                 conn.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
 
+    def _check_writable(self, version: int) -> None:
+        """Refuse a file SQLite can open but not write (read-only permissions, an immutable
+        file, a read-only mount), which would otherwise fail at the first alert: rewrite its
+        ``user_version`` unchanged and roll back, so nothing is modified. A file another
+        process is writing right now is writable; its lock is not waited for."""
+        conn = self._conn
+        conn.execute("PRAGMA busy_timeout=0")
+        try:
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                conn.execute(f"PRAGMA user_version={int(version)}")
+            finally:
+                conn.execute("ROLLBACK")
+        except sqlite3.OperationalError as exc:
+            if not is_busy(exc):
+                raise
+        finally:
+            conn.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
+
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
-        """A write transaction (``BEGIN IMMEDIATE``); committed, hence durable, on exit."""
+        """A write transaction (``BEGIN IMMEDIATE``); committed, hence durable, on exit. If
+        the commit fails, the transaction is rolled back (nothing of it is recorded) and the
+        error raised, so the connection is left ready for the next one."""
         with self._lock:
             self._conn.execute("BEGIN IMMEDIATE")
+            self._writer = threading.get_ident()
             try:
                 yield self._conn
+                self._conn.execute("COMMIT")
             except BaseException:
-                self._conn.execute("ROLLBACK")
+                if self._conn.in_transaction:
+                    self._conn.execute("ROLLBACK")
                 raise
-            self._conn.execute("COMMIT")
+            finally:
+                self._writer = None
+
+    @contextmanager
+    def _reading(self) -> Iterator[sqlite3.Connection]:
+        """The connection to read with: inside this thread's write transaction its own (which
+        sees what the transaction wrote), else the reading one, which never waits for the
+        writing one's lock."""
+        if self._writer == threading.get_ident():
+            yield self._conn
+            return
+        with self._read_lock:
+            yield self._reader
 
     def _notify(self) -> None:
         with self._changed:
@@ -537,10 +628,9 @@ class AlertStore:
             )
             if cur.rowcount:
                 self._log(conn, "ack", alert_id)
+            alert = self._committed(alert_id)
         if cur.rowcount:
             self._notify()
-        alert = self.get(alert_id)
-        assert alert is not None
         return alert
 
     def record_ack(
@@ -717,9 +807,10 @@ class AlertStore:
                     (evidence, t, *rated, z, alert_id),
                 )
                 self._log(conn, "confirmed", alert_id, detail=evidence)
+            alert = self._committed(alert_id)
         if changed:
             self._notify()
-        return self.get(alert_id)
+        return alert
 
     def discard(self, alert_id: str, reason: str, when: float | None = None) -> Alert | None:
         """The system gives up on a candidate: ``discarded`` = ``reason`` (also its
@@ -742,9 +833,10 @@ class AlertStore:
                     (reason, t, reason, alert_id),
                 )
                 self._log(conn, "discarded", alert_id, detail=reason)
+            alert = self._committed(alert_id)
         if changed:
             self._notify()
-        return self.get(alert_id)
+        return alert
 
     def decide(
         self, alert_id: str, decision: Decision, by: str, when: float | None = None
@@ -765,7 +857,8 @@ class AlertStore:
         The alert's current decision repeated changes nothing (``changed`` False, no event).
         A contradicting one (dismiss after confirm, or back) replaces it: operators change their
         minds, and both stay in the log (:meth:`decisions`). Of two racing decisions the one
-        committed last is the state; the log has both, in commit order.
+        committed last is the state; the log has both, in commit order; each caller gets the
+        alert as its own decision left it.
 
         ``decided_at`` is the store's clock: ``when`` is for in-process callers only (tools,
         tests) and must be finite; the feed never passes a client's time. No ordering ever
@@ -798,10 +891,9 @@ class AlertStore:
                     )
                 if state.evidence_logit is not None:
                     self._rerate(conn, state.mission_id)
+            alert = self._committed(alert_id)
         if changed:
             self._notify()
-        alert = self.get(alert_id)
-        assert alert is not None
         return Decided(alert, changed)
 
     # ------------------------------------------------------------------ calibration
@@ -809,8 +901,8 @@ class AlertStore:
     def rating(self, mission_id: str, evidence_logit: float) -> Rating:
         """The confidence the mission's operator decisions so far give an alert whose evidence
         says log-odds ``evidence_logit`` (:mod:`sarmission.alerts.operator_calibration`)."""
-        with self._lock:
-            return self._mission_belief(self._conn, mission_id).rate(evidence_logit)
+        with self._reading() as conn:
+            return self._mission_belief(conn, mission_id).rate(evidence_logit)
 
     @staticmethod
     def _mission_belief(conn: sqlite3.Connection, mission_id: str) -> OffsetBelief:
@@ -882,15 +974,15 @@ class AlertStore:
         params: tuple = (mission_id,)
         if since is not None:
             sql, params = sql + " AND t >= ?", (mission_id, since)
-        with self._lock:
-            rows = self._conn.execute(sql + " ORDER BY seq", params).fetchall()
+        with self._reading() as conn:
+            rows = conn.execute(sql + " ORDER BY seq", params).fetchall()
         return [DronePoint(*r) for r in rows]
 
     def drone_points_after(self, mission_id: str, after: int = 0) -> tuple[int, list[DronePoint]]:
         """For a follower of the track: the newest track ``seq`` of the mission and its points
         recorded after ``after`` (a ``seq`` this returned before; 0: all of them)."""
-        with self._lock:
-            rows = self._conn.execute(
+        with self._reading() as conn:
+            rows = conn.execute(
                 "SELECT seq, t, lat, lon, alt_m FROM drone WHERE mission_id = ? AND seq > ? "
                 "ORDER BY seq",
                 (mission_id, after),
@@ -916,8 +1008,8 @@ class AlertStore:
 
     def mission_area(self, mission_id: str) -> list[tuple[float, float]] | None:
         """The mission's area as ``(lat, lon)`` vertices, or None when none was set."""
-        with self._lock:
-            row = self._conn.execute(
+        with self._reading() as conn:
+            row = conn.execute(
                 "SELECT polygon FROM areas WHERE mission_id = ?", (mission_id,)
             ).fetchone()
         return None if row is None else [(v[0], v[1]) for v in json.loads(row[0])]
@@ -935,6 +1027,13 @@ class AlertStore:
         if row is None:
             raise KeyError(alert_id)
         return _TierState(*row)
+
+    def _committed(self, alert_id: str) -> Alert:
+        """The alert as the open write transaction leaves it: what a change returns must be
+        what it committed, not what another connection committed right after."""
+        alert = self.get(alert_id)
+        assert alert is not None, alert_id
+        return alert
 
     @staticmethod
     def _require(conn: sqlite3.Connection, alert_id: str) -> None:
@@ -999,8 +1098,8 @@ class AlertStore:
         alert's error radius, at least 10 m, and 25 m when its error is unknown
         (:func:`~sarmission.alerts.model.dismiss_radius_m`). New alerts within one are
         suppressed for the rest of the mission; it is a query, so it survives restarts."""
-        with self._lock:
-            rows = self._conn.execute(
+        with self._reading() as conn:
+            rows = conn.execute(
                 "SELECT lat, lon, error_m FROM alerts WHERE mission_id = ? AND "
                 "decision = 'dismissed' AND lat IS NOT NULL AND lon IS NOT NULL ORDER BY seq",
                 (mission_id,),
@@ -1009,8 +1108,8 @@ class AlertStore:
 
     def decisions(self, alert_id: str) -> list[OperatorDecision]:
         """Every operator decision on the alert, oldest first (the last one is its state)."""
-        with self._lock:
-            rows = self._conn.execute(
+        with self._reading() as conn:
+            rows = conn.execute(
                 "SELECT time, detail, by FROM events WHERE alert_id = ? AND kind = 'decided' "
                 "ORDER BY seq",
                 (alert_id,),
@@ -1020,9 +1119,9 @@ class AlertStore:
     def current_mission(self) -> str | None:
         """The mission the store heard of last (newest alert, drone point or area, by the
         store's clock), None when it holds nothing: the one an operator's map shows."""
-        with self._lock:
+        with self._reading() as conn:
             rows = [
-                self._conn.execute(sql).fetchone()
+                conn.execute(sql).fetchone()
                 for sql in (
                     "SELECT added_time, mission_id FROM alerts ORDER BY seq DESC LIMIT 1",
                     "SELECT recorded, mission_id FROM drone ORDER BY seq DESC LIMIT 1",
@@ -1034,8 +1133,8 @@ class AlertStore:
 
     def count(self) -> int:
         """Number of stored alerts."""
-        with self._lock:
-            return self._conn.execute("SELECT count(*) FROM alerts").fetchone()[0]
+        with self._reading() as conn:
+            return conn.execute("SELECT count(*) FROM alerts").fetchone()[0]
 
     def undelivered(self, channel: str, repeats: int = 1) -> list[Alert]:
         """Confirmed alerts not dismissed by an operator still to go out on ``channel``, oldest
@@ -1059,8 +1158,8 @@ class AlertStore:
         """Targets already alerted in this mission: target id -> latest known ``(lat, lon)``
         (None if none of its alerts had a position). A restarted controller seeds its target
         registry from this so it does not announce the same person twice."""
-        with self._lock:
-            rows = self._conn.execute(
+        with self._reading() as conn:
+            rows = conn.execute(
                 "SELECT target_id, lat, lon FROM alerts WHERE mission_id = ? ORDER BY seq",
                 (mission_id,),
             ).fetchall()
@@ -1076,8 +1175,8 @@ class AlertStore:
         """Like :meth:`known_targets`, with the 1-sigma error of each latest position:
         target id -> ``(lat, lon, error_m)`` (error None when unknown), or None without a
         position. The restarted registry matches new fixes against each by its own error."""
-        with self._lock:
-            rows = self._conn.execute(
+        with self._reading() as conn:
+            rows = conn.execute(
                 "SELECT target_id, lat, lon, error_m FROM alerts WHERE mission_id = ? ORDER BY seq",
                 (mission_id,),
             ).fetchall()
@@ -1091,8 +1190,8 @@ class AlertStore:
 
     def events(self, after: int = 0) -> list[AlertEvent]:
         """Events with ``seq > after``, oldest first."""
-        with self._lock:
-            rows = self._conn.execute(
+        with self._reading() as conn:
+            rows = conn.execute(
                 "SELECT seq, kind, alert_id, by, detail FROM events WHERE seq > ? ORDER BY seq",
                 (after,),
             ).fetchall()
@@ -1104,8 +1203,8 @@ class AlertStore:
 
     def last_event_seq(self) -> int:
         """The newest event's ``seq`` (0 when there is none)."""
-        with self._lock:
-            return self._conn.execute("SELECT coalesce(max(seq), 0) FROM events").fetchone()[0]
+        with self._reading() as conn:
+            return conn.execute("SELECT coalesce(max(seq), 0) FROM events").fetchone()[0]
 
     def _alerts_by_id(self, ids: set[str]) -> list[Alert]:
         if not ids:
@@ -1114,21 +1213,21 @@ class AlertStore:
         return self._query(_SELECT + f"WHERE a.alert_id IN ({marks})", tuple(ids))
 
     def _query(self, sql: str, params: tuple) -> list[Alert]:
-        with self._lock:
-            rows = self._conn.execute(sql, params).fetchall()
+        with self._reading() as conn:
+            rows = conn.execute(sql, params).fetchall()
             ids = [r[0] for r in rows]
             acks: dict[str, list[tuple]] = {}
             sends: dict[str, list[tuple]] = {}
             for i in range(0, len(ids), _ID_BATCH):
                 batch = ids[i : i + _ID_BATCH]
                 marks = ",".join("?" * len(batch))
-                for row in self._conn.execute(
+                for row in conn.execute(
                     "SELECT alert_id, channel, time, result, reason FROM acks "
                     f"WHERE alert_id IN ({marks})",
                     batch,
                 ):
                     acks.setdefault(row[0], []).append(row[1:])
-                for row in self._conn.execute(
+                for row in conn.execute(
                     "SELECT alert_id, channel, count, first, last FROM sends "
                     f"WHERE alert_id IN ({marks})",
                     batch,
@@ -1161,10 +1260,11 @@ class AlertStore:
 
     def close(self) -> None:
         """Close the database and wake every subscriber."""
-        with self._lock:
+        with self._lock, self._read_lock:
             if not self._closed:
                 self._closed = True
                 self._conn.close()
+                self._reader.close()
         self._notify()
 
     def __enter__(self) -> AlertStore:

@@ -15,6 +15,16 @@ if TYPE_CHECKING:
     from sarmission.viz.recorder import Recorder
 
 
+def mission_id(text: str) -> str:
+    """``--mission-id``: printable characters only, since it goes into CoT and KML (XML)."""
+    from sarmission.mission.config_rules import mission_id_problem
+
+    problem = mission_id_problem(text)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
 def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool = False) -> None:
     """``--mission --set --alerts-db --rerun --max-frames --duration`` and the detector options
     (``--ds --topn --colour-share --conf`` default to the mission file's ``[detector]``
@@ -36,6 +46,7 @@ def add_mission_options(parser: argparse.ArgumentParser, mission_required: bool 
     )
     group.add_argument(
         "--mission-id",
+        type=mission_id,
         default=None,
         help="id the alerts are stored under (default: the mission's name)",
     )

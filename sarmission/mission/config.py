@@ -40,7 +40,7 @@ from typing import Any
 from sarmission.errors import SarmissionError
 from sarmission.geo.camera import CameraIntrinsics
 from sarmission.mission.config_rules import ACTION_POLICIES as ACTION_POLICIES
-from sarmission.mission.config_rules import DEFAULT_MODEL, SECTION_RULES
+from sarmission.mission.config_rules import DEFAULT_MODEL, SECTION_RULES, mission_id_problem
 from sarmission.models import CONFIRM_MIN_SCORE, DEFAULT_HEAD, is_head_name
 from sarmission.perception.types import (
     DEFAULT_COLOUR_SHARE,
@@ -441,7 +441,11 @@ def _apply(cfg: MissionConfig, data: Mapping[str, Any], origin: str) -> None:
 
 
 def _validate(cfg: MissionConfig, origin: str) -> None:
-    """Raise for the first section that breaks its rule (:data:`SECTION_RULES`)."""
+    """Raise for a name that cannot be a mission id (:func:`mission_id_problem`), then for
+    the first section that breaks its rule (:data:`SECTION_RULES`)."""
+    problem = mission_id_problem(cfg.name)
+    if problem is not None:
+        raise MissionConfigError(f"{origin}: name: {problem}")
     for section, rule in SECTION_RULES.items():
         problem = rule(getattr(cfg, section))
         if problem is not None:

@@ -255,6 +255,16 @@ def alerts_problem(a: AlertsConfig) -> Problem:
     return None
 
 
+def mission_id_problem(value: str) -> str | None:
+    """Why ``value`` cannot name a mission, or None. The name (or ``--mission-id``) is the id
+    the alerts are stored under and goes into every CoT event and KML export, which are XML:
+    a control character there makes them invalid, so only printable characters are taken."""
+    bad = [c for c in value if not c.isprintable()]
+    if bad:
+        return f"expected printable characters only, got {bad[0]!r} in {value!r}"
+    return None
+
+
 #: Section name -> its rule, in the order they are checked. Sections without rules ([sim])
 #: only need values of the right type.
 SECTION_RULES: dict[str, Callable[[Any], Problem]] = {
