@@ -548,9 +548,7 @@ def test_a_store_locked_by_another_process_is_called_busy_not_unusable(
     AlertStore(db).close()
     holder = sqlite3.connect(db, isolation_level=None)
     holder.execute("BEGIN IMMEDIATE")  # another process in the middle of a write
-    started = time.monotonic()
-    AlertStore(db).close()
-    assert time.monotonic() - started < 0.3  # its write lock is not waited for
+    AlertStore(db).close()  # opens: waiting for its write lock would time out and refuse
     holder.execute("ROLLBACK")
     holder.execute("PRAGMA locking_mode=EXCLUSIVE")
     holder.execute("BEGIN EXCLUSIVE")
@@ -581,11 +579,10 @@ def test_readers_do_not_wait_behind_a_change_waiting_for_another_process(
         )
         writer.start()
         time.sleep(0.3)  # the acknowledgement is now waiting for the holder's lock
-        started = time.monotonic()
         assert store.count() == 1 and store.get(alert.alert_id).ack_by is None
         assert [a.alert_id for a in store.list()] == [alert.alert_id]
         assert store.last_event_seq() == 1
-        assert time.monotonic() - started < 1.0
+        # the writer still waits: reads queued behind it would have outlasted its timeout
         assert writer.is_alive()
         holder.execute("ROLLBACK")
         holder.close()
