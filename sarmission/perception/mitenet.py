@@ -484,13 +484,16 @@ class MiteNet:
         proposals: Proposals,
         crops: np.ndarray,
         boxes: np.ndarray,
-        factors: np.ndarray,
-        shift: np.ndarray,
+        factors: np.ndarray | None = None,
+        shift: np.ndarray | None = None,
     ) -> Detections:
         """Detections from the first-scale ``crops`` of ``boxes``, refined at the other scales;
-        ``factors`` how much each proposal's crops grew, ``shift`` its logits' shift."""
+        ``factors`` how much each proposal's crops grew, ``shift`` its logits' shift (none:
+        crops as at the survey's ranges)."""
         if len(boxes) == 0:
             return Detections()
+        if factors is None or shift is None:
+            factors, shift = np.ones(len(boxes)), np.zeros(len(boxes))
         scores, class_ids, ltrb = self._classify(crops, shift)
         if self.recentre:
             self._recentre(frame, motion, proposals.polarity, scores, class_ids, ltrb, boxes, shift)
