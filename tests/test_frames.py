@@ -186,3 +186,42 @@ def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog):
     assert indices == [0, 1, 2, 3, 4] and source.skipped == 0
     lines = [r.getMessage() for r in caplog.records if "clip.avi" in r.getMessage()]
     assert lines == [f"{path}: the video ends at frame 5 of the 8 its header announces"]
+
+
+def write_ts(path, seconds=1, offset_s=0.0, size="320x240", rate=10):
+    """An H.264 MPEG-TS clip of a test pattern whose timestamps start at ``offset_s``."""
+    subprocess.run(
+        [
+            FFMPEG, "-hide_banner", "-loglevel", "error", "-y",
+            "-f", "lavfi", "-i", f"testsrc=size={size}:rate={rate}", "-t", str(seconds),
+            "-c:v", "libx264", "-preset", "ultrafast", "-g", str(rate), "-pix_fmt", "yuv420p",
+            "-output_ts_offset", str(offset_s), "-f", "mpegts", str(path),
+        ],
+        check=True,
+        timeout=120,
+    )  # fmt: skip
+    return path
+
+
+def write_jump(folder, offset_s=3600.0):
+    """Two recordings joined end to end, the second's timestamps ``offset_s`` later."""
+    first = write_ts(folder / "a.ts").read_bytes()
+    second = write_ts(folder / "b.ts", offset_s=offset_s).read_bytes()
+    path = folder / "jump.ts"
+    path.write_bytes(first + second)
+    return path
+
+
+@needs_ffmpeg
+@pytest.mark.parametrize("yuv", [True, False])
+def test_a_jump_in_timestamps_is_a_discontinuity_not_an_hour_of_time(tmp_path, caplog, yuv):
+    """Joined recordings once stamped the second half an hour later (and a live replay of the
+    file slept that hour); the clock now goes on at the frame period, with one warning."""
+    path = write_jump(tmp_path)
+    source = open_frame_source(path, yuv=yuv)
+    frames = list(source)
+    times = [f.timestamp_s for f in frames]
+    assert len(frames) == 20 and source.skipped == 0
+    assert np.diff(times) == pytest.approx([0.1] * 19, abs=1e-3)
+    jumps = [r for r in caplog.records if "timestamps jump" in r.getMessage()]
+    assert len(jumps) == 1 and str(path) in jumps[0].getMessage()

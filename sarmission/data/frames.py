@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from sarmission.ratelimit import RateLimitedLog
 from sarmission.yuv import YuvImage
 
 if TYPE_CHECKING:
@@ -35,6 +36,8 @@ log = logging.getLogger(__name__)
 IMAGE_EXTENSIONS = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"})
 #: Consecutive failed reads after which a video is taken to have ended.
 MAX_CONSECUTIVE_VIDEO_FAILURES = 25
+#: A step between two frames' presentation times longer than this (s) is a discontinuity.
+MAX_TIMESTAMP_STEP_S = 5.0
 
 
 class FrameSourceError(ValueError):
@@ -206,7 +209,7 @@ class VideoFileSource(FrameSource):
         try:
             index = 0
             failed: list[int] = []  # reads that failed since the last frame
-            clock = _PresentationTimes(self.fps)
+            clock = _PresentationTimes(self.fps, self.path)
             while self._count is None or index < self._count:
                 ok, image = capture.read()
                 if ok and image is not None and image.size > 0:
@@ -236,27 +239,50 @@ class VideoFileSource(FrameSource):
 
 class _PresentationTimes:
     """A decoded frame's time in its file: the decoder's presentation time while it moves
-    forward, else (a container without timestamps, or one that goes back) the frame period on
-    from the last time given, for the rest of the file: time never jumps or goes back."""
+    forward by a plausible step; time never jumps or goes back.
 
-    def __init__(self, fps: float) -> None:
+    A forward step longer than :data:`MAX_TIMESTAMP_STEP_S` (and than ten nominal frame
+    periods per frame) is a discontinuity (e.g. two recordings joined end to end): the clock
+    goes on at the nominal frame spacing and follows the file's times from there, with one
+    warning. A file without timestamps, or whose times go back, is timed at the frame period
+    from the last time given for the rest of the file.
+    """
+
+    def __init__(self, fps: float, name: object = "video") -> None:
         self.fps = fps
+        self.name = name
         self._last: tuple[int, float] | None = None  # index and time of the last frame
+        self._offset = 0.0  # added to the file's times since the last discontinuity
+        self._last_seconds: float | None = None  # the file's own time of the last frame
         self._trusted = True
+        self._warnings = RateLimitedLog(log, interval_s=60.0)
 
     def time(self, index: int, position_ms: float) -> float:
         seconds = position_ms / 1000.0
         last = self._last
-        if (
-            self._trusted
-            and math.isfinite(seconds)
-            and seconds >= 0
-            and (last is None or seconds > last[1])
-        ):
-            stamp = seconds
-        else:
+        nominal = 0.0 if last is None else (index - last[0]) / self.fps
+        if not (self._trusted and math.isfinite(seconds) and seconds >= 0):
             self._trusted = False
-            stamp = index / self.fps if last is None else last[1] + (index - last[0]) / self.fps
+        elif last is not None and self._last_seconds is not None:
+            step = seconds - self._last_seconds
+            if step <= 0:
+                self._trusted = False
+            elif step > max(MAX_TIMESTAMP_STEP_S, 10.0 * nominal):
+                self._offset = last[1] + nominal - seconds
+                self._warnings.event(
+                    "jump",
+                    "%s: timestamps jump by %.1f s at frame %d; taken as a discontinuity "
+                    "(timed at %.3g frames/s across it)",
+                    self.name,
+                    step,
+                    index,
+                    self.fps,
+                )
+        if self._trusted:
+            stamp = seconds + self._offset
+            self._last_seconds = seconds
+        else:
+            stamp = index / self.fps if last is None else last[1] + nominal
         self._last = (index, stamp)
         return stamp
 

@@ -146,7 +146,7 @@ class YuvVideoSource(FrameSource):
         try:
             base = Fraction(stream.time_base or 0)
             start = stream.start_time or 0
-            clock = _PresentationTimes(self.fps)
+            clock = _PresentationTimes(self.fps, self.path)
             for index, picture in enumerate(pictures):
                 if picture is None:
                     self._skip(index, "decoder rejected a packet")
