@@ -107,6 +107,20 @@ def with_udp_defaults(url: str) -> str:
     return parts._replace(query=query).geturl()
 
 
+def _failure(exc: BaseException) -> str:
+    """An unexpected exception as a short reason: its class and first line."""
+    text = str(exc).splitlines()[0][:200] if str(exc) else ""
+    return f"{exc.__class__.__name__}: {text}" if text else exc.__class__.__name__
+
+
+def _close_quietly(container: Any) -> None:
+    """Close a container whose data may have broken it; a failure to close is logged."""
+    try:
+        container.close()
+    except Exception as exc:
+        log.debug("closing the stream failed: %s", _failure(exc))
+
+
 class StreamClock:
     """Maps a stream's presentation times onto ``time.monotonic()``.
 
@@ -250,6 +264,7 @@ class StreamSource:
         self._loss_report: tuple[float | None, int] = (None, 0)  # when, and ``lost`` then
         self._ended = False
         self._why = "no connection yet"
+        self._got_frames = False  # whether the current connection gave any frame
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._read_loop, name="stream", daemon=True)
         self._thread.start()
@@ -280,21 +295,30 @@ class StreamSource:
                 with_udp_defaults(self.url),
                 options=options,
                 timeout=(max(self.read_timeout_s, 5.0), self.read_timeout_s),
+                metadata_errors="replace",  # a title in another encoding is no lost stream
             )
         except (av.FFmpegError, OSError) as exc:
             self._why = f"cannot open the stream ({exc.__class__.__name__}: nothing sending, "
             self._why += "wrong address, or not video)"
             return None
-        if not container.streams.video:
-            container.close()
-            self._why = "the stream carries no video"
+        except Exception as exc:  # the sender's data broke the demuxer: try again later
+            self._why = f"cannot open the stream ({_failure(exc)})"
             return None
-        stream = container.streams.video[0]
-        stream.thread_type = "AUTO"
-        stream.codec_context.thread_count = self.threads
-        rate = stream.average_rate or stream.guessed_rate
-        if rate and math.isfinite(float(rate)) and 0 < float(rate) <= 1000:
-            self.fps = float(rate)
+        try:
+            if not container.streams.video:
+                container.close()
+                self._why = "the stream carries no video"
+                return None
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            stream.codec_context.thread_count = self.threads
+            rate = stream.average_rate or stream.guessed_rate
+            if rate and math.isfinite(float(rate)) and 0 < float(rate) <= 1000:
+                self.fps = float(rate)
+        except Exception as exc:
+            container.close()
+            self._why = f"cannot read the stream's header ({_failure(exc)})"
+            return None
         return container, stream
 
     def _read_loop(self) -> None:
@@ -303,18 +327,17 @@ class StreamSource:
             opened = self._open()
             if opened is not None:
                 self.clock.reset()
+                self._got_frames = False
                 try:
-                    pumped = self._pump(*opened)
+                    self._pump(*opened)
+                except Exception as exc:  # anything the stream's data breaks: a lost stream
+                    self._why = f"reading the stream failed ({_failure(exc)})"
                 finally:
-                    opened[0].close()
+                    _close_quietly(opened[0])
+                pumped = self._got_frames
                 if pumped and not self._stop.is_set():
                     self._lost_since = last_report = time.monotonic()
-                    self._why = "stream lost"
-                    log.warning(
-                        "%s: stream lost (no frame for %.1f s); reconnecting",
-                        self.path,
-                        self.read_timeout_s,
-                    )
+                    log.warning("%s: stream lost (%s); reconnecting", self.path, self._why)
                     continue
             now = time.monotonic()
             if self._lost_since is not None and now - last_report >= OUTAGE_REPORT_S:
@@ -329,13 +352,13 @@ class StreamSource:
             self._ended = True
             self._cond.notify_all()
 
-    def _pump(self, container: Any, stream: Any) -> bool:
-        """Decode frames until the stream stops or the source is closed; whether any came."""
+    def _pump(self, container: Any, stream: Any) -> None:
+        """Decode frames until the stream stops or the source is closed (``_got_frames``: whether
+        any came; ``_why``: why it stopped)."""
         import av
 
         from sarmission.data.yuv_video import planes_of
 
-        got_any = False
         last_pts: float | None = None
         periods = FramePeriod()
         base = float(stream.time_base or 0)
@@ -346,8 +369,13 @@ class StreamSource:
         while not self._stop.is_set():
             try:
                 packet = next(packets)
-            except (StopIteration, av.FFmpegError, OSError):
-                return got_any  # end of stream, read timeout or a dead connection
+            except StopIteration:
+                self._why = "the stream ended"
+                return
+            except (av.FFmpegError, OSError) as exc:  # read timeout or a dead connection
+                self._why = f"no frame for {self.read_timeout_s:.1f} s or connection lost"
+                self._why += f" ({exc.__class__.__name__})"
+                return
             if packet.size == 0:
                 continue  # the demuxer's flush marker
             now = time.monotonic()
@@ -362,8 +390,8 @@ class StreamSource:
                 continue
             try:
                 pictures = packet.decode()
-            except av.FFmpegError:
-                continue  # damaged: its frame shows as missing from the presentation times
+            except Exception:  # damaged (FFmpegError, or worse): its frame shows as missing
+                continue
             for picture in pictures:
                 arrival = time.monotonic()
                 if self._lost_since is not None:
@@ -382,7 +410,7 @@ class StreamSource:
                     elif not catch_up.decoding_all:
                         self.behind += missing  # B-frames the decoder left out, as told
                 last_pts, thrown = pts, 0
-                got_any = True
+                self._got_frames = True
                 stamp = self.clock.stamp(pts, arrival)
                 yuv = planes_of(picture)
                 bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
@@ -393,7 +421,6 @@ class StreamSource:
                     self.received += 1
                     self._latest = frame
                     self._cond.notify_all()
-        return got_any
 
     def _report_loss(self, now: float) -> None:
         """A warning at the first frames lost, then at most one a minute while more are."""
