@@ -225,3 +225,17 @@ def test_a_jump_in_timestamps_is_a_discontinuity_not_an_hour_of_time(tmp_path, c
     assert np.diff(times) == pytest.approx([0.1] * 19, abs=1e-3)
     jumps = [r for r in caplog.records if "timestamps jump" in r.getMessage()]
     assert len(jumps) == 1 and str(path) in jumps[0].getMessage()
+
+
+def test_skipped_frames_are_all_counted_but_warned_about_at_most_every_few_seconds(
+    tmp_path, caplog
+):
+    """A folder of damaged images once logged one warning per frame."""
+    cv2.imwrite(str(tmp_path / "f00.png"), image(0))
+    for i in range(1, 11):
+        (tmp_path / f"f{i:02d}.png").write_bytes(b"not a png")
+    source = open_frame_source(tmp_path)
+    with caplog.at_level(logging.WARNING):
+        assert len(list(source)) == 1
+    assert source.skipped == 10
+    assert len([r for r in caplog.records if "skipped" in r.getMessage()]) == 1

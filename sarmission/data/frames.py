@@ -103,6 +103,7 @@ class FrameSource(ABC):
         self.path = path
         self.fps = fps
         self.skipped = 0
+        self._warnings = RateLimitedLog(log)
 
     @abstractmethod
     def __iter__(self) -> Iterator[Frame]:
@@ -125,9 +126,11 @@ class FrameSource(ABC):
             raise TypeError(f"{self.path}: frame count unknown")
         return self.length
 
-    def _skip(self, index: int, reason: str) -> None:
+    def _skip(self, index: int, reason: str, kind: str | None = None) -> None:
+        """Count a frame that could not be read; warn about it, at most every few seconds per
+        ``kind`` (default: the reason), so that a damaged file cannot flood the console."""
         self.skipped += 1
-        log.warning("%s: frame %d skipped (%s)", self.path, index, reason)
+        self._warnings.event(kind or reason, "%s: frame %d skipped (%s)", self.path, index, reason)
 
 
 def _natural_key(path: Path) -> list[object]:
@@ -157,7 +160,7 @@ class ImageFolderSource(FrameSource):
         for index, file in enumerate(self.files):
             image = cv2.imread(str(file), cv2.IMREAD_COLOR)
             if image is None or image.size == 0:
-                self._skip(index, f"cannot decode {file.name}")
+                self._skip(index, f"cannot decode {file.name}", "undecodable image")
                 continue
             yield Frame(index, index / self.fps, image)
 

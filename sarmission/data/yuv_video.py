@@ -30,8 +30,16 @@ PLANAR_FORMATS = {"yuv420p": False, "yuvj420p": True}
 #: Packets refused before the first picture after which a file is taken as unreadable (the
 #: end of the file ends the search too).
 MAX_LEADING_REJECTS = 25
+#: Demuxer failures in a row after which the rest of a file is taken as unreadable.
+MAX_DEMUX_FAILURES = 25
 #: FFmpeg's ``AVCOL_RANGE_JPEG``: a stream tagged full range.
 _RANGE_JPEG = 2
+
+
+def _failure(exc: BaseException) -> str:
+    """An unexpected exception as a short reason: its class and first line."""
+    text = str(exc).splitlines()[0][:200] if str(exc) else ""
+    return f"{exc.__class__.__name__}: {text}" if text else exc.__class__.__name__
 
 
 def yuv_decoding_available() -> bool:
@@ -108,29 +116,57 @@ class YuvVideoSource(FrameSource):
         from sarmission.threads import thread_plan
 
         try:
-            container = av.open(str(path))
+            # a title or tag in another encoding than UTF-8 is no reason to refuse the video
+            container = av.open(str(path), metadata_errors="replace")
         except (av.FFmpegError, OSError) as exc:
             raise FrameSourceError(f"{path}: FFmpeg cannot open this file as a video") from exc
-        if not container.streams.video:
+        except Exception as exc:  # the file's data broke the reader itself
+            raise FrameSourceError(
+                f"{path}: FFmpeg cannot open this file as a video ({_failure(exc)})"
+            ) from exc
+        try:
+            if not container.streams.video:
+                raise FrameSourceError(f"{path}: no video stream in this file")
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            stream.codec_context.thread_count = threads or thread_plan().decode
+        except FrameSourceError:
             container.close()
-            raise FrameSourceError(f"{path}: no video stream in this file")
-        stream = container.streams.video[0]
-        stream.thread_type = "AUTO"
-        stream.codec_context.thread_count = threads or thread_plan().decode
+            raise
+        except Exception as exc:
+            container.close()
+            raise FrameSourceError(
+                f"{path}: cannot read this file's video stream ({_failure(exc)})"
+            ) from exc
         return container, stream
 
     @staticmethod
     def _pictures(container: Any, stream: Any) -> Iterator[Any]:
-        """Decoded pictures, None in place of each packet the decoder rejects."""
-        import av
+        """Decoded pictures, None in place of each packet the decoder or demuxer rejects.
 
-        for packet in container.demux(stream):
-            try:
-                decoded = packet.decode()
-            except av.FFmpegError:
-                yield None
-                continue
-            yield from decoded
+        A damaged packet can make PyAV's demuxer itself raise (e.g. IndexError for a packet
+        whose stream appeared after the file was opened); reading then goes on after it with
+        a new demuxer, up to :data:`MAX_DEMUX_FAILURES` failures in a row (then the file is
+        taken to end there)."""
+        failures = 0
+        while failures < MAX_DEMUX_FAILURES:
+            packets = container.demux(stream)
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    return
+                except Exception:  # the packet read is lost; the next read goes on after it
+                    failures += 1
+                    yield None
+                    break
+                failures = 0
+                try:
+                    decoded = packet.decode()
+                except Exception:  # FFmpegError, or worse: a damaged packet
+                    yield None
+                    continue
+                yield from decoded
 
     @property
     def length(self) -> int | None:
@@ -151,9 +187,13 @@ class YuvVideoSource(FrameSource):
                 if picture is None:
                     self._skip(index, "decoder rejected a packet")
                     continue
+                try:
+                    yuv = planes_of(picture)
+                    bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+                except Exception as exc:  # a picture FFmpeg cannot convert
+                    self._skip(index, f"picture unreadable ({_failure(exc)})", "unreadable")
+                    continue
                 ms = float((picture.pts - start) * base * 1000) if picture.pts is not None else -1
-                yuv = planes_of(picture)
-                bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
                 yield Frame(index, clock.time(index, ms), bgr, yuv=yuv)
         finally:
             container.close()
