@@ -157,11 +157,12 @@ class StallingRelay:
 
 class TcpFiles:
     """A TCP server on 127.0.0.1 that sends each connection the next of ``files`` (the last
-    one again once they are used up) and closes it: a sender whose stream ends, or that
-    restarts with other data."""
+    one again once they are used up) and closes it ``hold_s`` seconds later: a sender whose
+    stream ends, or that restarts with other data."""
 
-    def __init__(self, files: list[bytes]) -> None:
+    def __init__(self, files: list[bytes], hold_s: float = 0.2) -> None:
         self.files = files
+        self.hold_s = hold_s
         self.connections = 0
         self.sock = socket.socket()
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -182,12 +183,15 @@ class TcpFiles:
                 continue
             data = self.files[min(self.connections, len(self.files) - 1)]
             self.connections += 1
-            with conn:
-                try:
-                    conn.sendall(data)
-                    time.sleep(0.2)
-                except OSError:
-                    pass
+            threading.Thread(target=self._send, args=(conn, data), daemon=True).start()
+
+    def _send(self, conn: socket.socket, data: bytes) -> None:
+        with conn:
+            try:
+                conn.sendall(data)
+                self._stop.wait(self.hold_s)
+            except OSError:
+                pass
 
     def close(self) -> None:
         self._stop.set()

@@ -188,14 +188,15 @@ def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog):
     assert lines == [f"{path}: the video ends at frame 5 of the 8 its header announces"]
 
 
-def write_ts(path, seconds=1, offset_s=0.0, size="320x240", rate=10):
-    """An H.264 MPEG-TS clip of a test pattern whose timestamps start at ``offset_s``."""
+def write_ts(path, seconds=1, offset_s=0.0, size="320x240", rate=10, fmt="mpegts"):
+    """An H.264 clip of a test pattern (MPEG-TS unless ``fmt`` says otherwise) whose
+    timestamps start at ``offset_s``."""
     subprocess.run(
         [
             FFMPEG, "-hide_banner", "-loglevel", "error", "-y",
             "-f", "lavfi", "-i", f"testsrc=size={size}:rate={rate}", "-t", str(seconds),
             "-c:v", "libx264", "-preset", "ultrafast", "-g", str(rate), "-pix_fmt", "yuv420p",
-            "-output_ts_offset", str(offset_s), "-f", "mpegts", str(path),
+            "-output_ts_offset", str(offset_s), "-f", fmt, str(path),
         ],
         check=True,
         timeout=120,

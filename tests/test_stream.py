@@ -435,3 +435,43 @@ def test_data_that_breaks_the_demuxer_is_a_lost_stream_not_a_dead_reader(tmp_pat
             assert source._thread.is_alive()
         finally:
             source.close()
+
+
+@needs_ffmpeg
+def test_a_stream_that_ends_is_reconnected_with_a_growing_wait(tmp_path, caplog):
+    """A URL whose stream ends (a file over HTTP, a TCP sender closing) was reopened in a tight
+    loop: the clip replayed hundreds of times, 'stream back after 0.0 s' each time."""
+    caplog.set_level(logging.WARNING, logger="sarmission.data.stream")
+    clip = write_ts(tmp_path / "clip.ts", seconds=1).read_bytes()
+    with TcpFiles([clip]) as server:
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            assert wait_until(lambda: source.reconnects >= 2, 60.0)
+            time.sleep(6.0)
+            connections = server.connections
+        finally:
+            source.close()
+    # waits of 0.5 + 1 + 2 + 4 + 4 ... s: at most a handful of connections in those seconds
+    assert connections <= 8
+    lost = [r.getMessage() for r in caplog.records if "stream lost" in r.getMessage()]
+    back = [r.getMessage() for r in caplog.records if "stream back after" in r.getMessage()]
+    assert len(lost) == 1 and len(back) == 1  # rate-limited
+
+
+@needs_ffmpeg
+def test_an_outage_is_measured_from_the_last_frame(tmp_path, caplog):
+    """The outage was measured from when the loss was noticed, so a stream that fell silent
+    and came back was always 'back after 0.0 s'."""
+    caplog.set_level(logging.WARNING, logger="sarmission.data.stream")
+    # long enough that opening it does not read it all: the reader then waits on the silence
+    # (Matroska: MPEG-TS holds its last frame back until the read fails)
+    clip = write_ts(tmp_path / "clip.mkv", seconds=20, fmt="matroska").read_bytes()
+    with TcpFiles([clip], hold_s=3.0) as server:  # silent for 3 s before each close
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            assert wait_until(lambda: source.reconnects >= 1, 60.0)
+        finally:
+            source.close()
+    back = [r.getMessage() for r in caplog.records if "stream back after" in r.getMessage()]
+    # at least the read timeout (1 s) of silence and the first wait (0.5 s) before reopening
+    assert float(back[0].split("back after ")[1].split(" s")[0]) >= 1.4

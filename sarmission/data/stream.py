@@ -18,8 +18,11 @@ keyframe (for at most ``2 * max_lag_s``, for streams refreshed without keyframes
 frames then show damage until the refresh) and starts again from there. Both are counted in
 ``behind``, so that the latency stays bounded instead of growing with FFmpeg's receive buffer.
 
-A stream silent for ``read_timeout_s`` is reopened until it is back (or the source is closed),
-with one warning when it is lost, one when it is back and, while it stays away, one a minute;
+A stream silent for ``read_timeout_s``, or that ends, is reopened until it is back (or the
+source is closed), after a wait that grows from half a second to a few seconds while
+connections keep ending or failing; with a warning when it is lost, one when it is back (the
+outage counted from its last frame; each at most once a minute) and, while it stays away, one
+a minute;
 frames missing from a damaged stream are reported at most once a minute too (FFmpeg's own
 messages are kept off the console).
 Meanwhile :meth:`StreamSource.read` returns a frame without an image every ``read_timeout_s``
@@ -44,6 +47,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from sarmission.data.frames import Frame, FrameSourceError
+from sarmission.ratelimit import RateLimitedLog
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +57,13 @@ STREAM_SCHEMES = frozenset({"rtsp", "rtsps", "rtp", "udp", "tcp", "srt", "rtmp",
 _PORT_REQUIRED = frozenset({"udp", "rtp", "tcp", "srt"})
 #: Seconds between the warnings of a stream that stays away.
 OUTAGE_REPORT_S = 60.0
+#: Wait (s) before the first reconnection; it doubles with each connection in a row that ends
+#: or fails, up to :data:`RECONNECT_MAX_S`.
+RECONNECT_MIN_S = 0.5
+#: Longest wait (s) between two connection attempts.
+RECONNECT_MAX_S = 4.0
+#: A connection that delivered frames for this long (s) resets the wait to its minimum.
+RECONNECT_RESET_S = 30.0
 #: Default of how late (s) a decoded frame may come before the reader skips work to catch up.
 MAX_LAG_S = 1.0
 
@@ -260,7 +271,9 @@ class StreamSource:
         self.clock = StreamClock()
         self._cond = threading.Condition()
         self._latest: Frame | None = None  # the newest frame, until it is read
-        self._lost_since: float | None = None
+        self._lost_since: float | None = None  # the last frame's arrival, while lost
+        self._last_frame_at: float | None = None  # arrival of the newest frame
+        self._outages = RateLimitedLog(log, interval_s=OUTAGE_REPORT_S)
         self._loss_report: tuple[float | None, int] = (None, 0)  # when, and ``lost`` then
         self._ended = False
         self._why = "no connection yet"
@@ -322,23 +335,32 @@ class StreamSource:
         return container, stream
 
     def _read_loop(self) -> None:
+        """Connect, decode until the stream stops, and again after a wait that grows with each
+        connection in a row that ends or fails (a stream that ends, e.g. a file served over
+        HTTP, is not replayed in a tight loop), until closed."""
         last_report = 0.0
+        backoff = RECONNECT_MIN_S
         while not self._stop.is_set():
             opened = self._open()
             if opened is not None:
                 self.clock.reset()
                 self._got_frames = False
+                connected_at = time.monotonic()
                 try:
                     self._pump(*opened)
                 except Exception as exc:  # anything the stream's data breaks: a lost stream
                     self._why = f"reading the stream failed ({_failure(exc)})"
                 finally:
                     _close_quietly(opened[0])
-                pumped = self._got_frames
-                if pumped and not self._stop.is_set():
-                    self._lost_since = last_report = time.monotonic()
-                    log.warning("%s: stream lost (%s); reconnecting", self.path, self._why)
-                    continue
+                if self._got_frames and not self._stop.is_set():
+                    last = self._last_frame_at
+                    if last is not None and last - connected_at >= RECONNECT_RESET_S:
+                        backoff = RECONNECT_MIN_S  # it streamed a while: a new loss
+                    self._lost_since = last if last is not None else time.monotonic()
+                    last_report = time.monotonic()
+                    self._outages.event(
+                        "lost", "%s: stream lost (%s); reconnecting", self.path, self._why
+                    )
             now = time.monotonic()
             if self._lost_since is not None and now - last_report >= OUTAGE_REPORT_S:
                 last_report = now
@@ -347,7 +369,8 @@ class StreamSource:
                     self.path,
                     now - self._lost_since,
                 )
-            self._stop.wait(min(1.0, self.read_timeout_s))
+            self._stop.wait(backoff)
+            backoff = min(RECONNECT_MAX_S, 2.0 * backoff)
         with self._cond:
             self._ended = True
             self._cond.notify_all()
@@ -396,10 +419,14 @@ class StreamSource:
                 arrival = time.monotonic()
                 if self._lost_since is not None:
                     self.reconnects += 1
-                    log.warning(
-                        "%s: stream back after %.1f s", self.path, arrival - self._lost_since
+                    self._outages.event(
+                        "back",
+                        "%s: stream back after %.1f s",
+                        self.path,
+                        arrival - self._lost_since,
                     )
                     self._lost_since = None
+                self._last_frame_at = arrival
                 pts = picture.pts * base if picture.pts is not None and base > 0 else None
                 if pts is not None and last_pts is not None:
                     complete = catch_up.decoding_all and not thrown
