@@ -240,3 +240,10 @@ def test_skipped_frames_are_all_counted_but_warned_about_at_most_every_few_secon
         assert len(list(source)) == 1
     assert source.skipped == 10
     assert len([r for r in caplog.records if "skipped" in r.getMessage()]) == 1
+
+
+@pytest.mark.parametrize("fps", [float("nan"), float("inf"), 1e-300, 0.0, -1.0, 1e6])
+def test_a_frame_rate_that_makes_no_sense_is_refused(tmp_path, fps):
+    cv2.imwrite(str(tmp_path / "f0.png"), image(0))
+    with pytest.raises(FrameSourceError, match="fps must be from 0.001 to 1000"):
+        open_frame_source(tmp_path, fps)

@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from sarmission.commands.cli_helpers import positive_rate
 from sarmission.commands.mission_options import (
     add_mission_options,
     build_detector,
@@ -21,6 +22,7 @@ from sarmission.commands.mission_options import (
     load_mission_from_args,
 )
 from sarmission.commands.progress import add_progress_option, progress_for
+from sarmission.data.frames import MAX_FPS, MIN_FPS
 
 if TYPE_CHECKING:
     import numpy as np
@@ -46,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("input", help="video file, image folder or COCO video annotations (.json)")
     parser.add_argument(
         "--fps",
-        type=float,
+        type=positive_rate,
         default=30.0,
         help="frame rate of an image folder or dataset (default: %(default)s)",
     )
@@ -250,8 +252,8 @@ def run(args: argparse.Namespace) -> int:
 
     mission = load_mission_from_args(args)
     path = Path(args.input)
-    if args.fps <= 0:
-        raise ValueError(f"--fps must be positive, got {args.fps}")
+    if not (math.isfinite(args.fps) and MIN_FPS <= args.fps <= MAX_FPS):  # without the parser
+        raise ValueError(f"--fps must be from {MIN_FPS:g} to {MAX_FPS:g}, got {args.fps}")
     check_telemetry_args(args.telemetry, args.time_offset)
     counters: dict[str, int] = {}
     frames, total, with_meta, conventions, file_source = _footage(args, path, counters)

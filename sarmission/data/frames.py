@@ -38,6 +38,9 @@ IMAGE_EXTENSIONS = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"})
 MAX_CONSECUTIVE_VIDEO_FAILURES = 25
 #: A step between two frames' presentation times longer than this (s) is a discontinuity.
 MAX_TIMESTAMP_STEP_S = 5.0
+#: Frame rates taken from a user (frames/s): outside these, a typo, not a camera (``nan``,
+#: ``inf`` or ``1e-300`` once gave a run that never paced, or never returned a frame).
+MIN_FPS, MAX_FPS = 0.001, 1000.0
 
 
 class FrameSourceError(ValueError):
@@ -306,8 +309,8 @@ def open_frame_source(
     images, a file OpenCV cannot open or decode a first frame from, or a stream that sends no
     video.
     """
-    if fps <= 0:
-        raise FrameSourceError(f"fps must be positive, got {fps}")
+    if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise FrameSourceError(f"fps must be from {MIN_FPS:g} to {MAX_FPS:g}, got {fps}")
     from sarmission.data.stream import StreamSource, is_stream_url
 
     if isinstance(path, str) and is_stream_url(path):
