@@ -321,10 +321,9 @@ def run(args: argparse.Namespace) -> int:
                 yield Frame.of(index, stamp, image)
 
         started = time.monotonic()
+        runner = SessionRunner(controller, on_frame=lambda: bar.update(1))
         try:
-            SessionRunner(controller, on_frame=lambda: bar.update(1)).run(
-                stamped(), max_frames=limit
-            )
+            runner.run(stamped(), max_frames=limit)
         finally:
             bar.close()
             wall = time.monotonic() - started
@@ -338,9 +337,24 @@ def run(args: argparse.Namespace) -> int:
         if args.report:
             _write_report(args, db_path, controller, source, frame_times, path)
     if controller.stats.frames == 0:
-        what = f"all {unreadable} unreadable" if unreadable else "none found"
-        raise ValueError(f"{path}: no frame could be processed ({what})")
+        raise ValueError(
+            f"{path}: no frame could be processed ({_why_none(runner, controller, unreadable)})"
+        )
     return 0
+
+
+def _why_none(runner: Any, controller: Any, unreadable: int) -> str:
+    """Why a replay processed no frame: how many it found and rejected, and why (the
+    controller's skip reasons), how many the reader could not read; or that it found none."""
+    parts = []
+    skipped = controller.stats.skipped
+    if runner.frames_read:
+        reasons = ", ".join(f"{n} {why}" for why, n in skipped.most_common())
+        rejected = f", all rejected: {reasons}" if reasons else ""
+        parts.append(f"{runner.frames_read} found{rejected}")
+    if unreadable:
+        parts.append(f"{'all ' if not parts else ''}{unreadable} unreadable")
+    return "; ".join(parts) or "none found"
 
 
 def _write_report(
