@@ -204,6 +204,22 @@ def write_ts(path, seconds=1, offset_s=0.0, size="320x240", rate=10, fmt="mpegts
     return path
 
 
+def write_rotated(folder, degrees=90):
+    """An MP4 clip (moov first, so that it can be streamed) tagged to be shown turned by
+    ``degrees`` counter-clockwise, as a phone records one held upright."""
+    plain = write_ts(folder / "plain.mp4", fmt="mp4")
+    path = folder / f"rotated{degrees}.mp4"
+    subprocess.run(
+        [
+            FFMPEG, "-hide_banner", "-loglevel", "error", "-y", "-i", str(plain), "-c", "copy",
+            "-metadata:s:v:0", f"rotate={degrees}", "-movflags", "+faststart", str(path),
+        ],
+        check=True,
+        timeout=120,
+    )  # fmt: skip
+    return path
+
+
 def write_jump(folder, offset_s=3600.0):
     """Two recordings joined end to end, the second's timestamps ``offset_s`` later."""
     first = write_ts(folder / "a.ts").read_bytes()

@@ -23,7 +23,7 @@ from stream_sender import (
     UdpStream,
     needs_ffmpeg,
 )
-from test_frames import write_ts
+from test_frames import write_rotated, write_ts
 
 from sarmission.data.frames import FrameSourceError, open_frame_source
 from sarmission.data.stream import (
@@ -475,3 +475,15 @@ def test_an_outage_is_measured_from_the_last_frame(tmp_path, caplog):
     back = [r.getMessage() for r in caplog.records if "stream back after" in r.getMessage()]
     # at least the read timeout (1 s) of silence and the first wait (0.5 s) before reopening
     assert float(back[0].split("back after ")[1].split(" s")[0]) >= 1.4
+
+
+@needs_ffmpeg
+def test_a_rotated_stream_is_read_as_displayed(tmp_path):
+    """A camera's display rotation was ignored: frames came on their side."""
+    with TcpFiles([write_rotated(tmp_path, 90).read_bytes()]) as server:
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            frame = source.read()
+        finally:
+            source.close()
+    assert (frame.yuv.height, frame.yuv.width) == (320, 240)

@@ -4,7 +4,8 @@ frame wins, and the reader never falls behind the camera.
 A drone's gimbal camera streams H.264 or H.265 over RTSP, or as MPEG-TS over UDP.
 :class:`StreamSource` opens the URL with FFmpeg through PyAV (open and read timeouts, the thread
 plan's decoding threads; RTSP over TCP, as OpenCV's reader asked for it), decodes every frame
-in a reader thread to its YUV planes (:class:`~sarmission.yuv.YuvImage`, no BGR copy) and keeps
+in a reader thread to its YUV planes (:class:`~sarmission.yuv.YuvImage`, no BGR copy; turned
+as displayed when the stream says it is rotated) and keeps
 only the newest: a consumer slower than the camera always gets the latest frame, and every
 frame it never saw is counted in ``dropped``. Frames the camera sent that never arrived show as
 gaps in the presentation times and are counted in ``lost``.
@@ -380,7 +381,7 @@ class StreamSource:
         any came; ``_why``: why it stopped)."""
         import av
 
-        from sarmission.data.yuv_video import planes_of
+        from sarmission.data.yuv_video import picture_of
 
         last_pts: float | None = None
         periods = FramePeriod()
@@ -439,8 +440,7 @@ class StreamSource:
                 last_pts, thrown = pts, 0
                 self._got_frames = True
                 stamp = self.clock.stamp(pts, arrival)
-                yuv = planes_of(picture)
-                bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+                yuv, bgr = picture_of(picture)  # upright, as the camera meant it shown
                 frame = Frame(self.received, stamp, bgr, pts, yuv=yuv)
                 with self._cond:
                     if self._latest is not None:

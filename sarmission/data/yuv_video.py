@@ -4,7 +4,8 @@ OpenCV's video reader converts every frame to BGR (about 10 ms and 25 MB for a 4
 keeps a BGR buffer of its own; detection needs the Y, U and V planes themselves
 (:class:`~sarmission.yuv.YuvImage`). :class:`YuvVideoSource` decodes with FFmpeg's libraries
 through PyAV and hands the decoder's planes over as they are (no copy). Frames of another pixel
-format (10-bit, 4:2:2, ...) come as BGR, converted by FFmpeg.
+format (10-bit, 4:2:2, ...) come as BGR, converted by FFmpeg. A video tagged to be shown
+rotated (a phone held upright) is turned as displayed, as OpenCV's reader does (a copy).
 
 It behaves as :class:`~sarmission.data.frames.VideoFileSource`: frames in order with their
 presentation times in the file, a packet the decoder rejects skipped with a warning and counted
@@ -65,6 +66,32 @@ def planes_of(picture: Any) -> YuvImage | None:
     )
     full = PLANAR_FORMATS[name] or int(picture.color_range) == _RANGE_JPEG
     return YuvImage(y, u, v, full_range=full)
+
+
+def quarter_turns(picture: Any) -> int:
+    """Counter-clockwise quarter turns that show a decoded PyAV picture as it is meant to be
+    displayed (its display matrix, e.g. ``rotate=90`` of a phone held upright; OpenCV's reader
+    applies it too), nearest to its angle; 0 without one."""
+    try:
+        angle = float(getattr(picture, "rotation", 0) or 0)
+    except (TypeError, ValueError):
+        return 0
+    return round(angle / 90.0) % 4 if math.isfinite(angle) else 0
+
+
+def picture_of(picture: Any) -> tuple[YuvImage | None, np.ndarray | None]:
+    """A decoded PyAV picture as :attr:`Frame.yuv` planes (8-bit 4:2:0) or else BGR, turned
+    upright (:func:`quarter_turns`; the planes are then copied)."""
+    yuv = planes_of(picture)
+    bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+    turns = quarter_turns(picture)
+    if not turns:
+        return yuv, bgr
+    if yuv is not None:
+        y, u, v = (np.ascontiguousarray(np.rot90(p, turns)) for p in (yuv.y, yuv.u, yuv.v))
+        return YuvImage(y, u, v, full_range=yuv.full_range), None
+    assert bgr is not None
+    return None, np.ascontiguousarray(np.rot90(bgr, turns))
 
 
 class YuvVideoSource(FrameSource):
@@ -188,8 +215,7 @@ class YuvVideoSource(FrameSource):
                     self._skip(index, "decoder rejected a packet")
                     continue
                 try:
-                    yuv = planes_of(picture)
-                    bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+                    yuv, bgr = picture_of(picture)
                 except Exception as exc:  # a picture FFmpeg cannot convert
                     self._skip(index, f"picture unreadable ({_failure(exc)})", "unreadable")
                     continue
