@@ -174,13 +174,14 @@ def test_variable_frame_rate_video_keeps_its_presentation_times(tmp_path):
     assert source.skipped == 0  # an estimated frame count past the end is no skipped frame
 
 
-def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog):
+@pytest.mark.parametrize("yuv", [False, True])
+def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog, yuv):
     path = tmp_path / "clip.avi"
     write_video(path, "MJPG", 8, make=noise)
     data = path.read_bytes()
     starts = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
     path.write_bytes(data[: starts[5]])  # frames 5..7 gone, the header still says 8
-    source = open_frame_source(path)
+    source = open_frame_source(path, yuv=yuv)
     with caplog.at_level(logging.INFO):
         indices = [f.index for f in source]
     assert indices == [0, 1, 2, 3, 4] and source.skipped == 0

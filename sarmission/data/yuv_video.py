@@ -15,6 +15,7 @@ in ``skipped``, a new decoder for each iteration.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 from collections.abc import Iterator
 from fractions import Fraction
@@ -25,6 +26,8 @@ import numpy as np
 
 from sarmission.data.frames import Frame, FrameSource, FrameSourceError, _PresentationTimes
 from sarmission.yuv import YuvImage
+
+log = logging.getLogger(__name__)
 
 #: Pixel formats handed over as planes, and whether each is full range.
 PLANAR_FORMATS = {"yuv420p": False, "yuvj420p": True}
@@ -210,6 +213,7 @@ class YuvVideoSource(FrameSource):
             base = Fraction(stream.time_base or 0)
             start = stream.start_time or 0
             clock = _PresentationTimes(self.fps, self.path)
+            index = -1
             for index, picture in enumerate(pictures):
                 if picture is None:
                     self._skip(index, "decoder rejected a packet")
@@ -221,5 +225,13 @@ class YuvVideoSource(FrameSource):
                     continue
                 ms = float((picture.pts - start) * base * 1000) if picture.pts is not None else -1
                 yield Frame(index, clock.time(index, ms), bgr, yuv=yuv)
+            if self._count is not None and index + 1 < self._count:
+                # a file cut short (or a header's estimate): where it ended, in one line
+                log.info(
+                    "%s: the video ends at frame %d of the %d its header announces",
+                    self.path,
+                    index + 1,
+                    self._count,
+                )
         finally:
             container.close()
