@@ -153,3 +153,53 @@ class StallingRelay:
         self._stop.set()
         self._thread.join(5)
         self.sock.close()
+
+
+class TcpFiles:
+    """A TCP server on 127.0.0.1 that sends each connection the next of ``files`` (the last
+    one again once they are used up) and closes it ``hold_s`` seconds later: a sender whose
+    stream ends, or that restarts with other data."""
+
+    def __init__(self, files: list[bytes], hold_s: float = 0.2) -> None:
+        self.files = files
+        self.hold_s = hold_s
+        self.connections = 0
+        self.sock = socket.socket()
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.sock.settimeout(0.1)
+        self.port = self.sock.getsockname()[1]
+        self.url = f"tcp://127.0.0.1:{self.port}"
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                conn, _ = self.sock.accept()
+            except (TimeoutError, OSError):
+                continue
+            data = self.files[min(self.connections, len(self.files) - 1)]
+            self.connections += 1
+            threading.Thread(target=self._send, args=(conn, data), daemon=True).start()
+
+    def _send(self, conn: socket.socket, data: bytes) -> None:
+        with conn:
+            try:
+                conn.sendall(data)
+                self._stop.wait(self.hold_s)
+            except OSError:
+                pass
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(5)
+        self.sock.close()
+
+    def __enter__(self) -> TcpFiles:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

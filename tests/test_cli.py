@@ -261,7 +261,16 @@ def test_bad_arguments_exit_with_a_message(capsys: pytest.CaptureFixture) -> Non
         (["sim", "vehicle", "--duration", "nan"], "expected seconds above 0"),
         # fps 0 divided by zero, a negative one ran time backwards, a negative seed or start
         # came out as numpy's message after a stray clip was written
-        (["sim", "generate", "--fps", "0", "--out", "never"], "frames per second above 0"),
+        (["sim", "generate", "--fps", "0", "--out", "never"], "frames per second from 0.001"),
+        # nan, inf or 1e-300 frames per second were taken: a run that never paced, or that
+        # waited for ever for its second frame
+        (["replay", "x.mp4", "--fps", "nan"], "frames per second from 0.001 to 1000"),
+        (["replay", "x.mp4", "--fps", "1e-300"], "frames per second from 0.001 to 1000"),
+        (["run", "--video", "x.mp4", "--fps", "inf"], "frames per second from 0.001 to 1000"),
+        (["run", "--frames", "x", "--fps", "1e-300"], "frames per second from 0.001 to 1000"),
+        (["demo", "--fps", "nan"], "0 or frames per second from 0.001 to 1000"),
+        (["sim", "replay", "x.mp4", "--fps", "inf"], "frames per second from 0.001 to 1000"),
+        (["sim", "generate", "--fps", "1e-300", "--out", "never"], "from 0.001 to 1000"),
         (["sim", "generate", "--start", "-100", "--out", "never"], "0 or more"),
         (["sim", "generate", "--seed", "-1", "--out", "never"], "whole number, 0 or more"),
     ],

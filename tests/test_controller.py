@@ -567,3 +567,42 @@ def test_a_glint_that_joined_a_person_first_yields_them_to_their_own_track(tmp_p
         evidence = ctl.candidates.evidence[first.target_id].sightings
         assert len(evidence) > 10
         assert all(distance_m((s.lat, s.lon), truth_latlon(mission)) < 2.5 for s in evidence)
+
+
+def test_a_new_frame_size_is_adopted_and_the_search_goes_on(tmp_path, mission, caplog):
+    """A sender restarted at another resolution once left the mission blind for the rest of
+    the run, with a warning per frame. The new size is adopted after a few frames in a row:
+    the lens re-derived, the detector reset and the old tracks dropped, said once."""
+    small = np.full((H // 2, W // 2, 3), 90, np.uint8)
+    frames = [np.full((H, W, 3), 90, np.uint8)] * 5 + [small] * 10
+    u, v = target_pixel(mission)
+    detector = ScriptedDetector([[((u - 5, v - 5, u + 5, v + 5), 0.8, 0)]] * 15)
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission, detector, filled_buffer(mission, 2.0), store, console=lambda s: None
+        )
+        with caplog.at_level("WARNING"):
+            run_frames(ctl, 5, frames=frames)
+            assert ctl.tracker._tracks
+            run_frames(ctl, 10, frames=frames[5:], start=5)
+    assert ctl.stats.frames == 13 and ctl.stats.skipped_total == 2
+    assert detector.resets == [5]
+    assert ctl._intrinsics.width == W // 2
+    # born at frame 7 or later: none of the old size
+    assert ctl.tracker._tracks and all(t.age <= 8 for t in ctl.tracker._tracks)
+    changed = [r for r in caplog.records if "frame size changed" in r.getMessage()]
+    assert len(changed) == 1 and "960x540 to 480x270" in changed[0].getMessage()
+
+
+def test_skipped_frames_are_all_counted_but_warned_about_at_most_every_few_seconds(
+    tmp_path, mission, caplog
+):
+    with AlertStore(tmp_path / "alerts.db") as store:
+        ctl = MissionController(
+            mission, ScriptedDetector([]), filled_buffer(mission, 2.0), store,
+            console=lambda s: None,
+        )  # fmt: skip
+        with caplog.at_level("WARNING"):
+            run_frames(ctl, 10, frames=[None] * 10)
+    assert ctl.stats.skipped == {"no image": 10}
+    assert len([r for r in caplog.records if "skipped" in r.getMessage()]) == 1

@@ -174,15 +174,93 @@ def test_variable_frame_rate_video_keeps_its_presentation_times(tmp_path):
     assert source.skipped == 0  # an estimated frame count past the end is no skipped frame
 
 
-def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog):
+@pytest.mark.parametrize("yuv", [False, True])
+def test_a_video_cut_short_says_so_in_one_line(tmp_path, caplog, yuv):
     path = tmp_path / "clip.avi"
     write_video(path, "MJPG", 8, make=noise)
     data = path.read_bytes()
     starts = [i for i in range(len(data) - 1) if data[i] == 0xFF and data[i + 1] == 0xD8]
     path.write_bytes(data[: starts[5]])  # frames 5..7 gone, the header still says 8
-    source = open_frame_source(path)
+    source = open_frame_source(path, yuv=yuv)
     with caplog.at_level(logging.INFO):
         indices = [f.index for f in source]
     assert indices == [0, 1, 2, 3, 4] and source.skipped == 0
     lines = [r.getMessage() for r in caplog.records if "clip.avi" in r.getMessage()]
     assert lines == [f"{path}: the video ends at frame 5 of the 8 its header announces"]
+
+
+def write_ts(path, seconds=1, offset_s=0.0, size="320x240", rate=10, fmt="mpegts"):
+    """An H.264 clip of a test pattern (MPEG-TS unless ``fmt`` says otherwise) whose
+    timestamps start at ``offset_s``."""
+    subprocess.run(
+        [
+            FFMPEG, "-hide_banner", "-loglevel", "error", "-y",
+            "-f", "lavfi", "-i", f"testsrc=size={size}:rate={rate}", "-t", str(seconds),
+            "-c:v", "libx264", "-preset", "ultrafast", "-g", str(rate), "-pix_fmt", "yuv420p",
+            "-output_ts_offset", str(offset_s), "-f", fmt, str(path),
+        ],
+        check=True,
+        timeout=120,
+    )  # fmt: skip
+    return path
+
+
+def write_rotated(folder, degrees=90):
+    """An MP4 clip (moov first, so that it can be streamed) tagged to be shown turned by
+    ``degrees`` counter-clockwise, as a phone records one held upright."""
+    plain = write_ts(folder / "plain.mp4", fmt="mp4")
+    path = folder / f"rotated{degrees}.mp4"
+    subprocess.run(
+        [
+            FFMPEG, "-hide_banner", "-loglevel", "error", "-y", "-i", str(plain), "-c", "copy",
+            "-metadata:s:v:0", f"rotate={degrees}", "-movflags", "+faststart", str(path),
+        ],
+        check=True,
+        timeout=120,
+    )  # fmt: skip
+    return path
+
+
+def write_jump(folder, offset_s=3600.0):
+    """Two recordings joined end to end, the second's timestamps ``offset_s`` later."""
+    first = write_ts(folder / "a.ts").read_bytes()
+    second = write_ts(folder / "b.ts", offset_s=offset_s).read_bytes()
+    path = folder / "jump.ts"
+    path.write_bytes(first + second)
+    return path
+
+
+@needs_ffmpeg
+@pytest.mark.parametrize("yuv", [True, False])
+def test_a_jump_in_timestamps_is_a_discontinuity_not_an_hour_of_time(tmp_path, caplog, yuv):
+    """Joined recordings once stamped the second half an hour later (and a live replay of the
+    file slept that hour); the clock now goes on at the frame period, with one warning."""
+    path = write_jump(tmp_path)
+    source = open_frame_source(path, yuv=yuv)
+    frames = list(source)
+    times = [f.timestamp_s for f in frames]
+    assert len(frames) == 20 and source.skipped == 0
+    assert np.diff(times) == pytest.approx([0.1] * 19, abs=1e-3)
+    jumps = [r for r in caplog.records if "timestamps jump" in r.getMessage()]
+    assert len(jumps) == 1 and str(path) in jumps[0].getMessage()
+
+
+def test_skipped_frames_are_all_counted_but_warned_about_at_most_every_few_seconds(
+    tmp_path, caplog
+):
+    """A folder of damaged images once logged one warning per frame."""
+    cv2.imwrite(str(tmp_path / "f00.png"), image(0))
+    for i in range(1, 11):
+        (tmp_path / f"f{i:02d}.png").write_bytes(b"not a png")
+    source = open_frame_source(tmp_path)
+    with caplog.at_level(logging.WARNING):
+        assert len(list(source)) == 1
+    assert source.skipped == 10
+    assert len([r for r in caplog.records if "skipped" in r.getMessage()]) == 1
+
+
+@pytest.mark.parametrize("fps", [float("nan"), float("inf"), 1e-300, 0.0, -1.0, 1e6])
+def test_a_frame_rate_that_makes_no_sense_is_refused(tmp_path, fps):
+    cv2.imwrite(str(tmp_path / "f0.png"), image(0))
+    with pytest.raises(FrameSourceError, match="fps must be from 0.001 to 1000"):
+        open_frame_source(tmp_path, fps)

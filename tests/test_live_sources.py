@@ -3,14 +3,17 @@ telemetry is mapped to (``time.monotonic()``), and a camera that cannot be opene
 
 from __future__ import annotations
 
+import threading
 import time
 
 import cv2
 import numpy as np
 import pytest
+from stream_sender import needs_ffmpeg
+from test_frames import write_jump
 
 from sarmission.mission import live_sources
-from sarmission.mission.live_sources import CameraSource, capture_time
+from sarmission.mission.live_sources import CameraSource, FileSource, capture_time
 
 
 class FakeCapture:
@@ -106,3 +109,54 @@ def test_a_camera_that_cannot_be_opened_says_why(monkeypatch):
     ):
         CameraSource(97)
     assert capture.released
+
+
+def in_thread(call, timeout_s: float = 60.0):
+    """``call()`` run in a thread; its result, or a failed test when it hangs."""
+    result: list[object] = []
+    thread = threading.Thread(target=lambda: result.append(call()), daemon=True)
+    thread.start()
+    thread.join(timeout_s)
+    assert not thread.is_alive(), "hung"
+    return result[0]
+
+
+@needs_ffmpeg
+def test_a_file_played_as_a_camera_goes_across_a_jump_in_its_timestamps(tmp_path):
+    """Two recordings joined, the second stamped an hour later: the file once slept that hour in
+    one wait that no stop could end."""
+    source = FileSource(write_jump(tmp_path), realtime=True)
+    try:
+        frames = in_thread(lambda: list(iter(source.read, None)))
+    finally:
+        source.close()
+    assert len(frames) == 20
+    assert all(f.image is not None for f in frames)
+
+
+def test_a_stop_request_ends_the_wait_for_a_frame(tmp_path):
+    """An image folder at 0.01 frames/s waits 100 s for its second frame; a stop (Ctrl-C,
+    --duration) ends that wait and the frame comes at once."""
+    for i in range(2):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), np.full((48, 64, 3), 40 * i, np.uint8))
+    source = FileSource(tmp_path, fps=0.01)
+    stop = threading.Event()
+    source.watch(stop)
+    try:
+        assert source.read().index == 0
+        threading.Timer(0.2, stop.set).start()
+        assert in_thread(source.read).index == 1
+    finally:
+        source.close()
+
+
+def test_a_deadline_ends_the_wait_for_a_frame(tmp_path):
+    for i in range(2):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), np.full((48, 64, 3), 40 * i, np.uint8))
+    source = FileSource(tmp_path, fps=0.01)
+    source.watch(deadline=time.monotonic() + 0.2)
+    try:
+        assert source.read().index == 0
+        assert in_thread(source.read).index == 1
+    finally:
+        source.close()

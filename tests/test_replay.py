@@ -267,6 +267,17 @@ def test_replay_of_nothing_readable_is_an_error_not_a_success(tmp_path, capsys):
     assert "no frame could be processed (all 1 unreadable)" in captured.err
 
 
+def test_replay_whose_every_frame_was_rejected_says_how_many_and_why(tmp_path, capsys):
+    """Frames found but all rejected by the controller were reported as 'none found'."""
+    (tmp_path / "clip").mkdir()
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / "clip" / f"f{i}.png"), np.full((8, 8, 3), 90, np.uint8))
+    code = main(["replay", str(tmp_path / "clip"), "--mission", str(MISSION), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "no frame could be processed (3 found, all rejected: 3 image too small)" in err
+
+
 def test_replay_refuses_a_log_of_another_day(tmp_path, capsys):
     write_mp4(tmp_path / "clip.mp4", frames=8, created=START_UTC + 3 * 86400)
     write_tlog(tmp_path / "flight.tlog", seconds=10.0)

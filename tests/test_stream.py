@@ -15,7 +15,15 @@ from pathlib import Path
 import pytest
 from conftest import free_udp_port, wait_until
 from rtsp_server import RtspServer
-from stream_sender import CorruptingRelay, StallingRelay, UdpStream, needs_ffmpeg
+from stream_sender import (
+    FFMPEG,
+    CorruptingRelay,
+    StallingRelay,
+    TcpFiles,
+    UdpStream,
+    needs_ffmpeg,
+)
+from test_frames import write_rotated, write_ts
 
 from sarmission.data.frames import FrameSourceError, open_frame_source
 from sarmission.data.stream import (
@@ -378,3 +386,104 @@ def test_an_rtsp_camera_is_read_and_reopened_when_its_server_restarts(tmp_path: 
     finally:
         source.close()
         server.close()
+
+
+def flip_one_pid(data: bytes) -> bytes:
+    """``data`` (MPEG-TS) with one video packet 3/4 of the way through moved to an unused PID,
+    as a single bit error would: PyAV's demuxer then raised IndexError."""
+    out = bytearray(data)
+    count = len(out) // 188
+    for k in range(3 * count // 4, count):
+        p = k * 188
+        pid = (out[p + 1] & 0x1F) << 8 | out[p + 2]
+        if out[p] == 0x47 and out[p + 1] & 0x40 and pid == 0x100:
+            out[p + 1], out[p + 2] = (out[p + 1] & 0xE0) | 0x01, 0xDA
+            return bytes(out)
+    raise AssertionError("no video packet to damage")
+
+
+def write_latin1_title(path: Path) -> Path:
+    """A Matroska clip whose title is not UTF-8 (PyAV's strict decoding raised on opening)."""
+    assert FFMPEG is not None
+    subprocess.run(
+        [
+            FFMPEG, "-hide_banner", "-loglevel", "error", "-y",
+            "-f", "lavfi", "-i", "testsrc=size=320x240:rate=10", "-t", "1",
+            "-c:v", "libx264", "-preset", "ultrafast", "-pix_fmt", "yuv420p",
+            "-metadata", b"title=caf\xe9", str(path),
+        ],
+        check=True,
+        timeout=120,
+    )  # fmt: skip
+    return path
+
+
+@needs_ffmpeg
+@pytest.mark.parametrize("damage", ["pid", "title"])
+def test_data_that_breaks_the_demuxer_is_a_lost_stream_not_a_dead_reader(tmp_path, damage):
+    """A corrupt packet (IndexError in PyAV) or a non-UTF-8 title (UnicodeDecodeError) once
+    killed the reader thread: the mission stayed blind. Now it reconnects and reads on."""
+    good = write_ts(tmp_path / "good.ts", seconds=3).read_bytes()
+    if damage == "pid":  # past the demuxer's first look at the file (4 s and more)
+        first = flip_one_pid(write_ts(tmp_path / "long.ts", seconds=6).read_bytes())
+    else:
+        first = write_latin1_title(tmp_path / "title.mkv").read_bytes()
+    with TcpFiles([first, good]) as server:
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            assert wait_until(lambda: server.connections >= 2 and source.reconnects >= 1, 60.0)
+            assert source._thread.is_alive()
+        finally:
+            source.close()
+
+
+@needs_ffmpeg
+def test_a_stream_that_ends_is_reconnected_with_a_growing_wait(tmp_path, caplog):
+    """A URL whose stream ends (a file over HTTP, a TCP sender closing) was reopened in a tight
+    loop: the clip replayed hundreds of times, 'stream back after 0.0 s' each time."""
+    caplog.set_level(logging.WARNING, logger="sarmission.data.stream")
+    clip = write_ts(tmp_path / "clip.ts", seconds=1).read_bytes()
+    with TcpFiles([clip]) as server:
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            assert wait_until(lambda: source.reconnects >= 2, 60.0)
+            time.sleep(6.0)
+            connections = server.connections
+        finally:
+            source.close()
+    # waits of 0.5 + 1 + 2 + 4 + 4 ... s: at most a handful of connections in those seconds
+    assert connections <= 8
+    lost = [r.getMessage() for r in caplog.records if "stream lost" in r.getMessage()]
+    back = [r.getMessage() for r in caplog.records if "stream back after" in r.getMessage()]
+    assert len(lost) == 1 and len(back) == 1  # rate-limited
+
+
+@needs_ffmpeg
+def test_an_outage_is_measured_from_the_last_frame(tmp_path, caplog):
+    """The outage was measured from when the loss was noticed, so a stream that fell silent
+    and came back was always 'back after 0.0 s'."""
+    caplog.set_level(logging.WARNING, logger="sarmission.data.stream")
+    # long enough that opening it does not read it all: the reader then waits on the silence
+    # (Matroska: MPEG-TS holds its last frame back until the read fails)
+    clip = write_ts(tmp_path / "clip.mkv", seconds=20, fmt="matroska").read_bytes()
+    with TcpFiles([clip], hold_s=3.0) as server:  # silent for 3 s before each close
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            assert wait_until(lambda: source.reconnects >= 1, 60.0)
+        finally:
+            source.close()
+    back = [r.getMessage() for r in caplog.records if "stream back after" in r.getMessage()]
+    # at least the read timeout (1 s) of silence and the first wait (0.5 s) before reopening
+    assert float(back[0].split("back after ")[1].split(" s")[0]) >= 1.4
+
+
+@needs_ffmpeg
+def test_a_rotated_stream_is_read_as_displayed(tmp_path):
+    """A camera's display rotation was ignored: frames came on their side."""
+    with TcpFiles([write_rotated(tmp_path, 90).read_bytes()]) as server:
+        source = StreamSource(server.url, connect_timeout_s=30.0, read_timeout_s=1.0)
+        try:
+            frame = source.read()
+        finally:
+            source.close()
+    assert (frame.yuv.height, frame.yuv.width) == (320, 240)

@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from conftest import load_tool, render_narrow_sea
 from stream_sender import needs_ffmpeg
+from test_frames import write_rotated, write_ts
+from test_stream import flip_one_pid, write_latin1_title
 
 from sarmission.data.frames import FrameSourceError, VideoFileSource, open_frame_source
 from sarmission.data.yuv_video import YuvVideoSource
@@ -104,6 +106,36 @@ def test_unreadable_files(tmp_path: Path) -> None:
     text.write_text("hello")
     with pytest.raises(FrameSourceError):
         open_frame_source(text, yuv=True)
+
+
+def test_a_packet_that_breaks_the_demuxer_is_skipped_and_reading_goes_on(tmp_path: Path) -> None:
+    """One TS packet moved to an unknown PID made PyAV's demuxer raise IndexError: replay and
+    run --video ended in a traceback. The packet is now a skipped frame and the rest is read."""
+    path = tmp_path / "flipped.ts"
+    path.write_bytes(flip_one_pid(write_ts(tmp_path / "long.ts", seconds=6).read_bytes()))
+    source = YuvVideoSource(path)
+    frames = list(source)
+    assert source.skipped >= 1
+    assert len(frames) + source.skipped >= 59 and frames[-1].index >= 58
+
+
+def test_a_title_that_is_not_utf8_is_no_reason_to_refuse_a_video(tmp_path: Path) -> None:
+    """A Latin-1 title once gave "'utf-8' codec can't decode byte ..." naming no file."""
+    source = YuvVideoSource(write_latin1_title(tmp_path / "title.mkv"))
+    assert len(list(source)) == 10 and source.skipped == 0
+
+
+@pytest.mark.parametrize("degrees", [90, 180, 270])
+def test_a_rotated_video_is_read_as_displayed_as_opencv_reads_it(tmp_path: Path, degrees) -> None:
+    """A phone video tagged rotate=90 came upright from OpenCV but on its side from PyAV."""
+    path = write_rotated(tmp_path, degrees)
+    yuv = open_frame_source(path, yuv=True)
+    ours = [f.image_bgr for f in yuv]
+    theirs = [f.image_bgr for f in open_frame_source(path)]
+    assert len(ours) == len(theirs) == 10
+    for a, b in zip(ours, theirs, strict=True):
+        assert a.shape == b.shape == ((240, 320, 3) if degrees == 180 else (320, 240, 3))
+        assert np.abs(a.astype(int) - b).mean() < 3.0
 
 
 def test_detections_from_the_planes_are_those_from_bgr(clip: Path) -> None:

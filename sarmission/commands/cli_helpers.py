@@ -13,6 +13,8 @@ import socket
 from collections.abc import Callable
 from pathlib import Path
 
+from sarmission.data.frames import MAX_FPS, MIN_FPS
+
 #: Smallest frame side the pipeline accepts (two 16 px proposal boxes).
 MIN_FRAME_SIDE = 32
 #: Largest frame side accepted: beyond 8K twice over a frame is a typing error, not a camera.
@@ -77,15 +79,19 @@ def check_output_path(
     return path
 
 
-def _finite_option(at_least_zero: bool, wanted: str) -> Callable[[str], float]:
-    """An argparse type for a finite number above 0 (or 0 and above), else ``wanted``."""
+def _finite_option(
+    at_least_zero: bool, wanted: str, least: float = 0.0, most: float = math.inf
+) -> Callable[[str], float]:
+    """An argparse type for a finite number above 0 (or 0 and above), at least ``least``
+    (0 aside) and at most ``most``, else ``wanted``."""
 
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             value = math.nan
-        if not (math.isfinite(value) and (value >= 0 if at_least_zero else value > 0)):
+        low_ok = (value >= 0 if at_least_zero else value > 0) and (value >= least or value == 0)
+        if not (math.isfinite(value) and low_ok and value <= most):
             raise argparse.ArgumentTypeError(f"expected {wanted}, got {text!r}")
         return value
 
@@ -95,8 +101,15 @@ def _finite_option(at_least_zero: bool, wanted: str) -> Callable[[str], float]:
 #: A duration option: seconds above 0 (``nan`` once ran for ever, ``0`` the whole flight, a
 #: negative one nothing with exit 0).
 positive_seconds = _finite_option(False, "seconds above 0")
-#: A frame rate option: frames per second above 0.
-positive_rate = _finite_option(False, "frames per second above 0")
+#: A frame rate option: frames per second from :data:`MIN_FPS` to :data:`MAX_FPS` (``nan``,
+#: ``inf`` or ``1e-300`` were once taken: a run that never paced or never returned a frame).
+positive_rate = _finite_option(
+    False, f"frames per second from {MIN_FPS:g} to {MAX_FPS:g}", MIN_FPS, MAX_FPS
+)
+#: A frame rate option where 0 means "as fast as processed".
+rate_or_zero = _finite_option(
+    True, f"0 or frames per second from {MIN_FPS:g} to {MAX_FPS:g}", MIN_FPS, MAX_FPS
+)
 #: A time option that may be 0: seconds, 0 or more.
 non_negative_seconds = _finite_option(True, "seconds, 0 or more")
 

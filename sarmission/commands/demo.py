@@ -8,7 +8,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from sarmission.commands.cli_helpers import free_udp_port, parse_frame_size, positive_seconds
+from sarmission.commands.cli_helpers import (
+    free_udp_port,
+    parse_frame_size,
+    positive_seconds,
+    rate_or_zero,
+)
 from sarmission.commands.detector_options import add_detector_options
 from sarmission.commands.truth_score import score
 
@@ -63,7 +68,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--fps",
-        type=float,
+        type=rate_or_zero,
         default=30.0,
         help="most camera frames per second, as a real camera delivers them "
         "(the motion front-end is tuned for 30); 0: as fast as processed "

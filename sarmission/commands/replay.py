@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from sarmission.commands.cli_helpers import positive_rate
 from sarmission.commands.mission_options import (
     add_mission_options,
     build_detector,
@@ -21,6 +22,7 @@ from sarmission.commands.mission_options import (
     load_mission_from_args,
 )
 from sarmission.commands.progress import add_progress_option, progress_for
+from sarmission.data.frames import MAX_FPS, MIN_FPS
 
 if TYPE_CHECKING:
     import numpy as np
@@ -46,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("input", help="video file, image folder or COCO video annotations (.json)")
     parser.add_argument(
         "--fps",
-        type=float,
+        type=positive_rate,
         default=30.0,
         help="frame rate of an image folder or dataset (default: %(default)s)",
     )
@@ -250,8 +252,8 @@ def run(args: argparse.Namespace) -> int:
 
     mission = load_mission_from_args(args)
     path = Path(args.input)
-    if args.fps <= 0:
-        raise ValueError(f"--fps must be positive, got {args.fps}")
+    if not (math.isfinite(args.fps) and MIN_FPS <= args.fps <= MAX_FPS):  # without the parser
+        raise ValueError(f"--fps must be from {MIN_FPS:g} to {MAX_FPS:g}, got {args.fps}")
     check_telemetry_args(args.telemetry, args.time_offset)
     counters: dict[str, int] = {}
     frames, total, with_meta, conventions, file_source = _footage(args, path, counters)
@@ -319,10 +321,9 @@ def run(args: argparse.Namespace) -> int:
                 yield Frame.of(index, stamp, image)
 
         started = time.monotonic()
+        runner = SessionRunner(controller, on_frame=lambda: bar.update(1))
         try:
-            SessionRunner(controller, on_frame=lambda: bar.update(1)).run(
-                stamped(), max_frames=limit
-            )
+            runner.run(stamped(), max_frames=limit)
         finally:
             bar.close()
             wall = time.monotonic() - started
@@ -336,9 +337,24 @@ def run(args: argparse.Namespace) -> int:
         if args.report:
             _write_report(args, db_path, controller, source, frame_times, path)
     if controller.stats.frames == 0:
-        what = f"all {unreadable} unreadable" if unreadable else "none found"
-        raise ValueError(f"{path}: no frame could be processed ({what})")
+        raise ValueError(
+            f"{path}: no frame could be processed ({_why_none(runner, controller, unreadable)})"
+        )
     return 0
+
+
+def _why_none(runner: Any, controller: Any, unreadable: int) -> str:
+    """Why a replay processed no frame: how many it found and rejected, and why (the
+    controller's skip reasons), how many the reader could not read; or that it found none."""
+    parts = []
+    skipped = controller.stats.skipped
+    if runner.frames_read:
+        reasons = ", ".join(f"{n} {why}" for why, n in skipped.most_common())
+        rejected = f", all rejected: {reasons}" if reasons else ""
+        parts.append(f"{runner.frames_read} found{rejected}")
+    if unreadable:
+        parts.append(f"{'all ' if not parts else ''}{unreadable} unreadable")
+    return "; ".join(parts) or "none found"
 
 
 def _write_report(

@@ -7,7 +7,7 @@ import argparse
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from sarmission.commands.cli_helpers import parse_frame_size
+from sarmission.commands.cli_helpers import parse_frame_size, positive_rate
 from sarmission.commands.live_options import add_session_options, run_live, vehicle_url
 from sarmission.commands.mission_options import add_mission_options, load_mission_from_args
 
@@ -50,7 +50,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--fps",
-        type=float,
+        type=positive_rate,
         default=30.0,
         help="frame rate of --frames (and of a video without one; default: %(default)s)",
     )

@@ -221,7 +221,7 @@ def add_replay_parser(sim_sub: argparse._SubParsersAction) -> None:
     )
     rep.add_argument(
         "--fps",
-        type=float,
+        type=positive_rate,
         default=None,
         help="frame rate of the footage; when given, frames are timed by "
         "frame index / fps instead of their meta time (default: the video's own "

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from sarmission.ratelimit import RateLimitedLog
 from sarmission.yuv import YuvImage
 
 if TYPE_CHECKING:
@@ -35,6 +36,11 @@ log = logging.getLogger(__name__)
 IMAGE_EXTENSIONS = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"})
 #: Consecutive failed reads after which a video is taken to have ended.
 MAX_CONSECUTIVE_VIDEO_FAILURES = 25
+#: A step between two frames' presentation times longer than this (s) is a discontinuity.
+MAX_TIMESTAMP_STEP_S = 5.0
+#: Frame rates taken from a user (frames/s): outside these, a typo, not a camera (``nan``,
+#: ``inf`` or ``1e-300`` once gave a run that never paced, or never returned a frame).
+MIN_FPS, MAX_FPS = 0.001, 1000.0
 
 
 class FrameSourceError(ValueError):
@@ -100,6 +106,7 @@ class FrameSource(ABC):
         self.path = path
         self.fps = fps
         self.skipped = 0
+        self._warnings = RateLimitedLog(log)
 
     @abstractmethod
     def __iter__(self) -> Iterator[Frame]:
@@ -122,9 +129,11 @@ class FrameSource(ABC):
             raise TypeError(f"{self.path}: frame count unknown")
         return self.length
 
-    def _skip(self, index: int, reason: str) -> None:
+    def _skip(self, index: int, reason: str, kind: str | None = None) -> None:
+        """Count a frame that could not be read; warn about it, at most every few seconds per
+        ``kind`` (default: the reason), so that a damaged file cannot flood the console."""
         self.skipped += 1
-        log.warning("%s: frame %d skipped (%s)", self.path, index, reason)
+        self._warnings.event(kind or reason, "%s: frame %d skipped (%s)", self.path, index, reason)
 
 
 def _natural_key(path: Path) -> list[object]:
@@ -154,7 +163,7 @@ class ImageFolderSource(FrameSource):
         for index, file in enumerate(self.files):
             image = cv2.imread(str(file), cv2.IMREAD_COLOR)
             if image is None or image.size == 0:
-                self._skip(index, f"cannot decode {file.name}")
+                self._skip(index, f"cannot decode {file.name}", "undecodable image")
                 continue
             yield Frame(index, index / self.fps, image)
 
@@ -206,7 +215,7 @@ class VideoFileSource(FrameSource):
         try:
             index = 0
             failed: list[int] = []  # reads that failed since the last frame
-            clock = _PresentationTimes(self.fps)
+            clock = _PresentationTimes(self.fps, self.path)
             while self._count is None or index < self._count:
                 ok, image = capture.read()
                 if ok and image is not None and image.size > 0:
@@ -236,27 +245,50 @@ class VideoFileSource(FrameSource):
 
 class _PresentationTimes:
     """A decoded frame's time in its file: the decoder's presentation time while it moves
-    forward, else (a container without timestamps, or one that goes back) the frame period on
-    from the last time given, for the rest of the file: time never jumps or goes back."""
+    forward by a plausible step; time never jumps or goes back.
 
-    def __init__(self, fps: float) -> None:
+    A forward step longer than :data:`MAX_TIMESTAMP_STEP_S` (and than ten nominal frame
+    periods per frame) is a discontinuity (e.g. two recordings joined end to end): the clock
+    goes on at the nominal frame spacing and follows the file's times from there, with one
+    warning. A file without timestamps, or whose times go back, is timed at the frame period
+    from the last time given for the rest of the file.
+    """
+
+    def __init__(self, fps: float, name: object = "video") -> None:
         self.fps = fps
+        self.name = name
         self._last: tuple[int, float] | None = None  # index and time of the last frame
+        self._offset = 0.0  # added to the file's times since the last discontinuity
+        self._last_seconds: float | None = None  # the file's own time of the last frame
         self._trusted = True
+        self._warnings = RateLimitedLog(log, interval_s=60.0)
 
     def time(self, index: int, position_ms: float) -> float:
         seconds = position_ms / 1000.0
         last = self._last
-        if (
-            self._trusted
-            and math.isfinite(seconds)
-            and seconds >= 0
-            and (last is None or seconds > last[1])
-        ):
-            stamp = seconds
-        else:
+        nominal = 0.0 if last is None else (index - last[0]) / self.fps
+        if not (self._trusted and math.isfinite(seconds) and seconds >= 0):
             self._trusted = False
-            stamp = index / self.fps if last is None else last[1] + (index - last[0]) / self.fps
+        elif last is not None and self._last_seconds is not None:
+            step = seconds - self._last_seconds
+            if step <= 0:
+                self._trusted = False
+            elif step > max(MAX_TIMESTAMP_STEP_S, 10.0 * nominal):
+                self._offset = last[1] + nominal - seconds
+                self._warnings.event(
+                    "jump",
+                    "%s: timestamps jump by %.1f s at frame %d; taken as a discontinuity "
+                    "(timed at %.3g frames/s across it)",
+                    self.name,
+                    step,
+                    index,
+                    self.fps,
+                )
+        if self._trusted:
+            stamp = seconds + self._offset
+            self._last_seconds = seconds
+        else:
+            stamp = index / self.fps if last is None else last[1] + nominal
         self._last = (index, stamp)
         return stamp
 
@@ -277,8 +309,8 @@ def open_frame_source(
     images, a file OpenCV cannot open or decode a first frame from, or a stream that sends no
     video.
     """
-    if fps <= 0:
-        raise FrameSourceError(f"fps must be positive, got {fps}")
+    if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise FrameSourceError(f"fps must be from {MIN_FPS:g} to {MAX_FPS:g}, got {fps}")
     from sarmission.data.stream import StreamSource, is_stream_url
 
     if isinstance(path, str) and is_stream_url(path):

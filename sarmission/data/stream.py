@@ -4,7 +4,8 @@ frame wins, and the reader never falls behind the camera.
 A drone's gimbal camera streams H.264 or H.265 over RTSP, or as MPEG-TS over UDP.
 :class:`StreamSource` opens the URL with FFmpeg through PyAV (open and read timeouts, the thread
 plan's decoding threads; RTSP over TCP, as OpenCV's reader asked for it), decodes every frame
-in a reader thread to its YUV planes (:class:`~sarmission.yuv.YuvImage`, no BGR copy) and keeps
+in a reader thread to its YUV planes (:class:`~sarmission.yuv.YuvImage`, no BGR copy; turned
+as displayed when the stream says it is rotated) and keeps
 only the newest: a consumer slower than the camera always gets the latest frame, and every
 frame it never saw is counted in ``dropped``. Frames the camera sent that never arrived show as
 gaps in the presentation times and are counted in ``lost``.
@@ -18,8 +19,11 @@ keyframe (for at most ``2 * max_lag_s``, for streams refreshed without keyframes
 frames then show damage until the refresh) and starts again from there. Both are counted in
 ``behind``, so that the latency stays bounded instead of growing with FFmpeg's receive buffer.
 
-A stream silent for ``read_timeout_s`` is reopened until it is back (or the source is closed),
-with one warning when it is lost, one when it is back and, while it stays away, one a minute;
+A stream silent for ``read_timeout_s``, or that ends, is reopened until it is back (or the
+source is closed), after a wait that grows from half a second to a few seconds while
+connections keep ending or failing; with a warning when it is lost, one when it is back (the
+outage counted from its last frame; each at most once a minute) and, while it stays away, one
+a minute;
 frames missing from a damaged stream are reported at most once a minute too (FFmpeg's own
 messages are kept off the console).
 Meanwhile :meth:`StreamSource.read` returns a frame without an image every ``read_timeout_s``
@@ -44,6 +48,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from sarmission.data.frames import Frame, FrameSourceError
+from sarmission.ratelimit import RateLimitedLog
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +58,13 @@ STREAM_SCHEMES = frozenset({"rtsp", "rtsps", "rtp", "udp", "tcp", "srt", "rtmp",
 _PORT_REQUIRED = frozenset({"udp", "rtp", "tcp", "srt"})
 #: Seconds between the warnings of a stream that stays away.
 OUTAGE_REPORT_S = 60.0
+#: Wait (s) before the first reconnection; it doubles with each connection in a row that ends
+#: or fails, up to :data:`RECONNECT_MAX_S`.
+RECONNECT_MIN_S = 0.5
+#: Longest wait (s) between two connection attempts.
+RECONNECT_MAX_S = 4.0
+#: A connection that delivered frames for this long (s) resets the wait to its minimum.
+RECONNECT_RESET_S = 30.0
 #: Default of how late (s) a decoded frame may come before the reader skips work to catch up.
 MAX_LAG_S = 1.0
 
@@ -105,6 +117,20 @@ def with_udp_defaults(url: str) -> str:
         return url
     query = "&".join(q for q in (parts.query, "overrun_nonfatal=1") if q)
     return parts._replace(query=query).geturl()
+
+
+def _failure(exc: BaseException) -> str:
+    """An unexpected exception as a short reason: its class and first line."""
+    text = str(exc).splitlines()[0][:200] if str(exc) else ""
+    return f"{exc.__class__.__name__}: {text}" if text else exc.__class__.__name__
+
+
+def _close_quietly(container: Any) -> None:
+    """Close a container whose data may have broken it; a failure to close is logged."""
+    try:
+        container.close()
+    except Exception as exc:
+        log.debug("closing the stream failed: %s", _failure(exc))
 
 
 class StreamClock:
@@ -246,10 +272,13 @@ class StreamSource:
         self.clock = StreamClock()
         self._cond = threading.Condition()
         self._latest: Frame | None = None  # the newest frame, until it is read
-        self._lost_since: float | None = None
+        self._lost_since: float | None = None  # the last frame's arrival, while lost
+        self._last_frame_at: float | None = None  # arrival of the newest frame
+        self._outages = RateLimitedLog(log, interval_s=OUTAGE_REPORT_S)
         self._loss_report: tuple[float | None, int] = (None, 0)  # when, and ``lost`` then
         self._ended = False
         self._why = "no connection yet"
+        self._got_frames = False  # whether the current connection gave any frame
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._read_loop, name="stream", daemon=True)
         self._thread.start()
@@ -280,42 +309,59 @@ class StreamSource:
                 with_udp_defaults(self.url),
                 options=options,
                 timeout=(max(self.read_timeout_s, 5.0), self.read_timeout_s),
+                metadata_errors="replace",  # a title in another encoding is no lost stream
             )
         except (av.FFmpegError, OSError) as exc:
             self._why = f"cannot open the stream ({exc.__class__.__name__}: nothing sending, "
             self._why += "wrong address, or not video)"
             return None
-        if not container.streams.video:
-            container.close()
-            self._why = "the stream carries no video"
+        except Exception as exc:  # the sender's data broke the demuxer: try again later
+            self._why = f"cannot open the stream ({_failure(exc)})"
             return None
-        stream = container.streams.video[0]
-        stream.thread_type = "AUTO"
-        stream.codec_context.thread_count = self.threads
-        rate = stream.average_rate or stream.guessed_rate
-        if rate and math.isfinite(float(rate)) and 0 < float(rate) <= 1000:
-            self.fps = float(rate)
+        try:
+            if not container.streams.video:
+                container.close()
+                self._why = "the stream carries no video"
+                return None
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            stream.codec_context.thread_count = self.threads
+            rate = stream.average_rate or stream.guessed_rate
+            if rate and math.isfinite(float(rate)) and 0 < float(rate) <= 1000:
+                self.fps = float(rate)
+        except Exception as exc:
+            container.close()
+            self._why = f"cannot read the stream's header ({_failure(exc)})"
+            return None
         return container, stream
 
     def _read_loop(self) -> None:
+        """Connect, decode until the stream stops, and again after a wait that grows with each
+        connection in a row that ends or fails (a stream that ends, e.g. a file served over
+        HTTP, is not replayed in a tight loop), until closed."""
         last_report = 0.0
+        backoff = RECONNECT_MIN_S
         while not self._stop.is_set():
             opened = self._open()
             if opened is not None:
                 self.clock.reset()
+                self._got_frames = False
+                connected_at = time.monotonic()
                 try:
-                    pumped = self._pump(*opened)
+                    self._pump(*opened)
+                except Exception as exc:  # anything the stream's data breaks: a lost stream
+                    self._why = f"reading the stream failed ({_failure(exc)})"
                 finally:
-                    opened[0].close()
-                if pumped and not self._stop.is_set():
-                    self._lost_since = last_report = time.monotonic()
-                    self._why = "stream lost"
-                    log.warning(
-                        "%s: stream lost (no frame for %.1f s); reconnecting",
-                        self.path,
-                        self.read_timeout_s,
+                    _close_quietly(opened[0])
+                if self._got_frames and not self._stop.is_set():
+                    last = self._last_frame_at
+                    if last is not None and last - connected_at >= RECONNECT_RESET_S:
+                        backoff = RECONNECT_MIN_S  # it streamed a while: a new loss
+                    self._lost_since = last if last is not None else time.monotonic()
+                    last_report = time.monotonic()
+                    self._outages.event(
+                        "lost", "%s: stream lost (%s); reconnecting", self.path, self._why
                     )
-                    continue
             now = time.monotonic()
             if self._lost_since is not None and now - last_report >= OUTAGE_REPORT_S:
                 last_report = now
@@ -324,18 +370,19 @@ class StreamSource:
                     self.path,
                     now - self._lost_since,
                 )
-            self._stop.wait(min(1.0, self.read_timeout_s))
+            self._stop.wait(backoff)
+            backoff = min(RECONNECT_MAX_S, 2.0 * backoff)
         with self._cond:
             self._ended = True
             self._cond.notify_all()
 
-    def _pump(self, container: Any, stream: Any) -> bool:
-        """Decode frames until the stream stops or the source is closed; whether any came."""
+    def _pump(self, container: Any, stream: Any) -> None:
+        """Decode frames until the stream stops or the source is closed (``_got_frames``: whether
+        any came; ``_why``: why it stopped)."""
         import av
 
-        from sarmission.data.yuv_video import planes_of
+        from sarmission.data.yuv_video import picture_of
 
-        got_any = False
         last_pts: float | None = None
         periods = FramePeriod()
         base = float(stream.time_base or 0)
@@ -346,8 +393,13 @@ class StreamSource:
         while not self._stop.is_set():
             try:
                 packet = next(packets)
-            except (StopIteration, av.FFmpegError, OSError):
-                return got_any  # end of stream, read timeout or a dead connection
+            except StopIteration:
+                self._why = "the stream ended"
+                return
+            except (av.FFmpegError, OSError) as exc:  # read timeout or a dead connection
+                self._why = f"no frame for {self.read_timeout_s:.1f} s or connection lost"
+                self._why += f" ({exc.__class__.__name__})"
+                return
             if packet.size == 0:
                 continue  # the demuxer's flush marker
             now = time.monotonic()
@@ -362,16 +414,20 @@ class StreamSource:
                 continue
             try:
                 pictures = packet.decode()
-            except av.FFmpegError:
-                continue  # damaged: its frame shows as missing from the presentation times
+            except Exception:  # damaged (FFmpegError, or worse): its frame shows as missing
+                continue
             for picture in pictures:
                 arrival = time.monotonic()
                 if self._lost_since is not None:
                     self.reconnects += 1
-                    log.warning(
-                        "%s: stream back after %.1f s", self.path, arrival - self._lost_since
+                    self._outages.event(
+                        "back",
+                        "%s: stream back after %.1f s",
+                        self.path,
+                        arrival - self._lost_since,
                     )
                     self._lost_since = None
+                self._last_frame_at = arrival
                 pts = picture.pts * base if picture.pts is not None and base > 0 else None
                 if pts is not None and last_pts is not None:
                     complete = catch_up.decoding_all and not thrown
@@ -382,10 +438,9 @@ class StreamSource:
                     elif not catch_up.decoding_all:
                         self.behind += missing  # B-frames the decoder left out, as told
                 last_pts, thrown = pts, 0
-                got_any = True
+                self._got_frames = True
                 stamp = self.clock.stamp(pts, arrival)
-                yuv = planes_of(picture)
-                bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+                yuv, bgr = picture_of(picture)  # upright, as the camera meant it shown
                 frame = Frame(self.received, stamp, bgr, pts, yuv=yuv)
                 with self._cond:
                     if self._latest is not None:
@@ -393,7 +448,6 @@ class StreamSource:
                     self.received += 1
                     self._latest = frame
                     self._cond.notify_all()
-        return got_any
 
     def _report_loss(self, now: float) -> None:
         """A warning at the first frames lost, then at most one a minute while more are."""

@@ -4,7 +4,8 @@ OpenCV's video reader converts every frame to BGR (about 10 ms and 25 MB for a 4
 keeps a BGR buffer of its own; detection needs the Y, U and V planes themselves
 (:class:`~sarmission.yuv.YuvImage`). :class:`YuvVideoSource` decodes with FFmpeg's libraries
 through PyAV and hands the decoder's planes over as they are (no copy). Frames of another pixel
-format (10-bit, 4:2:2, ...) come as BGR, converted by FFmpeg.
+format (10-bit, 4:2:2, ...) come as BGR, converted by FFmpeg. A video tagged to be shown
+rotated (a phone held upright) is turned as displayed, as OpenCV's reader does (a copy).
 
 It behaves as :class:`~sarmission.data.frames.VideoFileSource`: frames in order with their
 presentation times in the file, a packet the decoder rejects skipped with a warning and counted
@@ -14,6 +15,7 @@ in ``skipped``, a new decoder for each iteration.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 from collections.abc import Iterator
 from fractions import Fraction
@@ -25,13 +27,23 @@ import numpy as np
 from sarmission.data.frames import Frame, FrameSource, FrameSourceError, _PresentationTimes
 from sarmission.yuv import YuvImage
 
+log = logging.getLogger(__name__)
+
 #: Pixel formats handed over as planes, and whether each is full range.
 PLANAR_FORMATS = {"yuv420p": False, "yuvj420p": True}
 #: Packets refused before the first picture after which a file is taken as unreadable (the
 #: end of the file ends the search too).
 MAX_LEADING_REJECTS = 25
+#: Demuxer failures in a row after which the rest of a file is taken as unreadable.
+MAX_DEMUX_FAILURES = 25
 #: FFmpeg's ``AVCOL_RANGE_JPEG``: a stream tagged full range.
 _RANGE_JPEG = 2
+
+
+def _failure(exc: BaseException) -> str:
+    """An unexpected exception as a short reason: its class and first line."""
+    text = str(exc).splitlines()[0][:200] if str(exc) else ""
+    return f"{exc.__class__.__name__}: {text}" if text else exc.__class__.__name__
 
 
 def yuv_decoding_available() -> bool:
@@ -57,6 +69,32 @@ def planes_of(picture: Any) -> YuvImage | None:
     )
     full = PLANAR_FORMATS[name] or int(picture.color_range) == _RANGE_JPEG
     return YuvImage(y, u, v, full_range=full)
+
+
+def quarter_turns(picture: Any) -> int:
+    """Counter-clockwise quarter turns that show a decoded PyAV picture as it is meant to be
+    displayed (its display matrix, e.g. ``rotate=90`` of a phone held upright; OpenCV's reader
+    applies it too), nearest to its angle; 0 without one."""
+    try:
+        angle = float(getattr(picture, "rotation", 0) or 0)
+    except (TypeError, ValueError):
+        return 0
+    return round(angle / 90.0) % 4 if math.isfinite(angle) else 0
+
+
+def picture_of(picture: Any) -> tuple[YuvImage | None, np.ndarray | None]:
+    """A decoded PyAV picture as :attr:`Frame.yuv` planes (8-bit 4:2:0) or else BGR, turned
+    upright (:func:`quarter_turns`; the planes are then copied)."""
+    yuv = planes_of(picture)
+    bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
+    turns = quarter_turns(picture)
+    if not turns:
+        return yuv, bgr
+    if yuv is not None:
+        y, u, v = (np.ascontiguousarray(np.rot90(p, turns)) for p in (yuv.y, yuv.u, yuv.v))
+        return YuvImage(y, u, v, full_range=yuv.full_range), None
+    assert bgr is not None
+    return None, np.ascontiguousarray(np.rot90(bgr, turns))
 
 
 class YuvVideoSource(FrameSource):
@@ -108,29 +146,57 @@ class YuvVideoSource(FrameSource):
         from sarmission.threads import thread_plan
 
         try:
-            container = av.open(str(path))
+            # a title or tag in another encoding than UTF-8 is no reason to refuse the video
+            container = av.open(str(path), metadata_errors="replace")
         except (av.FFmpegError, OSError) as exc:
             raise FrameSourceError(f"{path}: FFmpeg cannot open this file as a video") from exc
-        if not container.streams.video:
+        except Exception as exc:  # the file's data broke the reader itself
+            raise FrameSourceError(
+                f"{path}: FFmpeg cannot open this file as a video ({_failure(exc)})"
+            ) from exc
+        try:
+            if not container.streams.video:
+                raise FrameSourceError(f"{path}: no video stream in this file")
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO"
+            stream.codec_context.thread_count = threads or thread_plan().decode
+        except FrameSourceError:
             container.close()
-            raise FrameSourceError(f"{path}: no video stream in this file")
-        stream = container.streams.video[0]
-        stream.thread_type = "AUTO"
-        stream.codec_context.thread_count = threads or thread_plan().decode
+            raise
+        except Exception as exc:
+            container.close()
+            raise FrameSourceError(
+                f"{path}: cannot read this file's video stream ({_failure(exc)})"
+            ) from exc
         return container, stream
 
     @staticmethod
     def _pictures(container: Any, stream: Any) -> Iterator[Any]:
-        """Decoded pictures, None in place of each packet the decoder rejects."""
-        import av
+        """Decoded pictures, None in place of each packet the decoder or demuxer rejects.
 
-        for packet in container.demux(stream):
-            try:
-                decoded = packet.decode()
-            except av.FFmpegError:
-                yield None
-                continue
-            yield from decoded
+        A damaged packet can make PyAV's demuxer itself raise (e.g. IndexError for a packet
+        whose stream appeared after the file was opened); reading then goes on after it with
+        a new demuxer, up to :data:`MAX_DEMUX_FAILURES` failures in a row (then the file is
+        taken to end there)."""
+        failures = 0
+        while failures < MAX_DEMUX_FAILURES:
+            packets = container.demux(stream)
+            while True:
+                try:
+                    packet = next(packets)
+                except StopIteration:
+                    return
+                except Exception:  # the packet read is lost; the next read goes on after it
+                    failures += 1
+                    yield None
+                    break
+                failures = 0
+                try:
+                    decoded = packet.decode()
+                except Exception:  # FFmpegError, or worse: a damaged packet
+                    yield None
+                    continue
+                yield from decoded
 
     @property
     def length(self) -> int | None:
@@ -146,14 +212,26 @@ class YuvVideoSource(FrameSource):
         try:
             base = Fraction(stream.time_base or 0)
             start = stream.start_time or 0
-            clock = _PresentationTimes(self.fps)
+            clock = _PresentationTimes(self.fps, self.path)
+            index = -1
             for index, picture in enumerate(pictures):
                 if picture is None:
                     self._skip(index, "decoder rejected a packet")
                     continue
+                try:
+                    yuv, bgr = picture_of(picture)
+                except Exception as exc:  # a picture FFmpeg cannot convert
+                    self._skip(index, f"picture unreadable ({_failure(exc)})", "unreadable")
+                    continue
                 ms = float((picture.pts - start) * base * 1000) if picture.pts is not None else -1
-                yuv = planes_of(picture)
-                bgr = picture.to_ndarray(format="bgr24") if yuv is None else None
                 yield Frame(index, clock.time(index, ms), bgr, yuv=yuv)
+            if self._count is not None and index + 1 < self._count:
+                # a file cut short (or a header's estimate): where it ended, in one line
+                log.info(
+                    "%s: the video ends at frame %d of the %d its header announces",
+                    self.path,
+                    index + 1,
+                    self._count,
+                )
         finally:
             container.close()

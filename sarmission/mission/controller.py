@@ -35,7 +35,7 @@ the clock the MAVLink telemetry is mapped to) and in replay (any clock the telem
 filled in). A frame that is not a BGR ``uint8 [H, W, 3]`` image or a
 :class:`~sarmission.yuv.YuvImage` of the stream's size is skipped, counted by reason and logged
 (the YUV planes go to the detector as they are; the thumbnail and the recording convert what
-they show).
+they show); a new size that lasts a few frames in a row is the stream's from then on.
 """
 
 from __future__ import annotations
@@ -75,6 +75,7 @@ from sarmission.perception import extent as object_extents
 from sarmission.perception.extent import object_extent
 from sarmission.perception.look import LookMemory, grey_patch
 from sarmission.perception.types import FrameResult
+from sarmission.ratelimit import RateLimitedLog
 from sarmission.tracking.tracker import Tracker, TrackState
 from sarmission.viz.recorder import LOCKED_COLOUR, TRACK_COLOUR, Recorder
 from sarmission.yuv import YuvImage
@@ -90,6 +91,9 @@ ALERT_TRACK_POINTS = 10
 #: Seconds between two aircraft positions stored for the operator's map.
 DRONE_TRACK_PERIOD_S = 1.0
 DRONE_COLOUR = (60, 140, 255)
+#: Frames in a row of a new size after which the stream is taken to have changed size (a
+#: sender restarted at another resolution); a lone frame of another size is skipped.
+SIZE_CHANGE_FRAMES = 3
 
 
 class Detector(Protocol):
@@ -226,6 +230,8 @@ class MissionController:
         self._camera = mission.camera.intrinsics()
         self._intrinsics: CameraIntrinsics | None = None
         self._shape: tuple[int, int] | None = None
+        self._new_shape: tuple[tuple[int, int], int] | None = None  # another size, frames seen
+        self._skip_log = RateLimitedLog(log)
         self._t0: float | None = None
         self._scene_offset = np.zeros(2)
         self._unplaced: dict[int, Alert] = {}  # target id -> its alert stored without position
@@ -424,11 +430,39 @@ class MissionController:
             if not self._camera.same_shape(shape[1], shape[0]):
                 self._warn_frame_shape(shape)
         elif shape != self._shape:
-            return (
-                f"size {shape[1]}x{shape[0]} differs from the stream's "
-                f"{self._shape[1]}x{self._shape[0]}"
-            )
+            if min(shape) < 16:
+                return f"image too small ({shape[1]}x{shape[0]})"
+            seen = self._new_shape[1] + 1 if self._new_shape and self._new_shape[0] == shape else 1
+            self._new_shape = (shape, seen)
+            if seen < SIZE_CHANGE_FRAMES:
+                return (
+                    f"size {shape[1]}x{shape[0]} differs from the stream's "
+                    f"{self._shape[1]}x{self._shape[0]}"
+                )
+            self._adopt_shape(shape)
+        else:
+            self._new_shape = None
         return ""
+
+    def _adopt_shape(self, shape: tuple[int, int]) -> None:
+        """Go on with frames of another size (a sender restarted at another resolution, joined
+        recordings): the lens re-derived for it, motion and tracks started afresh (their
+        boxes are of the old size), with one warning."""
+        old = self._shape
+        assert old is not None
+        self._shape, self._new_shape = shape, None
+        self._intrinsics = self._camera.for_frames(shape[1], shape[0])
+        self.detector.reset()
+        self.tracker.drop_tracks()
+        line = (
+            f"frame size changed from {old[1]}x{old[0]} to {shape[1]}x{shape[0]}: "
+            "detection and tracks start afresh"
+        )
+        log.warning(line)
+        if self.recorder is not None:
+            self.recorder.text("camera", line, level="WARN")
+        if not self._camera.same_shape(shape[1], shape[0]):
+            self._warn_frame_shape(shape)
 
     def _warn_frame_shape(self, shape: tuple[int, int]) -> None:
         camera = self._camera
@@ -444,7 +478,8 @@ class MissionController:
     def _skip(self, frame_index: int, reason: str) -> None:
         key = reason.split(" (")[0]
         self.stats.skipped[key] += 1
-        log.warning(
+        self._skip_log.event(  # every one counted; a warning at most every few seconds
+            key,
             "frame %d skipped: %s (%d skipped so far)",
             frame_index,
             reason,

@@ -251,6 +251,9 @@ class LiveSession:
     ) -> None:
         """Process frames until the source ends, ``max_frames`` were read, ``duration_s``
         passed or ``stop`` is set."""
+        watch = getattr(self.source, "watch", None)  # a file's pacing waits end at a stop too
+        if watch is not None:
+            watch(stop, None if duration_s is None else time.monotonic() + duration_s)
         if self.runner.run(self._frames(), stop, max_frames, duration_s):
             self.console("frame source ended")
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -39,6 +40,8 @@ log = logging.getLogger(__name__)
 MAX_CAMERA_FAILURES = 50
 #: A driver frame time older than this when the grab returns is not believed (seconds).
 DRIVER_STAMP_MAX_AGE_S = 1.0
+#: Longest single wait (s) of a file played in real time: a stop request is seen within it.
+PACING_SLICE_S = 0.1
 
 
 class LiveSource(Protocol):
@@ -127,7 +130,12 @@ class CameraSource:
 
 
 class FileSource:
-    """A video file or image folder played back in real time as if it were a camera."""
+    """A video file or image folder played back in real time as if it were a camera.
+
+    The wait for a frame to fall due is taken in short slices and ends early once the run
+    asks to stop (:meth:`watch`) or the source is closed: a long pause in a file (a slow
+    image folder, a gap in a recording) never holds up a stop request or ``--duration``.
+    """
 
     def __init__(self, path: str | Path, fps: float = 30.0, realtime: bool = True) -> None:
         self.source = open_frame_source(path, fps, yuv=True)
@@ -135,25 +143,45 @@ class FileSource:
         self.realtime = realtime
         self._frames: Iterator[Frame] = Prefetcher(self.source, depth=1)
         self._start: float | None = None
+        self._closed = threading.Event()
+        self._stop: threading.Event | None = None
+        self._deadline: float | None = None
 
     @property
     def skipped(self) -> int:
         return self.source.skipped
 
+    def watch(self, stop: threading.Event | None = None, deadline: float | None = None) -> None:
+        """End any wait for a frame once ``stop`` is set or at ``deadline``
+        (``time.monotonic()``): the frame is then returned at once."""
+        self._stop, self._deadline = stop, deadline
+
+    def _interrupted(self) -> bool:
+        """Whether a wait for a frame must end now (stop asked, deadline passed, closed)."""
+        return (
+            self._closed.is_set()
+            or (self._stop is not None and self._stop.is_set())
+            or (self._deadline is not None and time.monotonic() >= self._deadline)
+        )
+
     def read(self) -> Frame | None:
-        """The next frame of the file, once it is due; None at the end."""
+        """The next frame of the file, once it is due (or a stop is asked); None at the end."""
         frame = next(self._frames, None)
         if frame is None:
             return None
         if self._start is None:
             self._start = time.monotonic() - frame.timestamp_s
         if self.realtime:
-            delay = self._start + frame.timestamp_s - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
+            due = self._start + frame.timestamp_s
+            while not self._interrupted():
+                delay = due - time.monotonic()
+                if delay <= 0:
+                    break
+                self._closed.wait(min(delay, PACING_SLICE_S))
         return frame.restamped(time.monotonic())
 
     def close(self) -> None:
+        self._closed.set()
         close = getattr(self._frames, "close", None)
         if close is not None:
             close()
