@@ -16,6 +16,8 @@ Sources, per kind (newest wins when two give the same time):
   driver). Once a gimbal has reported, it must keep reporting: stale gimbal data is no pose.
 - HOME_POSITION: home ``(lat, lon, alt)``, the ground plane for geolocation. With
   ``require_home`` (the default) there is no pose until the autopilot has reported it.
+- HEARTBEAT: the armed state and flight mode (:mod:`~sarmission.mavlink.flight_mode`);
+  :meth:`TelemetryBuffer.takeover_refusal` says whether the vehicle may be sent elsewhere.
 - GPS_RAW_INT: ``fix_type`` (with ``require_gps_fix``, the default, GLOBAL_POSITION_INT is
   believed only while the newest GPS_RAW_INT, at most :data:`GPS_FIX_MAX_AGE_S` old, reports a
   3D fix) and ``h_acc`` (mm, when non-zero) as the 1-sigma GNSS error per horizontal axis.
@@ -68,6 +70,7 @@ from sarmission.geo.frames import (
 )
 from sarmission.geo.geolocate import PlatformPose
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+from sarmission.mavlink.flight_mode import FlightState, takeover_refusal
 from sarmission.mavlink.telemetry_checks import GPS_FIX_3D, MAX_SPEED_MPS, message_problem
 from sarmission.ratelimit import RateLimitedLog
 
@@ -85,6 +88,7 @@ MESSAGE_TYPES = (
     "HOME_POSITION",
     "GPS_RAW_INT",
     "SYSTEM_TIME",
+    "HEARTBEAT",
 )
 
 _AUTOPILOT_TYPES = frozenset(("GLOBAL_POSITION_INT", "ATTITUDE", "ATTITUDE_QUATERNION"))
@@ -330,6 +334,7 @@ class TelemetryBuffer:
         self._autopilot_source: tuple[int, int] | None = None
         self._series_source: dict[str, tuple[int, int]] = {}
         self._gps: tuple[float, int] | None = None  # (arrival, fix_type) of the newest GPS_RAW_INT
+        self._flight: FlightState | None = None  # the newest HEARTBEAT's armed state and mode
         self._position = _Series("position")
         self._attitude = _Series("attitude")
         self._gimbal = _Series("gimbal attitude")
@@ -355,6 +360,8 @@ class TelemetryBuffer:
             self._take_home(msg)
         elif mtype == "GPS_RAW_INT":
             self._take_gps(msg, now)
+        elif mtype == "HEARTBEAT":
+            self._take_heartbeat(msg, now)
         elif mtype != "SYSTEM_TIME":
             t = self._sender_time(source, mtype, msg, now)
             if t is None:
@@ -369,6 +376,24 @@ class TelemetryBuffer:
         if 0 < h_acc < 0xFFFFFFFF:
             self.gnss_sigma_m = max(h_acc / 1000.0, MIN_GNSS_SIGMA_M)
             self.alt_sigma_m = height_sigma_m(self.gnss_sigma_m, self._alt_sigma_floor_m)
+
+    def _take_heartbeat(self, msg: Any, now: float) -> None:
+        """HEARTBEAT: the armed state and flight mode; a change is logged once."""
+        state = FlightState.from_heartbeat(msg, now)
+        old = self._flight
+        if old is None or (old.armed, old.mode) != (state.armed, state.mode):
+            log.info("autopilot %s, mode %s", "armed" if state.armed else "disarmed", state.mode)
+        self._flight = state
+
+    @property
+    def flight_state(self) -> FlightState | None:
+        """The newest HEARTBEAT's armed state and flight mode (None before one)."""
+        return self._flight
+
+    def takeover_refusal(self, now: float | None = None) -> str:
+        """Why the vehicle may not be sent anywhere now ("" when it may): disarmed, a mode
+        not known to be safe to take over (RTL, LAND...), or no current HEARTBEAT."""
+        return takeover_refusal(self._flight, time.monotonic() if now is None else now)
 
     def _sender_time(
         self, source: tuple[int, int], mtype: str, msg: Any, now: float
@@ -598,6 +623,7 @@ class TelemetryBuffer:
                 series.clear()
             self._home = None
             self._gps = None
+            self._flight = None
             self._clocks.clear()
             self._autopilot_source = None
             self._series_source.clear()

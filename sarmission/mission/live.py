@@ -209,6 +209,7 @@ class LiveSession:
             move_gate=MoveGate.from_mission(mission),
             aircraft_position=telemetry.latest_position,
             gimbal_present=lambda: telemetry.gimbal_reported,
+            takeover=telemetry.takeover_refusal,
         )
         resumed = self.actions.resume()
         if resumed:
