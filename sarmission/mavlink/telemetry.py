@@ -23,7 +23,13 @@ Sources, per kind (newest wins when two give the same time):
   3D fix) and ``h_acc`` (mm, when non-zero) as the 1-sigma GNSS error per horizontal axis.
 
 Every message is checked first (:mod:`~sarmission.mavlink.telemetry_checks`: finite, in range,
-unit quaternions); GLOBAL_POSITION_INT must also not jump faster than an aircraft flies. A
+unit quaternions); GLOBAL_POSITION_INT must also not jump faster than an aircraft flies: a
+position further from its nearest believed neighbour than :data:`MAX_SPEED_MPS` times the time
+between them (at least 0.1 s) plus :data:`JUMP_SLACK_M` is rejected, however long the gap. A
+jump that persists (the rejected positions agree with one another for :data:`JUMP_CONFIRM_S`:
+the autopilot's EKF or GNSS moved its position and keeps it there) is believed with one
+warning, and the positions before it are dropped (no interpolation across it); an autopilot
+reboot (its clock restarts) drops them too. A
 rejected message is counted in :attr:`TelemetryBuffer.rejected` by reason and warned about at
 most once per :data:`WARN_INTERVAL_S` per reason; it never raises.
 
@@ -94,8 +100,8 @@ MESSAGE_TYPES = (
 _AUTOPILOT_TYPES = frozenset(("GLOBAL_POSITION_INT", "ATTITUDE", "ATTITUDE_QUATERNION"))
 #: A GPS_RAW_INT older than this says nothing about the current fix (seconds).
 GPS_FIX_MAX_AGE_S = 5.0
-#: Positions closer in time than this are checked against each other for jumps (seconds).
-JUMP_CHECK_S = 2.0
+#: A position jump is believed once the rejected positions agree for this long (seconds).
+JUMP_CONFIRM_S = 10.0
 #: Jump allowance on top of the fastest speed: GNSS noise and EKF resets (metres).
 JUMP_SLACK_M = 10.0
 #: Least seconds between two warnings of the same rejection reason.
@@ -260,6 +266,28 @@ class _Series:
 
 
 @dataclass(frozen=True)
+class _JumpChain:
+    """Positions rejected as a jump that agree with one another: the first one's time, the
+    newest one's, and where the newest is."""
+
+    first_t: float
+    last_t: float
+    lat: float
+    lon: float
+    count: int = 1
+
+
+def _reach_m(dt: float) -> float:
+    """How far an aircraft may be from where it was ``dt`` seconds before (metres)."""
+    return MAX_SPEED_MPS * max(abs(dt), 0.1) + JUMP_SLACK_M
+
+
+def _distance_m(lat: float, lon: float, lat0: float, lon0: float) -> float:
+    n, e, _ = geodetic_to_ned(lat, lon, 0.0, lat0, lon0, 0.0)
+    return math.hypot(float(n), float(e))
+
+
+@dataclass(frozen=True)
 class _Position:
     lat: float
     lon: float
@@ -335,6 +363,7 @@ class TelemetryBuffer:
         self._series_source: dict[str, tuple[int, int]] = {}
         self._gps: tuple[float, int] | None = None  # (arrival, fix_type) of the newest GPS_RAW_INT
         self._flight: FlightState | None = None  # the newest HEARTBEAT's armed state and mode
+        self._jump: _JumpChain | None = None  # positions rejected as a jump, while they agree
         self._position = _Series("position")
         self._attitude = _Series("attitude")
         self._gimbal = _Series("gimbal attitude")
@@ -475,6 +504,8 @@ class TelemetryBuffer:
             if self._series_source.get(name) == source and series.times:
                 series.clear()
                 dropped.append(name)
+                if name == "position":
+                    self._jump = None
         if source == self._autopilot_source:
             self._home = None
             self._gps = None
@@ -525,7 +556,7 @@ class TelemetryBuffer:
                 return
         lat, lon = msg.lat / 1e7, msg.lon / 1e7
         jump = self._position_jump(t, lat, lon)
-        if jump:
+        if jump and not self._jump_persists(t, lat, lon):
             self._reject("GLOBAL_POSITION_INT", jump)
             return
         self._series_source["position"] = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
@@ -539,10 +570,14 @@ class TelemetryBuffer:
         )
 
     def _position_jump(self, t: float, lat: float, lon: float) -> str:
-        """Why a position at ``t`` is implausible next to its nearest buffered neighbour."""
+        """Why a position at ``t`` is implausible next to its nearest buffered neighbour: the
+        allowance grows with the time between them, there is no time beyond which anything
+        goes. One that fits the jump in progress better than the believed track joins the
+        jump; a plausible one ends it (the glitch is over)."""
         with self._lock:
             times = self._position.times
             if not times:
+                self._jump = None
                 return ""
             i = bisect.bisect_left(times, t)
             nearest = min(
@@ -550,13 +585,53 @@ class TelemetryBuffer:
             )
             near_t, near = times[nearest], self._position.values[nearest]
         dt = abs(t - near_t)
-        if dt > JUMP_CHECK_S:
-            return ""
-        n, e, _ = geodetic_to_ned(lat, lon, 0.0, near.lat, near.lon, 0.0)
-        distance = math.hypot(float(n), float(e))
+        distance = _distance_m(lat, lon, near.lat, near.lon)
         if distance > MAX_SPEED_MPS * max(dt, 0.1) + JUMP_SLACK_M:
             return f"position jump of {distance:.0f} m in {dt:.2f} s"
+        chain_fit = self._jump_fit(t, lat, lon)
+        if chain_fit <= 1.0 and chain_fit < distance / _reach_m(dt):
+            return f"position agrees with a jump of {distance:.0f} m not yet believed"
+        self._jump = None
         return ""
+
+    def _jump_fit(self, t: float, lat: float, lon: float) -> float:
+        """Distance of a position at ``t`` from the newest of the jump in progress, as a
+        fraction of an aircraft's reach since then (<= 1: it continues the jump; inf: none)."""
+        chain = self._jump
+        if chain is None:
+            return math.inf
+        return _distance_m(lat, lon, chain.lat, chain.lon) / _reach_m(t - chain.last_t)
+
+    def _jump_continues(self, t: float, lat: float, lon: float) -> bool:
+        """Whether a position at ``t`` is reachable from the newest of the jump in progress."""
+        return self._jump_fit(t, lat, lon) <= 1.0
+
+    def _jump_persists(self, t: float, lat: float, lon: float) -> bool:
+        """A rejected position joins the jump in progress (or starts one); True once the jump
+        has held for :data:`JUMP_CONFIRM_S`: then it is believed (one warning) and the
+        positions from before it are dropped."""
+        chain = self._jump
+        if chain is None or not self._jump_continues(t, lat, lon):
+            self._jump = _JumpChain(t, t, lat, lon)
+            return False
+        chain = _JumpChain(chain.first_t, max(chain.last_t, t), lat, lon, chain.count + 1)
+        if chain.last_t - chain.first_t < JUMP_CONFIRM_S:
+            self._jump = chain
+            return False
+        newest = self.latest_position()
+        moved = _distance_m(lat, lon, *newest) if newest is not None else math.nan
+        with self._lock:
+            self._position.clear()
+            self._jump = None
+            self.resets += 1
+        log.warning(
+            "position jumped %.0f m and stayed there for %.0f s (%d positions): believed as the "
+            "autopilot's new position (an EKF or GNSS reset); earlier positions dropped",
+            moved,
+            chain.last_t - chain.first_t,
+            chain.count,
+        )
+        return True
 
     # -- direct input (replay, simulator) ------------------------------------------------------
     def push_position(
@@ -624,6 +699,7 @@ class TelemetryBuffer:
             self._home = None
             self._gps = None
             self._flight = None
+            self._jump = None
             self._clocks.clear()
             self._autopilot_source = None
             self._series_source.clear()
