@@ -10,7 +10,9 @@ adopted one is alive is only warned about (at most every :data:`RIVAL_WARN_S`): 
 one link is either a misconfiguration or a spoofer, and pinning is the cure.
 
 :func:`source_kind` says whether a message comes from the adopted autopilot, from a gimbal of its
-system, or from someone else, for the link's source filter.
+system, or from someone else, for the link's source filter. Of several gimbals the telemetry
+buffer uses one (:class:`~sarmission.mavlink.telemetry.TelemetryBuffer`: the configured one,
+else the first heard).
 """
 
 from __future__ import annotations

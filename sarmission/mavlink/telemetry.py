@@ -14,6 +14,11 @@ Sources, per kind (newest wins when two give the same time):
   when finite, else ``yaw`` relative to the heading). If no gimbal message was ever received the
   fixed mount given to the constructor is used (a hard mount, or an autopilot without a gimbal
   driver). Once a gimbal has reported, it must keep reporting: stale gimbal data is no pose.
+  One gimbal is used: the one pinned (``gimbal_pin``: component and/or ``gimbal_device_id``),
+  else the first heard, as (system, component, ``gimbal_device_id``; MOUNT_ORIENTATION counts
+  as device 0). Another one's attitude is rejected (counted, warned about at most every
+  :data:`WARN_INTERVAL_S`): two attitudes mixed into one camera would alternate frame by frame.
+  The one in use falling silent makes the pose stale; nothing switches to another.
 - HOME_POSITION: home ``(lat, lon, alt)``, the ground plane for geolocation. With
   ``require_home`` (the default) there is no pose until the autopilot has reported it.
 - HEARTBEAT: the armed state and flight mode (:mod:`~sarmission.mavlink.flight_mode`);
@@ -305,10 +310,19 @@ def _as_quaternion(q_or_rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     raise ValueError(f"expected a quaternion (w, x, y, z) or (roll, pitch, yaw), got {v.size}")
 
 
+def _gimbal_text(key: GimbalKey) -> str:
+    """A gimbal in words: "1/154 device 0"."""
+    return f"{key[0]}/{key[1]} device {key[2]}"
+
+
 def height_sigma_m(gnss_sigma_m: float, floor_m: float = MIN_HEIGHT_SIGMA_M) -> float:
     """The 1-sigma error of the height a fix rests on: at least :data:`VERTICAL_PER_HORIZONTAL`
     times the horizontal GNSS error, and at least ``floor_m``."""
     return max(floor_m, VERTICAL_PER_HORIZONTAL * gnss_sigma_m)
+
+
+#: A gimbal: (system, component, gimbal_device_id).
+GimbalKey = tuple[int, int, int]
 
 
 class TelemetryBuffer:
@@ -324,6 +338,8 @@ class TelemetryBuffer:
     its floor: a barometer drifts too).
     ``require_home``: no pose until a home is known (HOME_POSITION or :meth:`set_home`);
     ``require_gps_fix``: GLOBAL_POSITION_INT only while GPS_RAW_INT reports a 3D fix.
+    ``gimbal_pin``: (component, gimbal_device_id) of the gimbal to use, either None for any;
+    (None, None): the first gimbal heard.
     """
 
     def __init__(
@@ -338,6 +354,7 @@ class TelemetryBuffer:
         clock: BootClock | None = None,
         require_home: bool = True,
         require_gps_fix: bool = True,
+        gimbal_pin: tuple[int | None, int | None] = (None, None),
     ) -> None:
         if mount_frame not in GIMBAL_FRAMES:
             raise ValueError(f"mount_frame must be one of {GIMBAL_FRAMES}, got {mount_frame!r}")
@@ -364,6 +381,8 @@ class TelemetryBuffer:
         self._gps: tuple[float, int] | None = None  # (arrival, fix_type) of the newest GPS_RAW_INT
         self._flight: FlightState | None = None  # the newest HEARTBEAT's armed state and mode
         self._jump: _JumpChain | None = None  # positions rejected as a jump, while they agree
+        self.gimbal_pin = gimbal_pin
+        self._gimbal_key: GimbalKey | None = None  # the gimbal in use
         self._position = _Series("position")
         self._attitude = _Series("attitude")
         self._gimbal = _Series("gimbal attitude")
@@ -391,12 +410,40 @@ class TelemetryBuffer:
             self._take_gps(msg, now)
         elif mtype == "HEARTBEAT":
             self._take_heartbeat(msg, now)
+        elif mtype in ("GIMBAL_DEVICE_ATTITUDE_STATUS", "MOUNT_ORIENTATION") and (
+            not self._gimbal_in_use(mtype, msg, source)
+        ):
+            return
         elif mtype != "SYSTEM_TIME":
             t = self._sender_time(source, mtype, msg, now)
             if t is None:
                 self._reject(mtype, "time_boot_ms off the sender's timeline")
             else:
                 self._take_timed(mtype, msg, t, now, source)
+
+    def _gimbal_in_use(self, mtype: str, msg: Any, source: tuple[int, int]) -> bool:
+        """Whether a gimbal attitude comes from the gimbal in use (the pinned one, else the
+        first heard, adopted here); another one's is rejected."""
+        device = int(getattr(msg, "gimbal_device_id", 0) or 0)
+        key = (source[0], source[1], device)
+        pin_component, pin_device = self.gimbal_pin
+        if (pin_component is not None and key[1] != pin_component) or (
+            pin_device is not None and key[2] != pin_device
+        ):
+            self._reject(mtype, f"gimbal {_gimbal_text(key)} is not the configured one")
+            return False
+        if self._gimbal_key is None:
+            self._gimbal_key = key
+            log.info("gimbal %s in use for the camera's attitude", _gimbal_text(key))
+            return True
+        if key != self._gimbal_key:
+            self._reject(
+                mtype,
+                f"a second gimbal {_gimbal_text(key)}; using {_gimbal_text(self._gimbal_key)} "
+                "(pin one with [camera] gimbal_component / gimbal_device_id)",
+            )
+            return False
+        return True
 
     def _take_gps(self, msg: Any, now: float) -> None:
         """GPS_RAW_INT: the fix type (no position is believed without a fix) and its accuracy."""
@@ -700,6 +747,7 @@ class TelemetryBuffer:
             self._gps = None
             self._flight = None
             self._jump = None
+            self._gimbal_key = None
             self._clocks.clear()
             self._autopilot_source = None
             self._series_source.clear()
