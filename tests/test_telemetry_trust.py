@@ -289,3 +289,15 @@ def test_a_gimbal_component_has_its_own_clock():
     assert not buf.rejected
     pose = buf.pose_at(last)
     assert pose is not None and pose.gimbal_rpy[1] == pytest.approx(-math.pi / 2, abs=1e-6)
+
+
+def test_no_pose_for_a_time_before_the_autopilot_was_replaced():
+    """A frame taken just before another autopilot was adopted is not placed with the new
+    one's telemetry, although its first samples are within the staleness limit of it."""
+    buf = TelemetryBuffer()
+    last = feed(buf, 10.0, 20)
+    buf.reset("autopilot 1/1 replaced by 2/1", at=last + 0.5)
+    new = feed(buf, last + 0.6, 20, start_ms=50_000, source=(2, 1))
+    assert buf.pose_at(new) is not None
+    stale = buf.lookup(last + 0.4)  # 0.2 s before the new autopilot's first sample
+    assert isinstance(stale, StaleTelemetry) and "before the autopilot was replaced" in stale.reason

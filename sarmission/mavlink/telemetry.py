@@ -383,6 +383,7 @@ class TelemetryBuffer:
         self._jump: _JumpChain | None = None  # positions rejected as a jump, while they agree
         self.gimbal_pin = gimbal_pin
         self._gimbal_key: GimbalKey | None = None  # the gimbal in use
+        self._valid_from = -math.inf  # no pose before this time (the last autopilot switch)
         self._position = _Series("position")
         self._attitude = _Series("attitude")
         self._gimbal = _Series("gimbal attitude")
@@ -738,9 +739,12 @@ class TelemetryBuffer:
         with self._lock:
             return bool(self._gimbal.times)
 
-    def reset(self, why: str) -> None:
-        """Forget every sample, the home and the clocks (e.g. another autopilot was adopted)."""
+    def reset(self, why: str, at: float | None = None) -> None:
+        """Forget every sample, the home and the clocks (e.g. another autopilot was adopted),
+        and refuse poses for times before ``at`` (default now): a frame taken before the switch
+        is never placed with the new autopilot's telemetry."""
         with self._lock:
+            self._valid_from = time.monotonic() if at is None else at
             for series in (self._position, self._attitude, self._gimbal):
                 series.clear()
             self._home = None
@@ -775,6 +779,8 @@ class TelemetryBuffer:
         if not math.isfinite(t):
             return StaleTelemetry(t, "frame time not finite")
         with self._lock:
+            if t < self._valid_from:
+                return StaleTelemetry(t, "taken before the autopilot was replaced")
             if self.require_home and self._home is None:
                 return StaleTelemetry(t, "no home position from the autopilot yet")
             pos = self._interp_position(t)
