@@ -1,6 +1,7 @@
 """Actions a pilot can live with, over real UDP against the simulated vehicle: one visit plan
 instead of a reposition per alert, the pilot's mission kept when visits go into it, moving
-commands only to bounded positions inside the area, the ROI pause only with a gimbal."""
+commands only to bounded positions inside the area, the ROI pause only with a gimbal, and
+none while the vehicle lands or returns home."""
 
 import pymap3d
 import pytest
@@ -11,7 +12,9 @@ from sarmission.alerts.store import AlertStore
 from sarmission.mavlink.commands import CommandSender, Outbox
 from sarmission.mavlink.connection import M, MavlinkLink
 from sarmission.mavlink.mission_transfer import WireItem
-from sarmission.mission.actions import ActionPolicy
+from sarmission.mavlink.outbox_commands import Reposition
+from sarmission.mavlink.telemetry import MESSAGE_TYPES, TelemetryBuffer
+from sarmission.mission.actions import ActionPolicy, _Key
 from sarmission.mission.config import load_mission
 from sarmission.mission.visits import MoveGate
 from sim.vehicle import MissionItem, SimVehicle
@@ -49,6 +52,9 @@ class Rig:
         port = free_udp_port()
         self.vehicle = SimVehicle(f"udpin:127.0.0.1:{port}", self.mission).start()
         self.link = MavlinkLink(f"udpout:127.0.0.1:{port}")
+        # the vehicle's armed state and flight mode come from its HEARTBEAT, as in a live run
+        self.telemetry = TelemetryBuffer()
+        self.link.subscribe_autopilot(self.telemetry.handle_message, MESSAGE_TYPES)
         # a generous ACK wait: on a loaded machine a re-send after a slow ACK reaches the
         # vehicle as a second command and the counts below would be off
         self.outbox = Outbox(CommandSender(self.link, retries=2, ack_timeout_s=5.0))
@@ -56,6 +62,7 @@ class Rig:
         self.lines: list[str] = []
         self.clock = Clock()
         assert self.link.wait_autopilot(5.0)
+        assert wait_until(lambda: self.telemetry.flight_state is not None, 5.0)
         self.policy = ActionPolicy(
             self.mission.actions,
             self.outbox,
@@ -66,6 +73,7 @@ class Rig:
             move_gate=MoveGate.from_mission(self.mission),
             aircraft_position=lambda: aircraft,
             gimbal_present=lambda: gimbal,
+            takeover=self.telemetry.takeover_refusal,
         )
 
     def alert(
@@ -330,3 +338,62 @@ def test_a_refined_position_moves_a_queued_visit_or_withdraws_it(rig_factory):
     flown = rig.commands(M.MAV_CMD_DO_REPOSITION)
     assert len(flown) == 2
     assert flown[1].params[4:6] == pytest.approx([round(v * 1e7) for v in at(150.0, -30.0)], abs=1)
+
+
+COPTER_RTL, COPTER_LAND = 6, 9
+
+
+def set_mode(rig: Rig, custom_mode: int, name: str) -> None:
+    """The vehicle switches mode (as the pilot or a failsafe does); wait for its HEARTBEAT."""
+    rig.vehicle.autopilot.custom_mode = custom_mode
+    assert wait_until(lambda: rig.telemetry.flight_state.mode == name, 5.0)
+
+
+def test_no_loiter_or_roi_while_the_vehicle_lands_the_alert_still_goes_out(rig_factory):
+    """A confirmed alert while the pilot lands: no DO_REPOSITION (it would switch to GUIDED and
+    cancel the landing), no ROI; the STATUSTEXT goes out, and the console says why."""
+    rig = rig_factory(["alert", "loiter", "roi"], aircraft=at(40.0, 0.0))
+    set_mode(rig, COPTER_LAND, "LAND")
+    rig.alert(1, 100.0, 0.0)
+    rig.clock.t += 1.0
+    rig.policy.tick()
+    rig.settle()
+    assert not rig.commands(M.MAV_CMD_DO_REPOSITION)
+    assert not rig.commands(M.MAV_CMD_DO_SET_ROI_LOCATION)
+    assert wait_until(lambda: len(rig.vehicle.statustexts) == 1, 5.0)
+    withheld = [line for line in rig.lines if "withheld: vehicle in LAND" in line]
+    assert len(withheld) == 2, rig.lines  # loiter and roi, one line each
+    assert rig.policy.planner.pending == {}
+
+
+def test_a_visit_queued_before_rtl_is_withdrawn_when_due(rig_factory):
+    """In AUTO the first visit leaves; the second, queued behind the visit interval, is due
+    after the pilot switched to RTL: it is withdrawn, not flown."""
+    rig = rig_factory(["loiter"], aircraft=at(40.0, 0.0))
+    rig.alert(1, 60.0, 0.0)
+    rig.clock.t += 1.0
+    rig.settle()
+    assert len(rig.commands(M.MAV_CMD_DO_REPOSITION)) == 1
+    rig.alert(2, 150.0, 0.0)
+    set_mode(rig, COPTER_RTL, "RTL")
+    rig.clock.t += 120.0
+    rig.settle()
+    assert len(rig.commands(M.MAV_CMD_DO_REPOSITION)) == 1
+    assert any("visit withdrawn: vehicle in RTL" in line for line in rig.lines), rig.lines
+
+
+def test_a_command_queued_in_auto_is_withheld_if_the_vehicle_returns_before_it_goes(
+    rig_factory,
+):
+    """The outbox asks the policy right before sending (a command queued while the link was
+    down meets the vehicle as it is then)."""
+    rig = rig_factory(["loiter"], aircraft=at(40.0, 0.0))
+    set_mode(rig, COPTER_RTL, "RTL")
+    alert = make_alert(7, position=at(60.0, 0.0), error_m=3.0)
+    rig.store.add(alert)
+    key = _Key(alert.alert_id, "mavlink_loiter", 7, alert.short_id)
+    rig.outbox.submit(Reposition(*at(60.0, 0.0), 50.0), key=key)
+    rig.settle()
+    assert not rig.commands(M.MAV_CMD_DO_REPOSITION)
+    assert any("loiter withheld: vehicle in RTL" in line for line in rig.lines), rig.lines
+    assert rig.policy.withheld == 1 and rig.policy.refused == 0

@@ -51,17 +51,34 @@ def test_which_heartbeats_claim_a_flight_controller(msg, is_autopilot):
 
 
 def test_a_rival_is_adopted_only_after_more_than_the_link_timeout():
+    """Of the same system (another component): after the link timeout."""
     adoption = Adoption(link_timeout_s=3.0)
     first = adoption.heartbeat((1, 1), 10.0)
     assert first is not None and first.new == (1, 1) and first.old is None
     adoption.heard((1, 1), 12.0)  # any message keeps it alive
-    assert adoption.heartbeat((2, 1), 14.0) is None  # silent 2 s
-    assert adoption.heartbeat((2, 1), 15.0) is None  # silent exactly the timeout: still alive
-    assert adoption.adopted == (1, 1) and adoption.rivals(15.0) == [(2, 1)]
-    change = adoption.heartbeat((2, 1), 15.5)  # silent 3.5 s
-    assert change is not None and change.new == (2, 1) and change.old == (1, 1)
+    assert adoption.heartbeat((1, 2), 14.0) is None  # silent 2 s
+    assert adoption.heartbeat((1, 2), 15.0) is None  # silent exactly the timeout: still alive
+    assert adoption.adopted == (1, 1) and adoption.rivals(15.0) == [(1, 2)]
+    change = adoption.heartbeat((1, 2), 15.5)  # silent 3.5 s
+    assert change is not None and change.new == (1, 2) and change.old == (1, 1)
     assert change.silent_s == pytest.approx(3.5)
-    assert adoption.adopted == (2, 1) and adoption.adoptions == 2
+    assert adoption.adopted == (1, 2) and adoption.adoptions == 2
+
+
+def test_another_system_is_not_adopted_after_a_fade_and_the_former_is_taken_back():
+    """A 3 s fade does not hand the link to another vehicle (system 2): only a minute of
+    silence does; the former autopilot heard again is taken back at once."""
+    adoption = Adoption(link_timeout_s=3.0)
+    adoption.heartbeat((1, 1), 10.0)
+    for t in (14.0, 20.0, 40.0, 70.0):  # silent 4..60 s
+        assert adoption.heartbeat((2, 1), t) is None, t
+    assert adoption.heartbeat((1, 1), 70.5) is None  # back: still the adopted one
+    assert adoption.adopted == (1, 1) and adoption.adoptions == 1
+    change = adoption.heartbeat((2, 1), 131.0)  # silent 60.5 s: gone
+    assert change is not None and change.new == (2, 1) and change.old == (1, 1)
+    back = adoption.heartbeat((1, 1), 131.5)  # the former is heard again
+    assert back is not None and back.new == (1, 1) and back.old == (2, 1)
+    assert adoption.adopted == (1, 1) and adoption.adoptions == 3
 
 
 @pytest.mark.parametrize(

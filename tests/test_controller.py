@@ -403,6 +403,7 @@ def test_alert_reaches_the_autopilot_sent_repeatedly_and_loiter_acknowledged(tmp
             survey_altitude_m=50.0,
             console=lines.append,
             move_gate=MoveGate.from_mission(mission),
+            takeover=lambda: "",
         )
         ctl = MissionController(
             mission,
@@ -487,6 +488,7 @@ def test_roi_is_held_then_released_and_the_search_pauses_meanwhile(tmp_path, mis
             clock=lambda: now[0],
             move_gate=MoveGate.from_mission(mission),
             gimbal_present=lambda: True,
+            takeover=lambda: "",
         )
         detector = ScriptedDetector(script_3_of_5(mission, n))
         ctl = MissionController(

@@ -59,6 +59,7 @@ def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp
             survey_altitude_m=50.0,
             console=lines.append,
             move_gate=MoveGate.from_mission(mission),
+            takeover=lambda: "",
         )
         alert = make_alert(1)
         store.add(alert)

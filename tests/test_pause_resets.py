@@ -156,6 +156,7 @@ def test_a_refused_camera_release_ends_the_pause_and_resets(tmp_path, mission):
             clock=lambda: now[0],
             move_gate=MoveGate.from_mission(mission),
             gimbal_present=lambda: True,
+            takeover=lambda: "",
         )
         detector = target_everywhere(200)
         ctl = MissionController(

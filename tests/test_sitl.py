@@ -627,6 +627,7 @@ def test_mission_policy_keeps_the_pilots_mission(
             console=lines.append,
             move_gate=gate,
             aircraft_position=lambda: airborne.position()[:2],
+            takeover=lambda: "",
         )
         alert = alert_at(*target)
         store.add(alert)

@@ -217,3 +217,80 @@ def test_messages_home_gps_accuracy_mount_orientation_and_no_origin():
     assert np.degrees(pose.gimbal_rpy) == pytest.approx((0.0, -60.0, 70.0), abs=1e-9)
     buf.handle_message(M.MAVLink_mount_orientation_message(1100, 0.0, -60.0, 10.0, NAN), 10.1)
     assert buf.pose_at(10.1).gimbal_frame == "vehicle"
+
+
+def from_source(msg, system: int, component: int):
+    """``msg`` as received from ``system``/``component`` (encoded and parsed)."""
+    mav = M.MAVLink(None, srcSystem=system, srcComponent=component)
+    parser = M.MAVLink(None)
+    (parsed,) = parser.parse_buffer(msg.pack(mav))
+    return parsed
+
+
+def two_gimbals(buf: TelemetryBuffer, second: bool = True, until_s: float = 1.5) -> None:
+    """The autopilot 1/1 with position and attitude; gimbal 1/154 nadir and (``second``)
+    1/171 at 30 degrees below the horizon, interleaved, every 0.05 s from 50.0."""
+    nadir = euler_to_quaternion(0.0, -math.pi / 2 + 1e-3, 0.0)
+    oblique = euler_to_quaternion(0.0, math.radians(-30.0), 0.0)
+    flags = GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME
+    for k in range(round(until_s / 0.05)):
+        arrival, ms = 50.0 + 0.05 * k, 1000 + 50 * k
+        gps_fix(arrival, buf)
+        buf.handle_message(
+            from_source(
+                M.MAVLink_global_position_int_message(
+                    ms, 541700000, 78900000, 0, 60000, 0, 0, 0, 0
+                ),
+                1,
+                1,
+            ),
+            arrival,
+        )
+        buf.handle_message(
+            from_source(M.MAVLink_attitude_message(ms, 0, 0, 0, 0, 0, 0), 1, 1), arrival
+        )
+        buf.handle_message(from_source(gimbal_msg(ms, nadir, flags), 1, 154), arrival)
+        if second:
+            buf.handle_message(
+                from_source(gimbal_msg(ms + 25, oblique, flags), 1, 171), arrival + 0.025
+            )
+
+
+def test_two_gimbals_one_is_used_the_other_rejected():
+    """The first gimbal heard is the camera's; the second one's attitude never mixes in, so
+    consecutive frames do not alternate between nadir and 30 degrees down."""
+    buf = home_buffer(stale_after_s=1.0)
+    two_gimbals(buf)
+    pitches = [math.degrees(buf.pose_at(50.5 + 0.025 * k).gimbal_rpy[1]) for k in range(10)]
+    assert pitches == pytest.approx([-89.9] * 10, abs=0.1)
+    rejected = [why for why in buf.rejected if "a second gimbal" in why]
+    assert len(rejected) == 1 and buf.rejected[rejected[0]] == 30
+
+
+def test_a_pinned_gimbal_is_used_even_when_heard_second():
+    buf = home_buffer(stale_after_s=1.0, gimbal_pin=(171, None))
+    two_gimbals(buf)
+    assert math.degrees(buf.pose_at(51.0).gimbal_rpy[1]) == pytest.approx(-30.0, abs=0.1)
+
+
+def test_the_gimbal_in_use_falling_silent_makes_the_pose_stale():
+    """Gimbal 1/154 stops at 51.5; 1/171 keeps reporting: no pose, not 1/171's attitude."""
+    buf = home_buffer(stale_after_s=1.0)
+    two_gimbals(buf, until_s=1.5)
+    nadir_until = 50.0 + 1.45
+    oblique = euler_to_quaternion(0.0, math.radians(-30.0), 0.0)
+    for k in range(1, 60):
+        arrival, ms = nadir_until + 0.05 * k, 1000 + 50 * (29 + k)
+        gps_fix(arrival, buf)
+        position = M.MAVLink_global_position_int_message(
+            ms, 541700000, 78900000, 0, 60000, 0, 0, 0, 0
+        )
+        buf.handle_message(from_source(position, 1, 1), arrival)
+        buf.handle_message(
+            from_source(M.MAVLink_attitude_message(ms, 0, 0, 0, 0, 0, 0), 1, 1), arrival
+        )
+        msg = gimbal_msg(ms, oblique, GIMBAL_DEVICE_FLAGS_YAW_IN_VEHICLE_FRAME)
+        buf.handle_message(from_source(msg, 1, 171), arrival)
+    assert buf.newest_time("position") == pytest.approx(nadir_until + 0.05 * 59)
+    result = buf.lookup(nadir_until + 2.5)
+    assert isinstance(result, StaleTelemetry) and "gimbal attitude" in result.reason, result

@@ -106,11 +106,15 @@ def test_position_jumps_at_the_speed_ceiling_and_its_slack():
     assert not jump_accepted(0.1, 30.0)
     # closer than 0.1 s: still 0.1 s of flight allowed
     assert jump_accepted(0.02, 20.0)
-    # 1.5 s apart: 235 m; checked (less than 2 s apart)
+    # 1.5 s apart: 235 m
     assert jump_accepted(1.5, 220.0)
     assert not jump_accepted(1.5, 260.0)
-    # 2.5 s apart: not checked against each other (a gap, then an EKF reset may move it)
-    assert jump_accepted(2.5, 700.0)
+    # 2.5 s apart: 385 m; the allowance grows with the gap, it never stops
+    assert jump_accepted(2.5, 380.0)
+    assert not jump_accepted(2.5, 700.0)
+    # 60 s apart: 9,010 m
+    assert jump_accepted(60.0, 9000.0)
+    assert not jump_accepted(60.0, 9100.0)
 
 
 def test_a_2d_gps_fix_is_not_enough():

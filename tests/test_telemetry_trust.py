@@ -8,7 +8,7 @@ import math
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from sarmission.mavlink.telemetry import StaleTelemetry, TelemetryBuffer
+from sarmission.mavlink.telemetry import JUMP_CONFIRM_S, StaleTelemetry, TelemetryBuffer
 
 NAN, INF = float("nan"), float("inf")
 AUTOPILOT = (1, 1)
@@ -165,6 +165,68 @@ def test_a_position_jump_faster_than_an_aircraft_is_rejected():
     assert buf.pose_at(last + 0.1).lat == pytest.approx(HOME_LAT)
 
 
+JUMP_LAT = HOME_LAT + 0.05  # 5.6 km north
+
+
+def positions(buf, t0, seconds, lat, start_ms):
+    """Position, attitude and GPS every 0.1 s for ``seconds`` from arrival ``t0`` (boot time
+    ``start_ms`` then); returns the last arrival."""
+    n = round(seconds * 10)
+    for k in range(n):
+        arrival, ms = t0 + 0.1 * k, start_ms + 100 * k
+        buf.handle_message(wire(gps()), arrival)
+        buf.handle_message(wire(position(ms, lat=lat)), arrival)
+        buf.handle_message(wire(attitude(ms)), arrival)
+    return t0 + 0.1 * (n - 1)
+
+
+def jumped(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "position jumped" in r.getMessage()]
+
+
+def test_a_jump_after_a_gap_is_rejected_until_it_persists_then_believed_once(caplog):
+    """A 2.5 s gap in the positions does not let a 5.6 km jump through (the allowance grows
+    with the gap: 385 m); held for JUMP_CONFIRM_S it is believed, with one warning, and the
+    positions from before it are dropped."""
+    buf = TelemetryBuffer()
+    last = feed(buf, 10.0, 20)  # boot ms 10_000..11_900
+    with caplog.at_level(logging.WARNING, logger="sarmission.mavlink.telemetry"):
+        t = positions(buf, last + 2.5, JUMP_CONFIRM_S - 1.0, JUMP_LAT, 11_900 + 2_500)
+        assert isinstance(buf.lookup(t), StaleTelemetry)  # no position believed for 9 s
+        assert buf.latest_position()[0] == pytest.approx(HOME_LAT)
+        assert jumped(caplog) == []
+        t = positions(buf, t + 0.1, 2.0, JUMP_LAT, 11_900 + round((t + 0.1 - last) * 1000))
+    assert len(jumped(caplog)) == 1
+    assert buf.pose_at(t).lat == pytest.approx(JUMP_LAT)
+    assert isinstance(buf.lookup(last), StaleTelemetry)  # nothing before the jump is kept
+
+
+def test_a_held_jump_is_not_believed_as_the_allowance_grows():
+    """1.2 km away, held: the time since the last believed position grows past what an
+    aircraft could fly in it (after 8 s), but the jump is only believed by its confirmation."""
+    buf = TelemetryBuffer()
+    last = feed(buf, 10.0, 20)
+    lat = HOME_LAT + 0.0108  # 1.2 km north
+    t = positions(buf, last + 0.1, JUMP_CONFIRM_S - 0.5, lat, 12_000)
+    assert buf.latest_position()[0] == pytest.approx(HOME_LAT)
+    positions(buf, t + 0.1, 1.0, lat, 11_900 + round((t + 0.1 - last) * 1000))
+    assert buf.latest_position()[0] == pytest.approx(lat)
+
+
+def test_a_glitch_that_returns_is_never_believed_and_the_track_goes_on(caplog):
+    buf = TelemetryBuffer()
+    last = feed(buf, 10.0, 20)
+    with caplog.at_level(logging.WARNING, logger="sarmission.mavlink.telemetry"):
+        t = positions(buf, last + 0.1, 3.0, JUMP_LAT, 12_000)  # 3 s away, then back
+        t = positions(buf, t + 0.1, 1.0, HOME_LAT, 12_000 + 3_000)
+    assert jumped(caplog) == []
+    assert buf.pose_at(t).lat == pytest.approx(HOME_LAT)
+    # a small glitch (30 m in 0.1 s) does not hold up the true positions after it
+    buf.handle_message(wire(position(16_000, lat=HOME_LAT + 0.00027)), t + 0.1)
+    t = positions(buf, t + 0.2, 1.0, HOME_LAT, 16_100)
+    assert buf.newest_time("position") == pytest.approx(t)
+
+
 def test_a_forged_time_jump_forward_is_rejected_and_moves_nothing():
     buf = TelemetryBuffer()
     last = feed(buf, 10.0, 10)
@@ -227,3 +289,15 @@ def test_a_gimbal_component_has_its_own_clock():
     assert not buf.rejected
     pose = buf.pose_at(last)
     assert pose is not None and pose.gimbal_rpy[1] == pytest.approx(-math.pi / 2, abs=1e-6)
+
+
+def test_no_pose_for_a_time_before_the_autopilot_was_replaced():
+    """A frame taken just before another autopilot was adopted is not placed with the new
+    one's telemetry, although its first samples are within the staleness limit of it."""
+    buf = TelemetryBuffer()
+    last = feed(buf, 10.0, 20)
+    buf.reset("autopilot 1/1 replaced by 2/1", at=last + 0.5)
+    new = feed(buf, last + 0.6, 20, start_ms=50_000, source=(2, 1))
+    assert buf.pose_at(new) is not None
+    stale = buf.lookup(last + 0.4)  # 0.2 s before the new autopilot's first sample
+    assert isinstance(stale, StaleTelemetry) and "before the autopilot was replaced" in stale.reason

@@ -4,13 +4,20 @@ Anyone on a MAVLink link can claim to be an autopilot. The link adopts one: the 
 autopilot-type HEARTBEAT (``autopilot`` not MAV_AUTOPILOT_INVALID, ``type`` a vehicle, not a ground
 station, companion computer, gimbal, camera, ADS-B receiver, antenna tracker...), restricted to
 ``target_system`` / ``target_component`` when those are pinned. It keeps that one until it has been
-silent for longer than ``link_timeout_s`` and another candidate's HEARTBEAT is heard; only then is
-the other adopted (a re-adoption, logged with both ids). A second candidate heard while the
-adopted one is alive is only warned about (at most every :data:`RIVAL_WARN_S`): two autopilots on
-one link is either a misconfiguration or a spoofer, and pinning is the cure.
+silent for longer than ``link_timeout_s`` and another candidate *of the same system* is heard;
+only then is the other adopted (a re-adoption, logged with both ids). The companion computer is on
+one vehicle: another system id is adopted only after the adopted autopilot has been silent for
+``system_switch_s`` (:data:`SYSTEM_SWITCH_S`, a minute: gone, not a fading link), and the former
+autopilot is taken back as soon as it is heard again. Data of one autopilot is never used for
+another (the telemetry buffer is emptied and refuses times before a switch). A second
+candidate heard while the adopted one is alive is only warned about (at most every
+:data:`RIVAL_WARN_S`): two autopilots on one link is either a misconfiguration or a spoofer, and
+pinning is the cure.
 
 :func:`source_kind` says whether a message comes from the adopted autopilot, from a gimbal of its
-system, or from someone else, for the link's source filter.
+system, or from someone else, for the link's source filter. Of several gimbals the telemetry
+buffer uses one (:class:`~sarmission.mavlink.telemetry.TelemetryBuffer`: the configured one,
+else the first heard).
 """
 
 from __future__ import annotations
@@ -67,6 +74,8 @@ GIMBAL_TYPES = frozenset({"GIMBAL_DEVICE_ATTITUDE_STATUS", "MOUNT_ORIENTATION"})
 
 #: Seconds between two warnings about a second autopilot (or a pinned-out one) on the link.
 RIVAL_WARN_S = 10.0
+#: Seconds the adopted autopilot must be silent before one of another system is adopted.
+SYSTEM_SWITCH_S = 60.0
 
 Source = tuple[int, int]
 
@@ -116,12 +125,16 @@ class Adoption:
         target_system: int | None = None,
         target_component: int | None = None,
         label: str = "",
+        system_switch_s: float = SYSTEM_SWITCH_S,
     ) -> None:
         self.link_timeout_s = link_timeout_s
+        self.system_switch_s = max(system_switch_s, link_timeout_s)
         self.target_system = target_system
         self.target_component = target_component
         self.label = label
         self.adopted: Source | None = None
+        #: The autopilot adopted before the current one (taken back when heard again).
+        self.former: Source | None = None
         self.adoptions = 0
         self.last_heard: float | None = None
         #: Other autopilot-type senders -> time of their last HEARTBEAT (pinned-out ones too).
@@ -159,23 +172,46 @@ class Adoption:
             )
             return None
         silent = self.silence_s(arrival)
-        if self.adopted is not None and silent <= self.link_timeout_s:
-            self._warn(
-                "rival",
-                arrival,
-                "two autopilots on the link: %d/%d (adopted) and %d/%d; pin one with "
-                "--target-system",
-                *self.adopted,
-                *src,
-            )
-            return None
+        if self.adopted is not None and src != self.former:
+            other_system = src[0] != self.adopted[0]
+            if silent <= self.link_timeout_s:
+                self._warn(
+                    "rival",
+                    arrival,
+                    "two autopilots on the link: %d/%d (adopted) and %d/%d; pin one with "
+                    "--target-system",
+                    *self.adopted,
+                    *src,
+                )
+                return None
+            if other_system and silent <= self.system_switch_s:
+                self._warn(
+                    ("other system", src),
+                    arrival,
+                    "autopilot %d/%d silent for %.1f s; not adopting %d/%d of another system "
+                    "before %.0f s of silence (pin it with --target-system)",
+                    *self.adopted,
+                    silent,
+                    *src,
+                    self.system_switch_s,
+                )
+                return None
         change = AdoptionChange(src, self.adopted, silent)
+        taken_back = self.adopted is not None and src == self.former
         self.candidates.pop(src, None)
+        self.former = self.adopted
         self.adopted = src
         self.adoptions += 1
         self.last_heard = arrival
         if change.old is None:
             log.info("autopilot %d/%d adopted%s", *src, self.label)
+        elif taken_back:
+            log.warning(
+                "autopilot %d/%d heard again: taken back from %d/%d%s",
+                *src,
+                *change.old,
+                self.label,
+            )
         else:
             log.warning(
                 "autopilot %d/%d silent for %.1f s; adopting autopilot %d/%d instead%s",

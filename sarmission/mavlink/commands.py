@@ -82,6 +82,7 @@ class CommandResult:
     answered (or STATUSTEXT, which has no answer: there ``accepted`` means sent).
     ``attempts``: messages sent for it. ``error``: "" when accepted, else a readable reason.
     ``reason``: for a refusal, what the autopilot said about it ("" when it said nothing).
+    ``withheld``: never sent, the outbox's gate refused it (``error`` says why).
     """
 
     name: str
@@ -90,11 +91,12 @@ class CommandResult:
     attempts: int
     error: str = ""
     reason: str = ""
+    withheld: bool = False
 
     @property
     def no_answer(self) -> bool:
         """True when the autopilot did not answer (worth retrying later)."""
-        return not self.accepted and self.result is None
+        return not self.accepted and self.result is None and not self.withheld
 
 
 @dataclass(frozen=True)
@@ -548,6 +550,8 @@ class Action:
 
 
 ActionCallback = Callable[[Action, CommandResult], None]
+#: ``gate(command)``: why ``command`` may not go out now ("" when it may).
+Gate = Callable[[OutboxCommand], str]
 
 
 @dataclass(frozen=True)
@@ -570,7 +574,9 @@ class Outbox:
     otherwise), ``repeat_interval_s`` apart, the earliest due first, at most one every
     :data:`STATUSTEXT_MIN_GAP_S`, only while the link is up; ``on_sent(action, result)`` after
     each send (``action.attempts`` sends so far; ``action.done`` after the last). The callbacks
-    run on the outbox's threads.
+    run on the outbox's threads. A ``gate`` (:meth:`set_gate`) is asked right before each
+    command goes out (a command queued while the link was down meets the vehicle as it is
+    then); one it refuses is not sent: ``on_refused`` with ``result.withheld``.
     """
 
     def __init__(
@@ -588,6 +594,7 @@ class Outbox:
             raise ValueError("statustext_repeats must be >= 1 and repeat_interval_s > 0")
         self.sender = sender
         self._callbacks = OutboxCallbacks(on_delivered, on_refused, on_sent)
+        self._gate: Gate | None = None
         self.poll_s = poll_s
         self.statustext_repeats = statustext_repeats
         self.repeat_interval_s = repeat_interval_s
@@ -615,6 +622,10 @@ class Outbox:
         """Replace who hears the outcomes (one owner, e.g. the action policy, which needs the
         outbox to exist before it can listen to it)."""
         self._callbacks = OutboxCallbacks(on_delivered, on_refused, on_sent)
+
+    def set_gate(self, gate: Gate | None) -> None:
+        """Ask ``gate(command)`` before each command is sent; a non-empty answer withholds it."""
+        self._gate = gate
 
     def submit(
         self,
@@ -667,6 +678,12 @@ class Outbox:
                 action = self._pending[0]
             if not link.link_ok:
                 return
+            why = self._gate(action.command) if self._gate is not None else ""
+            if why:
+                name = type(action.command).__name__
+                result = CommandResult(name, False, None, 0, f"withheld: {why}", why, True)
+                self._finish(action, result, self._callbacks.refused)
+                continue
             result = action.command.send(self.sender)
             action.attempts += 1
             action.last_result = result

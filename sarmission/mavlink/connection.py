@@ -45,6 +45,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from sarmission.mavlink.adoption import (
     GIMBAL_TYPES,
+    SYSTEM_SWITCH_S,
     Adoption,
     AdoptionChange,
     Source,
@@ -145,7 +146,8 @@ class MavlinkLink:
     ``url``: pymavlink connection string. ``source_system``/``source_component``: our ids (the
     vehicle's system id and MAV_COMP_ID_ONBOARD_COMPUTER by default). ``signing_key``: 32-byte
     MAVLink 2 key or None. ``link_timeout_s``: the link is down when the autopilot has not been
-    heard for longer (and only then may another autopilot be adopted). ``target_system`` /
+    heard for longer (and only then may another autopilot of its system be adopted; one of
+    another system only after ``system_switch_s``). ``target_system`` /
     ``target_component``: pin the autopilot (None: any). ``stream_retry_s`` /
     ``stream_max_tries``: the stream watchdog's first retry wait and the requests made for a
     stream that never comes. The link starts on construction; :meth:`close` stops it.
@@ -164,6 +166,7 @@ class MavlinkLink:
         target_component: int | None = None,
         stream_retry_s: float = STREAM_RETRY_S,
         stream_max_tries: int = STREAM_MAX_TRIES,
+        system_switch_s: float = SYSTEM_SWITCH_S,
     ) -> None:
         self.url = url
         self.source_system = source_system
@@ -174,7 +177,9 @@ class MavlinkLink:
         #: Messages dropped by the autopilot source filter, by (system, component, type); the
         #: reader thread adds to it: copy it (``dict(link.ignored)``) before iterating.
         self.ignored: Counter[tuple[int, int, str]] = Counter()
-        self._adoption = Adoption(link_timeout_s, target_system, target_component, f" on {url}")
+        self._adoption = Adoption(
+            link_timeout_s, target_system, target_component, f" on {url}", system_switch_s
+        )
         self._autopilot_seen = threading.Event()
         self._streams = StreamWatchdog(stream_retry_s, stream_max_tries)
         self._subscribers: list[_Subscription] = []

@@ -14,14 +14,27 @@ Sources, per kind (newest wins when two give the same time):
   when finite, else ``yaw`` relative to the heading). If no gimbal message was ever received the
   fixed mount given to the constructor is used (a hard mount, or an autopilot without a gimbal
   driver). Once a gimbal has reported, it must keep reporting: stale gimbal data is no pose.
+  One gimbal is used: the one pinned (``gimbal_pin``: component and/or ``gimbal_device_id``),
+  else the first heard, as (system, component, ``gimbal_device_id``; MOUNT_ORIENTATION counts
+  as device 0). Another one's attitude is rejected (counted, warned about at most every
+  :data:`WARN_INTERVAL_S`): two attitudes mixed into one camera would alternate frame by frame.
+  The one in use falling silent makes the pose stale; nothing switches to another.
 - HOME_POSITION: home ``(lat, lon, alt)``, the ground plane for geolocation. With
   ``require_home`` (the default) there is no pose until the autopilot has reported it.
+- HEARTBEAT: the armed state and flight mode (:mod:`~sarmission.mavlink.flight_mode`);
+  :meth:`TelemetryBuffer.takeover_refusal` says whether the vehicle may be sent elsewhere.
 - GPS_RAW_INT: ``fix_type`` (with ``require_gps_fix``, the default, GLOBAL_POSITION_INT is
   believed only while the newest GPS_RAW_INT, at most :data:`GPS_FIX_MAX_AGE_S` old, reports a
   3D fix) and ``h_acc`` (mm, when non-zero) as the 1-sigma GNSS error per horizontal axis.
 
 Every message is checked first (:mod:`~sarmission.mavlink.telemetry_checks`: finite, in range,
-unit quaternions); GLOBAL_POSITION_INT must also not jump faster than an aircraft flies. A
+unit quaternions); GLOBAL_POSITION_INT must also not jump faster than an aircraft flies: a
+position further from its nearest believed neighbour than :data:`MAX_SPEED_MPS` times the time
+between them (at least 0.1 s) plus :data:`JUMP_SLACK_M` is rejected, however long the gap. A
+jump that persists (the rejected positions agree with one another for :data:`JUMP_CONFIRM_S`:
+the autopilot's EKF or GNSS moved its position and keeps it there) is believed with one
+warning, and the positions before it are dropped (no interpolation across it); an autopilot
+reboot (its clock restarts) drops them too. A
 rejected message is counted in :attr:`TelemetryBuffer.rejected` by reason and warned about at
 most once per :data:`WARN_INTERVAL_S` per reason; it never raises.
 
@@ -68,6 +81,7 @@ from sarmission.geo.frames import (
 )
 from sarmission.geo.geolocate import PlatformPose
 from sarmission.geo.wgs84 import geodetic_to_ned, ned_to_geodetic
+from sarmission.mavlink.flight_mode import FlightState, takeover_refusal
 from sarmission.mavlink.telemetry_checks import GPS_FIX_3D, MAX_SPEED_MPS, message_problem
 from sarmission.ratelimit import RateLimitedLog
 
@@ -85,13 +99,14 @@ MESSAGE_TYPES = (
     "HOME_POSITION",
     "GPS_RAW_INT",
     "SYSTEM_TIME",
+    "HEARTBEAT",
 )
 
 _AUTOPILOT_TYPES = frozenset(("GLOBAL_POSITION_INT", "ATTITUDE", "ATTITUDE_QUATERNION"))
 #: A GPS_RAW_INT older than this says nothing about the current fix (seconds).
 GPS_FIX_MAX_AGE_S = 5.0
-#: Positions closer in time than this are checked against each other for jumps (seconds).
-JUMP_CHECK_S = 2.0
+#: A position jump is believed once the rejected positions agree for this long (seconds).
+JUMP_CONFIRM_S = 10.0
 #: Jump allowance on top of the fastest speed: GNSS noise and EKF resets (metres).
 JUMP_SLACK_M = 10.0
 #: Least seconds between two warnings of the same rejection reason.
@@ -256,6 +271,28 @@ class _Series:
 
 
 @dataclass(frozen=True)
+class _JumpChain:
+    """Positions rejected as a jump that agree with one another: the first one's time, the
+    newest one's, and where the newest is."""
+
+    first_t: float
+    last_t: float
+    lat: float
+    lon: float
+    count: int = 1
+
+
+def _reach_m(dt: float) -> float:
+    """How far an aircraft may be from where it was ``dt`` seconds before (metres)."""
+    return MAX_SPEED_MPS * max(abs(dt), 0.1) + JUMP_SLACK_M
+
+
+def _distance_m(lat: float, lon: float, lat0: float, lon0: float) -> float:
+    n, e, _ = geodetic_to_ned(lat, lon, 0.0, lat0, lon0, 0.0)
+    return math.hypot(float(n), float(e))
+
+
+@dataclass(frozen=True)
 class _Position:
     lat: float
     lon: float
@@ -273,10 +310,19 @@ def _as_quaternion(q_or_rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     raise ValueError(f"expected a quaternion (w, x, y, z) or (roll, pitch, yaw), got {v.size}")
 
 
+def _gimbal_text(key: GimbalKey) -> str:
+    """A gimbal in words: "1/154 device 0"."""
+    return f"{key[0]}/{key[1]} device {key[2]}"
+
+
 def height_sigma_m(gnss_sigma_m: float, floor_m: float = MIN_HEIGHT_SIGMA_M) -> float:
     """The 1-sigma error of the height a fix rests on: at least :data:`VERTICAL_PER_HORIZONTAL`
     times the horizontal GNSS error, and at least ``floor_m``."""
     return max(floor_m, VERTICAL_PER_HORIZONTAL * gnss_sigma_m)
+
+
+#: A gimbal: (system, component, gimbal_device_id).
+GimbalKey = tuple[int, int, int]
 
 
 class TelemetryBuffer:
@@ -292,6 +338,8 @@ class TelemetryBuffer:
     its floor: a barometer drifts too).
     ``require_home``: no pose until a home is known (HOME_POSITION or :meth:`set_home`);
     ``require_gps_fix``: GLOBAL_POSITION_INT only while GPS_RAW_INT reports a 3D fix.
+    ``gimbal_pin``: (component, gimbal_device_id) of the gimbal to use, either None for any;
+    (None, None): the first gimbal heard.
     """
 
     def __init__(
@@ -306,6 +354,7 @@ class TelemetryBuffer:
         clock: BootClock | None = None,
         require_home: bool = True,
         require_gps_fix: bool = True,
+        gimbal_pin: tuple[int | None, int | None] = (None, None),
     ) -> None:
         if mount_frame not in GIMBAL_FRAMES:
             raise ValueError(f"mount_frame must be one of {GIMBAL_FRAMES}, got {mount_frame!r}")
@@ -330,6 +379,11 @@ class TelemetryBuffer:
         self._autopilot_source: tuple[int, int] | None = None
         self._series_source: dict[str, tuple[int, int]] = {}
         self._gps: tuple[float, int] | None = None  # (arrival, fix_type) of the newest GPS_RAW_INT
+        self._flight: FlightState | None = None  # the newest HEARTBEAT's armed state and mode
+        self._jump: _JumpChain | None = None  # positions rejected as a jump, while they agree
+        self.gimbal_pin = gimbal_pin
+        self._gimbal_key: GimbalKey | None = None  # the gimbal in use
+        self._valid_from = -math.inf  # no pose before this time (the last autopilot switch)
         self._position = _Series("position")
         self._attitude = _Series("attitude")
         self._gimbal = _Series("gimbal attitude")
@@ -355,12 +409,42 @@ class TelemetryBuffer:
             self._take_home(msg)
         elif mtype == "GPS_RAW_INT":
             self._take_gps(msg, now)
+        elif mtype == "HEARTBEAT":
+            self._take_heartbeat(msg, now)
+        elif mtype in ("GIMBAL_DEVICE_ATTITUDE_STATUS", "MOUNT_ORIENTATION") and (
+            not self._gimbal_in_use(mtype, msg, source)
+        ):
+            return
         elif mtype != "SYSTEM_TIME":
             t = self._sender_time(source, mtype, msg, now)
             if t is None:
                 self._reject(mtype, "time_boot_ms off the sender's timeline")
             else:
                 self._take_timed(mtype, msg, t, now, source)
+
+    def _gimbal_in_use(self, mtype: str, msg: Any, source: tuple[int, int]) -> bool:
+        """Whether a gimbal attitude comes from the gimbal in use (the pinned one, else the
+        first heard, adopted here); another one's is rejected."""
+        device = int(getattr(msg, "gimbal_device_id", 0) or 0)
+        key = (source[0], source[1], device)
+        pin_component, pin_device = self.gimbal_pin
+        if (pin_component is not None and key[1] != pin_component) or (
+            pin_device is not None and key[2] != pin_device
+        ):
+            self._reject(mtype, f"gimbal {_gimbal_text(key)} is not the configured one")
+            return False
+        if self._gimbal_key is None:
+            self._gimbal_key = key
+            log.info("gimbal %s in use for the camera's attitude", _gimbal_text(key))
+            return True
+        if key != self._gimbal_key:
+            self._reject(
+                mtype,
+                f"a second gimbal {_gimbal_text(key)}; using {_gimbal_text(self._gimbal_key)} "
+                "(pin one with [camera] gimbal_component / gimbal_device_id)",
+            )
+            return False
+        return True
 
     def _take_gps(self, msg: Any, now: float) -> None:
         """GPS_RAW_INT: the fix type (no position is believed without a fix) and its accuracy."""
@@ -369,6 +453,24 @@ class TelemetryBuffer:
         if 0 < h_acc < 0xFFFFFFFF:
             self.gnss_sigma_m = max(h_acc / 1000.0, MIN_GNSS_SIGMA_M)
             self.alt_sigma_m = height_sigma_m(self.gnss_sigma_m, self._alt_sigma_floor_m)
+
+    def _take_heartbeat(self, msg: Any, now: float) -> None:
+        """HEARTBEAT: the armed state and flight mode; a change is logged once."""
+        state = FlightState.from_heartbeat(msg, now)
+        old = self._flight
+        if old is None or (old.armed, old.mode) != (state.armed, state.mode):
+            log.info("autopilot %s, mode %s", "armed" if state.armed else "disarmed", state.mode)
+        self._flight = state
+
+    @property
+    def flight_state(self) -> FlightState | None:
+        """The newest HEARTBEAT's armed state and flight mode (None before one)."""
+        return self._flight
+
+    def takeover_refusal(self, now: float | None = None) -> str:
+        """Why the vehicle may not be sent anywhere now ("" when it may): disarmed, a mode
+        not known to be safe to take over (RTL, LAND...), or no current HEARTBEAT."""
+        return takeover_refusal(self._flight, time.monotonic() if now is None else now)
 
     def _sender_time(
         self, source: tuple[int, int], mtype: str, msg: Any, now: float
@@ -450,6 +552,8 @@ class TelemetryBuffer:
             if self._series_source.get(name) == source and series.times:
                 series.clear()
                 dropped.append(name)
+                if name == "position":
+                    self._jump = None
         if source == self._autopilot_source:
             self._home = None
             self._gps = None
@@ -500,7 +604,7 @@ class TelemetryBuffer:
                 return
         lat, lon = msg.lat / 1e7, msg.lon / 1e7
         jump = self._position_jump(t, lat, lon)
-        if jump:
+        if jump and not self._jump_persists(t, lat, lon):
             self._reject("GLOBAL_POSITION_INT", jump)
             return
         self._series_source["position"] = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
@@ -514,10 +618,14 @@ class TelemetryBuffer:
         )
 
     def _position_jump(self, t: float, lat: float, lon: float) -> str:
-        """Why a position at ``t`` is implausible next to its nearest buffered neighbour."""
+        """Why a position at ``t`` is implausible next to its nearest buffered neighbour: the
+        allowance grows with the time between them, there is no time beyond which anything
+        goes. One that fits the jump in progress better than the believed track joins the
+        jump; a plausible one ends it (the glitch is over)."""
         with self._lock:
             times = self._position.times
             if not times:
+                self._jump = None
                 return ""
             i = bisect.bisect_left(times, t)
             nearest = min(
@@ -525,13 +633,53 @@ class TelemetryBuffer:
             )
             near_t, near = times[nearest], self._position.values[nearest]
         dt = abs(t - near_t)
-        if dt > JUMP_CHECK_S:
-            return ""
-        n, e, _ = geodetic_to_ned(lat, lon, 0.0, near.lat, near.lon, 0.0)
-        distance = math.hypot(float(n), float(e))
+        distance = _distance_m(lat, lon, near.lat, near.lon)
         if distance > MAX_SPEED_MPS * max(dt, 0.1) + JUMP_SLACK_M:
             return f"position jump of {distance:.0f} m in {dt:.2f} s"
+        chain_fit = self._jump_fit(t, lat, lon)
+        if chain_fit <= 1.0 and chain_fit < distance / _reach_m(dt):
+            return f"position agrees with a jump of {distance:.0f} m not yet believed"
+        self._jump = None
         return ""
+
+    def _jump_fit(self, t: float, lat: float, lon: float) -> float:
+        """Distance of a position at ``t`` from the newest of the jump in progress, as a
+        fraction of an aircraft's reach since then (<= 1: it continues the jump; inf: none)."""
+        chain = self._jump
+        if chain is None:
+            return math.inf
+        return _distance_m(lat, lon, chain.lat, chain.lon) / _reach_m(t - chain.last_t)
+
+    def _jump_continues(self, t: float, lat: float, lon: float) -> bool:
+        """Whether a position at ``t`` is reachable from the newest of the jump in progress."""
+        return self._jump_fit(t, lat, lon) <= 1.0
+
+    def _jump_persists(self, t: float, lat: float, lon: float) -> bool:
+        """A rejected position joins the jump in progress (or starts one); True once the jump
+        has held for :data:`JUMP_CONFIRM_S`: then it is believed (one warning) and the
+        positions from before it are dropped."""
+        chain = self._jump
+        if chain is None or not self._jump_continues(t, lat, lon):
+            self._jump = _JumpChain(t, t, lat, lon)
+            return False
+        chain = _JumpChain(chain.first_t, max(chain.last_t, t), lat, lon, chain.count + 1)
+        if chain.last_t - chain.first_t < JUMP_CONFIRM_S:
+            self._jump = chain
+            return False
+        newest = self.latest_position()
+        moved = _distance_m(lat, lon, *newest) if newest is not None else math.nan
+        with self._lock:
+            self._position.clear()
+            self._jump = None
+            self.resets += 1
+        log.warning(
+            "position jumped %.0f m and stayed there for %.0f s (%d positions): believed as the "
+            "autopilot's new position (an EKF or GNSS reset); earlier positions dropped",
+            moved,
+            chain.last_t - chain.first_t,
+            chain.count,
+        )
+        return True
 
     # -- direct input (replay, simulator) ------------------------------------------------------
     def push_position(
@@ -591,13 +739,19 @@ class TelemetryBuffer:
         with self._lock:
             return bool(self._gimbal.times)
 
-    def reset(self, why: str) -> None:
-        """Forget every sample, the home and the clocks (e.g. another autopilot was adopted)."""
+    def reset(self, why: str, at: float | None = None) -> None:
+        """Forget every sample, the home and the clocks (e.g. another autopilot was adopted),
+        and refuse poses for times before ``at`` (default now): a frame taken before the switch
+        is never placed with the new autopilot's telemetry."""
         with self._lock:
+            self._valid_from = time.monotonic() if at is None else at
             for series in (self._position, self._attitude, self._gimbal):
                 series.clear()
             self._home = None
             self._gps = None
+            self._flight = None
+            self._jump = None
+            self._gimbal_key = None
             self._clocks.clear()
             self._autopilot_source = None
             self._series_source.clear()
@@ -625,6 +779,8 @@ class TelemetryBuffer:
         if not math.isfinite(t):
             return StaleTelemetry(t, "frame time not finite")
         with self._lock:
+            if t < self._valid_from:
+                return StaleTelemetry(t, "taken before the autopilot was replaced")
             if self.require_home and self._home is None:
                 return StaleTelemetry(t, "no home position from the autopilot yet")
             pos = self._interp_position(t)

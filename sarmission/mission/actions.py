@@ -27,7 +27,15 @@ refined (:mod:`~sarmission.mission.refinement`), a visit still queued for it goe
 position (:meth:`ActionPolicy.refine`); nothing already sent is sent again. Positional actions are
 withheld, with the reason on the console, for a position whose error exceeds ``max_error_m`` or
 that lies more than ``area_margin_m`` outside the mission area
-(:class:`~sarmission.mission.visits.MoveGate`). A queued visit is withdrawn when, by the time
+(:class:`~sarmission.mission.visits.MoveGate`), and while the vehicle may not be taken over
+(``takeover``, from the autopilot's HEARTBEAT: disarmed, landing, returning home (RTL,
+SMART_RTL, LAND), braking, flown by hand, or its mode unknown or stale;
+:mod:`~sarmission.mavlink.flight_mode`): a loiter or visit would cancel the pilot's or a
+failsafe's landing. That is checked when the action is queued, when a visit is due (the
+queued visits are withdrawn), and by the outbox right before a command goes out (one queued
+while the link was down). The STATUSTEXT and the feed carry the alert regardless. In AUTO,
+``loiter`` does switch the vehicle to GUIDED (the survey stops at the target; the pilot
+resumes it); ``mission`` keeps the survey. A queued visit is withdrawn when, by the time
 it is due, the operator has dismissed its alert or the gate refuses it as the store now has it
 (its confidence rated down by the operator's decisions); a visit withheld only because its
 target was too unlikely a person is queued once the operator's decisions on other alerts rate
@@ -59,6 +67,7 @@ from sarmission.mavlink.mission_transfer import loiter_item
 from sarmission.mavlink.outbox_commands import (
     ClearRoi,
     InsertVisits,
+    OutboxCommand,
     Reposition,
     SetRoi,
     StatusText,
@@ -78,6 +87,8 @@ CHANNELS: dict[str, str] = {
 }
 _POSITIONAL = ("loiter", "roi", "mission")
 _VISITS = ("loiter", "mission")
+#: Commands that send the vehicle somewhere or turn it: withheld while it may not be taken over.
+_TAKEOVER_COMMANDS = (Reposition, SetRoi, InsertVisits)
 #: How often (seconds) visits withheld for their confidence are checked against the store.
 RATED_UP_CHECK_S = 1.0
 #: Outbox key channel of the camera release (not an alert delivery: nothing is stored).
@@ -105,6 +116,8 @@ class ActionPolicy:
     decides where the aircraft may be sent (None: nowhere: positional actions are withheld);
     ``aircraft_position`` gives its latest ``(lat, lon)`` (nearest visit first);
     ``gimbal_present`` says whether a gimbal reports its attitude (the ROI pause needs one).
+    ``takeover`` says why the vehicle may not be taken over now ("" when it may; None: its
+    flight mode is not tracked, so positional actions are withheld).
     ``console`` receives one line per command answered and per STATUSTEXT sent all its
     repeats; ``clock`` gives the seconds that ``roi_hold_s`` is counted in. Counters:
     ``acknowledged`` (commands accepted), ``refused``, ``sent`` (STATUSTEXT alerts sent all
@@ -124,6 +137,7 @@ class ActionPolicy:
         move_gate: MoveGate | None = None,
         aircraft_position: Callable[[], tuple[float, float] | None] = lambda: None,
         gimbal_present: Callable[[], bool] = lambda: False,
+        takeover: Callable[[], str] | None = None,
     ) -> None:
         if "loiter" in config.policy and "mission" in config.policy:
             raise ValueError("policy can hold loiter or mission, not both (one visit plan)")
@@ -142,6 +156,7 @@ class ActionPolicy:
         self.move_gate = move_gate
         self.aircraft_position = aircraft_position
         self.gimbal_present = gimbal_present
+        self.takeover = takeover
         self.planner = VisitPlanner(
             config.visit_interval_s, config.visit_group_radius_m, clock=clock
         )
@@ -158,6 +173,7 @@ class ActionPolicy:
         outbox.set_callbacks(
             on_delivered=self._on_delivered, on_refused=self._on_refused, on_sent=self._on_sent
         )
+        outbox.set_gate(self._outbox_gate)
 
     @property
     def delivered(self) -> int:
@@ -170,7 +186,8 @@ class ActionPolicy:
         return (
             f"autopilot commands acknowledged: {self.acknowledged}, refused: {self.refused}"
             + (
-                f", withheld (no bounded position in the area): {self.withheld}"
+                f", withheld (no bounded position in the area, or the vehicle not to be "
+                f"taken over): {self.withheld}"
                 if self.withheld
                 else ""
             )
@@ -278,6 +295,17 @@ class ActionPolicy:
             return "no mission area to check it against"
         return self.move_gate.refusal(alert.position, alert.error_m, alert.confidence)
 
+    def _takeover_refusal(self) -> str:
+        """Why the vehicle may not be taken over now ("" when it may)."""
+        if self.takeover is None:
+            return "the vehicle's flight mode is not tracked"
+        return self.takeover()
+
+    def _outbox_gate(self, command: OutboxCommand) -> str:
+        """The outbox's last check before a command goes out: positional ones only while the
+        vehicle may be taken over."""
+        return self._takeover_refusal() if isinstance(command, _TAKEOVER_COMMANDS) else ""
+
     def _roi_on_its_way(self) -> bool:
         return any(isinstance(a.command, SetRoi) for a in self.outbox.pending())
 
@@ -303,11 +331,23 @@ class ActionPolicy:
             if entry in _VISITS and self._too_unlikely_alone(alert):
                 self._too_unlikely[alert.target_id] = alert
             return False
+        takeover = self._takeover_refusal()
+        if takeover:
+            self.withheld += 1
+            self.console(
+                f"  -> target {alert.target_id} ({alert.short_id}): {entry} withheld: "
+                f"{takeover}{self._alert_goes_out()}"
+            )
+            return False
         if entry == "roi":
             lat, lon = alert.position
             self.outbox.submit(SetRoi(lat, lon, self.target_altitude_m), key=key)
             return True
         return self._queue_visit(alert)
+
+    def _alert_goes_out(self) -> str:
+        """What still tells the pilot of the alert, for a withheld action's console line."""
+        return "; the alert goes out as STATUSTEXT" if "alert" in self.policy else ""
 
     def _queue_visit(self, alert: Alert) -> bool:
         """Put ``alert``'s target (placed, past the move gate) in the visit plan; False when
@@ -352,6 +392,12 @@ class ActionPolicy:
         if not self.planner.pending or self.planner.seconds_to_next() > 0:
             return
         self._withdraw_overruled()
+        takeover = self._takeover_refusal()
+        if takeover:
+            for target_id in list(self.planner.pending):
+                alert = self._visit_alerts.get(target_id)
+                self._withdraw_visit(target_id, alert.short_id if alert else "", takeover)
+                self.withheld += 1
         if not self.planner.pending:
             return
         here = self.aircraft_position()
@@ -428,6 +474,14 @@ class ActionPolicy:
     def _on_refused(self, action: Action, result: CommandResult) -> None:
         key = _key(action)
         if key is None:
+            return
+        if result.withheld:
+            self.withheld += 1
+            entry = next((e for e, c in CHANNELS.items() if c == key.channel), key.channel)
+            self.console(
+                f"  -> target {key.target_id} ({key.short_id}): {entry} {result.error}"
+                f"{self._alert_goes_out()}"
+            )
             return
         self.refused += 1
         if key.channel == ROI_RELEASE:  # where the camera looks is unknown: search on regardless

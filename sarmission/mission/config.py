@@ -120,6 +120,9 @@ class CameraConfig:
     ``mount_pitch_deg`` is the fixed (or default gimbal) pitch: -90 nadir, 0 horizon.
     ``gimbal = true``: a stabilised gimbal reporting GIMBAL_DEVICE_ATTITUDE_STATUS; false: a hard
     mount fixed to the body (no gimbal messages, the camera tilts with the vehicle).
+    ``gimbal_component`` / ``gimbal_device_id``: the gimbal whose attitude is the camera's
+    (its MAVLink component, e.g. 154, or the autopilot's for a gimbal it drives; its
+    ``gimbal_device_id``); unset: the first gimbal heard. Others are ignored.
     """
 
     width: int = 3840
@@ -127,6 +130,8 @@ class CameraConfig:
     hfov_deg: float = 70.0
     mount_pitch_deg: float = -90.0
     gimbal: bool = True
+    gimbal_component: int | None = None
+    gimbal_device_id: int | None = None
     fx: float | None = None
     fy: float | None = None
     cx: float | None = None

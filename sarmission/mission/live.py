@@ -77,6 +77,7 @@ def telemetry_buffer(mission: MissionConfig, transport_latency_s: float = 0.0) -
         mount_rpy=(0.0, math.radians(mission.camera.mount_pitch_deg), 0.0),
         mount_frame="vehicle" if mission.camera.gimbal else "body",
         clock=BootClock(transport_latency_s=transport_latency_s),
+        gimbal_pin=(mission.camera.gimbal_component, mission.camera.gimbal_device_id),
     )
 
 
@@ -209,6 +210,7 @@ class LiveSession:
             move_gate=MoveGate.from_mission(mission),
             aircraft_position=telemetry.latest_position,
             gimbal_present=lambda: telemetry.gimbal_reported,
+            takeover=telemetry.takeover_refusal,
         )
         resumed = self.actions.resume()
         if resumed:
