@@ -696,10 +696,11 @@ class Outbox:
                 self._finish(action, result, self._callbacks.refused)
 
     def _finish(self, action: Action, result: CommandResult, cb: ActionCallback | None) -> None:
+        # recorded before it leaves the pending list: "not pending" means "stored"
+        self._call(cb, action, result)
         with self._lock:
             if action in self._pending:
                 self._pending.remove(action)
-        self._call(cb, action, result)
 
     # -- STATUSTEXT --------------------------------------------------------------------------
     def _text_loop(self) -> None:
@@ -734,11 +735,12 @@ class Outbox:
         due.last_result = result
         self._last_text_send = time.monotonic()
         due.next_at = self._last_text_send + due.interval_s
+        # recorded before it leaves the pending list: "not pending" means "stored as sent"
+        self._call(self._callbacks.sent, due, result)
         if due.done:
             with self._lock:
                 if due in self._texts:
                     self._texts.remove(due)
-        self._call(self._callbacks.sent, due, result)
         return STATUSTEXT_MIN_GAP_S
 
     @staticmethod
