@@ -65,8 +65,17 @@ def test_refusals_from_the_simulated_autopilot_carry_its_reason_to_the_store(tmp
         store.add(alert)
         actions.announce(alert)
         # the controller ticks the policy every frame: the visit plan sends the reposition
+        # the outcome is handled just after the action leaves the outbox: wait for the store
         assert wait_until(
-            lambda: actions.tick() or (not actions.pending() and not actions.planner.pending), 10.0
+            lambda: (
+                actions.tick()
+                or (
+                    not actions.pending()
+                    and not actions.planner.pending
+                    and bool(store.get(alert.alert_id).refused)
+                )
+            ),
+            10.0,
         )
         stored = store.get(alert.alert_id)
     finally:

@@ -260,6 +260,7 @@ class BootRecord:
     policy_refused: int = 0
     policy_delivered: int = 0
     policy_pending: int = 0
+    policy_withheld: int = 0
     console: list[str] = field(default_factory=list)
     home_message: Any = None
     pose_after: PlatformPose | StaleTelemetry | None = None
@@ -300,6 +301,7 @@ def boot(vehicle: Vehicle) -> BootRecord:
         rec.policy_refused = session.actions.refused
         rec.policy_delivered = session.actions.delivered
         rec.policy_pending = session.actions.pending()
+        rec.policy_withheld = session.actions.withheld
 
         rec.gps_enabled_at = time.monotonic()
         pilot.set_param("SIM_GPS1_ENABLE", 1)
@@ -446,20 +448,20 @@ def test_pose_and_home_match_the_autopilot_after_fix_and_home(
     assert distance_m(pose.lat, pose.lon, HOME[0], HOME[1]) < 5.0
 
 
-def test_reposition_refused_before_the_autopilot_has_a_position(
+def test_reposition_refused_before_the_autopilot_has_a_position_and_loiter_withheld(
     sitl_binary: Path, boot: BootRecord
 ) -> None:
     """Without a position ArduPilot refuses DO_REPOSITION with MAV_RESULT_FAILED: our sender
-    reports the refusal after one attempt (no retries on an answer), and the action policy's
-    loiter for a target ends refused (not delivered, not left queued)."""
+    reports the refusal after one attempt (no retries on an answer). The action policy never
+    sends its loiter to a disarmed vehicle on the ground: withheld, with the reason, not
+    delivered, not left queued."""
     result = boot.reposition_without_gps
     assert result is not None and not result.accepted
     assert result.result == M.MAV_RESULT_FAILED and result.attempts == 1
     assert "MAV_RESULT_FAILED" in result.error
-    assert (boot.policy_refused, boot.policy_delivered, boot.policy_pending) == (1, 0, 0)
-    assert any(
-        "MAV_CMD_DO_REPOSITION refused: MAV_RESULT_FAILED" in line for line in boot.console
-    ), boot.console
+    assert (boot.policy_refused, boot.policy_delivered, boot.policy_pending) == (0, 0, 0)
+    assert boot.policy_withheld == 1
+    assert any("loiter withheld: vehicle disarmed" in line for line in boot.console), boot.console
 
 
 # -- on the ground, with home ---------------------------------------------------------------------

@@ -696,11 +696,12 @@ class Outbox:
                 self._finish(action, result, self._callbacks.refused)
 
     def _finish(self, action: Action, result: CommandResult, cb: ActionCallback | None) -> None:
-        # recorded before it leaves the pending list: "not pending" means "stored"
-        self._call(cb, action, result)
+        # leaves the pending list first: a delivered ROI is no longer "on its way" when its
+        # delivery is handled (callers waiting for the outcome wait for the store, not the list)
         with self._lock:
             if action in self._pending:
                 self._pending.remove(action)
+        self._call(cb, action, result)
 
     # -- STATUSTEXT --------------------------------------------------------------------------
     def _text_loop(self) -> None:
