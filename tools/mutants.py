@@ -1626,8 +1626,10 @@ MUTANTS: list[Mutant] = [
     Mutant(
         "controller.frames_of_another_shape_stretched",
         "sarmission/mission/controller.py",
-        "self._intrinsics = self._camera.for_frames(shape[1], shape[0])",
-        "self._intrinsics = self._camera.scaled(shape[1], shape[0])",
+        "self._shape = shape\n"
+        "            self._intrinsics = self._camera.for_frames(shape[1], shape[0])",
+        "self._shape = shape\n"
+        "            self._intrinsics = self._camera.scaled(shape[1], shape[0])",
         ("tests/test_controller.py",),
         "position",
         "frames of another aspect ratio than the camera's stretch its pixels: positions move "
