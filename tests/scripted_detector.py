@@ -4,6 +4,8 @@ not what is under test: one replays a per-frame script, the other finds bright b
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -34,7 +36,11 @@ class ScriptedDetector:
         self.per_stage_ms: dict[str, float] = {}
 
     def process(
-        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+        self,
+        frame_bgr: np.ndarray,
+        timestamp: float,
+        shift_px: tuple[float, float] | None = None,
+        person_px: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> FrameResult:
         items = self.script[self.calls] if self.calls < len(self.script) else []
         self.calls += 1
@@ -59,7 +65,11 @@ class BlobDetector:
         self.per_stage_ms: dict[str, float] = {}
 
     def process(
-        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+        self,
+        frame_bgr: np.ndarray,
+        timestamp: float,
+        shift_px: tuple[float, float] | None = None,
+        person_px: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> FrameResult:
         grey = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2GRAY)
         n, _, stats, _ = cv2.connectedComponentsWithStats(

@@ -417,7 +417,7 @@ def test_run_mitenet_resets_between_videos_in_frame_order(annotations):
         def reset(self) -> None:
             self.calls.append("reset")
 
-        def process(self, frame, timestamp: float) -> FrameResult:
+        def process(self, frame, timestamp: float, person_px=None) -> FrameResult:
             self.calls.append(f"{frame.shape[1]}x{frame.shape[0]}@{timestamp * 30:.0f}")
             empty = np.zeros((0, 0), np.float32)
             return FrameResult(

@@ -43,6 +43,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -105,7 +106,11 @@ class OracleDetector:
         self._prev_time: float | None = None
 
     def process(
-        self, frame_bgr: np.ndarray, timestamp: float, shift_px: tuple[float, float] | None = None
+        self,
+        frame_bgr: np.ndarray,
+        timestamp: float,
+        shift_px: tuple[float, float] | None = None,
+        person_px: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> FrameResult:
         truth = self.camera.truth[-1]  # the frame the controller is processing now
         self.calls += 1

@@ -98,12 +98,7 @@ def run_mitenet(
                 frame = item.frame_bgr
                 start = time.perf_counter()
                 person_px = None if person_px_of is None else person_px_of(item.image)
-                t = position / NOMINAL_FPS
-                result = (
-                    net.process(frame, t)
-                    if person_px is None
-                    else net.process(frame, t, person_px=person_px)
-                )
+                result = net.process(frame, position / NOMINAL_FPS, person_px=person_px)
                 run.frame_ms.append((time.perf_counter() - start) * 1e3)
                 for stage, ms in net.per_stage_ms.items():
                     run.stage_ms.setdefault(stage, []).append(ms)

@@ -110,6 +110,7 @@ class Detector(Protocol):
         frame_bgr: np.ndarray | YuvImage,
         timestamp: float,
         shift_px: tuple[float, float] | None = None,
+        person_px: PersonPixels | None = None,
     ) -> FrameResult: ...
 
     def reset(self) -> None: ...
@@ -315,11 +316,7 @@ class MissionController:
     ) -> tuple[FrameResult, list[TrackState], np.ndarray]:
         """Detections of the frame, the tracks they update, and the scene offset (the camera's
         accumulated shift, as a box offset)."""
-        person_px = self._person_px(timestamp)
-        if person_px is None:
-            result = self.detector.process(frame, timestamp)
-        else:
-            result = self.detector.process(frame, timestamp, person_px=person_px)
+        result = self.detector.process(frame, timestamp, person_px=self._person_px(timestamp))
         shift = result.camera_shift
         tracks = self.tracker.update(result.detections, frame_index, timestamp, camera_shift=shift)
         if shift is not None:

@@ -63,6 +63,7 @@ def dataset_person_px(
         return lambda image: None
     rules = dataset_conventions(dataset, conventions)
     lenses = {v.id: v.extra.get("hfov_deg") for v in dataset.videos}
+    intrinsics: dict[tuple[int, int, float], CameraIntrinsics] = {}  # one per lens and size
 
     def of(image: ImageRecord) -> PersonPixels | None:
         hfov = hfov_deg if hfov_deg is not None else lenses.get(image.video_id)
@@ -71,7 +72,9 @@ def dataset_person_px(
         placed = meta_pose(image.telemetry, rules)
         if not isinstance(placed, MetaPose):
             return None
-        intrinsics = CameraIntrinsics.from_hfov(image.width, image.height, float(hfov))
-        return pose_person_px(intrinsics, frame_pose(placed), person_m)
+        key = (image.width, image.height, float(hfov))
+        if key not in intrinsics:
+            intrinsics[key] = CameraIntrinsics.from_hfov(*key)
+        return pose_person_px(intrinsics[key], frame_pose(placed), person_m)
 
     return of
